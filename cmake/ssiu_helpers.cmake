@@ -1,0 +1,32 @@
+# One-line helpers for a stage library, a test and a benchmark (after COLMAP's COLMAP_ADD_LIBRARY).
+
+# ssiu_add_library(NAME stage SOURCES a.cc b.cc DEPS ssiu_core ...)
+function(ssiu_add_library)
+  cmake_parse_arguments(A "" "NAME" "SOURCES;DEPS" ${ARGN})
+  add_library(ssiu_${A_NAME} STATIC ${A_SOURCES})
+  target_include_directories(ssiu_${A_NAME} PUBLIC ${CMAKE_SOURCE_DIR}/src)
+  target_compile_options(ssiu_${A_NAME} PRIVATE ${SSIU_WARNINGS})
+  target_link_libraries(ssiu_${A_NAME} PUBLIC ${A_DEPS})
+endfunction()
+
+# ssiu_add_test(NAME detect_test SOURCES detect_test.cc DEPS ssiu_detect [LABELS long])
+function(ssiu_add_test)
+  cmake_parse_arguments(A "" "NAME" "SOURCES;DEPS;LABELS" ${ARGN})
+  add_executable(${A_NAME} ${A_SOURCES})
+  target_compile_options(${A_NAME} PRIVATE ${SSIU_WARNINGS})
+  target_link_libraries(${A_NAME} PRIVATE ${A_DEPS} ssiu_testing GTest::gtest GTest::gmock GTest::gtest_main)
+  add_test(NAME ${A_NAME} COMMAND ${A_NAME})
+  set_tests_properties(${A_NAME} PROPERTIES
+    ENVIRONMENT "SSIU_SHARED_DIR=${SSIU_SHARED_DIR};SSIU_SOURCE_DIR=${CMAKE_SOURCE_DIR};SSIU_BINARY_DIR=${CMAKE_BINARY_DIR}")
+  if(A_LABELS)
+    set_tests_properties(${A_NAME} PROPERTIES LABELS "${A_LABELS}")
+  endif()
+endfunction()
+
+# ssiu_add_bench(NAME detect_bench SOURCES detect_bench.cc DEPS ssiu_detect)
+function(ssiu_add_bench)
+  cmake_parse_arguments(A "" "NAME" "SOURCES;DEPS" ${ARGN})
+  add_executable(${A_NAME} ${A_SOURCES})
+  target_compile_options(${A_NAME} PRIVATE ${SSIU_WARNINGS})
+  target_link_libraries(${A_NAME} PRIVATE ${A_DEPS} benchmark::benchmark)
+endfunction()

@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# Idempotent set-up of a fresh Debian machine (run as root): packages, catalogs, build.
+# Usage: scripts/setup.sh [build-dir] [cmake args...]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PKGS="build-essential cmake ninja-build pkg-config libopencv-dev libeigen3-dev libflann-dev \
+libapriltag-dev libcfitsio-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev nlohmann-json3-dev xplanet"
+missing=""
+for p in $PKGS; do dpkg -s "$p" >/dev/null 2>&1 || missing="$missing $p"; done
+if [ -n "$missing" ]; then
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -qq
+  apt-get install -y -qq --no-install-recommends $missing >/dev/null
+fi
+# Hipparcos/Tycho star catalog: only stars.dat out of kstars-data (the package itself pulls in Qt).
+if [ ! -s /usr/share/kstars/stars.dat ]; then
+  tmp=$(mktemp -d)
+  (cd "$tmp" && apt-get download -qq kstars-data >/dev/null && dpkg-deb -x kstars-data_*.deb x)
+  install -D -m 644 "$tmp/x/usr/share/kstars/stars.dat" /usr/share/kstars/stars.dat
+  rm -rf "$tmp"
+fi
+BUILD=${1:-build}; shift || true
+cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release "$@" >/dev/null
+cmake --build "$BUILD" -j"$(nproc)"

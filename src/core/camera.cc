@@ -1,0 +1,143 @@
+#include "core/camera.h"
+
+#include <cmath>
+
+#include "core/error.h"
+
+namespace ssiu {
+
+void Camera::Check(const std::string& source) const {
+  if (width < 8 || width > 65536) throw InputError(source, "width must be 8..65536 pixels");
+  if (height < 8 || height > 65536) throw InputError(source, "height must be 8..65536 pixels");
+  if (!std::isfinite(focal_length_px) || focal_length_px < 10 || focal_length_px > 1e6) {
+    throw InputError(source, "focal_length_px must be 10..1e6 pixels");
+  }
+  if (!std::isfinite(cx_px) || !std::isfinite(cy_px) || cx_px < -0.5 || cy_px < -0.5 ||
+      cx_px > width - 0.5 || cy_px > height - 0.5) {
+    throw InputError(source, "principal_point must lie inside the image");
+  }
+  for (double k : {distortion.k1, distortion.k2, distortion.k3, distortion.p1, distortion.p2}) {
+    if (!std::isfinite(k) || std::abs(k) > 10) throw InputError(source, "distortion coefficients must be finite, |k| <= 10");
+  }
+  if (!std::isfinite(gain_e_per_adu) || gain_e_per_adu < 0) throw InputError(source, "gain_e_per_adu must be >= 0");
+}
+
+double Camera::FovXRad() const { return 2 * std::atan(0.5 * width / focal_length_px); }
+double Camera::FovYRad() const { return 2 * std::atan(0.5 * height / focal_length_px); }
+double Camera::FovDiagRad() const {
+  return 2 * std::atan(0.5 * std::hypot(width, height) / focal_length_px);
+}
+
+Vec2 Camera::Distort(const Vec2& u) const {
+  // OpenCV's Brown-Conrady model (cv::projectPoints documentation).
+  const Distortion& d = distortion;
+  const double x = u.x(), y = u.y(), r2 = x * x + y * y;
+  const double radial = 1 + r2 * (d.k1 + r2 * (d.k2 + r2 * d.k3));
+  return {x * radial + 2 * d.p1 * x * y + d.p2 * (r2 + 2 * x * x),
+          y * radial + d.p1 * (r2 + 2 * y * y) + 2 * d.p2 * x * y};
+}
+
+Vec2 Camera::Undistort(const Vec2& dist) const {
+  if (distortion.IsZero()) return dist;
+  // Newton iterations on Distort(u) = dist with a numerical Jacobian; converges in a few steps for
+  // the modest distortions of star-tracker optics.
+  Vec2 u = dist;
+  for (int it = 0; it < 20; ++it) {
+    const Vec2 f = Distort(u) - dist;
+    if (f.norm() < 1e-15) break;
+    const double h = 1e-7;
+    Mat2 jac;
+    jac.col(0) = (Distort(u + Vec2(h, 0)) - Distort(u - Vec2(h, 0))) / (2 * h);
+    jac.col(1) = (Distort(u + Vec2(0, h)) - Distort(u - Vec2(0, h))) / (2 * h);
+    u -= jac.inverse() * f;
+  }
+  return u;
+}
+
+std::optional<Vec2> Camera::Project(const Vec3& v) const {
+  if (v.z() <= 1e-9 * v.norm()) return std::nullopt;
+  const Vec2 d = Distort(Vec2(v.x() / v.z(), v.y() / v.z()));
+  return Vec2(cx_px + focal_length_px * d.x(), cy_px + focal_length_px * d.y());
+}
+
+Vec3 Camera::Unproject(const Vec2& p) const {
+  const Vec2 u = Undistort(Vec2((p.x() - cx_px) / focal_length_px, (p.y() - cy_px) / focal_length_px));
+  return Vec3(u.x(), u.y(), 1.0).normalized();
+}
+
+bool Camera::InImage(const Vec2& p, double margin) const {
+  return p.x() >= -0.5 + margin && p.y() >= -0.5 + margin && p.x() <= width - 0.5 - margin &&
+         p.y() <= height - 0.5 - margin;
+}
+
+Camera MakeCamera(int width, int height, double fov_x_deg) {
+  Camera c;
+  c.width = width;
+  c.height = height;
+  c.focal_length_px = 0.5 * width / std::tan(0.5 * fov_x_deg * kDegToRad);
+  c.cx_px = 0.5 * (width - 1);
+  c.cy_px = 0.5 * (height - 1);
+  return c;
+}
+
+Camera CameraFromJson(const Json& j, const std::string& source) {
+  if (!j.is_object()) throw InputError(source, "camera must be a JSON object");
+  Camera c;
+  const double w = JsonNumber(j, "width", source), h = JsonNumber(j, "height", source);
+  if (w != std::floor(w) || h != std::floor(h) || w < 8 || h < 8 || w > 65536 || h > 65536) {
+    throw InputError(source, "width and height must be whole numbers of pixels, 8..65536");
+  }
+  c.width = static_cast<int>(w);
+  c.height = static_cast<int>(h);
+  if (j.contains("focal_length_px")) {
+    c.focal_length_px = JsonNumber(j, "focal_length_px", source);
+  } else if (j.contains("focal_length_mm")) {
+    const double f_mm = JsonNumber(j, "focal_length_mm", source);
+    const double pitch_um = JsonNumber(j, "pixel_pitch_um", source);
+    if (pitch_um <= 0) throw InputError(source, "field 'pixel_pitch_um' must be > 0");
+    c.focal_length_px = f_mm * 1000.0 / pitch_um;
+  } else {
+    throw InputError(source, "missing field 'focal_length_px' (or 'focal_length_mm' + 'pixel_pitch_um')");
+  }
+  c.cx_px = 0.5 * (c.width - 1);
+  c.cy_px = 0.5 * (c.height - 1);
+  if (j.contains("principal_point")) {
+    const Json& pp = j.at("principal_point");
+    if (!pp.is_array() || pp.size() != 2 || !pp[0].is_number() || !pp[1].is_number()) {
+      throw InputError(source, "field 'principal_point' must be [x, y]");
+    }
+    c.cx_px = pp[0].get<double>();
+    c.cy_px = pp[1].get<double>();
+  }
+  if (j.contains("distortion")) {
+    const Json& d = j.at("distortion");
+    if (!d.is_object()) throw InputError(source, "field 'distortion' must be an object");
+    c.distortion.k1 = JsonNumberOr(d, "k1", 0, source);
+    c.distortion.k2 = JsonNumberOr(d, "k2", 0, source);
+    c.distortion.k3 = JsonNumberOr(d, "k3", 0, source);
+    c.distortion.p1 = JsonNumberOr(d, "p1", 0, source);
+    c.distortion.p2 = JsonNumberOr(d, "p2", 0, source);
+  }
+  c.gain_e_per_adu = JsonNumberOr(j, "gain_e_per_adu", 0, source);
+  c.Check(source);
+  return c;
+}
+
+Camera LoadCamera(const std::string& path) { return CameraFromJson(ReadJsonFile(path), path); }
+
+Json CameraToJson(const Camera& c) {
+  Json j = {{"width", c.width},
+            {"height", c.height},
+            {"focal_length_px", c.focal_length_px},
+            {"principal_point", {c.cx_px, c.cy_px}},
+            {"distortion",
+             {{"k1", c.distortion.k1},
+              {"k2", c.distortion.k2},
+              {"k3", c.distortion.k3},
+              {"p1", c.distortion.p1},
+              {"p2", c.distortion.p2}}}};
+  if (c.gain_e_per_adu > 0) j["gain_e_per_adu"] = c.gain_e_per_adu;
+  return j;
+}
+
+}  // namespace ssiu

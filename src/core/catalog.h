@@ -1,0 +1,35 @@
+// Star catalogs as read from their sources. `star_id` is the number in the source catalog
+// (HR for the Bright Star Catalogue). Issue-level features (proper motion, doubles, pattern
+// index) live in identify/; this is the plain table every stage can read.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/types.h"
+
+namespace ssiu {
+
+using StarId = int32_t;
+constexpr StarId kInvalidStarId = -1;
+
+struct CatalogStar {
+  StarId id = kInvalidStarId;
+  double ra_rad = 0;
+  double dec_rad = 0;
+  double mag = 0;  // visual magnitude V
+  Vec3 unit = Vec3::UnitX();  // J2000 unit vector
+};
+
+struct StarCatalog {
+  std::string source;
+  std::vector<CatalogStar> stars;  // sorted brightest first
+};
+
+// Debian xplanet's Bright Star Catalogue: columns Dec(deg) RA(h) Mag "Name" HR HD SAO.
+StarCatalog LoadXplanetBsc(const std::string& path, double mag_max = 99.0);
+// $SSIU_BSC if set, else /usr/share/xplanet/stars/BSC.
+std::string DefaultBscPath();
+
+}  // namespace ssiu

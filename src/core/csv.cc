@@ -1,0 +1,116 @@
+#include "core/csv.h"
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+
+#include "core/error.h"
+
+namespace ssiu {
+namespace {
+
+std::string Trim(const std::string& s) {
+  const auto a = s.find_first_not_of(" \t\r\n");
+  if (a == std::string::npos) return "";
+  const auto b = s.find_last_not_of(" \t\r\n");
+  return s.substr(a, b - a + 1);
+}
+
+std::vector<std::string> SplitComma(const std::string& line) {
+  std::vector<std::string> out;
+  std::string cell;
+  std::istringstream ss(line);
+  while (std::getline(ss, cell, ',')) out.push_back(Trim(cell));
+  if (!line.empty() && line.back() == ',') out.push_back("");
+  return out;
+}
+
+}  // namespace
+
+bool CsvTable::Has(const std::string& name) const {
+  for (const auto& h : header) {
+    if (h == name) return true;
+  }
+  return false;
+}
+
+const std::vector<double>& CsvTable::Column(const std::string& name) const {
+  for (size_t i = 0; i < header.size(); ++i) {
+    if (header[i] != name) continue;
+    if (first_bad_row_[i] >= 0) {
+      throw InputError(file, "row " + std::to_string(first_bad_row_[i]) + ", column '" + name +
+                                 "': not a finite number");
+    }
+    return columns_[i];
+  }
+  throw InputError(file, "missing column '" + name + "'");
+}
+
+void CsvTable::CheckIncreasing(const std::string& name) const {
+  const auto& c = Column(name);
+  for (size_t i = 1; i < c.size(); ++i) {
+    if (!(c[i] > c[i - 1])) {
+      throw InputError(file, "column '" + name + "' is not strictly increasing at row " + std::to_string(i + 1));
+    }
+  }
+}
+
+void CsvTable::AddColumn(const std::string& name, std::vector<double> values, long first_bad_row) {
+  if (!columns_.empty() && values.size() != rows_) throw std::logic_error("CsvTable: ragged column " + name);
+  rows_ = values.size();
+  header.push_back(name);
+  columns_.push_back(std::move(values));
+  first_bad_row_.push_back(first_bad_row);
+}
+
+CsvTable ReadCsv(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path, "cannot open file");
+  std::string line;
+  if (!std::getline(in, line) || Trim(line).empty()) throw InputError(path, "empty file (no header line)");
+  const std::vector<std::string> names = SplitComma(line);
+  for (const auto& n : names) {
+    if (n.empty()) throw InputError(path, "header has an empty column name");
+  }
+  std::vector<std::vector<double>> cols(names.size());
+  std::vector<long> bad(names.size(), -1);
+  long row = 0;
+  while (std::getline(in, line)) {
+    if (Trim(line).empty()) continue;
+    ++row;
+    const auto cells = SplitComma(line);
+    if (cells.size() != names.size()) {
+      throw InputError(path, "row " + std::to_string(row) + " has " + std::to_string(cells.size()) +
+                                 " fields, header has " + std::to_string(names.size()));
+    }
+    for (size_t i = 0; i < cells.size(); ++i) {
+      char* end = nullptr;
+      const double v = std::strtod(cells[i].c_str(), &end);
+      const bool ok = !cells[i].empty() && end && *end == '\0' && std::isfinite(v);
+      if (!ok && bad[i] < 0) bad[i] = row;
+      cols[i].push_back(ok ? v : std::nan(""));
+    }
+  }
+  if (row == 0) throw InputError(path, "no data rows");
+  CsvTable t;
+  t.file = path;
+  for (size_t i = 0; i < names.size(); ++i) t.AddColumn(names[i], std::move(cols[i]), bad[i]);
+  return t;
+}
+
+void WriteCsv(const std::string& path, const std::vector<std::string>& header,
+              const std::vector<std::vector<double>>& columns, int precision) {
+  std::ofstream out(path);
+  if (!out) throw InputError(path, "cannot write file");
+  for (size_t i = 0; i < header.size(); ++i) out << (i ? "," : "") << header[i];
+  out << "\n" << std::setprecision(precision);
+  const size_t n = columns.empty() ? 0 : columns[0].size();
+  for (size_t r = 0; r < n; ++r) {
+    for (size_t c = 0; c < columns.size(); ++c) out << (c ? "," : "") << columns[c][r];
+    out << "\n";
+  }
+}
+
+}  // namespace ssiu

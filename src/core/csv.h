@@ -1,0 +1,39 @@
+// CSV logs (../shared/docs/conventions.md): comma separated, one header line, names carry units.
+// Unknown extra columns are kept and never an error; a requested column that is missing or holds a
+// non-number / NaN is an InputError naming the file, the column and the row.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace ssiu {
+
+class CsvTable {
+ public:
+  std::string file;
+  std::vector<std::string> header;
+
+  size_t rows() const { return rows_; }
+  bool Has(const std::string& name) const;
+  // Column by name; InputError if missing or if any cell is not a finite number.
+  const std::vector<double>& Column(const std::string& name) const;
+  // Throws InputError unless the column strictly increases.
+  void CheckIncreasing(const std::string& name) const;
+
+  // Used by ReadCsv and by code that builds tables in memory.
+  void AddColumn(const std::string& name, std::vector<double> values, long first_bad_row = -1);
+
+ private:
+  size_t rows_ = 0;
+  std::vector<std::vector<double>> columns_;
+  std::vector<long> first_bad_row_;  // 1-based data row of the first non-number, -1 if none
+};
+
+// Reads a CSV file; InputError for a missing/empty file, no header or ragged rows.
+CsvTable ReadCsv(const std::string& path);
+
+// Writes columns of equal length with a header; `precision` significant digits.
+void WriteCsv(const std::string& path, const std::vector<std::string>& header,
+              const std::vector<std::vector<double>>& columns, int precision = 12);
+
+}  // namespace ssiu

@@ -1,0 +1,228 @@
+#include "core/image.h"
+
+#include <fcntl.h>
+#include <fitsio.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <opencv2/core.hpp>
+#include <opencv2/core/utils/logger.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "core/error.h"
+
+namespace ssiu {
+namespace {
+
+std::string Lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+bool IsFitsName(const std::string& path) {
+  const std::string ext = Lower(std::filesystem::path(path).extension().string());
+  return ext == ".fits" || ext == ".fit" || ext == ".fts";
+}
+
+bool HasFitsMagic(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  char buf[9] = {0};
+  in.read(buf, 9);
+  return in.gcount() == 9 && std::string(buf, 9) == "SIMPLE  =";
+}
+
+Frame ReadFits(const std::string& path) {
+  fitsfile* f = nullptr;
+  int status = 0;
+  auto fail = [&](const std::string& what) -> InputError {
+    int s2 = 0;
+    if (f) fits_close_file(f, &s2);
+    return InputError(path, what);
+  };
+  if (fits_open_diskfile(&f, path.c_str(), READONLY, &status)) {
+    f = nullptr;
+    throw fail("not a readable FITS file (corrupt or truncated)");
+  }
+  int bitpix = 0, naxis = 0;
+  long naxes[3] = {0, 0, 0};
+  if (fits_get_img_param(f, 3, &bitpix, &naxis, naxes, &status)) throw fail("cannot read the FITS image header");
+  if (naxis < 2 || (naxis == 3 && naxes[2] != 1) || naxis > 3) {
+    throw fail("FITS primary HDU must hold a 2-D image (NAXIS=" + std::to_string(naxis) + ")");
+  }
+  if (bitpix != 8 && bitpix != 16 && bitpix != 32 && bitpix != -32 && bitpix != -64) {
+    throw fail("unsupported FITS BITPIX " + std::to_string(bitpix));
+  }
+  const long w = naxes[0], h = naxes[1];
+  if (w <= 0 || h <= 0) throw fail("FITS image has zero size");
+  if (w > 65536 || h > 65536) throw fail("FITS image is too large");
+  std::vector<double> buf(static_cast<size_t>(w) * static_cast<size_t>(h));
+  long first[3] = {1, 1, 1};
+  int anynul = 0;
+  double nulval = std::nan("");
+  if (fits_read_pix(f, TDOUBLE, first, static_cast<LONGLONG>(buf.size()), &nulval, buf.data(), &anynul, &status)) {
+    throw fail("cannot read FITS pixel data (truncated?)");
+  }
+  fits_close_file(f, &status);
+  double lo = INFINITY, hi = -INFINITY;
+  for (double v : buf) {
+    if (!std::isfinite(v)) throw InputError(path, "FITS pixel data contains NaN or infinite values");
+    lo = std::min(lo, v);
+    hi = std::max(hi, v);
+  }
+  Frame fr;
+  fr.file = path;
+  fr.image = Image16(static_cast<int>(w), static_cast<int>(h));
+  const bool integral = bitpix > 0 && lo >= 0 && hi <= 65535;
+  if (integral) {
+    for (size_t i = 0; i < buf.size(); ++i) fr.image.pixels[i] = static_cast<uint16_t>(std::lround(buf[i]));
+    fr.bit_depth = bitpix == 8 ? 8 : 16;
+    fr.saturation_adu = bitpix == 8 ? 255 : 65535;
+  } else {
+    // Map the data range linearly onto 0..65535; results are scaled back to the file's units.
+    const double span = hi > lo ? hi - lo : 1.0;
+    fr.value_scale = span / 65535.0;
+    fr.value_offset = lo;
+    for (size_t i = 0; i < buf.size(); ++i) {
+      fr.image.pixels[i] = static_cast<uint16_t>(std::lround((buf[i] - lo) / fr.value_scale));
+    }
+    fr.saturation_adu = 65535;
+  }
+  return fr;
+}
+
+Frame ReadRaster(const std::string& path) {
+  cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
+  cv::Mat m;
+  {
+    // libpng/libtiff print their own complaints on stderr for corrupt files; keep the one-line
+    // error below the only message by muting stderr for the duration of the decode.
+    std::fflush(stderr);
+    const int saved = dup(2);
+    const int devnull = open("/dev/null", O_WRONLY);
+    if (saved >= 0 && devnull >= 0) dup2(devnull, 2);
+    try {
+      m = cv::imread(path, cv::IMREAD_UNCHANGED);
+    } catch (const cv::Exception&) {
+      m.release();
+    }
+    std::fflush(stderr);
+    if (saved >= 0) {
+      dup2(saved, 2);
+      close(saved);
+    }
+    if (devnull >= 0) close(devnull);
+  }
+  if (m.empty()) throw InputError(path, "cannot decode image (corrupt, truncated or not PNG/TIFF/FITS)");
+  if (m.dims != 2 || m.rows <= 0 || m.cols <= 0) throw InputError(path, "image has zero size");
+  const int depth = m.depth();
+  if (depth != CV_8U && depth != CV_16U) {
+    throw InputError(path, "unsupported pixel type (only 8- or 16-bit unsigned images are read)");
+  }
+  Frame fr;
+  fr.file = path;
+  fr.bit_depth = depth == CV_8U ? 8 : 16;
+  fr.saturation_adu = depth == CV_8U ? 255 : 65535;
+  const int ch = m.channels();
+  cv::Mat grey;
+  if (ch == 1) {
+    grey = m;
+  } else if (ch == 3 || ch == 4) {
+    // Mean of the three colour channels (alpha ignored): keeps each channel's signal with equal
+    // weight; the openstartracker frames have unequal channels.
+    std::vector<cv::Mat> planes;
+    cv::split(m, planes);
+    cv::Mat acc;
+    cv::add(planes[0], planes[1], acc, cv::noArray(), CV_32S);
+    cv::add(acc, planes[2], acc, cv::noArray(), CV_32S);
+    acc.convertTo(grey, depth, 1.0 / 3.0);
+    fr.grey_conversion = "mean_rgb";
+  } else if (ch == 2) {
+    std::vector<cv::Mat> planes;
+    cv::split(m, planes);
+    grey = planes[0];
+    fr.grey_conversion = "first_of_grey_alpha";
+  } else {
+    throw InputError(path, "unsupported channel count " + std::to_string(ch));
+  }
+  fr.image = Image16(grey.cols, grey.rows);
+  for (int y = 0; y < grey.rows; ++y) {
+    uint16_t* dst = &fr.image.pixels[static_cast<size_t>(y) * grey.cols];
+    if (depth == CV_8U) {
+      const uint8_t* src = grey.ptr<uint8_t>(y);
+      std::copy(src, src + grey.cols, dst);
+    } else {
+      const uint16_t* src = grey.ptr<uint16_t>(y);
+      std::copy(src, src + grey.cols, dst);
+    }
+  }
+  return fr;
+}
+
+}  // namespace
+
+void CheckFrameContent(const Frame& fr) {
+  const auto& px = fr.image.pixels;
+  if (px.empty()) throw InputError(fr.file, "image has zero size");
+  const auto [lo, hi] = std::minmax_element(px.begin(), px.end());
+  if (*lo == *hi) {
+    throw InputError(fr.file, "image is constant (every pixel = " + std::to_string(*hi) + "): no signal");
+  }
+  const uint16_t sat = static_cast<uint16_t>(fr.saturation_adu);
+  const size_t n_sat = static_cast<size_t>(std::count(px.begin(), px.end(), sat));
+  if (n_sat * 2 > px.size()) {
+    throw InputError(fr.file, "image is saturated (" + std::to_string(100 * n_sat / px.size()) +
+                                  "% of pixels at full scale)");
+  }
+}
+
+Frame ReadFrame(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throw InputError(path, "no such file");
+  if (std::filesystem::is_directory(path, ec)) throw InputError(path, "is a directory, not an image");
+  if (std::filesystem::file_size(path, ec) == 0) throw InputError(path, "file is empty");
+  Frame fr = (IsFitsName(path) || HasFitsMagic(path)) ? ReadFits(path) : ReadRaster(path);
+  CheckFrameContent(fr);
+  return fr;
+}
+
+void WritePng16(const std::string& path, const Image16& image) {
+  cv::Mat m(image.height, image.width, CV_16UC1, const_cast<uint16_t*>(image.pixels.data()));
+  bool ok = false;
+  try {
+    ok = cv::imwrite(path, m);
+  } catch (const cv::Exception&) {
+    ok = false;
+  }
+  if (!ok) throw InputError(path, "cannot write PNG");
+}
+
+void WritePng8(const std::string& path, int width, int height, const std::vector<uint8_t>& pixels) {
+  cv::Mat m(height, width, CV_8UC1, const_cast<uint8_t*>(pixels.data()));
+  bool ok = false;
+  try {
+    ok = cv::imwrite(path, m);
+  } catch (const cv::Exception&) {
+    ok = false;
+  }
+  if (!ok) throw InputError(path, "cannot write PNG");
+}
+
+void WriteFits16(const std::string& path, const Image16& image) {
+  std::remove(path.c_str());
+  fitsfile* f = nullptr;
+  int status = 0;
+  long naxes[2] = {image.width, image.height};
+  if (fits_create_file(&f, path.c_str(), &status)) throw InputError(path, "cannot create FITS file");
+  fits_create_img(f, USHORT_IMG, 2, naxes, &status);
+  long first[2] = {1, 1};
+  fits_write_pix(f, TUSHORT, first, static_cast<LONGLONG>(image.pixels.size()),
+                 const_cast<uint16_t*>(image.pixels.data()), &status);
+  fits_close_file(f, &status);
+  if (status) throw InputError(path, "cannot write FITS file");
+}
+
+}  // namespace ssiu

@@ -1,0 +1,61 @@
+// Frames: a non-owning view for the stages, an owning 16-bit image, and file I/O at the edge
+// (OpenCV for PNG/TIFF, cfitsio for FITS). Pixel (0,0) is the centre of the top-left pixel; for FITS
+// the first stored row is y = 0 (so FITS pixel (i, j) is our (i - 1, j - 1)).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace ssiu {
+
+// Non-owning view of a 16-bit single-channel image (AprilTag's image_u8 idea). stride in pixels.
+struct ImageView {
+  int width = 0;
+  int height = 0;
+  std::ptrdiff_t stride = 0;
+  const uint16_t* data = nullptr;
+  uint16_t at(int x, int y) const { return data[static_cast<std::ptrdiff_t>(y) * stride + x]; }
+  const uint16_t* row(int y) const { return data + static_cast<std::ptrdiff_t>(y) * stride; }
+};
+
+struct Image16 {
+  int width = 0;
+  int height = 0;
+  std::vector<uint16_t> pixels;  // row-major, stride == width
+
+  Image16() = default;
+  Image16(int w, int h, uint16_t fill = 0)
+      : width(w), height(h), pixels(static_cast<size_t>(w) * static_cast<size_t>(h), fill) {}
+  uint16_t& at(int x, int y) { return pixels[static_cast<size_t>(y) * width + x]; }
+  uint16_t at(int x, int y) const { return pixels[static_cast<size_t>(y) * width + x]; }
+  ImageView view() const { return {width, height, width, pixels.data()}; }
+};
+
+// A frame read from a file. Pixel values are stored as 16-bit counts; original value =
+// stored * value_scale + value_offset (1 and 0 except for FITS data outside 0..65535).
+struct Frame {
+  std::string file;
+  Image16 image;
+  int bit_depth = 16;           // 8 or 16 (FITS: 16 after conversion)
+  double saturation_adu = 65535;  // full-scale value in stored counts
+  double value_scale = 1.0;
+  double value_offset = 0.0;
+  std::string grey_conversion = "none";  // how colour was reduced to grey, e.g. "mean_rgb"
+};
+
+// Reads PNG/TIFF (8/16-bit; grey, or RGB/RGBA reduced to grey by the mean of R, G, B) or FITS
+// (primary HDU, BITPIX 8, 16, 32, -32). Throws InputError naming the file for a missing, empty,
+// corrupt, truncated, wrongly typed, constant (all-zero / all-saturated) or mostly saturated image.
+Frame ReadFrame(const std::string& path);
+
+// Rejects images that carry no usable signal; `file` names the source in the message.
+void CheckFrameContent(const Frame& frame);
+
+void WritePng16(const std::string& path, const Image16& image);
+void WritePng8(const std::string& path, int width, int height, const std::vector<uint8_t>& pixels);
+// 16-bit FITS (BITPIX 16 with BZERO 32768), first stored row = y 0.
+void WriteFits16(const std::string& path, const Image16& image);
+
+}  // namespace ssiu

@@ -1,0 +1,78 @@
+#include "core/camera.h"
+
+#include <filesystem>
+#include <fstream>
+
+#include "core/error.h"
+#include "testing/testing.h"
+
+namespace ssiu {
+namespace {
+
+TEST(Camera, PinholeProjectionFollowsTheConvention) {
+  Camera c;
+  c.focal_length_px = 2300;
+  c.cx_px = 511.5;
+  c.cy_px = 500.0;
+  const auto p = c.Project(Vec3(0.01, -0.02, 1.0));
+  ASSERT_TRUE(p.has_value());
+  EXPECT_NEAR(p->x(), 511.5 + 23.0, 1e-9);
+  EXPECT_NEAR(p->y(), 500.0 - 46.0, 1e-9);
+  EXPECT_FALSE(c.Project(Vec3(0, 0, -1)).has_value());
+}
+
+TEST(Camera, UnprojectInvertsProjectWithDistortion) {
+  Camera c;
+  c.distortion = {-0.3, 0.1, 0.0, 1e-3, -2e-3};
+  for (double x : {0.0, 100.0, 900.0}) {
+    for (double y : {5.0, 512.0, 1010.0}) {
+      const Vec3 d = c.Unproject(Vec2(x, y));
+      const auto p = c.Project(d);
+      ASSERT_TRUE(p.has_value());
+      EXPECT_NEAR(p->x(), x, 1e-6);
+      EXPECT_NEAR(p->y(), y, 1e-6);
+    }
+  }
+}
+
+TEST(Camera, FocalLengthFromMillimetres) {
+  const Json j = {{"width", 1392}, {"height", 1040}, {"focal_length_mm", 50.0}, {"pixel_pitch_um", 6.45}};
+  const Camera c = CameraFromJson(j, "cam.json");
+  EXPECT_NEAR(c.focal_length_px, 50.0 * 1000 / 6.45, 1e-9);
+  EXPECT_NEAR(c.cx_px, 695.5, 1e-12);
+  EXPECT_NEAR(c.cy_px, 519.5, 1e-12);
+}
+
+TEST(Camera, BadFieldsNameTheFileAndField) {
+  auto message = [](const Json& j) {
+    try {
+      CameraFromJson(j, "cam.json");
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_THAT(message({{"height", 10}, {"focal_length_px", 100}}), ::testing::HasSubstr("cam.json: missing field 'width'"));
+  EXPECT_THAT(message({{"width", 100}, {"height", 100}}), ::testing::HasSubstr("focal_length_px"));
+  EXPECT_THAT(message({{"width", -5}, {"height", 100}, {"focal_length_px", 100}}), ::testing::HasSubstr("width"));
+  EXPECT_THAT(message({{"width", 100}, {"height", 100}, {"focal_length_px", -3}}), ::testing::HasSubstr("focal_length_px"));
+  EXPECT_THAT(message({{"width", 100}, {"height", 100}, {"focal_length_px", "abc"}}), ::testing::HasSubstr("focal_length_px"));
+  EXPECT_THAT(message({{"width", 100}, {"height", 100}, {"focal_length_px", 300}, {"principal_point", {500, 2}}}),
+              ::testing::HasSubstr("principal_point"));
+  EXPECT_THAT(message(Json::array()), ::testing::HasSubstr("object"));
+}
+
+TEST(Camera, LoadCameraReportsUnreadableFiles) {
+  const std::string dir = testing::TempDir("cam");
+  EXPECT_THROW(LoadCamera(dir + "/missing.json"), InputError);
+  std::ofstream(dir + "/bad.json") << "{ not json";
+  try {
+    LoadCamera(dir + "/bad.json");
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("bad.json"));
+  }
+}
+
+}  // namespace
+}  // namespace ssiu

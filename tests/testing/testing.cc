@@ -1,0 +1,54 @@
+#include "testing/testing.h"
+
+#include <array>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+
+namespace ssiu::testing {
+namespace fs = std::filesystem;
+
+std::string SharedDir() {
+  const char* env = std::getenv("SSIU_SHARED_DIR");
+  if (!env || !*env) return "";
+  std::error_code ec;
+  return fs::is_directory(env, ec) ? std::string(env) : "";
+}
+
+std::string SharedData(const std::string& relative) {
+  const std::string dir = SharedDir();
+  if (dir.empty()) return "";
+  const std::string p = dir + "/data/" + relative;
+  std::error_code ec;
+  return fs::exists(p, ec) ? p : "";
+}
+
+std::string SsiuProgram() {
+  const char* env = std::getenv("SSIU_BINARY_DIR");
+  return std::string(env ? env : ".") + "/ssiu";
+}
+
+std::string TempDir(const std::string& name) {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  std::string dir = (fs::temp_directory_path() / "ssiu_tests").string() + "/" +
+                    (info ? std::string(info->test_suite_name()) + "." + info->name() : name) + "." + name;
+  std::error_code ec;
+  fs::remove_all(dir, ec);
+  fs::create_directories(dir);
+  return dir;
+}
+
+int Run(const std::string& command, std::string* output) {
+  std::string cmd = command + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return -1;
+  std::array<char, 4096> buf;
+  std::string out;
+  size_t n;
+  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) out.append(buf.data(), n);
+  const int status = pclose(p);
+  if (output) *output = out;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
+}
+
+}  // namespace ssiu::testing

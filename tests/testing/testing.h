@@ -1,0 +1,39 @@
+// Helpers shared by ssiu's tests: where the real data is, where the `ssiu` program is, and
+// domain matchers that make assertions read like the requirement.
+#pragma once
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "core/attitude.h"
+
+namespace ssiu::testing {
+
+// ../shared (from $SSIU_SHARED_DIR, set by ctest); empty when absent.
+std::string SharedDir();
+// Path of a file under shared/data, or "" (and the test should skip) when it is absent.
+std::string SharedData(const std::string& relative);
+// The built `ssiu` program.
+std::string SsiuProgram();
+// A fresh temporary directory for one test.
+std::string TempDir(const std::string& name);
+// Runs a shell command; returns its exit status, stdout+stderr in *output.
+int Run(const std::string& command, std::string* output);
+
+}  // namespace ssiu::testing
+
+// Skips the test with a clear message when shared data is missing.
+#define SSIU_REQUIRE_SHARED(path_var, relative)                                        \
+  const std::string path_var = ::ssiu::testing::SharedData(relative);                  \
+  if (path_var.empty()) {                                                              \
+    GTEST_SKIP() << "shared data '" << relative << "' not found (../shared is absent)"; \
+  }
+
+// Attitude within tol_arcsec of the expected one (rotation angle of q * conj(expected)).
+MATCHER_P2(QuaternionNear, expected, tol_arcsec, "") {
+  const double err = ::ssiu::AttitudeErrorRad(arg, expected) * ::ssiu::kRadToArcsec;
+  *result_listener << "attitude error " << err << " arcsec";
+  return err <= tol_arcsec;
+}
