@@ -30,3 +30,30 @@ function(ssiu_add_bench)
   target_compile_options(${A_NAME} PRIVATE ${SSIU_WARNINGS})
   target_link_libraries(${A_NAME} PRIVATE ${A_DEPS} benchmark::benchmark)
 endfunction()
+
+# ssiu_add_stage(NAME stage DEPS lower stages/libraries): the stage library from every .cc in its
+# folder (so parallel work on one stage never edits this file); header-only until it has a .cc.
+function(ssiu_add_stage)
+  cmake_parse_arguments(A "" "NAME" "DEPS" ${ARGN})
+  file(GLOB _src CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*.cc)
+  if(_src)
+    ssiu_add_library(NAME ${A_NAME} SOURCES ${_src} DEPS ${A_DEPS})
+  else()
+    add_library(ssiu_${A_NAME} INTERFACE)
+    target_include_directories(ssiu_${A_NAME} INTERFACE ${CMAKE_SOURCE_DIR}/src)
+    target_link_libraries(ssiu_${A_NAME} INTERFACE ${A_DEPS})
+  endif()
+endfunction()
+
+# ssiu_add_stage_tests(stage): tests/<stage>/*_test.cc -> one program <stage>_test in the normal run;
+# *_longtest.cc -> <stage>_longtest with label "long" (kept out of CI, run by hand or in benchmarks).
+function(ssiu_add_stage_tests stage)
+  file(GLOB _tests CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*_test.cc)
+  file(GLOB _long CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*_longtest.cc)
+  if(_tests)
+    ssiu_add_test(NAME ${stage}_test SOURCES ${_tests} DEPS ssiu_${stage} ${ARGN})
+  endif()
+  if(_long)
+    ssiu_add_test(NAME ${stage}_longtest SOURCES ${_long} DEPS ssiu_${stage} ${ARGN} LABELS long)
+  endif()
+endfunction()

@@ -15,7 +15,7 @@ fi
 # Hipparcos/Tycho star catalog: only stars.dat out of kstars-data (the package itself pulls in Qt).
 if [ ! -s /usr/share/kstars/stars.dat ]; then
   tmp=$(mktemp -d)
-  (cd "$tmp" && apt-get download -qq kstars-data >/dev/null && dpkg-deb -x kstars-data_*.deb x)
+  (cd "$tmp" && apt-get download -qq kstars-data >/dev/null 2>&1 && dpkg-deb -x kstars-data_*.deb x)
   install -D -m 644 "$tmp/x/usr/share/kstars/stars.dat" /usr/share/kstars/stars.dat
   rm -rf "$tmp"
 fi

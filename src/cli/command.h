@@ -20,5 +20,5 @@ CLI::App* GetOrAddSubcommand(CLI::App& parent, const std::string& name, const st
 }  // namespace ssiu::cli
 
 // In a subcommand's .cc: SSIU_REGISTER_COMMAND(detect, [](CLI::App& root) { ... });
-#define SSIU_REGISTER_COMMAND(id, fn) \
-  static const bool ssiu_registered_##id = ::ssiu::cli::RegisterCommand(#id, fn)
+#define SSIU_REGISTER_COMMAND(id, ...) \
+  static const bool ssiu_registered_##id = ::ssiu::cli::RegisterCommand(#id, __VA_ARGS__)

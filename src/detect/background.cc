@@ -1,0 +1,121 @@
+#include "detect/background.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace ssiu {
+namespace {
+
+float MedianOf(std::vector<float>& v) {
+  const size_t m = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + m, v.end());
+  return v[m];
+}
+
+// 3x3 median over the tile grid (edges use the available neighbours).
+std::vector<float> MedianFilterGrid(const std::vector<float>& g, int nx, int ny) {
+  std::vector<float> out(g.size()), nb;
+  nb.reserve(9);
+  for (int j = 0; j < ny; ++j) {
+    for (int i = 0; i < nx; ++i) {
+      nb.clear();
+      for (int dj = -1; dj <= 1; ++dj) {
+        for (int di = -1; di <= 1; ++di) {
+          const int a = i + di, b = j + dj;
+          if (a >= 0 && b >= 0 && a < nx && b < ny) nb.push_back(g[b * nx + a]);
+        }
+      }
+      out[j * nx + i] = MedianOf(nb);
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+BackgroundGrid EstimateBackground(const ImageView& img, int tile_px) {
+  BackgroundGrid g;
+  g.width = img.width;
+  g.height = img.height;
+  g.tile = std::min(tile_px, std::min(img.width, img.height));
+  g.nx = (img.width + g.tile - 1) / g.tile;
+  g.ny = (img.height + g.tile - 1) / g.tile;
+  g.level.resize(static_cast<size_t>(g.nx) * g.ny);
+  g.sigma.resize(g.level.size());
+  // Subsample about 512 pixels of each tile: enough for a median to ~0.06 sigma.
+  const int step = std::max(1, static_cast<int>(std::sqrt(double(g.tile) * g.tile / 512.0)));
+  std::vector<float> s, dev;
+  for (int ty = 0; ty < g.ny; ++ty) {
+    for (int tx = 0; tx < g.nx; ++tx) {
+      const int x0 = tx * g.tile, y0 = ty * g.tile;
+      const int x1 = std::min(img.width, x0 + g.tile), y1 = std::min(img.height, y0 + g.tile);
+      s.clear();
+      for (int y = y0 + step / 2; y < y1; y += step) {
+        const uint16_t* r = img.row(y);
+        for (int x = x0 + ((y / step) & 1 ? step / 2 : 0); x < x1; x += step) s.push_back(r[x]);
+      }
+      if (s.empty()) s.push_back(img.at(x0, y0));
+      const float med = MedianOf(s);
+      dev.resize(s.size());
+      for (size_t k = 0; k < s.size(); ++k) dev[k] = std::abs(s[k] - med);
+      const float mad = MedianOf(dev);
+      g.level[ty * g.nx + tx] = med;
+      // MAD of integer data is 0 below about 0.5 ADU of noise: keep a quantisation floor.
+      g.sigma[ty * g.nx + tx] = std::max(1.4826f * mad, 0.5f);
+    }
+  }
+  g.level = MedianFilterGrid(g.level, g.nx, g.ny);
+  g.sigma = MedianFilterGrid(g.sigma, g.nx, g.ny);
+  std::vector<float> tmp = g.level;
+  g.median_level = MedianOf(tmp);
+  tmp = g.sigma;
+  g.median_sigma = MedianOf(tmp);
+  return g;
+}
+
+double BackgroundGrid::Interp(const std::vector<float>& v, double x, double y) const {
+  // Tile centres sit at (i + 0.5) * tile - 0.5; clamp outside the outermost centres.
+  const double fx = std::clamp((x + 0.5) / tile - 0.5, 0.0, nx - 1.0);
+  const double fy = std::clamp((y + 0.5) / tile - 0.5, 0.0, ny - 1.0);
+  const int i0 = std::min(static_cast<int>(fx), nx - 1), j0 = std::min(static_cast<int>(fy), ny - 1);
+  const int i1 = std::min(i0 + 1, nx - 1), j1 = std::min(j0 + 1, ny - 1);
+  const double ax = fx - i0, ay = fy - j0;
+  const double top = v[j0 * nx + i0] * (1 - ax) + v[j0 * nx + i1] * ax;
+  const double bot = v[j1 * nx + i0] * (1 - ax) + v[j1 * nx + i1] * ax;
+  return top * (1 - ay) + bot * ay;
+}
+
+void BackgroundGrid::RowLevels(int y, std::vector<float>* out, double k_sigma, double scale) const {
+  const double fy = std::clamp((y + 0.5) / tile - 0.5, 0.0, ny - 1.0);
+  const int j0 = std::min(static_cast<int>(fy), ny - 1), j1 = std::min(j0 + 1, ny - 1);
+  const double ay = fy - j0;
+  // Value at each tile column for this row, then linear along the row.
+  std::vector<double> col(nx);
+  for (int i = 0; i < nx; ++i) {
+    const double l = level[j0 * nx + i] * (1 - ay) + level[j1 * nx + i] * ay;
+    const double s = sigma[j0 * nx + i] * (1 - ay) + sigma[j1 * nx + i] * ay;
+    col[i] = scale * (l + k_sigma * s);
+  }
+  // Linear between tile centres, constant beyond the outermost ones: segment by segment so the
+  // inner loop is a plain multiply-add.
+  float* o = out->data();
+  for (int x = 0; x < width;) {
+    const double fx = (x + 0.5) / tile - 0.5;
+    if (fx <= 0 || nx == 1) {
+      const int xe = std::max(x + 1, nx == 1 ? width : std::min(width, tile / 2));
+      for (; x < xe; ++x) o[x] = static_cast<float>(col[0]);
+      continue;
+    }
+    const int i0 = static_cast<int>(fx);
+    if (i0 >= nx - 1) {
+      for (; x < width; ++x) o[x] = static_cast<float>(col[nx - 1]);
+      break;
+    }
+    const int xe = std::min(width, (i0 + 1) * tile + tile / 2);  // next centre (exclusive)
+    const double c0 = (i0 + 0.5) * tile - 0.5, slope = (col[i0 + 1] - col[i0]) / tile;
+    const double base = col[i0];
+    for (; x < xe; ++x) o[x] = static_cast<float>(base + (x - c0) * slope);
+  }
+}
+
+}  // namespace ssiu

@@ -1,0 +1,222 @@
+#include "detect/psf_fit.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include <Eigen/Dense>
+
+namespace ssiu {
+namespace {
+
+constexpr double kSqrt2 = 1.41421356237309504880;
+constexpr double kInvSqrtPi = 0.56418958354775628695;
+
+// Pixel-integrated 1-D Gaussian: f(i) = 1/2 [erf((i + 1/2 - c) k) - erf((i - 1/2 - c) k)], k = 1/(sqrt2 s),
+// with derivatives with respect to the centre c and to s.
+struct Profile {
+  std::vector<double> f, dc, ds;
+  void Compute(int i0, int n, double c, double s) {
+    f.resize(n);
+    dc.resize(n);
+    ds.resize(n);
+    const double k = 1.0 / (kSqrt2 * s);
+    double ulo = (i0 - 0.5 - c) * k;
+    double elo = std::erf(ulo), glo = std::exp(-ulo * ulo);
+    for (int a = 0; a < n; ++a) {
+      const double uhi = (i0 + a + 0.5 - c) * k;
+      const double ehi = std::erf(uhi), ghi = std::exp(-uhi * uhi);
+      f[a] = 0.5 * (ehi - elo);
+      dc[a] = -k * kInvSqrtPi * (ghi - glo);
+      ds[a] = -kInvSqrtPi / s * (ghi * uhi - glo * ulo);
+      ulo = uhi;
+      elo = ehi;
+      glo = ghi;
+    }
+  }
+};
+
+}  // namespace
+
+PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double sigma_n, const PsfFitOptions& o,
+              const std::function<bool(int, int)>& is_bad) {
+  PsfFit out;
+  const int x0 = std::max(0, px - r), x1 = std::min(img.width - 1, px + r);
+  const int y0 = std::max(0, py - r), y1 = std::min(img.height - 1, py + r);
+  const int nx = x1 - x0 + 1, ny = y1 - y0 + 1;
+  std::vector<double> v(static_cast<size_t>(nx) * ny);
+  std::vector<uint8_t> use(v.size(), 1);
+  for (int y = y0; y <= y1; ++y) {
+    for (int x = x0; x <= x1; ++x) {
+      const size_t i = static_cast<size_t>(y - y0) * nx + (x - x0);
+      v[i] = img.at(x, y);
+      if (v[i] >= o.saturation_adu || is_bad(x, y)) use[i] = 0;
+    }
+  }
+  const double var_n = sigma_n * sigma_n;
+
+  // Start: weighted moments of the positive part above the local background.
+  double sw = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0, peak = 0;
+  for (int y = y0; y <= y1; ++y) {
+    for (int x = x0; x <= x1; ++x) {
+      const size_t i = static_cast<size_t>(y - y0) * nx + (x - x0);
+      const double a = v[i] - level;
+      peak = std::max(peak, a);
+      if (a <= 2 * sigma_n) continue;
+      sw += a;
+      sx += a * x;
+      sy += a * y;
+    }
+  }
+  if (sw <= 0) return out;
+  double cx = sx / sw, cy = sy / sw;
+  for (int y = y0; y <= y1; ++y) {
+    for (int x = x0; x <= x1; ++x) {
+      const size_t i = static_cast<size_t>(y - y0) * nx + (x - x0);
+      const double a = v[i] - level;
+      if (a <= 2 * sigma_n) continue;
+      sxx += a * (x - cx) * (x - cx);
+      syy += a * (y - cy) * (y - cy);
+      sxy += a * (x - cx) * (y - cy);
+    }
+  }
+  {
+    Eigen::Matrix2d m;
+    m << sxx / sw, sxy / sw, sxy / sw, syy / sw;
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(m);
+    const double l0 = std::max(es.eigenvalues()(0), 1e-3), l1 = std::max(es.eigenvalues()(1), 1e-3);
+    out.elongation = std::sqrt(l1 / l0);
+    out.major_sigma_px = std::sqrt(l1);
+  }
+
+  // Two peaks with a saddle between them: a blended pair (or a star on another object).
+  {
+    int best_x = px, best_y = py;
+    double best = -1e300;
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        const double a = v[static_cast<size_t>(y - y0) * nx + (x - x0)];
+        if (a > best) {
+          best = a;
+          best_x = x;
+          best_y = y;
+        }
+      }
+    }
+    for (int y = y0 + 1; y < y1 && !out.blended; ++y) {
+      for (int x = x0 + 1; x < x1; ++x) {
+        const size_t i = static_cast<size_t>(y - y0) * nx + (x - x0);
+        const double a = v[i] - level;
+        if (std::hypot(x - best_x, y - best_y) < 2.5 || a < std::max(8 * sigma_n, 0.15 * peak)) continue;
+        bool is_max = true;
+        for (int dy = -1; dy <= 1 && is_max; ++dy)
+          for (int dx = -1; dx <= 1; ++dx)
+            if ((dx || dy) && v[i + dy * nx + dx] >= v[i]) is_max = false;
+        if (!is_max) continue;
+        // Lowest point on the line between the two maxima.
+        double lowest = 1e300;
+        const int steps = static_cast<int>(std::ceil(std::hypot(x - best_x, y - best_y) * 2));
+        for (int k = 1; k < steps; ++k) {
+          const int xx = static_cast<int>(std::lround(best_x + (x - best_x) * double(k) / steps));
+          const int yy = static_cast<int>(std::lround(best_y + (y - best_y) * double(k) / steps));
+          lowest = std::min(lowest, v[static_cast<size_t>(yy - y0) * nx + (xx - x0)] - level);
+        }
+        if (a - lowest > std::max(4 * sigma_n, 0.2 * a)) out.blended = true;
+      }
+    }
+  }
+
+  double s = std::clamp(o.sigma_guess_px, 0.4, 10.0);
+  double amp = sw, bkg = level;
+  const double gain = o.gain_e_per_adu;
+  Profile fx, fy;
+  Eigen::Matrix<double, 5, 5> info = Eigen::Matrix<double, 5, 5>::Identity();
+  auto residual_chi2 = [&](double xc, double yc, double A, double B, double ss, Eigen::Matrix<double, 5, 5>* jtj,
+                           Eigen::Matrix<double, 5, 1>* jtr) {
+    fx.Compute(x0, nx, xc, ss);
+    fy.Compute(y0, ny, yc, ss);
+    double chi2 = 0;
+    if (jtj) jtj->setZero();
+    if (jtr) jtr->setZero();
+    for (int b = 0; b < ny; ++b) {
+      for (int a = 0; a < nx; ++a) {
+        const size_t i = static_cast<size_t>(b) * nx + a;
+        if (!use[i]) continue;
+        const double m = A * fx.f[a] * fy.f[b];
+        const double var = var_n + (gain > 0 ? std::max(m, 0.0) / gain : 0.0);
+        const double wgt = 1.0 / var, res = v[i] - (B + m);
+        chi2 += wgt * res * res;
+        if (!jtj) continue;
+        Eigen::Matrix<double, 5, 1> j;
+        j << A * fx.dc[a] * fy.f[b], A * fx.f[a] * fy.dc[b], fx.f[a] * fy.f[b], 1.0,
+            A * (fx.ds[a] * fy.f[b] + fx.f[a] * fy.ds[b]);
+        jtj->noalias() += wgt * j * j.transpose();
+        *jtr += wgt * res * j;
+      }
+    }
+    return chi2;
+  };
+
+  if (o.fit) {
+    // Levenberg-Marquardt on (x, y, flux, background, sigma).
+    double lambda = 1e-3;
+    Eigen::Matrix<double, 5, 5> jtj;
+    Eigen::Matrix<double, 5, 1> jtr;
+    double chi2 = residual_chi2(cx, cy, amp, bkg, s, &jtj, &jtr);
+    for (int it = 0; it < o.max_iterations; ++it) {
+      out.iterations = it + 1;
+      Eigen::Matrix<double, 5, 5> a = jtj;
+      for (int k = 0; k < 5; ++k) a(k, k) *= 1.0 + lambda;
+      const Eigen::Matrix<double, 5, 1> d = a.ldlt().solve(jtr);
+      if (!d.allFinite()) break;
+      const double nxc = cx + d(0), nyc = cy + d(1), na = amp + d(2), nb = bkg + d(3);
+      const double ns = std::clamp(s + d(4), 0.3, 3.0 * r);
+      Eigen::Matrix<double, 5, 5> jtj2;
+      Eigen::Matrix<double, 5, 1> jtr2;
+      const double chi2n = residual_chi2(nxc, nyc, na, nb, ns, &jtj2, &jtr2);
+      if (chi2n <= chi2) {
+        cx = nxc;
+        cy = nyc;
+        amp = na;
+        bkg = nb;
+        s = ns;
+        const bool done = std::abs(d(0)) < 1e-5 && std::abs(d(1)) < 1e-5 && chi2 - chi2n < 1e-6 * chi2;
+        chi2 = chi2n;
+        jtj = jtj2;
+        jtr = jtr2;
+        lambda = std::max(lambda * 0.3, 1e-7);
+        if (done) break;
+      } else {
+        lambda *= 10;
+        if (lambda > 1e8) break;
+      }
+    }
+    info = jtj;
+    // A fit that ran off the window or lost its signal falls back to the moments.
+    if (!(amp > 0) || std::abs(cx - px) > r || std::abs(cy - py) > r || !std::isfinite(cx + cy)) {
+      cx = sx / sw;
+      cy = sy / sw;
+      amp = sw;
+      bkg = level;
+      s = o.sigma_guess_px;
+      residual_chi2(cx, cy, amp, bkg, s, &info, nullptr);
+    }
+  } else {
+    residual_chi2(cx, cy, amp, bkg, s, &info, nullptr);
+  }
+  out.ok = amp > 0 && std::isfinite(cx) && std::isfinite(cy);
+  out.x_px = cx;
+  out.y_px = cy;
+  out.flux_adu = amp;
+  out.background_adu = bkg;
+  out.sigma_px = s;
+  const Eigen::Matrix<double, 5, 5> cov = info.inverse();
+  out.x_sigma_px = std::sqrt(std::max(cov(0, 0), 0.0));
+  out.y_sigma_px = std::sqrt(std::max(cov(1, 1), 0.0));
+  // SNR of the flux in a PSF-matched aperture (noise-equivalent area 4 pi s^2).
+  const double nea = 4 * 3.14159265358979 * s * s;
+  out.snr = amp / std::sqrt((gain > 0 ? std::max(amp, 0.0) / gain : 0.0) + nea * var_n);
+  return out;
+}
+
+}  // namespace ssiu

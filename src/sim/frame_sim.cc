@@ -1,0 +1,365 @@
+#include "sim/frame_sim.h"
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+
+#include "core/attitude.h"
+#include "core/error.h"
+#include "core/rng.h"
+
+namespace ssiu {
+namespace {
+
+// One table of the options' JSON names, so that the JSON config, its writer and the CLI flags
+// (src/cli/simulate_frame.cc) cannot drift apart.
+struct DoubleField {
+  const char* name;
+  double FrameSimOptions::*ptr;
+};
+struct IntField {
+  const char* name;
+  int FrameSimOptions::*ptr;
+};
+const DoubleField kDoubleFields[] = {
+    {"psf_sigma_px", &FrameSimOptions::psf_sigma_px},
+    {"defocus_radius_px", &FrameSimOptions::defocus_radius_px},
+    {"exposure_s", &FrameSimOptions::exposure_s},
+    {"mag0_flux_e_per_s", &FrameSimOptions::mag0_flux_e_per_s},
+    {"mag_max", &FrameSimOptions::mag_max},
+    {"vignetting", &FrameSimOptions::vignetting},
+    {"background_e_per_s", &FrameSimOptions::background_e_per_s},
+    {"dark_current_e_per_s", &FrameSimOptions::dark_current_e_per_s},
+    {"read_noise_e", &FrameSimOptions::read_noise_e},
+    {"gain_e_per_adu", &FrameSimOptions::gain_e_per_adu},
+    {"bias_adu", &FrameSimOptions::bias_adu},
+    {"full_well_e", &FrameSimOptions::full_well_e},
+    {"hot_pixel_min_e_per_s", &FrameSimOptions::hot_pixel_min_e_per_s},
+    {"hot_pixel_max_e_per_s", &FrameSimOptions::hot_pixel_max_e_per_s},
+    {"cosmic_ray_e_per_px", &FrameSimOptions::cosmic_ray_e_per_px},
+    {"cosmic_ray_max_length_px", &FrameSimOptions::cosmic_ray_max_length_px},
+    {"streak_flux_e_per_px", &FrameSimOptions::streak_flux_e_per_px},
+};
+const IntField kIntFields[] = {
+    {"bit_depth", &FrameSimOptions::bit_depth},   {"hot_pixels", &FrameSimOptions::hot_pixels},
+    {"dead_pixels", &FrameSimOptions::dead_pixels}, {"cosmic_rays", &FrameSimOptions::cosmic_rays},
+    {"streaks", &FrameSimOptions::streaks},       {"false_stars", &FrameSimOptions::false_stars},
+};
+
+// Integral of a unit 1-D Gaussian (centre c, sigma s) over the pixel [i - 0.5, i + 0.5].
+inline double PixelFraction(int i, double c, double s) {
+  const double k = 1.0 / (std::sqrt(2.0) * s);
+  return 0.5 * (std::erf((i + 0.5 - c) * k) - std::erf((i - 0.5 - c) * k));
+}
+
+// Adds `flux` electrons of a pixel-integrated Gaussian at (x, y) to the signal image.
+void AddGaussian(std::vector<double>& img, int w, int h, double x, double y, double sigma, double flux) {
+  const int r = static_cast<int>(std::ceil(5 * sigma)) + 1;
+  const int x0 = std::max(0, static_cast<int>(std::floor(x)) - r), x1 = std::min(w - 1, static_cast<int>(std::ceil(x)) + r);
+  const int y0 = std::max(0, static_cast<int>(std::floor(y)) - r), y1 = std::min(h - 1, static_cast<int>(std::ceil(y)) + r);
+  if (x0 > x1 || y0 > y1) return;
+  std::vector<double> fx(x1 - x0 + 1), fy(y1 - y0 + 1);
+  for (int i = x0; i <= x1; ++i) fx[i - x0] = PixelFraction(i, x, sigma);
+  for (int j = y0; j <= y1; ++j) fy[j - y0] = PixelFraction(j, y, sigma);
+  for (int j = y0; j <= y1; ++j) {
+    double* row = &img[static_cast<size_t>(j) * w];
+    const double a = flux * fy[j - y0];
+    for (int i = x0; i <= x1; ++i) row[i] += a * fx[i - x0];
+  }
+}
+
+// A star image: Gaussian, or for a defocused system a uniform disk (sampled on a sunflower
+// pattern of sub-sources) blurred by the Gaussian.
+void AddPsf(std::vector<double>& img, int w, int h, double x, double y, const FrameSimOptions& o, double flux) {
+  if (o.defocus_radius_px <= 0) {
+    AddGaussian(img, w, h, x, y, o.psf_sigma_px, flux);
+    return;
+  }
+  const int n = std::max(16, static_cast<int>(8 * o.defocus_radius_px * o.defocus_radius_px));
+  const double golden = kPi * (3.0 - std::sqrt(5.0));
+  for (int k = 0; k < n; ++k) {
+    const double r = o.defocus_radius_px * std::sqrt((k + 0.5) / n), th = k * golden;
+    AddGaussian(img, w, h, x + r * std::cos(th), y + r * std::sin(th), o.psf_sigma_px, flux / n);
+  }
+}
+
+// A straight track of `e_per_px` electrons per pixel of length, sampled every 0.1 px, with
+// blur sigma `sigma` (0 = deposited directly into the pixel, as a cosmic ray's charge is).
+void AddTrack(std::vector<double>& img, int w, int h, double x0, double y0, double x1, double y1, double e_per_px,
+              double sigma) {
+  const double len = std::hypot(x1 - x0, y1 - y0);
+  const int n = std::max(1, static_cast<int>(std::ceil(len / 0.1)));
+  const double q = e_per_px * std::max(len, 1.0) / n;
+  for (int k = 0; k < n; ++k) {
+    const double t = (k + 0.5) / n, x = x0 + t * (x1 - x0), y = y0 + t * (y1 - y0);
+    if (sigma > 0) {
+      AddGaussian(img, w, h, x, y, sigma, q);
+    } else {
+      const int i = static_cast<int>(std::lround(x)), j = static_cast<int>(std::lround(y));
+      if (i >= 0 && j >= 0 && i < w && j < h) img[static_cast<size_t>(j) * w + i] += q;
+    }
+  }
+}
+
+}  // namespace
+
+void FrameSimOptions::Check() const {
+  auto need = [](bool ok, const char* field, const char* what) {
+    if (!ok) throw InputError("frame simulator options", std::string("field '") + field + "' " + what);
+  };
+  for (const auto& f : kDoubleFields) need(std::isfinite(this->*f.ptr), f.name, "must be finite");
+  need(psf_sigma_px > 0.1 && psf_sigma_px < 50, "psf_sigma_px", "must be in (0.1, 50)");
+  need(defocus_radius_px >= 0 && defocus_radius_px < 100, "defocus_radius_px", "must be in [0, 100)");
+  need(exposure_s > 0, "exposure_s", "must be > 0");
+  need(mag0_flux_e_per_s >= 0, "mag0_flux_e_per_s", "must be >= 0");
+  need(vignetting >= 0 && vignetting <= 1, "vignetting", "must be in [0, 1]");
+  need(background_e_per_s >= 0, "background_e_per_s", "must be >= 0");
+  need(dark_current_e_per_s >= 0, "dark_current_e_per_s", "must be >= 0");
+  need(read_noise_e >= 0, "read_noise_e", "must be >= 0");
+  need(gain_e_per_adu > 0, "gain_e_per_adu", "must be > 0");
+  need(bias_adu >= 0, "bias_adu", "must be >= 0");
+  need(full_well_e > 0, "full_well_e", "must be > 0");
+  need(bit_depth == 8 || bit_depth == 16, "bit_depth", "must be 8 or 16");
+  need(hot_pixels >= 0 && dead_pixels >= 0 && cosmic_rays >= 0 && streaks >= 0 && false_stars >= 0, "hot_pixels",
+       "(and other counts) must be >= 0");
+  need(hot_pixel_min_e_per_s > 0 && hot_pixel_max_e_per_s >= hot_pixel_min_e_per_s, "hot_pixel_min_e_per_s",
+       "must be > 0 and <= hot_pixel_max_e_per_s");
+  need(cosmic_ray_e_per_px >= 0 && cosmic_ray_max_length_px >= 0, "cosmic_ray_e_per_px", "must be >= 0");
+  need(streak_flux_e_per_px >= 0, "streak_flux_e_per_px", "must be >= 0");
+}
+
+FrameSimOptions FrameSimOptionsFromJson(const Json& j, const std::string& source) {
+  if (!j.is_object()) throw InputError(source, "simulator config must be a JSON object");
+  FrameSimOptions o;
+  for (const auto& [key, value] : j.items()) {
+    bool known = false;
+    for (const auto& f : kDoubleFields) {
+      if (key == f.name) {
+        o.*f.ptr = JsonNumber(j, key, source);
+        known = true;
+      }
+    }
+    for (const auto& f : kIntFields) {
+      if (key == f.name) {
+        const double v = JsonNumber(j, key, source);
+        if (v != std::floor(v)) throw InputError(source, "field '" + key + "' must be a whole number");
+        o.*f.ptr = static_cast<int>(v);
+        known = true;
+      }
+    }
+    if (key == "shot_noise") {
+      if (!value.is_boolean()) throw InputError(source, "field 'shot_noise' must be true or false");
+      o.shot_noise = value.get<bool>();
+      known = true;
+    }
+    if (!known) throw InputError(source, "unknown field '" + key + "'");
+  }
+  try {
+    o.Check();
+  } catch (const InputError& e) {
+    throw InputError(source, e.what());
+  }
+  return o;
+}
+
+Json FrameSimOptionsToJson(const FrameSimOptions& o) {
+  Json j;
+  for (const auto& f : kDoubleFields) j[f.name] = o.*f.ptr;
+  for (const auto& f : kIntFields) j[f.name] = o.*f.ptr;
+  j["shot_noise"] = o.shot_noise;
+  return j;
+}
+
+std::vector<std::string> FrameSimOptionNames() {
+  std::vector<std::string> names;
+  for (const auto& f : kDoubleFields) names.push_back(f.name);
+  for (const auto& f : kIntFields) names.push_back(f.name);
+  return names;
+}
+
+void SetFrameSimOption(FrameSimOptions* o, const std::string& name, double value) {
+  *o = FrameSimOptionsFromJson([&] {
+    Json j = FrameSimOptionsToJson(*o);
+    if (!j.contains(name) || name == "shot_noise") throw InputError("frame simulator options", "unknown option '" + name + "'");
+    j[name] = value;
+    return j;
+  }(), "frame simulator options");
+}
+
+Quat RandomAttitude(uint64_t seed) {
+  Rng rng(seed ^ 0x9E3779B97F4A7C15ULL);
+  const double u1 = rng.Uniform(), u2 = rng.Uniform(), u3 = rng.Uniform();
+  return QuatFromUniform(u1, u2, u3);
+}
+
+SimulatedFrame SimulateFrame(const Camera& cam, const StarCatalog& catalog, const Quat& q_in,
+                             const FrameSimOptions& o, uint64_t seed) {
+  cam.Check();
+  o.Check();
+  const int w = cam.width, h = cam.height;
+  Rng rng(seed);
+  SimulatedFrame out;
+  out.seed = seed;
+  out.q_inertial_from_sensor = q_in.normalized();
+  const Mat3 r_sensor_from_inertial = out.q_inertial_from_sensor.toRotationMatrix().transpose();
+  std::vector<double> signal(static_cast<size_t>(w) * h, 0.0);  // electrons
+
+  const double r_corner2 = 0.25 * (double(w) * w + double(h) * h);
+  auto vignette = [&](double x, double y) {
+    const double dx = x - cam.cx_px, dy = y - cam.cy_px;
+    return 1.0 - o.vignetting * (dx * dx + dy * dy) / r_corner2;
+  };
+  // Noise per pixel of the background (electrons^2) and the PSF's noise-equivalent area, for SNR truth.
+  const double bg_e = (o.background_e_per_s + o.dark_current_e_per_s) * o.exposure_s;
+  const double var_bg_e2 = (o.shot_noise ? bg_e : 0.0) + o.read_noise_e * o.read_noise_e +
+                           o.gain_e_per_adu * o.gain_e_per_adu / 12.0;
+  const double nea_px = 4 * kPi * o.psf_sigma_px * o.psf_sigma_px + kPi * o.defocus_radius_px * o.defocus_radius_px;
+  const double peak_fraction = 1.0 / (2 * kPi * o.psf_sigma_px * o.psf_sigma_px + kPi * o.defocus_radius_px * o.defocus_radius_px);
+
+  // Stars: every catalog star whose PSF reaches the frame.
+  const double cos_limit = std::cos(0.5 * cam.FovDiagRad() + 0.01);
+  const Vec3 boresight = out.q_inertial_from_sensor * Vec3::UnitZ();
+  auto add_star = [&](StarId id, double mag, const Vec2& p) {
+    SimStar s;
+    s.star_id = id;
+    s.mag = mag;
+    s.x_px = p.x();
+    s.y_px = p.y();
+    s.flux_e = o.mag0_flux_e_per_s * std::pow(10.0, -0.4 * mag) * o.exposure_s * std::max(0.0, vignette(p.x(), p.y()));
+    s.flux_adu = s.flux_e / o.gain_e_per_adu;
+    s.snr = s.flux_e / std::sqrt((o.shot_noise ? s.flux_e : 0.0) + nea_px * var_bg_e2);
+    s.saturated = s.flux_e * peak_fraction + bg_e > o.full_well_e ||
+                  (s.flux_e * peak_fraction + bg_e) / o.gain_e_per_adu + o.bias_adu >= (1 << o.bit_depth) - 1;
+    AddPsf(signal, w, h, p.x(), p.y(), o, s.flux_e);
+    out.stars.push_back(s);
+  };
+  for (const CatalogStar& cs : catalog.stars) {
+    if (cs.mag > o.mag_max) continue;
+    if (cs.unit.dot(boresight) < cos_limit) continue;
+    const auto p = cam.Project(r_sensor_from_inertial * cs.unit);
+    if (!p || !cam.InImage(*p, -3 * o.psf_sigma_px)) continue;
+    add_star(cs.id, cs.mag, *p);
+  }
+  for (int k = 0; k < o.false_stars; ++k) {
+    const double mag = rng.Uniform(2.0, std::max(2.5, o.mag_max - 0.5));
+    add_star(kInvalidStarId, mag, Vec2(rng.Uniform(5, w - 6), rng.Uniform(5, h - 6)));
+  }
+
+  // Satellite streaks: PSF-blurred lines crossing a good part of the frame.
+  for (int k = 0; k < o.streaks; ++k) {
+    SimArtefact a;
+    a.type = "streak";
+    a.x0_px = rng.Uniform(0, w - 1);
+    a.y0_px = rng.Uniform(0, h - 1);
+    const double len = rng.Uniform(0.15, 0.4) * std::min(w, h), th = rng.Uniform(0, 2 * kPi);
+    a.x1_px = std::clamp(a.x0_px + len * std::cos(th), 0.0, w - 1.0);
+    a.y1_px = std::clamp(a.y0_px + len * std::sin(th), 0.0, h - 1.0);
+    a.x_px = 0.5 * (a.x0_px + a.x1_px);
+    a.y_px = 0.5 * (a.y0_px + a.y1_px);
+    a.signal_e = o.streak_flux_e_per_px;
+    AddTrack(signal, w, h, a.x0_px, a.y0_px, a.x1_px, a.y1_px, o.streak_flux_e_per_px, o.psf_sigma_px);
+    out.artefacts.push_back(a);
+  }
+  // Cosmic rays: sharp tracks (charge in the pixels crossed, no optical blur), random length
+  // (0 = a single-pixel hit) and direction.
+  for (int k = 0; k < o.cosmic_rays; ++k) {
+    SimArtefact a;
+    a.type = "cosmic_ray";
+    a.x0_px = rng.Uniform(2, w - 3);
+    a.y0_px = rng.Uniform(2, h - 3);
+    const double len = rng.Uniform(0, o.cosmic_ray_max_length_px), th = rng.Uniform(0, 2 * kPi);
+    a.x1_px = std::clamp(a.x0_px + len * std::cos(th), 0.0, w - 1.0);
+    a.y1_px = std::clamp(a.y0_px + len * std::sin(th), 0.0, h - 1.0);
+    a.x_px = 0.5 * (a.x0_px + a.x1_px);
+    a.y_px = 0.5 * (a.y0_px + a.y1_px);
+    a.signal_e = o.cosmic_ray_e_per_px * rng.Uniform(0.5, 1.5);
+    AddTrack(signal, w, h, a.x0_px, a.y0_px, a.x1_px, a.y1_px, a.signal_e, 0.0);
+    out.artefacts.push_back(a);
+  }
+  // Hot pixels: dark rate log-uniform in [min, max]; dead pixels: no response.
+  std::vector<uint8_t> dead(static_cast<size_t>(w) * h, 0);
+  for (int k = 0; k < o.hot_pixels; ++k) {
+    const int x = static_cast<int>(rng.Uniform() * w), y = static_cast<int>(rng.Uniform() * h);
+    const double rate = o.hot_pixel_min_e_per_s *
+                        std::pow(o.hot_pixel_max_e_per_s / o.hot_pixel_min_e_per_s, rng.Uniform());
+    SimArtefact a;
+    a.type = "hot_pixel";
+    a.x_px = a.x0_px = a.x1_px = x;
+    a.y_px = a.y0_px = a.y1_px = y;
+    a.signal_e = rate * o.exposure_s;
+    signal[static_cast<size_t>(y) * w + x] += a.signal_e;
+    out.artefacts.push_back(a);
+  }
+  for (int k = 0; k < o.dead_pixels; ++k) {
+    const int x = static_cast<int>(rng.Uniform() * w), y = static_cast<int>(rng.Uniform() * h);
+    dead[static_cast<size_t>(y) * w + x] = 1;
+    SimArtefact a;
+    a.type = "dead_pixel";
+    a.x_px = a.x0_px = a.x1_px = x;
+    a.y_px = a.y0_px = a.y1_px = y;
+    out.artefacts.push_back(a);
+  }
+
+  // Detector: background and dark (with vignetting on the sky part), shot noise, full well,
+  // read noise, gain, bias, quantisation and ADC saturation.
+  const double adc_max = (1 << o.bit_depth) - 1;
+  out.image = Image16(w, h);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const size_t i = static_cast<size_t>(y) * w + x;
+      double e = signal[i] + o.exposure_s * (o.background_e_per_s * vignette(x, y) + o.dark_current_e_per_s);
+      if (dead[i]) e = 0;
+      if (o.shot_noise) e = rng.Poisson(e);
+      e = std::min(e, o.full_well_e);
+      const double noise_e = o.read_noise_e > 0 ? o.read_noise_e * rng.Normal() : 0.0;
+      double adu = dead[i] ? 0.0 : std::round((e + noise_e) / o.gain_e_per_adu + o.bias_adu);
+      out.image.pixels[i] = static_cast<uint16_t>(std::clamp(adu, 0.0, adc_max));
+    }
+  }
+  out.noise_adu = std::sqrt(var_bg_e2) / o.gain_e_per_adu;
+  return out;
+}
+
+Json TruthToJson(const SimulatedFrame& f, const Camera& cam, const FrameSimOptions& o) {
+  const auto q = ToWxyz(f.q_inertial_from_sensor);
+  const RaDecRoll rdr = RaDecRollFromQuat(f.q_inertial_from_sensor);
+  Json j;
+  j["q"] = {q[0], q[1], q[2], q[3]};
+  j["ra_deg"] = rdr.ra_rad * kRadToDeg;
+  j["dec_deg"] = rdr.dec_rad * kRadToDeg;
+  j["roll_deg"] = rdr.roll_rad * kRadToDeg;
+  j["seed"] = f.seed;
+  j["camera"] = CameraToJson(cam);
+  j["options"] = FrameSimOptionsToJson(o);
+  j["noise_adu"] = f.noise_adu;
+  j["background_adu"] = o.bias_adu + (o.background_e_per_s + o.dark_current_e_per_s) * o.exposure_s / o.gain_e_per_adu;
+  Json stars = Json::array();
+  for (const SimStar& s : f.stars) {
+    stars.push_back({{"star_id", s.star_id},
+                     {"mag", s.mag},
+                     {"x_px", s.x_px},
+                     {"y_px", s.y_px},
+                     {"flux_e", s.flux_e},
+                     {"flux_adu", s.flux_adu},
+                     {"snr", s.snr},
+                     {"saturated", s.saturated},
+                     {"false_star", s.star_id == kInvalidStarId}});
+  }
+  j["stars"] = stars;
+  Json arts = Json::array();
+  for (const SimArtefact& a : f.artefacts) {
+    Json ja = {{"type", a.type}, {"x_px", a.x_px}, {"y_px", a.y_px}};
+    if (a.type == "cosmic_ray" || a.type == "streak") {
+      ja["x0_px"] = a.x0_px;
+      ja["y0_px"] = a.y0_px;
+      ja["x1_px"] = a.x1_px;
+      ja["y1_px"] = a.y1_px;
+    }
+    if (a.type != "dead_pixel") ja["signal_e"] = a.signal_e;
+    arts.push_back(ja);
+  }
+  j["artefacts"] = arts;
+  return j;
+}
+
+}  // namespace ssiu
