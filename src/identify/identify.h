@@ -1,0 +1,101 @@
+// Lost-in-space star identification: centroids -> catalog stars, with a verified hypothesis and the
+// probability that the match is chance.
+//
+//   StarIdentifier id(LoadSolverCatalog(dir));
+//   Identification r = id.Identify(centroids, camera, IdentifyOptions{});
+//   if (r.status == "solved") ... r.matches ...
+//
+// Method (docs/identify.md): triangles of the brightest centroids; the side-length ratios (which do
+// not depend on the focal length) are looked up in a FLANN kd-tree of catalog triangles with a
+// tolerance from the centroid noise, the longest side is checked against the focal-length range;
+// each hypothesis (vertex correspondence + handedness) gives an attitude (and focal length) that
+// predicts every catalog star in the field; the matches within the match radius are counted and the
+// chance of as many matches by accident is a binomial tail (after tetra3 / cedar-solve), multiplied
+// by the number of hypotheses tried. Accepted only below max_false_match_prob.
+#pragma once
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/camera.h"
+#include "core/types.h"
+#include "identify/star_catalog.h"
+
+namespace ssiu {
+
+struct Centroid {
+  double x_px = 0, y_px = 0;
+  double flux = 0;      // brightness for ordering (any unit); 0 for all = keep input order
+  double sigma_px = 0;  // 1-sigma position noise; 0 = IdentifyOptions::centroid_sigma_px
+};
+
+struct IdentifyOptions {
+  int pattern_centroids = 12;          // brightest centroids used to form triangles
+  int verify_centroids = 60;           // brightest centroids used in verification
+  double centroid_sigma_px = 0.3;      // position noise when a centroid carries none
+  double systematic_px = 0.5;          // unmodelled position error (distortion, catalog) added in quadrature
+  double tolerance_sigmas = 4.0;       // pattern tolerance in noise sigmas
+  double match_radius_px = 0.0;        // verification match radius; 0 = max(2 px, 5 sigma)
+  double fov_tolerance_pct = 0.0;      // focal length known to +/- this percent: search and refine it
+  double max_false_match_prob = 1e-5;  // accept a hypothesis only below this chance probability
+  int min_matches = 5;                 // fewer verified matches: never solved
+  int max_hypotheses = 20000;          // give up (no_match) after this many hypotheses
+  void Check() const;                  // throws InputError naming the field
+};
+
+struct StarMatch {
+  int centroid = -1;                // index into the input centroids
+  int star = -1;                    // index into SolverCatalog::stars
+  StarId star_id = kInvalidStarId;
+  double mag = 0;
+  double x_px = 0, y_px = 0;
+  Vec3 b_sensor = Vec3::UnitZ();    // measured direction (with the fitted focal length)
+  Vec3 r_inertial = Vec3::UnitZ();  // catalog direction
+  double sigma_rad = 0;             // 1-sigma angular noise of b_sensor
+  double residual_rad = 0;          // angle between b_sensor and the solution's prediction
+};
+
+struct Identification {
+  std::string status = "too_few_stars";  // solved, no_match, too_few_stars
+  std::string message;
+  Quat q_inertial_from_sensor = Quat::Identity();  // from the matches (SVD); QUEST refines it
+  double focal_length_px = 0;
+  double false_match_probability = 1.0;
+  std::vector<StarMatch> matches;
+  int hypotheses = 0;               // hypotheses verified
+  int catalog_stars_in_field = 0;
+  std::map<std::string, double> timing_ms;
+};
+
+class StarIdentifier {
+ public:
+  explicit StarIdentifier(SolverCatalog catalog);
+  ~StarIdentifier();
+  StarIdentifier(StarIdentifier&&) noexcept;
+  StarIdentifier& operator=(StarIdentifier&&) noexcept;
+
+  // Lost in space.
+  Identification Identify(const std::vector<Centroid>& centroids, const Camera& camera,
+                          const IdentifyOptions& options) const;
+  // Tracking: match directly against the stars predicted by q_predicted (search radius in pixels),
+  // then refine and verify as in Identify (no pattern search, no Bonferroni factor).
+  Identification MatchWithAttitude(const std::vector<Centroid>& centroids, const Camera& camera,
+                                   const Quat& q_predicted, double search_radius_px,
+                                   const IdentifyOptions& options) const;
+
+  const SolverCatalog& catalog() const { return catalog_; }
+  // Indices of catalog stars within radius_rad of the unit vector u.
+  std::vector<int> StarsWithin(const Vec3& u, double radius_rad) const;
+
+ private:
+  struct Index;
+  SolverCatalog catalog_;
+  std::unique_ptr<Index> index_;
+};
+
+// P(X >= k) for X ~ Binomial(n, p).
+double BinomialTail(int n, double p, int k);
+
+}  // namespace ssiu

@@ -1,0 +1,438 @@
+#include "identify/star_catalog.h"
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+
+#include "core/attitude.h"
+#include "core/error.h"
+#include "core/json.h"
+#include "identify/sky_grid.h"
+
+namespace ssiu {
+namespace {
+
+constexpr double kMasToRad = kArcsecToRad / 1000.0;
+constexpr char kMagic[8] = {'S', 'S', 'I', 'U', 'C', 'A', 'T', '1'};
+
+bool FileExists(const std::string& p) {
+  struct stat st;
+  return ::stat(p.c_str(), &st) == 0;
+}
+
+void MakeDirs(const std::string& dir) {
+  std::string cur;
+  std::stringstream ss(dir);
+  std::string part;
+  if (!dir.empty() && dir[0] == '/') cur = "/";
+  while (std::getline(ss, part, '/')) {
+    if (part.empty()) continue;
+    cur += part + "/";
+    ::mkdir(cur.c_str(), 0755);
+  }
+  if (!FileExists(dir)) throw InputError(dir, "cannot create directory");
+}
+
+// Flux-weighted merge of b into a (positions as unit vectors; magnitudes combined in flux).
+void MergeInto(CatalogStar* a, const CatalogStar& b) {
+  const double fa = std::pow(10.0, -0.4 * a->mag), fb = std::pow(10.0, -0.4 * b.mag);
+  a->unit = (fa * a->unit + fb * b.unit).normalized();
+  RaDecFromUnit(a->unit, &a->ra_rad, &a->dec_rad);
+  a->mag = -2.5 * std::log10(fa + fb);
+}
+
+bool LooksLikeBsc5(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  int32_t h[7];
+  if (!in.read(reinterpret_cast<char*>(h), sizeof h)) return false;
+  return h[0] == 0 && h[1] == 1 && h[6] == 32 && h[2] < 0 && h[2] > -100000;
+}
+
+bool LooksLikeKstars(const std::string& path) {
+  std::ifstream in(path);
+  std::string line;
+  for (int i = 0; i < 40 && std::getline(in, line); ++i) {
+    if (line.find("Hipparcos") != std::string::npos) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+void CatalogBuildOptions::Check() const {
+  if (!(fov_deg > 0.5 && fov_deg < 90)) throw InputError("catalog options", "fov_deg must be in (0.5, 90)");
+  if (!(mag_max >= 0 && mag_max < 20)) throw InputError("catalog options", "mag_max must be in [0, 20) (0 = auto)");
+  if (!(epoch_year > 1800 && epoch_year < 2300)) throw InputError("catalog options", "epoch_year must be in (1800, 2300)");
+  if (!(double_star_arcsec >= 0)) throw InputError("catalog options", "double_star_arcsec must be >= 0");
+  if (pattern_stars_per_fov < 4 || pattern_stars_per_fov > 60)
+    throw InputError("catalog options", "pattern_stars_per_fov must be in [4, 60]");
+  if (!(stars_per_fov >= 5)) throw InputError("catalog options", "stars_per_fov must be >= 5");
+  if (!(min_side_frac >= 0 && min_side_frac < 0.5)) throw InputError("catalog options", "min_side_frac must be in [0, 0.5)");
+}
+
+SourceCatalog LoadBsc5(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, "cannot open BSC5 file");
+  int32_t h[7];
+  if (!in.read(reinterpret_cast<char*>(h), sizeof h)) throw InputError(path, "truncated BSC5 header");
+  // Header: STAR0, STAR1, STARN (< 0: J2000), STNUM, MPROP, NMAG, NBENT (SAO TDC binary format).
+  if (h[2] >= 0 || h[6] != 32 || h[3] != 1 || h[5] != 1) throw InputError(path, "not a J2000 BSC5 binary catalog");
+  const int n = -h[2];
+  SourceCatalog cat;
+  cat.source = path;
+  cat.kind = "bsc5";
+  cat.has_proper_motion = true;
+  for (int i = 0; i < n; ++i) {
+    char e[32];
+    if (!in.read(e, sizeof e)) throw InputError(path, "truncated at entry " + std::to_string(i + 1));
+    float xno, rpm, dpm;
+    double ra, dec;
+    int16_t mag;
+    std::memcpy(&xno, e, 4);
+    std::memcpy(&ra, e + 4, 8);
+    std::memcpy(&dec, e + 12, 8);
+    std::memcpy(&mag, e + 22, 2);
+    std::memcpy(&rpm, e + 24, 4);
+    std::memcpy(&dpm, e + 28, 4);
+    if (ra == 0 && dec == 0) continue;  // the few entries without a position (novae, non-stellar)
+    SourceStar s;
+    s.star.id = static_cast<StarId>(std::lround(xno));
+    s.star.ra_rad = ra;
+    s.star.dec_rad = dec;
+    s.star.mag = mag / 100.0;
+    s.star.unit = UnitFromRaDec(ra, dec);
+    s.pm_ra_rad_per_yr = rpm;  // BSC5 pmRA is mu_alpha * cos(dec)
+    s.pm_dec_rad_per_yr = dpm;
+    cat.stars.push_back(s);
+  }
+  return cat;
+}
+
+SourceCatalog LoadKstarsStars(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path, "cannot open KStars star catalog (apt-get install kstars-data)");
+  SourceCatalog cat;
+  cat.source = path;
+  cat.kind = "kstars";
+  cat.has_proper_motion = true;
+  std::string line;
+  int row = 0, line_no = 0;
+  auto num = [&](size_t pos, size_t len, const char* field) {
+    const std::string f = line.substr(pos, len);
+    char* end = nullptr;
+    const double v = std::strtod(f.c_str(), &end);
+    if (end == f.c_str()) throw InputError(path, "line " + std::to_string(line_no) + ": bad " + field + " '" + f + "'");
+    return v;
+  };
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (line.empty() || line[0] == '#') continue;
+    ++row;
+    if (line.size() < 56) throw InputError(path, "line " + std::to_string(line_no) + ": shorter than the fixed-width record");
+    // RA hhmmss.ss [0,9), Dec sddmmss.s [10,19), pmRA [20,29), pmDec [29,38) mas/yr, mag [46,51).
+    const double ra_h = num(0, 2, "RA") + num(2, 2, "RA") / 60.0 + num(4, 5, "RA") / 3600.0;
+    const double dec_abs = num(11, 2, "Dec") + num(13, 2, "Dec") / 60.0 + num(15, 4, "Dec") / 3600.0;
+    const double dec_deg = line[10] == '-' ? -dec_abs : dec_abs;
+    SourceStar s;
+    s.star.id = kKstarsIdOffset + row;
+    s.star.ra_rad = ra_h * 15.0 * kDegToRad;
+    s.star.dec_rad = dec_deg * kDegToRad;
+    s.star.mag = num(46, 5, "mag");
+    s.star.unit = UnitFromRaDec(s.star.ra_rad, s.star.dec_rad);
+    s.pm_ra_rad_per_yr = num(20, 9, "pmRA") * kMasToRad;
+    s.pm_dec_rad_per_yr = num(29, 9, "pmDec") * kMasToRad;
+    cat.stars.push_back(s);
+  }
+  if (cat.stars.empty()) throw InputError(path, "no stars read");
+  return cat;
+}
+
+SourceCatalog LoadSourceCatalog(const std::string& path) {
+  if (!FileExists(path)) throw InputError(path, "star catalog not found");
+  if (LooksLikeBsc5(path)) return LoadBsc5(path);
+  if (LooksLikeKstars(path)) {
+    SourceCatalog k = LoadKstarsStars(path);
+    if (FileExists(DefaultBscPath())) AssignHrNumbers(&k, LoadXplanetBsc(DefaultBscPath()));
+    return k;
+  }
+  const StarCatalog bsc = LoadXplanetBsc(path);
+  SourceCatalog cat;
+  cat.source = path;
+  cat.kind = "xplanet_bsc";
+  for (const auto& s : bsc.stars) cat.stars.push_back({s, 0, 0});
+  return cat;
+}
+
+void AssignHrNumbers(SourceCatalog* kstars, const StarCatalog& bsc, double radius_arcsec) {
+  const double r = radius_arcsec * kArcsecToRad;
+  internal::SkyGrid grid(std::max(r, 1e-4));
+  for (size_t i = 0; i < kstars->stars.size(); ++i) grid.Insert(static_cast<int>(i), kstars->stars[i].star.unit);
+  for (const auto& b : bsc.stars) {
+    int best = -1;
+    double best_dm = 1.0;
+    grid.ForEachWithin(b.unit, r, [&](int id, const Vec3&) {
+      const double dm = std::abs(kstars->stars[id].star.mag - b.mag);
+      if (dm < best_dm) best_dm = dm, best = id;
+    });
+    if (best >= 0 && kstars->stars[best].star.id >= kKstarsIdOffset) kstars->stars[best].star.id = b.id;
+  }
+}
+
+std::string DefaultSourceFor(double fov_deg) {
+  const char* env = std::getenv("SSIU_CATALOG");
+  if (env && *env) return env;
+  const std::string kstars = "/usr/share/kstars/stars.dat";
+  // The BSC holds about 40 stars per field down to ~10 deg; narrower fields need Hipparcos/Tycho.
+  if (fov_deg < 10.0 && FileExists(kstars)) return kstars;
+  return DefaultBscPath();
+}
+
+namespace {
+
+SolverCatalog BuildFromStars(std::vector<CatalogStar> stars, const std::string& source, double epoch,
+                             const CatalogBuildOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  o.Check();
+  std::stable_sort(stars.begin(), stars.end(), [](const CatalogStar& a, const CatalogStar& b) { return a.mag < b.mag; });
+  const double fov = o.fov_deg * kDegToRad;
+  // Magnitude limit: the star count that gives `stars_per_fov` per cap of diameter fov on average.
+  double mag_max = o.mag_max;
+  if (mag_max <= 0) {
+    const double cap_sr = 2 * kPi * (1 - std::cos(fov / 2));
+    const size_t n = static_cast<size_t>(o.stars_per_fov * 4 * kPi / cap_sr);
+    mag_max = stars.empty() ? 6.0 : stars[std::min(n, stars.size() - 1)].mag;
+  }
+  // Close doubles: merge (flux-weighted) every fainter star within the separation a tracker cannot
+  // resolve into the brighter one; companions down to 2 mag below the limit are merged before the cut.
+  const double dbl = (o.double_star_arcsec > 0 ? o.double_star_arcsec : o.fov_deg * 3600.0 / 1024.0 * 3.0) * kArcsecToRad;
+  {
+    std::vector<CatalogStar> kept;
+    internal::SkyGrid grid(dbl);
+    for (const auto& s : stars) {
+      if (s.mag > mag_max + 2.0) break;
+      int into = -1;
+      grid.ForEachWithin(s.unit, dbl, [&](int id, const Vec3&) {
+        if (into < 0) into = id;
+      });
+      if (into >= 0) {
+        MergeInto(&kept[into], s);  // the grid keeps the first position; fine at this separation
+      } else {
+        grid.Insert(static_cast<int>(kept.size()), s.unit);
+        kept.push_back(s);
+      }
+    }
+    stars.clear();
+    for (const auto& s : kept)
+      if (s.mag <= mag_max) stars.push_back(s);
+    std::stable_sort(stars.begin(), stars.end(), [](const CatalogStar& a, const CatalogStar& b) { return a.mag < b.mag; });
+  }
+  SolverCatalog cat;
+  cat.source = source;
+  cat.epoch_year = epoch;
+  cat.fov_deg = o.fov_deg;
+  cat.mag_max = mag_max;
+  cat.double_star_arcsec = dbl * kRadToArcsec;
+  cat.stars = std::move(stars);
+
+  // Pattern stars: brightest first, at most pattern_stars_per_fov in any cap of radius fov/2, so
+  // that the sky is covered evenly (tetra3's idea) and faint stars fill sparse regions.
+  std::vector<int> pattern;
+  {
+    internal::SkyGrid grid(fov / 2);
+    for (size_t i = 0; i < cat.stars.size(); ++i) {
+      int count = 0;
+      grid.ForEachWithin(cat.stars[i].unit, fov / 2, [&](int, const Vec3&) { ++count; });
+      if (count < o.pattern_stars_per_fov) {
+        grid.Insert(static_cast<int>(i), cat.stars[i].unit);
+        pattern.push_back(static_cast<int>(i));
+      }
+    }
+  }
+  cat.num_pattern_stars = static_cast<int>(pattern.size());
+  // Triangles of pattern stars whose sides all fit in the FOV.
+  internal::SkyGrid grid(fov);
+  for (size_t p = 0; p < pattern.size(); ++p) grid.Insert(static_cast<int>(p), cat.stars[pattern[p]].unit);
+  const double min_side = o.min_side_frac * fov;
+  const double cos_fov = std::cos(fov);
+  std::vector<int> nb;
+  for (size_t p = 0; p < pattern.size(); ++p) {
+    const Vec3& u0 = cat.stars[pattern[p]].unit;
+    nb.clear();
+    grid.ForEachWithin(u0, fov, [&](int id, const Vec3&) {
+      if (id > static_cast<int>(p)) nb.push_back(id);
+    });
+    std::sort(nb.begin(), nb.end());
+    for (size_t j = 0; j < nb.size(); ++j) {
+      for (size_t k = j + 1; k < nb.size(); ++k) {
+        const int idx[3] = {pattern[p], pattern[nb[j]], pattern[nb[k]]};
+        const Vec3& a = cat.stars[idx[0]].unit;
+        const Vec3& b = cat.stars[idx[1]].unit;
+        const Vec3& c = cat.stars[idx[2]].unit;
+        if (b.dot(c) < cos_fov) continue;
+        // Side opposite each vertex.
+        const double side[3] = {std::acos(std::min(1.0, b.dot(c))), std::acos(std::min(1.0, a.dot(c))),
+                                std::acos(std::min(1.0, a.dot(b)))};
+        int ord[3] = {0, 1, 2};
+        std::sort(ord, ord + 3, [&](int x, int y) { return side[x] < side[y]; });
+        if (side[ord[0]] < min_side) continue;
+        CatalogTriangle t;
+        for (int m = 0; m < 3; ++m) t.v[m] = idx[ord[m]];
+        t.longest_rad = static_cast<float>(side[ord[2]]);
+        t.ratio_a = static_cast<float>(side[ord[0]] / side[ord[2]]);
+        t.ratio_b = static_cast<float>(side[ord[1]] / side[ord[2]]);
+        cat.triangles.push_back(t);
+      }
+    }
+  }
+  cat.build_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return cat;
+}
+
+}  // namespace
+
+SolverCatalog BuildSolverCatalog(const SourceCatalog& source, const CatalogBuildOptions& o) {
+  o.Check();
+  std::vector<CatalogStar> stars;
+  stars.reserve(source.stars.size());
+  const double dt = source.has_proper_motion ? o.epoch_year - 2000.0 : 0.0;
+  for (const auto& s : source.stars) {
+    CatalogStar c = s.star;
+    if (dt != 0) {
+      // Linear proper motion in (RA, Dec); pm_ra carries cos(dec). Adequate for decades away from the poles.
+      c.dec_rad += s.pm_dec_rad_per_yr * dt;
+      const double cd = std::max(std::cos(s.star.dec_rad), 1e-6);
+      c.ra_rad = std::fmod(c.ra_rad + s.pm_ra_rad_per_yr / cd * dt + 2 * kPi, 2 * kPi);
+      c.unit = UnitFromRaDec(c.ra_rad, c.dec_rad);
+    }
+    stars.push_back(c);
+  }
+  return BuildFromStars(std::move(stars), source.source, source.has_proper_motion ? o.epoch_year : 2000.0, o);
+}
+
+SolverCatalog BuildSolverCatalog(const StarCatalog& stars, const CatalogBuildOptions& o) {
+  return BuildFromStars(stars.stars, stars.source, 2000.0, o);
+}
+
+void SaveSolverCatalog(const SolverCatalog& cat, const std::string& dir) {
+  MakeDirs(dir);
+  {
+    const std::string path = dir + "/catalog.bin";
+    std::ofstream out(path, std::ios::binary);
+    if (!out) throw InputError(path, "cannot write");
+    auto put = [&](const void* p, size_t n) { out.write(static_cast<const char*>(p), static_cast<std::streamsize>(n)); };
+    put(kMagic, 8);
+    const double hdr[5] = {cat.epoch_year, cat.fov_deg, cat.mag_max, cat.double_star_arcsec, cat.build_time_s};
+    put(hdr, sizeof hdr);
+    const int64_t counts[3] = {static_cast<int64_t>(cat.stars.size()), static_cast<int64_t>(cat.triangles.size()),
+                               cat.num_pattern_stars};
+    put(counts, sizeof counts);
+    const int64_t slen = static_cast<int64_t>(cat.source.size());
+    put(&slen, 8);
+    put(cat.source.data(), cat.source.size());
+    for (const auto& s : cat.stars) {
+      const double d[3] = {s.ra_rad, s.dec_rad, s.mag};
+      put(&s.id, sizeof s.id);
+      put(d, sizeof d);
+    }
+    put(cat.triangles.data(), cat.triangles.size() * sizeof(CatalogTriangle));
+    if (!out) throw InputError(path, "write failed");
+  }
+  {
+    const std::string path = dir + "/stars.csv";
+    std::ofstream out(path);
+    out << "star_id,ra_deg,dec_deg,mag\n" << std::setprecision(10);
+    for (const auto& s : cat.stars) out << s.id << ',' << s.ra_rad * kRadToDeg << ',' << s.dec_rad * kRadToDeg << ',' << s.mag << '\n';
+  }
+  Json meta = {{"source", cat.source},
+               {"epoch_year", cat.epoch_year},
+               {"fov_deg", cat.fov_deg},
+               {"mag_max", cat.mag_max},
+               {"double_star_arcsec", cat.double_star_arcsec},
+               {"stars", cat.stars.size()},
+               {"pattern_stars", cat.num_pattern_stars},
+               {"triangles", cat.triangles.size()},
+               {"index_bytes", cat.IndexBytes()},
+               {"build_time_s", cat.build_time_s}};
+  WriteJsonFile(dir + "/meta.json", meta);
+}
+
+SolverCatalog LoadSolverCatalog(const std::string& dir) {
+  const std::string path = dir + "/catalog.bin";
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, "cannot open built catalog (run `ssiu catalog build`)");
+  auto get = [&](void* p, size_t n) {
+    if (!in.read(static_cast<char*>(p), static_cast<std::streamsize>(n))) throw InputError(path, "truncated catalog file");
+  };
+  char magic[8];
+  get(magic, 8);
+  if (std::memcmp(magic, kMagic, 8) != 0) throw InputError(path, "not an ssiu catalog (bad magic)");
+  SolverCatalog cat;
+  double hdr[5];
+  get(hdr, sizeof hdr);
+  cat.epoch_year = hdr[0], cat.fov_deg = hdr[1], cat.mag_max = hdr[2], cat.double_star_arcsec = hdr[3], cat.build_time_s = hdr[4];
+  int64_t counts[3], slen;
+  get(counts, sizeof counts);
+  get(&slen, 8);
+  if (counts[0] < 0 || counts[0] > 10000000 || counts[1] < 0 || counts[1] > 200000000 || slen < 0 || slen > 4096)
+    throw InputError(path, "corrupt catalog header");
+  cat.source.resize(static_cast<size_t>(slen));
+  get(cat.source.data(), cat.source.size());
+  cat.num_pattern_stars = static_cast<int>(counts[2]);
+  cat.stars.resize(static_cast<size_t>(counts[0]));
+  for (auto& s : cat.stars) {
+    double d[3];
+    get(&s.id, sizeof s.id);
+    get(d, sizeof d);
+    s.ra_rad = d[0], s.dec_rad = d[1], s.mag = d[2];
+    s.unit = UnitFromRaDec(s.ra_rad, s.dec_rad);
+  }
+  cat.triangles.resize(static_cast<size_t>(counts[1]));
+  get(cat.triangles.data(), cat.triangles.size() * sizeof(CatalogTriangle));
+  for (const auto& t : cat.triangles)
+    for (int v : t.v)
+      if (v < 0 || v >= static_cast<int>(cat.stars.size())) throw InputError(path, "corrupt triangle index");
+  return cat;
+}
+
+std::string CatalogCacheDir() {
+  if (const char* d = std::getenv("SSIU_CATALOG_DIR"); d && *d) return d;
+  if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) return std::string(x) + "/ssiu/catalog";
+  const char* home = std::getenv("HOME");
+  return std::string(home && *home ? home : "/tmp") + "/.cache/ssiu/catalog";
+}
+
+SolverCatalog LoadOrBuildCatalog(const std::string& source_path, const CatalogBuildOptions& o) {
+  o.Check();
+  std::string base = source_path.substr(source_path.find_last_of('/') + 1);
+  for (char& c : base)
+    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+  char key[256];
+  std::snprintf(key, sizeof key, "%s_fov%.2f_mag%.2f_ep%.1f_dbl%.1f_p%d_s%.0f", base.c_str(), o.fov_deg, o.mag_max,
+                o.epoch_year, o.double_star_arcsec, o.pattern_stars_per_fov, o.stars_per_fov);
+  const std::string dir = CatalogCacheDir() + "/" + key;
+  if (FileExists(dir + "/catalog.bin")) {
+    try {
+      return LoadSolverCatalog(dir);
+    } catch (const InputError&) {
+      // Corrupt cache: rebuild below.
+    }
+  }
+  SolverCatalog cat = BuildSolverCatalog(LoadSourceCatalog(source_path), o);
+  try {
+    SaveSolverCatalog(cat, dir);
+  } catch (const InputError&) {
+    // Read-only cache location: use the catalog without caching it.
+  }
+  return cat;
+}
+
+}  // namespace ssiu

@@ -1,0 +1,99 @@
+// The solver's star catalog: a source catalog (xplanet BSC, binary BSC5, KStars Hipparcos/Tycho)
+// brought to an epoch with proper motion, close doubles merged, plus the triangle pattern index
+// for one field of view. Built once, saved to a directory, loaded by `ssiu solve` / `ssiu track`.
+//
+//   SolverCatalog cat = BuildSolverCatalog(LoadSourceCatalog(path, options), options);
+//   SaveSolverCatalog(cat, "build/catalog/bsc_16.6");
+//
+// star_id: HR number for BSC sources; for KStars stars.dat (which carries no catalog number) the
+// HR number of the BSC star it coincides with when one is given, else 1000000 + the star's data-row
+// ordinal in stars.dat (1-based, comment lines not counted). See docs/identify.md.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/catalog.h"
+#include "core/types.h"
+
+namespace ssiu {
+
+constexpr StarId kKstarsIdOffset = 1000000;
+
+struct CatalogBuildOptions {
+  double fov_deg = 16.6;            // horizontal field of view the pattern index is built for
+  double mag_max = 0.0;             // faintest star kept; 0 = chosen from the FOV (stars_per_fov)
+  double epoch_year = 2025.0;       // proper motion applied from J2000.0 to this epoch (when known)
+  double double_star_arcsec = 0.0;  // merge stars closer than this; 0 = 3 pixels of a 1024-px sensor
+  int pattern_stars_per_fov = 10;   // pattern stars kept per cap of radius fov/2 (uniform sky cover)
+  double stars_per_fov = 40.0;      // auto mag limit: mean stars in a cap of diameter fov_deg
+  double min_side_frac = 0.02;      // triangle sides shorter than this fraction of the FOV are skipped
+  void Check() const;               // throws InputError naming the field
+};
+
+// A triangle of catalog stars. Vertices are ordered by the side opposite them (v[0] opposite the
+// shortest side), so that sorted side lengths give the vertex correspondence.
+struct CatalogTriangle {
+  std::array<int32_t, 3> v{};       // indices into SolverCatalog::stars
+  float longest_rad = 0;            // longest side (angle)
+  float ratio_a = 0, ratio_b = 0;   // shortest / longest, middle / longest
+};
+
+struct SolverCatalog {
+  std::string source;
+  double epoch_year = 2000.0;
+  double fov_deg = 0;
+  double mag_max = 0;
+  double double_star_arcsec = 0;
+  std::vector<CatalogStar> stars;   // brightest first, positions at epoch_year
+  std::vector<CatalogTriangle> triangles;
+  int num_pattern_stars = 0;
+  double build_time_s = 0;
+
+  size_t IndexBytes() const { return triangles.size() * sizeof(CatalogTriangle); }
+};
+
+// A source catalog with proper motions (rad/yr; pm_ra is mu_alpha * cos(dec)).
+struct SourceStar {
+  CatalogStar star;
+  double pm_ra_rad_per_yr = 0, pm_dec_rad_per_yr = 0;
+};
+struct SourceCatalog {
+  std::string source;
+  std::string kind;                 // "xplanet_bsc", "bsc5", "kstars"
+  bool has_proper_motion = false;
+  std::vector<SourceStar> stars;
+};
+
+// Binary BSC5 (SAO TDC format: 28-byte header, 32-byte entries, J2000, proper motion rad/yr).
+SourceCatalog LoadBsc5(const std::string& path);
+// KStars stars.dat (fixed-width text: RA hhmmss.ss, Dec sddmmss.s, pmRA, pmDec in mas/yr, plx, mag).
+// star_id = 1000000 + data-row ordinal (see the header comment).
+SourceCatalog LoadKstarsStars(const std::string& path);
+// Any of the three by content: xplanet BSC text, binary BSC5, KStars stars.dat.
+SourceCatalog LoadSourceCatalog(const std::string& path);
+// Gives KStars stars the HR number of a BSC star within `radius_arcsec` and 1 mag (J2000 positions).
+void AssignHrNumbers(SourceCatalog* kstars, const StarCatalog& bsc, double radius_arcsec = 30.0);
+
+// The default source for a FOV: xplanet BSC when its magnitude range suffices, else KStars'
+// stars.dat when installed. $SSIU_CATALOG overrides.
+std::string DefaultSourceFor(double fov_deg);
+
+// Epoch propagation, magnitude limit, double merging, pattern index.
+SolverCatalog BuildSolverCatalog(const SourceCatalog& source, const CatalogBuildOptions& options);
+// From a plain star table already at its epoch (e.g. the simulator's catalog): no proper motion.
+SolverCatalog BuildSolverCatalog(const StarCatalog& stars, const CatalogBuildOptions& options);
+
+// DIR/stars.csv (human-readable table), DIR/catalog.bin (everything, loaded back), DIR/meta.json.
+void SaveSolverCatalog(const SolverCatalog& catalog, const std::string& dir);
+SolverCatalog LoadSolverCatalog(const std::string& dir);  // InputError naming the file
+
+// The cache directory for built catalogs: $SSIU_CATALOG_DIR, else $XDG_CACHE_HOME/ssiu/catalog,
+// else ~/.cache/ssiu/catalog.
+std::string CatalogCacheDir();
+// Loads the cached catalog for (source, fov, options) or builds and caches it.
+SolverCatalog LoadOrBuildCatalog(const std::string& source_path, const CatalogBuildOptions& options);
+
+}  // namespace ssiu

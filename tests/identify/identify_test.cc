@@ -1,0 +1,132 @@
+#include "identify/identify.h"
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+
+#include "core/attitude.h"
+#include "core/catalog.h"
+#include "core/error.h"
+#include "core/rng.h"
+#include "identify/synthetic.h"
+#include "testing/testing.h"
+
+namespace ssiu {
+namespace {
+
+using testing::MakeSyntheticFrame;
+using testing::SyntheticOptions;
+
+// One BSC catalog for a 16.6 deg field, built once for the whole program.
+const StarIdentifier& Bsc166() {
+  static const std::unique_ptr<StarIdentifier> id = [] {
+    CatalogBuildOptions o;
+    o.fov_deg = 16.6;
+    return std::make_unique<StarIdentifier>(BuildSolverCatalog(LoadSourceCatalog(DefaultBscPath()), o));
+  }();
+  return *id;
+}
+
+TEST(BinomialTail, MatchesDirectSums) {
+  EXPECT_NEAR(BinomialTail(3, 0.5, 2), 0.5, 1e-12);  // (3 + 1) / 8
+  EXPECT_NEAR(BinomialTail(10, 0.1, 0), 1.0, 1e-12);
+  EXPECT_NEAR(BinomialTail(10, 0.1, 1), 1 - std::pow(0.9, 10), 1e-12);
+  EXPECT_NEAR(BinomialTail(5, 0.2, 5), std::pow(0.2, 5), 1e-15);
+}
+
+TEST(Identify, SolvesSyntheticFramesWithFalseAndMissingStars) {
+  const StarIdentifier& id = Bsc166();
+  const Camera cam = MakeCamera(1024, 1024, 16.6);
+  IdentifyOptions io;
+  io.systematic_px = 0.0;
+  int solved = 0, wrong = 0, id_errors = 0;
+  const int kFrames = 50;
+  for (int i = 0; i < kFrames; ++i) {
+    Rng rng(1000 + i);
+    const Quat q = QuatFromUniform(rng.Uniform(), rng.Uniform(), rng.Uniform());
+    const auto f = MakeSyntheticFrame(id.catalog(), cam, q, SyntheticOptions{}, &rng);
+    const Identification r = id.Identify(f.centroids, cam, io);
+    if (r.status != "solved") continue;
+    ++solved;
+    EXPECT_LT(r.false_match_probability, 1e-5);
+    if (AttitudeErrorRad(r.q_inertial_from_sensor, q) * kRadToArcsec > 60) ++wrong;
+    for (const auto& m : r.matches)
+      if (f.truth_id[m.centroid] != m.star_id) ++id_errors;
+  }
+  EXPECT_GE(solved, 49) << "of " << kFrames;
+  EXPECT_EQ(wrong, 0);
+  EXPECT_EQ(id_errors, 0);
+}
+
+TEST(Identify, PureNoiseIsNeverSolved) {
+  const StarIdentifier& id = Bsc166();
+  const Camera cam = MakeCamera(1024, 1024, 16.6);
+  for (int i = 0; i < 10; ++i) {
+    Rng rng(77 + i);
+    std::vector<Centroid> c(30);
+    for (auto& x : c) x = {rng.Uniform(0, 1023), rng.Uniform(0, 1023), rng.Uniform(), 0.3};
+    const Identification r = id.Identify(c, cam, IdentifyOptions{});
+    EXPECT_NE(r.status, "solved") << "noise frame " << i;
+  }
+}
+
+TEST(Identify, TooFewStars) {
+  const Camera cam = MakeCamera(1024, 1024, 16.6);
+  std::vector<Centroid> c = {{100, 100, 1, 0.2}, {500, 300, 1, 0.2}, {900, 800, 1, 0.2}};
+  EXPECT_EQ(Bsc166().Identify(c, cam, IdentifyOptions{}).status, "too_few_stars");
+  EXPECT_EQ(Bsc166().Identify({}, cam, IdentifyOptions{}).status, "too_few_stars");
+}
+
+TEST(Identify, NonFiniteCentroidIsInputError) {
+  const Camera cam = MakeCamera(1024, 1024, 16.6);
+  std::vector<Centroid> c(6, Centroid{10, 10, 1, 0.2});
+  c[3].x_px = std::nan("");
+  EXPECT_THROW(Bsc166().Identify(c, cam, IdentifyOptions{}), InputError);
+}
+
+TEST(Identify, FindsFocalLengthWithinTolerance) {
+  const StarIdentifier& id = Bsc166();
+  const Camera truth = MakeCamera(1024, 1024, 16.6);
+  Camera guess = truth;
+  guess.focal_length_px *= 1.04;  // 4 % off
+  IdentifyOptions io;
+  io.fov_tolerance_pct = 6;
+  int solved = 0;
+  for (int i = 0; i < 10; ++i) {
+    Rng rng(500 + i);
+    const Quat q = QuatFromUniform(rng.Uniform(), rng.Uniform(), rng.Uniform());
+    const auto f = MakeSyntheticFrame(id.catalog(), truth, q, SyntheticOptions{}, &rng);
+    const Identification r = id.Identify(f.centroids, guess, io);
+    if (r.status != "solved") continue;
+    ++solved;
+    // 0.2 px noise is 12 arcsec per star at 58 arcsec/px: boresight to a few arcsec, roll to ~30.
+    EXPECT_NEAR(r.focal_length_px, truth.focal_length_px, 0.002 * truth.focal_length_px);
+    EXPECT_LT(SplitAttitudeError(r.q_inertial_from_sensor, q).cross_rad * kRadToArcsec, 10);
+    EXPECT_LT(AttitudeErrorRad(r.q_inertial_from_sensor, q) * kRadToArcsec, 90);
+  }
+  EXPECT_GE(solved, 9);
+}
+
+TEST(Identify, TrackingMatchesFromPredictedAttitude) {
+  const StarIdentifier& id = Bsc166();
+  const Camera cam = MakeCamera(1024, 1024, 16.6);
+  Rng rng(4242);
+  const Quat q = QuatFromRaDecRoll(1.0, 0.3, 0.5);
+  const auto f = MakeSyntheticFrame(id.catalog(), cam, q, SyntheticOptions{}, &rng);
+  // Prediction 0.1 deg off: within a 30 px search radius (~0.5 deg) the tracker re-locks.
+  const Quat q_pred = q * Quat(Eigen::AngleAxisd(0.1 * kDegToRad, Vec3(1, 1, 0).normalized()));
+  const Identification r = id.MatchWithAttitude(f.centroids, cam, q_pred, 30.0, IdentifyOptions{});
+  ASSERT_EQ(r.status, "solved") << r.message;
+  // Same matches as a lost-in-space solve of the frame, hence the same attitude.
+  const Identification lis = id.Identify(f.centroids, cam, IdentifyOptions{});
+  ASSERT_EQ(lis.status, "solved");
+  EXPECT_EQ(r.matches.size(), lis.matches.size());
+  EXPECT_THAT(r.q_inertial_from_sensor, QuaternionNear(lis.q_inertial_from_sensor, 0.01));
+  EXPECT_LT(SplitAttitudeError(r.q_inertial_from_sensor, q).cross_rad * kRadToArcsec, 10);
+  // A prediction 3 deg off loses lock (reported, not a wrong attitude).
+  const Quat q_far = q * Quat(Eigen::AngleAxisd(3 * kDegToRad, Vec3::UnitX()));
+  EXPECT_EQ(id.MatchWithAttitude(f.centroids, cam, q_far, 5.0, IdentifyOptions{}).status, "no_match");
+}
+
+}  // namespace
+}  // namespace ssiu
