@@ -17,36 +17,42 @@ namespace {
 using Vec4d = Eigen::Matrix<double, 4, 1>;
 using Mat4d = Eigen::Matrix<double, 4, 4>;
 
-// Linear fit f = dw + e1 cos(psi) + e2 sin(psi) over the dwell means (in time order).
+// Generalised least squares fit f = dw + e1 cos(psi) + e2 sin(psi) over the dwell means: the
+// covariance is the white part of each dwell mean (var_white) plus the Gauss-Markov wander,
+// wander^2 exp(-|t_i - t_j|/tau). If the residuals scatter more than that model allows
+// (chi^2/dof > 1), the covariance is scaled up by chi^2/dof.
 struct LinearFit {
   Eigen::Vector3d beta;
   Eigen::Matrix3d cov;
   double rms = 0, inflation = 1;
 };
 
-LinearFit FitHarmonic(const std::vector<double>& psi_rad, const std::vector<double>& f) {
+LinearFit FitHarmonic(const std::vector<double>& psi_rad, const std::vector<double>& f,
+                      const std::vector<double>& t_mid_s, const std::vector<double>& var_white,
+                      double wander_sigma, double wander_tau_s) {
   const int n = static_cast<int>(f.size());
-  Eigen::MatrixXd a(n, 3);
+  Eigen::MatrixXd a(n, 3), sigma(n, n);
   Eigen::VectorXd y(n);
   for (int i = 0; i < n; ++i) {
     a(i, 0) = 1;
     a(i, 1) = std::cos(psi_rad[i]);
     a(i, 2) = std::sin(psi_rad[i]);
     y(i) = f[i];
+    for (int j = 0; j < n; ++j) {
+      sigma(i, j) = wander_sigma * wander_sigma * std::exp(-std::abs(t_mid_s[i] - t_mid_s[j]) / wander_tau_s);
+    }
+    sigma(i, i) += std::max(var_white[i], 1e-12);
   }
+  const Eigen::LLT<Eigen::MatrixXd> llt(sigma);
+  const Eigen::MatrixXd aw = llt.matrixL().solve(a);
+  const Eigen::VectorXd yw = llt.matrixL().solve(y);
+  const Eigen::Matrix3d ata = aw.transpose() * aw;
   LinearFit fit;
-  const Eigen::Matrix3d ata = a.transpose() * a;
-  fit.beta = ata.ldlt().solve(a.transpose() * y);
-  const Eigen::VectorXd e = y - a * fit.beta;
-  const double s2 = e.squaredNorm() / std::max(1, n - 3);
-  // Bias wander correlates neighbouring dwells: shrink the sample size by the residuals' lag-1
-  // autocorrelation (AR(1) effective sample size, variance factor (1 + r1)/(1 - r1)).
-  double num = 0;
-  for (int i = 1; i < n; ++i) num += e(i) * e(i - 1);
-  const double r1 = e.squaredNorm() > 0 ? std::clamp(num / e.squaredNorm(), 0.0, 0.9) : 0.0;
-  fit.inflation = (1 + r1) / (1 - r1);
-  fit.cov = s2 * fit.inflation * ata.inverse();
-  fit.rms = std::sqrt(e.squaredNorm() / n);
+  fit.beta = ata.ldlt().solve(aw.transpose() * yw);
+  const double chi2_dof = (yw - aw * fit.beta).squaredNorm() / std::max(1, n - 3);
+  fit.inflation = std::max(1.0, chi2_dof);
+  fit.cov = fit.inflation * ata.inverse();
+  fit.rms = std::sqrt((y - a * fit.beta).squaredNorm() / n);
   return fit;
 }
 
@@ -125,6 +131,7 @@ void MagneticOptions::Check() const {
     throw InputError("options", "settle_s, min_dwell_s and azimuth_tol_deg must be positive");
   }
   if (min_positions < 4) throw InputError("options", "min_positions must be >= 4");
+  if (!(wander_sigma_dph >= 0) || !(wander_tau_s > 0)) throw InputError("options", "bad wander sigma or tau");
 }
 
 TurntableData ReadTurntableLog(const std::string& path) {
@@ -164,19 +171,24 @@ MagneticResult FitMagneticSensitivity(const TurntableData& log, const MagneticOp
   for (size_t i = 1; i <= n; ++i) {
     if (i < n && std::abs(log.azimuth_deg[i] - log.azimuth_deg[start]) <= o.azimuth_tol_deg) continue;
     DwellMean d;
-    double sx = 0, sy = 0;
+    double sx = 0, sy = 0, sxx = 0, syy = 0;
     for (size_t k = start; k < i; ++k) {
       if (log.t_s[k] - log.t_s[start] < o.settle_s) continue;
       if (d.samples == 0) d.t_start_s = log.t_s[k];
       d.t_end_s = log.t_s[k];
       sx += log.wx_dph[k];
       sy += log.wy_dph[k];
+      sxx += log.wx_dph[k] * log.wx_dph[k];
+      syy += log.wy_dph[k] * log.wy_dph[k];
       ++d.samples;
     }
     if (d.samples >= 2 && d.t_end_s - d.t_start_s >= o.min_dwell_s) {
       d.azimuth_deg = log.azimuth_deg[start];
       d.wx_dph = sx / d.samples;
       d.wy_dph = sy / d.samples;
+      // Variance of the mean from the scatter within the dwell (white part).
+      d.var_mean_x = std::max(0.0, sxx / d.samples - d.wx_dph * d.wx_dph) / (d.samples - 1);
+      d.var_mean_y = std::max(0.0, syy / d.samples - d.wy_dph * d.wy_dph) / (d.samples - 1);
       res.dwells.push_back(d);
     }
     start = i;
@@ -193,14 +205,18 @@ MagneticResult FitMagneticSensitivity(const TurntableData& log, const MagneticOp
                                    " s after settling), need >= " + std::to_string(o.min_positions));
   }
 
-  std::vector<double> psi, fx, fy;
+  std::vector<double> psi, fx, fy, tm, vx, vy;
   for (const auto& d : res.dwells) {
     const double p = d.azimuth_deg * kDegToRad;
     psi.push_back(p);
+    tm.push_back(0.5 * (d.t_start_s + d.t_end_s));
+    vx.push_back(d.var_mean_x);
+    vy.push_back(d.var_mean_y);
     fx.push_back(d.wx_dph - res.w_phi_dph * std::cos(p));  // eq. (2) minus the nominal Earth rate
     fy.push_back(d.wy_dph - res.w_phi_dph * std::sin(p));  // eq. (3)
   }
-  const LinearFit lx = FitHarmonic(psi, fx), ly = FitHarmonic(psi, fy);
+  const LinearFit lx = FitHarmonic(psi, fx, tm, vx, o.wander_sigma_dph, o.wander_tau_s);
+  const LinearFit ly = FitHarmonic(psi, fy, tm, vy, o.wander_sigma_dph, o.wander_tau_s);
   AmplitudePhase(true, lx, &res.x);
   AmplitudePhase(false, ly, &res.y);
 

@@ -34,11 +34,17 @@ struct MagneticOptions {
   double min_dwell_s = 60.0;       // a dwell shorter than this (after settling) is dropped
   double azimuth_tol_deg = 0.01;   // azimuth steadier than this = the table is at rest
   int min_positions = 8;           // distinct azimuths needed (3 parameters per axis + dof)
+  // Slow bias wander of the FOGs (first-order Gauss-Markov, e.g. from their Allan deviation). The
+  // azimuth advances with time, so wander aliases into the harmonics; the fit is GLS with this
+  // covariance on top of the white part measured within each dwell. 0 = white noise only.
+  double wander_sigma_dph = 0.005;
+  double wander_tau_s = 1800.0;
   void Check() const;
 };
 
 struct DwellMean {
   double azimuth_deg = 0, t_start_s = 0, t_end_s = 0, wx_dph = 0, wy_dph = 0;
+  double var_mean_x = 0, var_mean_y = 0;  // variance of the means from the within-dwell scatter
   int samples = 0;
 };
 
@@ -48,7 +54,7 @@ struct AxisHarmonicFit {
   double phi_deg = 0, phi_sigma_deg = 0;
   double e_cos_dph = 0, e_sin_dph = 0;    // f = dw + e_cos cos(psi) + e_sin sin(psi)
   double residual_rms_dph = 0;
-  double variance_inflation = 1;          // (1 + r1)/(1 - r1) from the residuals' lag-1 correlation
+  double variance_inflation = 1;          // chi^2/dof of the GLS fit when above 1
 };
 
 struct MagneticResult {

@@ -12,6 +12,7 @@
 #include "core/csv.h"
 #include "core/error.h"
 #include "core/json.h"
+#include "core/types.h"
 
 namespace {
 
@@ -142,6 +143,9 @@ SSIU_REGISTER_COMMAND(fog_magnetic, [](CLI::App& root) {
   cmd->add_option("--latitude-deg", o->fit.latitude_deg, "Bench latitude")->capture_default_str();
   cmd->add_option("--settle-s", o->fit.settle_s, "Transient excluded after each turn, s")->capture_default_str();
   cmd->add_option("--min-positions", o->fit.min_positions, "Distinct azimuths required")->capture_default_str();
+  cmd->add_option("--wander-dph", o->fit.wander_sigma_dph, "FOG bias wander sigma (Gauss-Markov), deg/h; 0 = none")
+      ->capture_default_str();
+  cmd->add_option("--wander-tau-s", o->fit.wander_tau_s, "Correlation time of the bias wander, s")->capture_default_str();
   cmd->add_option("--json", o->json, "Output JSON, - for stdout");
   cmd->add_option("--plot", o->plot, "Directory for the PNG figures");
   cmd->callback([o] {
