@@ -1,0 +1,86 @@
+// Star-inertial fusion: gyro logs propagate the attitude, star-tracker quaternions correct it in a
+// multiplicative EKF that also estimates the three gyro biases; a redundant unit is watched for a
+// failing gyro (fdi.h). The library call behind `ssiu fuse`.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/json.h"
+#include "core/types.h"
+#include "inertial/fdi.h"
+#include "inertial/gyro_unit.h"
+#include "inertial/mekf.h"
+
+namespace ssiu {
+
+// A gyro log (conventions.md): t_s plus either body rates wx_dph,wy_dph,wz_dph or the raw outputs
+// g1_dph..gN_dph of a unit. Row k holds the mean rate over (t_{k-1}, t_k], as an FOG outputs it.
+struct GyroLog {
+  std::string file;
+  std::vector<double> t_s;
+  std::vector<GyroVec> rates_dph;  // body rates (3) or gyro outputs (N)
+  bool body_rates = false;
+};
+
+// A star-tracker log: t_s,qw,qx,qy,qz (body -> inertial), optional sigma_cross_arcsec,sigma_roll_arcsec.
+struct StarTrackerLog {
+  std::string file;
+  std::vector<double> t_s;
+  std::vector<Quat> q_inertial_from_body;
+  std::vector<double> sigma_cross_arcsec, sigma_roll_arcsec;  // empty when the columns are absent
+};
+
+// Reads a gyro log. `n_gyros` > 0 asks for g1_dph..gN_dph; 0 takes body rates when present, else
+// the g*_dph columns found. InputError (file, column, row) for a missing column, a non-number or NaN,
+// a time column that does not strictly increase, or fewer than 2 rows.
+GyroLog ReadGyroLog(const std::string& path, int n_gyros = 0);
+StarTrackerLog ReadStarTrackerLog(const std::string& path);
+
+struct FuseOptions {
+  // Star-tracker noise when the log has no sigma columns (1 sigma; cross-boresight about body x, y,
+  // roll about body z: the tracker's boresight is taken along body +Z).
+  double st_sigma_cross_arcsec = 5.0;
+  double st_sigma_roll_arcsec = 30.0;
+  double init_bias_sigma_dph = 10.0;   // prior on each body-axis bias
+  double bias_drift_floor_dph_per_sqrt_h = 0.0;  // added to the bias walk derived from the unit
+  double nis_gate = 50.0;              // reject star samples with NIS above this (chi^2, 3 dof)
+  bool fdi = true;                     // fault detection/isolation (needs 4+ gyros)
+  FdiOptions fdi_options;
+  int output_every = 1;                // write every n-th gyro sample
+
+  void Check() const;
+};
+
+struct FusedSample {
+  double t_s = 0;
+  Quat q_inertial_from_body = Quat::Identity();
+  Vec3 sigma_rad = Vec3::Zero();   // 1 sigma attitude error about body x, y, z
+  Vec3 bias_dph = Vec3::Zero();
+  Vec3 bias_sigma_dph = Vec3::Zero();
+};
+
+struct FuseResult {
+  std::string status;              // "fused", or "no_star_data" (nothing to start from)
+  std::string message;
+  std::vector<FusedSample> samples;
+  Vec3 bias_dph = Vec3::Zero(), bias_sigma_dph = Vec3::Zero();
+  std::vector<FaultEvent> faults;
+  std::vector<int> gyros_in_use;   // 1-based, at the end
+  long n_gyro_samples = 0, n_st_used = 0, n_st_rejected = 0;
+  double longest_st_gap_s = 0;
+  double st_residual_rms_arcsec = 0;  // accepted pre-update residuals
+  double seconds_elapsed = 0;
+
+  Json ToJson() const;
+};
+
+// Fuses a gyro log with a star-tracker log. With body rates (log.body_rates) `unit` gives only the
+// noise figures of an equivalent orthogonal triad. Starts at the first star sample. Throws
+// InputError when the log's gyro count does not match the unit.
+FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& unit, const FuseOptions& options);
+
+// Writes t_s,qw,qx,qy,qz,sigma_x_arcsec,sigma_y_arcsec,sigma_z_arcsec,bx_dph,by_dph,bz_dph.
+void WriteFusedAttitude(const std::string& path, const FuseResult& result);
+
+}  // namespace ssiu
