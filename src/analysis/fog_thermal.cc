@@ -403,7 +403,7 @@ ThermalFitResult FitThermalDrift(const std::vector<ThermalRun>& runs, const Ther
     for (int k = 1; k <= options.max_noise_lag; ++k) {
       f += 2 * (1 - k / (options.max_noise_lag + 1.0)) * AutoCorr(ew, k);
     }
-    res.variance_inflation = std::clamp(f, 1.0, 20.0);
+    res.variance_inflation = options.effective_sample_size ? std::clamp(f, 1.0, 20.0) : 1.0;
   }
   const double inflate = res.variance_inflation;
   const double n_eff = n / inflate;

@@ -54,7 +54,8 @@ struct ThermalFitOptions {
   double bin_s = 60.0;
   TemperatureRateOptions rate;
   bool prewhiten = true;  // GLS with the fitted white + Gauss-Markov noise model
-  int max_noise_lag = 20;  // lags (bins) used to fit the noise model
+  bool effective_sample_size = true;  // n_eff from the whitened residuals' autocorrelation
+  int max_noise_lag = 60;  // lags (bins) used for the noise model and the effective sample size
   int validate_top = 6;    // candidates (best BIC) scored by leave-one-run-out validation
   void Check() const;
 };

@@ -76,7 +76,8 @@ SSIU_REGISTER_COMMAND(fog_thermal, [](CLI::App& root) {
   cmd->add_option("--bin-s", o->fit.bin_s, "Averaging bin, s")->capture_default_str();
   cmd->add_option("--rate-window-s", o->fit.rate.window_s, "Window of the local cubic fit for T and dT/dt, s")
       ->capture_default_str();
-  cmd->add_flag("!--no-prewhiten", o->fit.prewhiten, "Select with a white-noise BIC (for comparison)");
+  cmd->add_flag("!--no-prewhiten", o->fit.prewhiten, "Do not prewhiten (for comparison)");
+  cmd->add_flag("!--no-neff", o->fit.effective_sample_size, "Do not shrink the sample size (for comparison)");
   cmd->callback([o] {
     std::vector<ssiu::ThermalRun> runs, held;
     for (const auto& p : o->runs) runs.push_back(ssiu::ReadThermalRun(p, o->latitude_deg, o->axis));

@@ -118,10 +118,10 @@ void WriteThermalRunCsv(const std::string& path, const ThermalBenchRun& run, boo
 
 ThermalDriftModel CampaignDriftModel() {
   ThermalDriftModel m;
-  m.k_dph[0] = -0.50;  // K00
-  m.k_dph[1] = 1.00;   // K10
-  m.k_dph[2] = 0.45;   // K01
-  m.k_dph[9] = 0.25;   // K03
+  m.k_dph[0] = -0.60;  // K00
+  m.k_dph[1] = 1.20;   // K10
+  m.k_dph[2] = 0.55;   // K01
+  m.k_dph[9] = 0.30;   // K03
   return m;
 }
 

@@ -33,8 +33,9 @@ struct ThermalBenchOptions {
   double dwell_max_s = 50 * 60.0;
   double chamber_tau_s = 240.0;        // lag of the FOG housing behind the chamber set point
   double temp_noise_c = 0.02;          // per-sample noise of temp_c
-  double white_noise_dph = 0.12;       // per-sample (dt_s) white noise of w_dph
-  double wander_sigma_dph = 0.01;      // steady-state sigma of the Gauss-Markov bias wander
+  // Noise sized so that the compensated band of one-minute means is about the paper's +-0.05 deg/h.
+  double white_noise_dph = 0.09;       // per-sample (dt_s) white noise of w_dph
+  double wander_sigma_dph = 0.006;     // steady-state sigma of the Gauss-Markov bias wander
   double wander_tau_s = 1800.0;
   double latitude_deg = 50.05;         // Kharkov
   std::string axis = "up";
