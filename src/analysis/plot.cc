@@ -1,0 +1,239 @@
+#include "analysis/plot.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <stdexcept>
+
+#include "core/error.h"
+
+namespace ssiu {
+namespace {
+
+bool Drawable(double v, bool log) { return std::isfinite(v) && (!log || v > 0); }
+
+cv::Scalar Bgr(PlotColor c) { return cv::Scalar(c.b, c.g, c.r); }
+
+std::string TickLabel(double v, bool log) {
+  char buf[32];
+  if (log) {
+    const int e = static_cast<int>(std::lround(std::log10(v)));
+    if (e >= -2 && e <= 3) std::snprintf(buf, sizeof buf, "%g", std::pow(10.0, e));
+    else std::snprintf(buf, sizeof buf, "1e%d", e);
+  } else {
+    std::snprintf(buf, sizeof buf, "%g", v);
+  }
+  return buf;
+}
+
+// Ticks: every decade on a log axis, 1-2-5 steps on a linear one.
+std::vector<double> Ticks(double lo, double hi, bool log) {
+  std::vector<double> t;
+  if (log) {
+    for (int e = static_cast<int>(std::ceil(std::log10(lo) - 1e-9)); e <= std::floor(std::log10(hi) + 1e-9); ++e) {
+      t.push_back(std::pow(10.0, e));
+    }
+    return t;
+  }
+  const double raw = (hi - lo) / 6, mag = std::pow(10.0, std::floor(std::log10(raw)));
+  const double step = raw / mag < 2 ? 2 * mag : raw / mag < 5 ? 5 * mag : 10 * mag;
+  for (double v = std::ceil(lo / step) * step; v <= hi + 1e-9 * step; v += step) {
+    t.push_back(std::abs(v) < 1e-12 * step ? 0 : v);
+  }
+  return t;
+}
+
+void DashedLine(cv::Mat& img, cv::Point2d a, cv::Point2d b, cv::Scalar color, int thickness) {
+  const double len = std::hypot(b.x - a.x, b.y - a.y), dash = 8;
+  if (len <= 0) return;
+  for (double s = 0; s < len; s += 2 * dash) {
+    const double e = std::min(len, s + dash);
+    cv::line(img, a + (b - a) * (s / len), a + (b - a) * (e / len), color, thickness, cv::LINE_AA);
+  }
+}
+
+}  // namespace
+
+void PlotOptions::Check() const {
+  if (width_px < 200 || height_px < 150 || width_px > 8000 || height_px > 8000) {
+    throw std::invalid_argument("PlotOptions: size must be 200x150 .. 8000x8000 px");
+  }
+}
+
+PlotFrame::PlotFrame(const std::vector<PlotSeries>& series, const PlotOptions& o) : log_x_(o.log_x), log_y_(o.log_y) {
+  left = 95;
+  right = o.width_px - 25;
+  top = 45;
+  bottom = o.height_px - 60;
+  x_min = y_min = std::numeric_limits<double>::infinity();
+  x_max = y_max = -std::numeric_limits<double>::infinity();
+  for (const auto& s : series) {
+    for (size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
+      if (!Drawable(s.x[i], log_x_) || !Drawable(s.y[i], log_y_)) continue;
+      x_min = std::min(x_min, s.x[i]);
+      x_max = std::max(x_max, s.x[i]);
+      y_min = std::min(y_min, s.y[i]);
+      y_max = std::max(y_max, s.y[i]);
+      if (i < s.y_lo.size() && Drawable(s.y_lo[i], log_y_)) y_min = std::min(y_min, s.y_lo[i]);
+      if (i < s.y_hi.size() && Drawable(s.y_hi[i], log_y_)) y_max = std::max(y_max, s.y_hi[i]);
+    }
+  }
+  valid_ = x_min <= x_max && y_min <= y_max;
+  if (!valid_) {
+    x_min = log_x_ ? 1 : 0;
+    x_max = log_x_ ? 10 : 1;
+    y_min = log_y_ ? 1 : 0;
+    y_max = log_y_ ? 10 : 1;
+    return;
+  }
+  // Pad: to whole decades on log axes, 5% on linear ones.
+  auto pad = [](double& lo, double& hi, bool log) {
+    if (log) {
+      lo = std::pow(10.0, std::floor(std::log10(lo) + 1e-9));
+      hi = std::pow(10.0, std::ceil(std::log10(hi) - 1e-9));
+      if (hi <= lo) hi = lo * 10;
+    } else {
+      const double span = hi > lo ? hi - lo : std::max(1.0, std::abs(lo));
+      lo -= 0.05 * span;
+      hi += 0.05 * span;
+    }
+  };
+  pad(x_min, x_max, log_x_);
+  pad(y_min, y_max, log_y_);
+}
+
+double PlotFrame::PixelX(double x) const {
+  const double f = log_x_ ? std::log(x / x_min) / std::log(x_max / x_min) : (x - x_min) / (x_max - x_min);
+  return left + f * (right - left);
+}
+
+double PlotFrame::PixelY(double y) const {
+  const double f = log_y_ ? std::log(y / y_min) / std::log(y_max / y_min) : (y - y_min) / (y_max - y_min);
+  return bottom - f * (bottom - top);
+}
+
+void WritePlotPng(const std::string& path, const std::vector<PlotSeries>& series, const PlotOptions& o) {
+  o.Check();
+  for (const auto& s : series) {
+    if (s.x.size() != s.y.size()) throw std::invalid_argument("PlotSeries '" + s.label + "': x and y differ in size");
+    if ((!s.y_lo.empty() || !s.y_hi.empty()) && (s.y_lo.size() != s.y.size() || s.y_hi.size() != s.y.size())) {
+      throw std::invalid_argument("PlotSeries '" + s.label + "': error bars must match y in size");
+    }
+  }
+  const PlotFrame f(series, o);
+  cv::Mat img(o.height_px, o.width_px, CV_8UC3, cv::Scalar(255, 255, 255));
+  const cv::Scalar black(0, 0, 0), grid(225, 225, 225);
+  const int font = cv::FONT_HERSHEY_SIMPLEX;
+  // Grid and ticks.
+  for (double t : Ticks(f.x_min, f.x_max, o.log_x)) {
+    const int px = static_cast<int>(std::lround(f.PixelX(t)));
+    cv::line(img, {px, f.top}, {px, f.bottom}, grid, 1);
+    cv::line(img, {px, f.bottom}, {px, f.bottom + 5}, black, 1);
+    const std::string s = TickLabel(t, o.log_x);
+    int base = 0;
+    const cv::Size sz = cv::getTextSize(s, font, 0.45, 1, &base);
+    cv::putText(img, s, {px - sz.width / 2, f.bottom + 20}, font, 0.45, black, 1, cv::LINE_AA);
+  }
+  for (double t : Ticks(f.y_min, f.y_max, o.log_y)) {
+    const int py = static_cast<int>(std::lround(f.PixelY(t)));
+    cv::line(img, {f.left, py}, {f.right, py}, grid, 1);
+    cv::line(img, {f.left - 5, py}, {f.left, py}, black, 1);
+    const std::string s = TickLabel(t, o.log_y);
+    int base = 0;
+    const cv::Size sz = cv::getTextSize(s, font, 0.45, 1, &base);
+    cv::putText(img, s, {f.left - 8 - sz.width, py + sz.height / 2}, font, 0.45, black, 1, cv::LINE_AA);
+  }
+  // Log-axis minor ticks (2..9 of each decade).
+  if (o.log_x) {
+    for (double d = f.x_min; d < f.x_max; d *= 10) {
+      for (int k = 2; k <= 9; ++k) {
+        const int px = static_cast<int>(std::lround(f.PixelX(d * k)));
+        cv::line(img, {px, f.bottom}, {px, f.bottom + 3}, black, 1);
+      }
+    }
+  }
+  if (o.log_y) {
+    for (double d = f.y_min; d < f.y_max; d *= 10) {
+      for (int k = 2; k <= 9; ++k) {
+        const int py = static_cast<int>(std::lround(f.PixelY(d * k)));
+        cv::line(img, {f.left - 3, py}, {f.left, py}, black, 1);
+      }
+    }
+  }
+  cv::rectangle(img, {f.left, f.top}, {f.right, f.bottom}, black, 1);
+  // Drawing into a region of interest clips to the plot area; points are shifted to its origin.
+  cv::Mat area = img(cv::Rect(f.left, f.top, f.right - f.left + 1, f.bottom - f.top + 1));
+  const cv::Point2d origin(f.left, f.top);
+  for (const auto& s : series) {
+    const cv::Scalar c = Bgr(s.color);
+    auto ok = [&](size_t i) { return Drawable(s.x[i], o.log_x) && Drawable(s.y[i], o.log_y); };
+    auto pt = [&](size_t i) { return cv::Point2d(f.PixelX(s.x[i]), f.PixelY(s.y[i])) - origin; };
+    if (!s.y_lo.empty()) {
+      for (size_t i = 0; i < s.y.size(); ++i) {
+        if (!Drawable(s.x[i], o.log_x)) continue;
+        const double lo = Drawable(s.y_lo[i], o.log_y) ? s.y_lo[i] : f.y_min;
+        const double hi = Drawable(s.y_hi[i], o.log_y) ? s.y_hi[i] : f.y_max;
+        const double px = f.PixelX(s.x[i]) - origin.x, ylo = f.PixelY(lo) - origin.y, yhi = f.PixelY(hi) - origin.y;
+        cv::line(area, cv::Point2d(px, ylo), cv::Point2d(px, yhi), c, 1, cv::LINE_AA);
+        cv::line(area, cv::Point2d(px - 3, ylo), cv::Point2d(px + 3, ylo), c, 1, cv::LINE_AA);
+        cv::line(area, cv::Point2d(px - 3, yhi), cv::Point2d(px + 3, yhi), c, 1, cv::LINE_AA);
+      }
+    }
+    if (s.line) {
+      for (size_t i = 1; i < s.x.size(); ++i) {
+        if (!ok(i - 1) || !ok(i)) continue;
+        if (s.dashed) DashedLine(area, pt(i - 1), pt(i), c, s.thickness_px);
+        else cv::line(area, pt(i - 1), pt(i), c, s.thickness_px, cv::LINE_AA);
+      }
+    }
+    if (s.markers) {
+      for (size_t i = 0; i < s.x.size(); ++i) {
+        if (ok(i)) cv::circle(area, pt(i), 3, c, cv::FILLED, cv::LINE_AA);
+      }
+    }
+  }
+  // Title and axis labels.
+  cv::putText(img, o.title, {f.left, 28}, font, 0.6, black, 1, cv::LINE_AA);
+  {
+    int base = 0;
+    const cv::Size sz = cv::getTextSize(o.x_label, font, 0.5, 1, &base);
+    cv::putText(img, o.x_label, {(f.left + f.right - sz.width) / 2, o.height_px - 15}, font, 0.5, black, 1, cv::LINE_AA);
+  }
+  // The y label reads along the axis: drawn horizontally, then rotated by 90 degrees.
+  if (!o.y_label.empty()) {
+    int base = 0;
+    const cv::Size sz = cv::getTextSize(o.y_label, font, 0.5, 1, &base);
+    cv::Mat label(sz.height + base + 4, sz.width + 4, CV_8UC3, cv::Scalar(255, 255, 255));
+    cv::putText(label, o.y_label, {2, sz.height + 2}, font, 0.5, black, 1, cv::LINE_AA);
+    cv::Mat rotated;
+    cv::rotate(label, rotated, cv::ROTATE_90_COUNTERCLOCKWISE);
+    const int y0 = std::max(0, (f.top + f.bottom - rotated.rows) / 2);
+    if (rotated.rows + y0 <= img.rows && rotated.cols + 4 <= img.cols) {
+      rotated.copyTo(img(cv::Rect(4, y0, rotated.cols, rotated.rows)));
+    }
+  }
+  // Legend, top right inside the plot area.
+  int row = 0;
+  for (const auto& s : series) {
+    if (s.label.empty()) continue;
+    int base = 0;
+    const cv::Size sz = cv::getTextSize(s.label, font, 0.45, 1, &base);
+    const int y = f.top + 18 + 18 * row++;
+    const int x = f.right - sz.width - 45;
+    cv::rectangle(img, {x - 34, y - 13}, {f.right - 4, y + 5}, cv::Scalar(255, 255, 255), cv::FILLED);
+    cv::line(img, {x - 30, y - 4}, {x - 6, y - 4}, Bgr(s.color), 2, cv::LINE_AA);
+    cv::putText(img, s.label, {x, y}, font, 0.45, black, 1, cv::LINE_AA);
+  }
+  std::vector<unsigned char> png;
+  if (!cv::imencode(".png", img, png)) throw InputError(path, "cannot encode PNG");
+  FILE* fp = std::fopen(path.c_str(), "wb");
+  if (!fp) throw InputError(path, "cannot write file");
+  const size_t written = std::fwrite(png.data(), 1, png.size(), fp);
+  const bool closed = std::fclose(fp) == 0;
+  if (written != png.size() || !closed) throw InputError(path, "cannot write file");
+}
+
+}  // namespace ssiu
