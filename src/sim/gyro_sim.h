@@ -1,0 +1,93 @@
+// Simulator of a redundant FOG unit on a moving body, with truth and a star-tracker log
+// (`ssiu simulate gyro`). Every error term of GyroErrorModel is applied per gyro (docs/inertial.md).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/json.h"
+#include "core/types.h"
+#include "inertial/gyro_unit.h"
+
+namespace ssiu {
+
+constexpr double kEarthRateRadS = 7.2921150e-5;  // IERS Conventions (2010), sidereal rate
+
+// Piecewise-linear temperature: start_c, then segments of (duration_s, rate_c_per_min); constant after.
+struct TemperatureProgramme {
+  double start_c = 20.0;
+  std::vector<std::array<double, 2>> segments;
+  double TempC(double t_s) const;
+  double RateCPerMin(double t_s) const;
+};
+
+// A fault injected on one gyro from t_s on: step_dph + ramp_dph_per_h * (t - t_s) / 3600.
+struct GyroFault {
+  int gyro = 1;  // 1-based
+  double t_s = 0;
+  double step_dph = 0;
+  double ramp_dph_per_h = 0;
+};
+
+struct MotionProfile {
+  // "static" (bench at rest on the Earth: the gyros see Earth rate), "slew" (constant body rate),
+  // "sine" (rate amplitude_dps * sin(2 pi t / period_s) per body axis), "temperature" (static with
+  // a temperature programme; a default programme when none is given).
+  std::string type = "slew";
+  Quat q0 = Quat::Identity();      // body -> inertial at t = 0 (static: from latitude and azimuth)
+  double latitude_deg = 45.0;      // static
+  double azimuth_deg = 0.0;        // static: azimuth of body x from north towards east; body z up
+  Vec3 axis_body = Vec3::UnitZ();  // slew
+  double rate_dps = 0.1;           // slew
+  Vec3 amplitude_dps = Vec3(1.0, 0.5, 0.3);  // sine
+  double period_s = 60.0;                    // sine
+  TemperatureProgramme temperature;
+  Vec3 magnetic_field_body_ut = Vec3::Zero();
+  // Star tracker: samples at multiples of 1/st_rate_hz, noise about body x, y (cross) and z (roll).
+  double st_rate_hz = 1.0;
+  double st_sigma_cross_arcsec = 5.0;
+  double st_sigma_roll_arcsec = 30.0;
+  std::vector<std::array<double, 2>> st_outages_s;  // [t0, t1): no star samples
+  std::vector<GyroFault> faults;
+
+  Vec3 RateBodyRadS(double t_s) const;  // true body rate relative to inertial space
+  void Check(const std::string& file, int n_gyros) const;
+};
+
+MotionProfile MotionProfileFromJson(const Json& j, const std::string& file);
+MotionProfile LoadMotionProfile(const std::string& path);
+
+struct GyroSimOptions {
+  double duration_s = 3600.0;
+  uint64_t seed = 1;
+  void Check() const;
+};
+
+struct GyroSimulation {
+  // Gyro samples k = 1..K at t = k / rate_hz, each the mean output over ((k-1)/rate, k/rate].
+  std::vector<double> t_s;
+  std::vector<GyroVec> gyro_dph;
+  std::vector<double> temp_c;
+  // Truth at the same times.
+  std::vector<Quat> q_true;
+  std::vector<Vec3> w_true_dph;     // instantaneous body rate
+  std::vector<Vec3> body_bias_dph;  // least-squares body-axis image of the gyros' slow errors (bias,
+                                    // flicker, rate random walk, thermal, magnetic, faults): what a
+                                    // filter's bias estimate should track
+  Quat q0 = Quat::Identity();
+  // Star tracker.
+  std::vector<double> st_t_s;
+  std::vector<Quat> st_q;
+  double st_sigma_cross_arcsec = 0, st_sigma_roll_arcsec = 0;
+};
+
+GyroSimulation SimulateGyro(const GyroUnit& unit, const MotionProfile& profile, const GyroSimOptions& options);
+
+// Writes DIR/gyro.csv (t_s,g1_dph..gN_dph,temp_c), DIR/truth.csv (t_s,qw,qx,qy,qz),
+// DIR/rates.csv (t_s,wx_dph,wy_dph,wz_dph,bx_dph,by_dph,bz_dph), DIR/st.csv
+// (t_s,qw,qx,qy,qz,sigma_cross_arcsec,sigma_roll_arcsec) and DIR/unit.json.
+void WriteGyroSimulation(const std::string& dir, const GyroSimulation& sim, const GyroUnit& unit);
+
+}  // namespace ssiu
