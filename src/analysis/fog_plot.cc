@@ -31,7 +31,8 @@ double TickStep(double range, int target) {
 
 void WriteFogPlotPng(const std::string& path, const FogPlot& plot) {
   static const cv::Scalar kColors[] = {{180, 80, 20}, {30, 30, 200}, {40, 150, 40},
-                                       {150, 40, 150}, {20, 140, 200}, {90, 90, 90}};
+                                       {150, 40, 150}, {20, 140, 200}, {90, 90, 90},
+                                       {0, 100, 180}, {120, 160, 0}};
   cv::Mat img(plot.height_px, plot.width_px, CV_8UC3, cv::Scalar(255, 255, 255));
   const int left = 90, right = 20, top = 40, bottom = 60;
   const int w = plot.width_px - left - right, h = plot.height_px - top - bottom;
@@ -79,7 +80,7 @@ void WriteFogPlotPng(const std::string& path, const FogPlot& plot) {
   cv::rectangle(img, cv::Point(left, top), cv::Point(left + w, top + h), ink, 1);
   for (size_t k = 0; k < plot.series.size(); ++k) {
     const auto& s = plot.series[k];
-    const cv::Scalar col = kColors[k % 6];
+    const cv::Scalar col = kColors[k % 8];
     for (size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
       if (!std::isfinite(s.x[i]) || !std::isfinite(s.y[i])) continue;
       if (s.markers) {
