@@ -12,14 +12,14 @@ namespace ssiu::cli {
 namespace {
 
 struct Opts {
-  std::string frame, camera, defects, json;
+  std::string frame, camera, defects, dark, json;
   double threshold_sigma = DetectOptions{}.threshold_sigma;
   double psf_sigma_px = 0;
   double gain_e_per_adu = 0;
 };
 
 void Run(const Opts& o) {
-  const Frame fr = ReadFrame(o.frame);
+  const Frame fr = o.dark.empty() ? ReadFrame(o.frame) : SubtractDark(ReadFrame(o.frame), ReadFrame(o.dark));
   DetectOptions opt;
   opt.threshold_sigma = o.threshold_sigma;
   opt.psf_sigma_px = o.psf_sigma_px;
@@ -70,6 +70,7 @@ SSIU_REGISTER_COMMAND(detect, [](CLI::App& root) {
   cmd->add_option("frame", o->frame, "Image file")->required();
   cmd->add_option("--camera", o->camera, "camera.json (checks the size; gain_e_per_adu if present)");
   cmd->add_option("--defects", o->defects, "Static defect map PNG (from `ssiu defects build`)");
+  cmd->add_option("--dark", o->dark, "Dark or median frame to subtract first (same camera and size)");
   cmd->add_option("--json", o->json, "Output JSON file, - for stdout");
   cmd->add_option("--threshold-sigma", o->threshold_sigma, "Detection threshold (matched-filter sigmas)");
   cmd->add_option("--psf-sigma-px", o->psf_sigma_px, "Expected PSF sigma (0 = estimate)");

@@ -189,6 +189,24 @@ Frame ReadFrame(const std::string& path) {
   return fr;
 }
 
+Frame SubtractDark(const Frame& frame, const Frame& dark, double pedestal_adu) {
+  if (dark.image.width != frame.image.width || dark.image.height != frame.image.height) {
+    throw InputError(dark.file, "dark frame is " + std::to_string(dark.image.width) + "x" +
+                                    std::to_string(dark.image.height) + ", image is " +
+                                    std::to_string(frame.image.width) + "x" + std::to_string(frame.image.height));
+  }
+  Frame out = frame;
+  const uint16_t sat = static_cast<uint16_t>(frame.saturation_adu);
+  for (size_t i = 0; i < out.image.pixels.size(); ++i) {
+    const uint16_t v = frame.image.pixels[i];
+    const double d = v - double(dark.image.pixels[i]) * dark.value_scale / frame.value_scale + pedestal_adu;
+    out.image.pixels[i] = v >= sat ? 65535 : static_cast<uint16_t>(std::clamp(std::round(d), 0.0, 65534.0));
+  }
+  out.saturation_adu = 65535;
+  out.value_offset = frame.value_offset - pedestal_adu * frame.value_scale;
+  return out;
+}
+
 void WritePng16(const std::string& path, const Image16& image) {
   cv::Mat m(image.height, image.width, CV_16UC1, const_cast<uint16_t*>(image.pixels.data()));
   bool ok = false;

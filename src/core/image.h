@@ -53,6 +53,11 @@ Frame ReadFrame(const std::string& path);
 // Rejects images that carry no usable signal; `file` names the source in the message.
 void CheckFrameContent(const Frame& frame);
 
+// frame - dark + pedestal (dark or median frame of the same camera), clamped to 0..65534; pixels
+// saturated in `frame` become 65535 and saturation_adu becomes 65535, so they stay flagged.
+// InputError naming the dark file when the sizes differ.
+Frame SubtractDark(const Frame& frame, const Frame& dark, double pedestal_adu = 100.0);
+
 void WritePng16(const std::string& path, const Image16& image);
 void WritePng8(const std::string& path, int width, int height, const std::vector<uint8_t>& pixels);
 // 16-bit FITS (BITPIX 16 with BZERO 32768), first stored row = y 0.

@@ -10,19 +10,28 @@ namespace ssiu {
 struct BackgroundGrid {
   int tile = 64, nx = 0, ny = 0, width = 0, height = 0;
   std::vector<float> level, sigma;  // per tile, row-major (ny x nx), after a 3x3 median
+  // Noise of the b x b box sum (the matched filter), measured rather than assumed b * sigma: real
+  // frames (demosaiced colour sensors, fixed-pattern structure) have correlated pixel noise.
+  std::vector<float> box_sigma;
+  int box_half = 1;
   double median_level = 0, median_sigma = 0;
 
   double LevelAt(double x, double y) const { return Interp(level, x, y); }
   double SigmaAt(double x, double y) const { return Interp(sigma, x, y); }
   // out[x] = scale * (level(x, y) + k_sigma * sigma(x, y)) for every x of row y.
   void RowLevels(int y, std::vector<float>* out, double k_sigma, double scale) const;
+  // out[x] = box^2 * level(x, y) + k * box_sigma(x, y): the detection threshold of the box sum.
+  void RowBoxThreshold(int y, std::vector<float>* out, double k) const;
 
  private:
+  // out[x] = a * level + b * second, bilinear in the tile grid.
+  void RowCombination(int y, std::vector<float>* out, double a, double b, const std::vector<float>& second) const;
   double Interp(const std::vector<float>& v, double x, double y) const;
 };
 
 // Median and MAD-based sigma (1.4826 MAD) of a subsample of each tile, then a 3x3 median over the
 // tile grid so that a tile filled by a bright star or an extended object takes its neighbours' value.
-BackgroundGrid EstimateBackground(const ImageView& img, int tile_px);
+// Also measures the noise of the (2 box_half + 1)^2 box sum at the same sample points.
+BackgroundGrid EstimateBackground(const ImageView& img, int tile_px, int box_half = 1);
 
 }  // namespace ssiu

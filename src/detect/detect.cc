@@ -4,6 +4,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <numeric>
 #include <stdexcept>
 
@@ -41,6 +42,28 @@ struct Blob {
   int64_t peak_score = INT64_MIN;
   std::vector<int> runs;
 };
+
+// sqrt of the ratio of the principal second moments of a blob's pixels (1 round, large thin).
+double BlobElongation(const Blob& b, const std::vector<Run>& runs) {
+  double n = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+  for (int ri : b.runs) {
+    const Run& r = runs[ri];
+    for (int x = r.x0; x <= r.x1; ++x) {
+      n += 1;
+      sx += x;
+      sy += r.y;
+      sxx += double(x) * x;
+      syy += double(r.y) * r.y;
+      sxy += double(x) * r.y;
+    }
+  }
+  if (n < 3) return 1.0;
+  const double mx = sx / n, my = sy / n;
+  const double cxx = sxx / n - mx * mx + 1.0 / 12, cyy = syy / n - my * my + 1.0 / 12, cxy = sxy / n - mx * my;
+  const double tr = 0.5 * (cxx + cyy), det = cxx * cyy - cxy * cxy;
+  const double disc = std::sqrt(std::max(tr * tr - det, 0.0));
+  return std::sqrt((tr + disc) / std::max(tr - disc, 1e-3));
+}
 
 // Expected ratio of the diagonal neighbours to the peak pixel for a pixel-centred Gaussian of
 // sigma s: the smallest neighbour ratio of a real star (used to call a spike sharper than the PSF).
@@ -122,58 +145,75 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
 
   // 1. Background and noise per tile (median and MAD: robust to stars and hot pixels).
   auto t0 = Clock::now();
-  const BackgroundGrid bg = EstimateBackground(img, opt.tile_px);
+  // Matched filter: a box of about the PSF's size (3x3 is 88% efficient for sigma 1.2 px).
+  const double psf_guess = opt.psf_sigma_px > 0 ? opt.psf_sigma_px : 1.2;
+  const int half = psf_guess <= 1.6 ? 1 : (psf_guess <= 2.8 ? 2 : 3);
+  const int box = 2 * half + 1;
+  const BackgroundGrid bg = EstimateBackground(img, opt.tile_px, half);
   out.background_adu = bg.median_level;
   out.noise_adu = bg.median_sigma;
   out.timing_ms["background"] = MsSince(t0);
 
-  // 2. Matched filter (box of about the PSF's size) and threshold on local noise: a b x b box sum
-  //    has noise b * sigma for independent pixels.
+  // 2. Threshold the box sum on its own measured local noise.
   t0 = Clock::now();
-  const double psf_guess = opt.psf_sigma_px > 0 ? opt.psf_sigma_px : 1.2;
-  const int half = psf_guess <= 1.6 ? 1 : (psf_guess <= 2.8 ? 2 : 3);
-  const int box = 2 * half + 1;
   std::vector<Run> runs;
   std::vector<std::pair<int, int>> dead_pixels;
   {
-    std::vector<int32_t> colsum(static_cast<size_t>(w), 0);
+    // Dead pixels: a raw pixel far below its local background. A row whose minimum is above the
+    // highest "dead" level of any tile needs no per-pixel test.
+    double dead_level_max = -1e300;
+    for (size_t k = 0; k < bg.level.size(); ++k) {
+      dead_level_max = std::max(dead_level_max, double(bg.level[k]) - opt.dead_sigma * bg.sigma[k]);
+    }
+    std::vector<int32_t> colsum(static_cast<size_t>(w), 0), boxrow(static_cast<size_t>(w), 0);
     std::vector<float> thr_row(static_cast<size_t>(w)), low_row(static_cast<size_t>(w));
-    // Column sums of the first box rows; then slide down.
+    std::vector<uint8_t> above(static_cast<size_t>(w) + 1, 0);
     for (int y = 0; y < box - 1; ++y) {
       const uint16_t* r = img.row(y);
       for (int x = 0; x < w; ++x) colsum[x] += r[x];
     }
-    std::vector<int32_t> boxrow(static_cast<size_t>(w), 0);
     for (int yc = 0; yc < h; ++yc) {
-      // Raw-pixel test for dead pixels on every row.
-      bg.RowLevels(yc, &low_row, -opt.dead_sigma, 1.0);
       const uint16_t* raw = view.row(yc);
-      for (int x = 0; x < w; ++x) {
-        if (raw[x] < low_row[x] && !(have_defects && defects->at(x, yc))) dead_pixels.emplace_back(x, yc);
+      int row_min = 65535;
+      for (int x = 0; x < w; ++x) row_min = std::min(row_min, static_cast<int>(raw[x]));
+      if (row_min < dead_level_max) {
+        bg.RowLevels(yc, &low_row, -opt.dead_sigma, 1.0);
+        for (int x = 0; x < w; ++x) {
+          if (raw[x] < low_row[x] && !(have_defects && defects->at(x, yc))) dead_pixels.emplace_back(x, yc);
+        }
       }
       if (yc < half || yc >= h - half) continue;
-      const int ylast = yc + half;
-      const uint16_t* add = img.row(ylast);
+      const uint16_t* add = img.row(yc + half);
       for (int x = 0; x < w; ++x) colsum[x] += add[x];
-      // Horizontal box sum of the column sums.
-      for (int x = half; x < w - half; ++x) {
-        int32_t s = 0;
-        for (int k = -half; k <= half; ++k) s += colsum[x + k];
-        boxrow[x] = s;
+      // Horizontal box sum of the column sums (the b x b box sum centred on (x, yc)).
+      if (half == 1) {
+        for (int x = 1; x < w - 1; ++x) boxrow[x] = colsum[x - 1] + colsum[x] + colsum[x + 1];
+      } else {
+        for (int x = half; x < w - half; ++x) {
+          int32_t sum = 0;
+          for (int k = -half; k <= half; ++k) sum += colsum[x + k];
+          boxrow[x] = sum;
+        }
       }
-      bg.RowLevels(yc, &thr_row, opt.threshold_sigma / box, static_cast<double>(box * box));
-      int x = half;
-      while (x < w - half) {
-        if (boxrow[x] > thr_row[x]) {
+      bg.RowBoxThreshold(yc, &thr_row, opt.threshold_sigma);
+      uint8_t any = 0;
+      for (int x = half; x < w - half; ++x) {
+        above[x] = static_cast<float>(boxrow[x]) > thr_row[x];
+        any |= above[x];
+      }
+      if (any) {
+        int x = half;
+        while (x < w - half) {
+          const void* hit = std::memchr(&above[x], 1, static_cast<size_t>(w - half - x));
+          if (!hit) break;
+          x = static_cast<int>(static_cast<const uint8_t*>(hit) - above.data());
           const int xs = x;
-          while (x < w - half && boxrow[x] > thr_row[x]) ++x;
+          while (x < w - half && above[x]) ++x;
           runs.push_back({yc, xs, x - 1, -1});
-        } else {
-          ++x;
         }
       }
       const uint16_t* sub = img.row(yc - half);
-      for (int xx = 0; xx < w; ++xx) colsum[xx] -= sub[xx];
+      for (int x = 0; x < w; ++x) colsum[x] -= sub[x];
     }
   }
   out.timing_ms["threshold"] = MsSince(t0);
@@ -238,82 +278,226 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
   }
   out.timing_ms["blobs"] = MsSince(t0);
 
-  // 4. Classify and centroid every blob.
+  // 4. Peaks: local maxima of the 3x3-summed image inside each blob, kept when a real dip separates
+  //    them from every brighter peak (so a star beside another star or a hot pixel is not lost).
   t0 = Clock::now();
   const double sat = opt.saturation_adu;
-  auto is_bad = [&](int x, int y) {
-    return (have_defects && defects->at(x, y)) ||
-           std::binary_search(dead_pixels.begin(), dead_pixels.end(), std::make_pair(x, y),
-                              [](const std::pair<int, int>& a, const std::pair<int, int>& b) {
-                                return a.second != b.second ? a.second < b.second : a.first < b.first;
-                              });
+  auto score_at = [&](int x, int y) {
+    int32_t s = 0;
+    for (int dy = -1; dy <= 1; ++dy) {
+      const int yy = std::clamp(y + dy, 0, h - 1);
+      for (int dx = -1; dx <= 1; ++dx) s += img.at(std::clamp(x + dx, 0, w - 1), yy);
+    }
+    return s;
   };
-  struct Candidate {
+  struct Peak {
+    int x, y;          // brightest raw pixel at the peak
+    double score;      // 3x3 sum above background
     size_t blob;
-    PsfFit fit;
-    double peak_above, min_dir_ratio;
-    int nsat;
-    bool sharp_single;
+    double nearest_px = 1e9;  // distance to the nearest other peak of the blob
   };
-  std::vector<Candidate> cands;
-  cands.reserve(blobs.size());
+  std::vector<Peak> peaks;
+  const size_t kMaxPeaksPerBlob = 12;
   for (size_t bi = 0; bi < blobs.size(); ++bi) {
     const Blob& b = blobs[bi];
-    const int px = b.peak_x, py = b.peak_y;
-    const double level = bg.LevelAt(px, py), sigma_n = bg.SigmaAt(px, py);
-    // Brightest raw pixel near the filtered peak.
-    int mx = px, my = py;
-    for (int dy = -1; dy <= 1; ++dy) {
-      for (int dx = -1; dx <= 1; ++dx) {
-        const int xx = px + dx, yy = py + dy;
-        if (xx < 0 || yy < 0 || xx >= w || yy >= h) continue;
-        if (img.at(xx, yy) > img.at(mx, my)) {
-          mx = xx;
-          my = yy;
+    const double level9 = 9 * bg.LevelAt(b.peak_x, b.peak_y), sigma_s = 3 * bg.SigmaAt(b.peak_x, b.peak_y);
+    std::vector<Peak> local;
+    for (int ri : b.runs) {
+      const Run& r = runs[ri];
+      for (int x = r.x0; x <= r.x1; ++x) {
+        const int32_t c = score_at(x, r.y);
+        bool is_max = true;
+        for (int dy = -1; dy <= 1 && is_max; ++dy) {
+          for (int dx = -1; dx <= 1; ++dx) {
+            if (!(dx || dy)) continue;
+            const int32_t o = score_at(x + dx, r.y + dy);
+            // Ties broken by position so that a flat top yields one maximum.
+            if (o > c || (o == c && (dy < 0 || (dy == 0 && dx < 0)))) {
+              is_max = false;
+              break;
+            }
+          }
         }
+        if (is_max) local.push_back({x, r.y, c - level9, bi});
       }
     }
+    std::sort(local.begin(), local.end(), [](const Peak& p, const Peak& q) { return p.score > q.score; });
+    std::vector<Peak> kept;
+    for (const Peak& m : local) {
+      bool separate = true;
+      double nearest = 1e9;
+      for (const Peak& a : kept) {
+        const double d = std::hypot(m.x - a.x, m.y - a.y);
+        const int steps = std::max(2, static_cast<int>(std::ceil(2 * d)));
+        double lowest = m.score;
+        for (int k = 1; k < steps; ++k) {
+          const int xx = static_cast<int>(std::lround(m.x + (a.x - m.x) * double(k) / steps));
+          const int yy = static_cast<int>(std::lround(m.y + (a.y - m.y) * double(k) / steps));
+          lowest = std::min(lowest, score_at(xx, yy) - level9);
+        }
+        if (m.score - lowest < std::max(4 * sigma_s, 0.1 * m.score)) {
+          separate = false;
+          break;
+        }
+        nearest = std::min(nearest, d);
+      }
+      if (!separate) continue;
+      Peak p = m;
+      p.nearest_px = nearest;
+      for (Peak& a : kept) {
+        a.nearest_px = std::min(a.nearest_px, std::hypot(m.x - a.x, m.y - a.y));
+      }
+      kept.push_back(p);
+      if (kept.size() >= kMaxPeaksPerBlob) break;
+    }
+    for (Peak& p : kept) {
+      // Move to the brightest raw pixel next to the summed maximum.
+      int mx = p.x, my = p.y;
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int xx = p.x + dx, yy = p.y + dy;
+          if (xx >= 0 && yy >= 0 && xx < w && yy < h && img.at(xx, yy) > img.at(mx, my)) {
+            mx = xx;
+            my = yy;
+          }
+        }
+      }
+      p.x = mx;
+      p.y = my;
+      peaks.push_back(p);
+    }
+  }
+
+  // 5. Classify each peak; single-pixel spikes first, so that the fits of stars beside them leave
+  //    them out.
+  struct Candidate {
+    size_t peak;
+    PsfFit fit;
+    double peak_above = 0, min_dir_ratio = 1;
+    int nsat = 0;
+  };
+  std::vector<Candidate> cands;
+  cands.reserve(peaks.size());
+  // Pixels every fit leaves out: defect-map pixels, dead pixels, single-pixel spikes.
+  std::vector<uint8_t> bad(static_cast<size_t>(w) * h, 0);
+  for (const auto& [x, y] : dead_pixels) bad[static_cast<size_t>(y) * w + x] = 1;
+  if (have_defects) {
+    for (size_t i = 0; i < bad.size(); ++i) bad[i] |= defects->mask[i] != 0;
+  }
+  auto is_bad = [&](int x, int y) { return bad[static_cast<size_t>(y) * w + x] != 0; };
+  auto mark_bad = [&](int x, int y) { bad[static_cast<size_t>(y) * w + x] = 1; };
+  std::vector<bool> is_spike(peaks.size(), false);
+  std::vector<double> dir_ratio(peaks.size(), 1.0), peak_above(peaks.size(), 0.0);
+  for (size_t pi = 0; pi < peaks.size(); ++pi) {
+    Peak& pk = peaks[pi];
+    const double level = bg.LevelAt(pk.x, pk.y), sigma_n = bg.SigmaAt(pk.x, pk.y);
+    auto nb = [&](int x, int y) { return img.at(std::clamp(x, 0, w - 1), std::clamp(y, 0, h - 1)) - level; };
+    // A hot pixel (or a one-pixel hit) on top of a source: far brighter than all 8 neighbours, which
+    // the PSF cannot do (a Gaussian of sigma >= 0.65 px keeps its neighbours above 1/3 of the peak),
+    // while the neighbours themselves are well above background. Leave that pixel out and carry on
+    // with the source from its brightest neighbour.
+    for (int pass = 0; pass < 2; ++pass) {
+      const double p = img.at(pk.x, pk.y) - level;
+      double nmax = -1e300;
+      int bx = pk.x, by = pk.y;
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+          if (!(dx || dy)) continue;
+          const double v = nb(pk.x + dx, pk.y + dy);
+          if (v > nmax) {
+            nmax = v;
+            bx = std::clamp(pk.x + dx, 0, w - 1);
+            by = std::clamp(pk.y + dy, 0, h - 1);
+          }
+        }
+      }
+      if (img.at(pk.x, pk.y) >= sat || !opt.reject_hot_pixels || p <= 3 * nmax + 5 * sigma_n || nmax < 5 * sigma_n) break;
+      mark_bad(pk.x, pk.y);
+      out.rejected.push_back({static_cast<double>(pk.x), static_cast<double>(pk.y), RejectReason::kHotPixel, "on_source", p});
+      pk.x = bx;
+      pk.y = by;
+    }
+    const int mx = pk.x, my = pk.y;
     const double p = img.at(mx, my) - level;
-    auto nb = [&](int dx, int dy) {
-      const int xx = std::clamp(mx + dx, 0, w - 1), yy = std::clamp(my + dy, 0, h - 1);
-      return img.at(xx, yy) - level;
-    };
     // Mean of opposite neighbours in each of four directions, relative to the peak: a star
     // spreads in every direction, a hot pixel in none, a cosmic-ray track only along itself.
-    const double dirs[4] = {0.5 * (nb(-1, 0) + nb(1, 0)), 0.5 * (nb(0, -1) + nb(0, 1)),
-                            0.5 * (nb(-1, -1) + nb(1, 1)), 0.5 * (nb(-1, 1) + nb(1, -1))};
+    auto pair_mean = [&](int dx, int dy) {
+      double a = nb(mx + dx, my + dy), b = nb(mx - dx, my - dy);
+      const int ax = mx + dx, ay = my + dy, bx2 = mx - dx, by2 = my - dy;
+      if (ax >= 0 && ay >= 0 && ax < w && ay < h && is_bad(ax, ay)) a = b;
+      if (bx2 >= 0 && by2 >= 0 && bx2 < w && by2 < h && is_bad(bx2, by2)) b = a;
+      return 0.5 * (a + b);
+    };
+    const double dirs[4] = {pair_mean(1, 0), pair_mean(0, 1), pair_mean(1, 1), pair_mean(1, -1)};
     const double dmax = *std::max_element(dirs, dirs + 4), dmin = *std::min_element(dirs, dirs + 4);
-    Candidate c;
-    c.blob = bi;
-    c.peak_above = p;
-    c.min_dir_ratio = p > 0 ? dmin / p : 1.0;
-    c.nsat = 0;
-    for (int y = std::max(0, b.y0 - 1); y <= std::min(h - 1, b.y1 + 1); ++y) {
-      for (int x = std::max(0, b.x0 - 1); x <= std::min(w - 1, b.x1 + 1); ++x) c.nsat += view.at(x, y) >= sat;
-    }
-    // A single-pixel spike: no direction carries a significant share of the peak.
-    c.sharp_single = c.nsat == 0 && p > 0 && dmax < 0.2 * p && dmax < p - 3 * sigma_n;
-    if (c.sharp_single && opt.reject_hot_pixels) {
+    dir_ratio[pi] = p > 0 ? dmin / p : 1.0;
+    peak_above[pi] = p;
+    const bool saturated_peak = img.at(mx, my) >= sat;
+    if (!saturated_peak && opt.reject_hot_pixels && p > 0 && dmax < 0.2 * p && dmax < p - 3 * sigma_n) {
+      is_spike[pi] = true;
+      mark_bad(mx, my);
       out.rejected.push_back({static_cast<double>(mx), static_cast<double>(my), RejectReason::kHotPixel, "", p});
-      continue;
     }
+  }
+  // Distances between the remaining peaks of a blob (spikes do not make a star blended).
+  for (size_t pi = 0; pi < peaks.size(); ++pi) {
+    peaks[pi].nearest_px = 1e9;
+    if (is_spike[pi]) continue;
+    for (size_t q = 0; q < peaks.size(); ++q) {
+      if (q != pi && !is_spike[q] && peaks[q].blob == peaks[pi].blob) {
+        peaks[pi].nearest_px = std::min(peaks[pi].nearest_px, std::hypot(peaks[q].x - peaks[pi].x, peaks[q].y - peaks[pi].y));
+      }
+    }
+  }
+  const int fit_r = std::max(3, static_cast<int>(std::ceil(3 * psf_guess)));
+  for (size_t pi = 0; pi < peaks.size(); ++pi) {
+    if (is_spike[pi]) continue;
+    const Peak& pk = peaks[pi];
+    const Blob& b = blobs[pk.blob];
+    Candidate c;
+    c.peak = pi;
+    c.peak_above = peak_above[pi];
+    c.min_dir_ratio = dir_ratio[pi];
+    for (int y = std::max(0, pk.y - fit_r); y <= std::min(h - 1, pk.y + fit_r); ++y) {
+      for (int x = std::max(0, pk.x - fit_r); x <= std::min(w - 1, pk.x + fit_r); ++x) c.nsat += view.at(x, y) >= sat;
+    }
+    (void)b;
     PsfFitOptions fo;
     fo.sigma_guess_px = psf_guess;
     fo.gain_e_per_adu = opt.gain_e_per_adu;
     fo.saturation_adu = sat;
     fo.fit = opt.fit_gaussian;
-    const int r = std::max(3, static_cast<int>(std::ceil(3 * psf_guess)));
-    c.fit = FitPsf(img, mx, my, r, level, sigma_n, fo, is_bad);
+    // Pixels nearer another peak of the same blob belong to that source (Voronoi split).
+    auto excluded = [&](int x, int y) {
+      if (is_bad(x, y)) return true;
+      if (pk.nearest_px > 2 * fit_r + 2) return false;
+      const double d0 = (x - pk.x) * (x - pk.x) + (y - pk.y) * (y - pk.y);
+      for (size_t q = 0; q < peaks.size(); ++q) {
+        if (q == pi || peaks[q].blob != pk.blob) continue;
+        const double d1 = (x - peaks[q].x) * (x - peaks[q].x) + (y - peaks[q].y) * (y - peaks[q].y);
+        if (d1 < d0) return true;
+      }
+      return false;
+    };
+    c.fit = FitPsf(img, pk.x, pk.y, fit_r, bg.LevelAt(pk.x, pk.y), bg.SigmaAt(pk.x, pk.y), fo, excluded);
     cands.push_back(c);
   }
 
-  // The frame's PSF width: median fitted sigma of bright, unsaturated, compact sources (or as given).
+  // The frame's PSF width: median fitted sigma of the brightest unsaturated, isolated sources that
+  // are not single-pixel sharp (or as given).
   double psf = opt.psf_sigma_px;
   if (psf <= 0) {
-    std::vector<double> s;
+    std::vector<std::pair<double, double>> bright;  // (peak above background, sigma)
     for (const Candidate& c : cands) {
-      if (c.fit.ok && c.nsat == 0 && c.fit.snr > 20 && c.min_dir_ratio > 0.15) s.push_back(c.fit.sigma_px);
+      if (c.fit.ok && c.nsat == 0 && c.fit.snr > 15 && c.min_dir_ratio > 0.02 && peaks[c.peak].nearest_px > 8 &&
+          c.fit.sigma_px > 0.31) {
+        bright.emplace_back(c.peak_above, c.fit.sigma_px);  // ranked by peak: broad noise blobs rank low
+      }
     }
+    std::sort(bright.begin(), bright.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+    if (bright.size() > 25) bright.resize(25);
+    std::vector<double> s;
+    for (const auto& b : bright) s.push_back(b.second);
     if (s.size() >= 3) {
       std::nth_element(s.begin(), s.begin() + s.size() / 2, s.end());
       psf = s[s.size() / 2];
@@ -322,41 +506,47 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
     }
   }
   out.psf_sigma_px = psf;
-  const double sharp_ratio = std::clamp(0.45 * DiagonalRatio(psf), 0.06, 0.3);
+  const double sharp_ratio = std::clamp(0.45 * DiagonalRatio(psf), 0.02, 0.3);
 
+  std::vector<bool> blob_reported(blobs.size(), false);  // one track/streak rejection per blob
   for (const Candidate& c : cands) {
-    const Blob& b = blobs[c.blob];
+    const Peak& pk = peaks[c.peak];
+    const Blob& b = blobs[pk.blob];
     const PsfFit& f = c.fit;
-    const double sigma_n = bg.SigmaAt(b.peak_x, b.peak_y);
-    // Shape of the blob from second moments of the thresholded region (streaks, extended objects).
+    const double sigma_n = bg.SigmaAt(pk.x, pk.y);
     const double ext_x = b.x1 - b.x0 + 1, ext_y = b.y1 - b.y0 + 1;
     const double length = std::hypot(ext_x, ext_y);
-    const double cx = f.ok ? f.x_px : b.peak_x, cy = f.ok ? f.y_px : b.peak_y;
     Rejection rej;
-    rej.x_px = cx;
-    rej.y_px = cy;
+    rej.x_px = f.ok ? f.x_px : pk.x;
+    rej.y_px = f.ok ? f.y_px : pk.y;
     rej.flux_adu = f.flux_adu;
     bool reject = false;
-    const bool significant_sharp = c.min_dir_ratio < sharp_ratio && c.peak_above * (sharp_ratio - c.min_dir_ratio) > 2.0 * sigma_n;
+    // Sharper than the PSF: a neighbour pair far below what the PSF gives, and (where the fit
+    // worked) a fitted width well under the frame's PSF.
+    const bool significant_sharp = c.min_dir_ratio < sharp_ratio &&
+                                   c.peak_above * (sharp_ratio - c.min_dir_ratio) > 2.0 * sigma_n &&
+                                   (!f.ok || f.sigma_px < 0.75 * psf || f.elongation > 1.6);
     if (c.nsat == 0 && significant_sharp) {
       // Sharper than the PSF across at least one direction: charge deposited in the pixels, not
       // imaged through the optics.
       rej.reason = b.npix <= 2 && length < 3 ? RejectReason::kHotPixel : RejectReason::kCosmicRay;
       reject = true;
-    } else if (f.ok && f.elongation > 2.5 && f.major_sigma_px > 3 * psf && length > 10 * psf) {
+    } else if (c.nsat == 0 && length > 10 * psf + 6 && BlobElongation(b, runs) > 3.0) {
+      // Long thin blob imaged through the optics: a satellite or aircraft streak.
       rej.reason = RejectReason::kStreak;
       reject = true;
-    } else if (c.nsat == 0 && length > 10 * psf + 6 && b.npix > 40 * psf * psf) {
-      rej.reason = RejectReason::kStreak;
+    } else if (c.nsat == 0 && b.npix > 400 * psf * psf) {
+      rej.reason = RejectReason::kExtended;
       reject = true;
-    } else if (c.nsat > 0 && c.nsat > 400) {
+    } else if (c.nsat > 400) {
       rej.reason = RejectReason::kExtended;
       rej.detail = "saturated_extended";
       reject = true;
     } else if (c.nsat == 0 && f.ok && f.sigma_px > 2.0 * psf + 0.3 && f.snr > 10) {
       rej.reason = RejectReason::kExtended;
       reject = true;
-    } else if (c.nsat == 0 && f.ok && f.blended) {
+    } else if (pk.nearest_px < 2.9 * psf) {
+      // Two peaks too close to centroid apart without bias.
       rej.reason = RejectReason::kExtended;
       rej.detail = "blended_pair";
       reject = true;
@@ -366,7 +556,9 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
       reject = true;
     }
     if (reject) {
-      out.rejected.push_back(rej);
+      const bool per_blob = rej.reason == RejectReason::kCosmicRay || rej.reason == RejectReason::kStreak;
+      if (!(per_blob && blob_reported[pk.blob])) out.rejected.push_back(rej);
+      if (per_blob) blob_reported[pk.blob] = true;
       continue;
     }
     if (!f.ok || f.snr < opt.min_snr) continue;

@@ -61,6 +61,7 @@ PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double 
     for (int x = x0; x <= x1; ++x) {
       const size_t i = static_cast<size_t>(y - y0) * nx + (x - x0);
       const double a = v[i] - level;
+      if (!use[i]) continue;
       peak = std::max(peak, a);
       if (a <= 2 * sigma_n) continue;
       sw += a;
@@ -74,7 +75,7 @@ PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double 
     for (int x = x0; x <= x1; ++x) {
       const size_t i = static_cast<size_t>(y - y0) * nx + (x - x0);
       const double a = v[i] - level;
-      if (a <= 2 * sigma_n) continue;
+      if (!use[i] || a <= 2 * sigma_n) continue;
       sxx += a * (x - cx) * (x - cx);
       syy += a * (y - cy) * (y - cy);
       sxy += a * (x - cx) * (y - cy);
@@ -87,43 +88,6 @@ PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double 
     const double l0 = std::max(es.eigenvalues()(0), 1e-3), l1 = std::max(es.eigenvalues()(1), 1e-3);
     out.elongation = std::sqrt(l1 / l0);
     out.major_sigma_px = std::sqrt(l1);
-  }
-
-  // Two peaks with a saddle between them: a blended pair (or a star on another object).
-  {
-    int best_x = px, best_y = py;
-    double best = -1e300;
-    for (int y = y0; y <= y1; ++y) {
-      for (int x = x0; x <= x1; ++x) {
-        const double a = v[static_cast<size_t>(y - y0) * nx + (x - x0)];
-        if (a > best) {
-          best = a;
-          best_x = x;
-          best_y = y;
-        }
-      }
-    }
-    for (int y = y0 + 1; y < y1 && !out.blended; ++y) {
-      for (int x = x0 + 1; x < x1; ++x) {
-        const size_t i = static_cast<size_t>(y - y0) * nx + (x - x0);
-        const double a = v[i] - level;
-        if (std::hypot(x - best_x, y - best_y) < 2.5 || a < std::max(8 * sigma_n, 0.15 * peak)) continue;
-        bool is_max = true;
-        for (int dy = -1; dy <= 1 && is_max; ++dy)
-          for (int dx = -1; dx <= 1; ++dx)
-            if ((dx || dy) && v[i + dy * nx + dx] >= v[i]) is_max = false;
-        if (!is_max) continue;
-        // Lowest point on the line between the two maxima.
-        double lowest = 1e300;
-        const int steps = static_cast<int>(std::ceil(std::hypot(x - best_x, y - best_y) * 2));
-        for (int k = 1; k < steps; ++k) {
-          const int xx = static_cast<int>(std::lround(best_x + (x - best_x) * double(k) / steps));
-          const int yy = static_cast<int>(std::lround(best_y + (y - best_y) * double(k) / steps));
-          lowest = std::min(lowest, v[static_cast<size_t>(yy - y0) * nx + (xx - x0)] - level);
-        }
-        if (a - lowest > std::max(4 * sigma_n, 0.2 * a)) out.blended = true;
-      }
-    }
   }
 
   double s = std::clamp(o.sigma_guess_px, 0.4, 10.0);
@@ -151,7 +115,7 @@ PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double 
         j << A * fx.dc[a] * fy.f[b], A * fx.f[a] * fy.dc[b], fx.f[a] * fy.f[b], 1.0,
             A * (fx.ds[a] * fy.f[b] + fx.f[a] * fy.ds[b]);
         jtj->noalias() += wgt * j * j.transpose();
-        *jtr += wgt * res * j;
+        if (jtr) *jtr += wgt * res * j;
       }
     }
     return chi2;

@@ -24,7 +24,6 @@ struct PsfFit {
   double x_sigma_px = 0, y_sigma_px = 0;
   double elongation = 1;       // sqrt of the ratio of the second-moment eigenvalues
   double major_sigma_px = 0;
-  bool blended = false;        // a second significant peak with a saddle between them
   int iterations = 0;
 };
 

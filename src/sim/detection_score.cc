@@ -45,7 +45,7 @@ DetectionScore ScoreDetections(const SimulatedFrame& truth, const Detections& de
       const double dx = det.stars[best].x_px - t.x_px, dy = det.stars[best].y_px - t.y_px;
       sc.dx_px.push_back(dx);
       sc.dy_px.push_back(dy);
-      sc.truth_snr.push_back(t.snr);
+      sc.truth_index.push_back(static_cast<int>(i));
       sum2 += dx * dx + dy * dy;
       ++sc.centroid_count;
     }

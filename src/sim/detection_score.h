@@ -19,7 +19,8 @@ struct DetectionScore {
   int hot_pixels_as_stars = 0;
   double centroid_rms_px = 0;    // over matched, unsaturated stars with truth SNR >= 20
   int centroid_count = 0;
-  std::vector<double> dx_px, dy_px, truth_snr;  // per matched star (SNR >= 20, unsaturated)
+  std::vector<double> dx_px, dy_px;  // per matched clean star with SNR >= 20, unsaturated
+  std::vector<int> truth_index;      // ... and its index in the truth's stars
 };
 
 DetectionScore ScoreDetections(const SimulatedFrame& truth, const Detections& det, double match_radius_px = 2.0);

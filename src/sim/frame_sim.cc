@@ -41,7 +41,8 @@ const DoubleField kDoubleFields[] = {
     {"streak_flux_e_per_px", &FrameSimOptions::streak_flux_e_per_px},
 };
 const IntField kIntFields[] = {
-    {"bit_depth", &FrameSimOptions::bit_depth},   {"hot_pixels", &FrameSimOptions::hot_pixels},
+    {"bit_depth", &FrameSimOptions::bit_depth},   {"defect_seed", &FrameSimOptions::defect_seed},
+    {"hot_pixels", &FrameSimOptions::hot_pixels},
     {"dead_pixels", &FrameSimOptions::dead_pixels}, {"cosmic_rays", &FrameSimOptions::cosmic_rays},
     {"streaks", &FrameSimOptions::streaks},       {"false_stars", &FrameSimOptions::false_stars},
 };
@@ -276,12 +277,14 @@ SimulatedFrame SimulateFrame(const Camera& cam, const StarCatalog& catalog, cons
     AddTrack(signal, w, h, a.x0_px, a.y0_px, a.x1_px, a.y1_px, a.signal_e, 0.0);
     out.artefacts.push_back(a);
   }
-  // Hot pixels: dark rate log-uniform in [min, max]; dead pixels: no response.
+  // Hot pixels: dark rate log-uniform in [min, max]; dead pixels: no response. Both belong to the
+  // sensor, so they come from their own seed and stay put from frame to frame.
+  Rng sensor(0xD5F3C0DEULL + static_cast<uint64_t>(o.defect_seed));
   std::vector<uint8_t> dead(static_cast<size_t>(w) * h, 0);
   for (int k = 0; k < o.hot_pixels; ++k) {
-    const int x = static_cast<int>(rng.Uniform() * w), y = static_cast<int>(rng.Uniform() * h);
+    const int x = static_cast<int>(sensor.Uniform() * w), y = static_cast<int>(sensor.Uniform() * h);
     const double rate = o.hot_pixel_min_e_per_s *
-                        std::pow(o.hot_pixel_max_e_per_s / o.hot_pixel_min_e_per_s, rng.Uniform());
+                        std::pow(o.hot_pixel_max_e_per_s / o.hot_pixel_min_e_per_s, sensor.Uniform());
     SimArtefact a;
     a.type = "hot_pixel";
     a.x_px = a.x0_px = a.x1_px = x;
@@ -291,7 +294,7 @@ SimulatedFrame SimulateFrame(const Camera& cam, const StarCatalog& catalog, cons
     out.artefacts.push_back(a);
   }
   for (int k = 0; k < o.dead_pixels; ++k) {
-    const int x = static_cast<int>(rng.Uniform() * w), y = static_cast<int>(rng.Uniform() * h);
+    const int x = static_cast<int>(sensor.Uniform() * w), y = static_cast<int>(sensor.Uniform() * h);
     dead[static_cast<size_t>(y) * w + x] = 1;
     SimArtefact a;
     a.type = "dead_pixel";

@@ -33,6 +33,8 @@ struct FrameSimOptions {
   int bit_depth = 16;
   bool shot_noise = true;
   // Defects and interferers
+  int defect_seed = 1;                   // hot/dead pixel positions and rates: a property of the sensor,
+                                         // the same in every frame of one camera (unlike the noise seed)
   int hot_pixels = 40;
   double hot_pixel_min_e_per_s = 2.0e3;  // hot pixel dark rates, log-uniform in [min, max]
   double hot_pixel_max_e_per_s = 2.0e5;
