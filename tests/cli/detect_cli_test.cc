@@ -1,0 +1,180 @@
+// `ssiu simulate frame` and `ssiu detect` end to end: the JSON contract, exit status, and a one-line
+// error naming the file for every kind of bad input.
+#include <cmath>
+#include <fstream>
+#include <set>
+
+#include "core/image.h"
+#include "core/json.h"
+#include "testing/testing.h"
+
+namespace ssiu {
+namespace {
+
+using ::testing::HasSubstr;
+
+struct Result {
+  int status;
+  std::string output;
+};
+
+Result Ssiu(const std::string& args) {
+  Result r;
+  r.status = testing::Run(testing::SsiuProgram() + " " + args, &r.output);
+  return r;
+}
+
+int Lines(const std::string& s) {
+  int n = 0;
+  for (char c : s) n += c == '\n';
+  return n;
+}
+
+class CliTest : public ::testing::Test {
+ protected:
+  void SetUp() override { dir_ = testing::TempDir("cli"); }
+  std::string Path(const std::string& name) const { return dir_ + "/" + name; }
+  void Write(const std::string& name, const std::string& bytes) const {
+    std::ofstream(Path(name), std::ios::binary) << bytes;
+  }
+  // Exit 1, exactly one line, naming `needle` (the file) and mentioning `what`.
+  void ExpectBadInput(const std::string& args, const std::string& needle, const std::string& what) const {
+    const Result r = Ssiu(args);
+    EXPECT_EQ(r.status, 1) << args << "\n" << r.output;
+    EXPECT_EQ(Lines(r.output), 1) << r.output;
+    EXPECT_THAT(r.output, HasSubstr(needle));
+    EXPECT_THAT(r.output, HasSubstr(what));
+  }
+  std::string dir_;
+};
+
+TEST_F(CliTest, SimulateThenDetectFollowsTheJsonContract) {
+  const Result sim = Ssiu("simulate frame --ra-deg 83.8 --dec-deg -5.4 --roll-deg 10 --seed 4 --out " + Path("sim"));
+  ASSERT_EQ(sim.status, 0) << sim.output;
+  const Json truth = ReadJsonFile(Path("sim/frame_0000.json"));
+  for (const char* k : {"q", "ra_deg", "dec_deg", "roll_deg", "stars", "artefacts", "camera", "options"}) {
+    EXPECT_TRUE(truth.contains(k)) << k;
+  }
+  EXPECT_NEAR(truth["ra_deg"].get<double>(), 83.8, 1e-9);
+  EXPECT_NEAR(truth["roll_deg"].get<double>(), 10.0, 1e-9);
+  ASSERT_GT(truth["stars"].size(), 20u);
+  for (const char* k : {"star_id", "mag", "x_px", "y_px", "flux_e", "snr", "saturated"}) {
+    EXPECT_TRUE(truth["stars"][0].contains(k)) << k;
+  }
+  int hot = 0;
+  for (const auto& a : truth["artefacts"]) hot += a["type"] == "hot_pixel";
+  EXPECT_EQ(hot, 40);
+
+  const Result det = Ssiu("detect " + Path("sim/frame_0000.png") + " --camera " + Path("sim/camera.json") +
+                          " --json " + Path("det.json"));
+  ASSERT_EQ(det.status, 0) << det.output;
+  const Json d = ReadJsonFile(Path("det.json"));
+  for (const char* k : {"file", "width", "height", "background_adu", "noise_adu", "stars", "rejected", "timing_ms"}) {
+    EXPECT_TRUE(d.contains(k)) << k;
+  }
+  ASSERT_GT(d["stars"].size(), 20u);
+  for (const char* k : {"x_px", "y_px", "flux_adu", "peak_adu", "snr", "npix", "saturated"}) {
+    EXPECT_TRUE(d["stars"][0].contains(k)) << k;
+  }
+  for (size_t i = 1; i < d["stars"].size(); ++i) {
+    EXPECT_GE(d["stars"][i - 1]["flux_adu"].get<double>(), d["stars"][i]["flux_adu"].get<double>());
+  }
+  const std::set<std::string> reasons = {"hot_pixel", "dead_pixel", "defect_map", "cosmic_ray", "streak", "extended"};
+  for (const auto& r : d["rejected"]) EXPECT_TRUE(reasons.count(r["reason"].get<std::string>())) << r.dump();
+  // The brightest detection is on a drawn star.
+  double best = 1e9;
+  for (const auto& s : truth["stars"]) {
+    best = std::min(best, std::hypot(s["x_px"].get<double>() - d["stars"][0]["x_px"].get<double>(),
+                                     s["y_px"].get<double>() - d["stars"][0]["y_px"].get<double>()));
+  }
+  EXPECT_LT(best, 0.5);
+}
+
+TEST_F(CliTest, FitsAndEightBitInputGiveTheSameStars) {
+  ASSERT_EQ(Ssiu("simulate frame --random --seed 9 --out " + Path("sim")).status, 0);
+  const Frame fr = ReadFrame(Path("sim/frame_0000.png"));
+  WriteFits16(Path("f.fits"), fr.image);
+  ASSERT_EQ(Ssiu("detect " + Path("sim/frame_0000.png") + " --json " + Path("a.json")).status, 0);
+  ASSERT_EQ(Ssiu("detect " + Path("f.fits") + " --json " + Path("b.json")).status, 0);
+  const Json a = ReadJsonFile(Path("a.json")), b = ReadJsonFile(Path("b.json"));
+  ASSERT_EQ(a["stars"].size(), b["stars"].size());
+  EXPECT_DOUBLE_EQ(a["stars"][0]["x_px"].get<double>(), b["stars"][0]["x_px"].get<double>());
+}
+
+TEST_F(CliTest, BadImagesExitOneWithOneLineNamingTheFile) {
+  ExpectBadInput("detect " + Path("missing.png") + " --json -", "missing.png", "no such file");
+  Write("empty.png", "");
+  ExpectBadInput("detect " + Path("empty.png") + " --json -", "empty.png", "empty");
+  Write("corrupt.png", std::string("\x89PNG\r\n\x1a\n", 8) + "garbage that is not a png stream");
+  ExpectBadInput("detect " + Path("corrupt.png") + " --json -", "corrupt.png", "cannot decode");
+  Write("text.tiff", "plain text, wrong type");
+  ExpectBadInput("detect " + Path("text.tiff") + " --json -", "text.tiff", "cannot decode");
+  // Truncated: half of a valid PNG.
+  WritePng16(Path("full.png"), Image16(300, 300, 500));
+  {
+    Image16 im(300, 300, 500);
+    im.at(10, 10) = 900;
+    WritePng16(Path("full.png"), im);
+  }
+  std::ifstream in(Path("full.png"), std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  Write("trunc.png", bytes.substr(0, bytes.size() / 2));
+  ExpectBadInput("detect " + Path("trunc.png") + " --json -", "trunc.png", "");
+  Write("zero.fits", std::string("SIMPLE  =                    T") + std::string(2849, ' '));
+  ExpectBadInput("detect " + Path("zero.fits") + " --json -", "zero.fits", "");
+  WritePng16(Path("allzero.png"), Image16(64, 64, 0));
+  ExpectBadInput("detect " + Path("allzero.png") + " --json -", "allzero.png", "constant");
+  WritePng16(Path("allsat.png"), Image16(64, 64, 65535));
+  ExpectBadInput("detect " + Path("allsat.png") + " --json -", "allsat.png", "constant");
+  Image16 mostly(64, 64, 65535);
+  for (int x = 0; x < 64; ++x) mostly.at(x, 0) = 100;
+  WritePng16(Path("mostlysat.png"), mostly);
+  ExpectBadInput("detect " + Path("mostlysat.png") + " --json -", "mostlysat.png", "saturated");
+}
+
+TEST_F(CliTest, BadCameraFilesExitOneNamingTheField) {
+  ASSERT_EQ(Ssiu("simulate frame --random --seed 2 --out " + Path("sim")).status, 0);
+  const std::string frame = Path("sim/frame_0000.png");
+  Write("nowidth.json", R"({"height": 1024, "focal_length_px": 3000})");
+  ExpectBadInput("detect " + frame + " --camera " + Path("nowidth.json"), "nowidth.json", "width");
+  Write("absurd.json", R"({"width": 1024, "height": 1024, "focal_length_px": -5})");
+  ExpectBadInput("detect " + frame + " --camera " + Path("absurd.json"), "absurd.json", "focal_length_px");
+  Write("nan.json", R"({"width": 1024, "height": 1024, "focal_length_px": "fast"})");
+  ExpectBadInput("detect " + frame + " --camera " + Path("nan.json"), "nan.json", "focal_length_px");
+  Write("size.json", R"({"width": 640, "height": 480, "focal_length_px": 3000})");
+  ExpectBadInput("detect " + frame + " --camera " + Path("size.json"), "frame_0000.png", "640x480");
+  Write("broken.json", R"({"width": 1024, )");
+  ExpectBadInput("detect " + frame + " --camera " + Path("broken.json"), "broken.json", "JSON");
+  ExpectBadInput("simulate frame --camera " + Path("absurd.json") + " --random --out " + Path("o"), "absurd.json",
+                 "focal_length_px");
+  ExpectBadInput("simulate frame --random --psf-sigma-px -1 --out " + Path("o"), "psf_sigma_px", "");
+}
+
+TEST_F(CliTest, UsageErrorsExitOne) {
+  EXPECT_EQ(Ssiu("detect").status, 1);
+  EXPECT_EQ(Ssiu("no-such-command").status, 1);
+  EXPECT_EQ(Ssiu("simulate frame --out " + Path("o")).status, 1);  // no attitude
+  EXPECT_EQ(Ssiu("detect --help").status, 0);
+}
+
+TEST_F(CliTest, DefectMapFromTheRealMedianFrame) {
+  SSIU_REQUIRE_SHARED(median, "openstartracker/median_image.png");
+  const Result r = Ssiu("defects build " + median + " --out " + Path("map.png"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  const Frame map = ReadFrame(Path("map.png"));
+  size_t hot = 0;
+  for (uint16_t v : map.image.pixels) hot += v == 255;
+  // The median of ten frames keeps the sensor's fixed hot pixels and loses the stars.
+  EXPECT_GT(hot, 10u);
+  EXPECT_LT(hot, map.image.pixels.size() / 100);
+  SSIU_REQUIRE_SHARED(img, "openstartracker/img0.png");
+  const Result d = Ssiu("detect " + img + " --defects " + Path("map.png") + " --json " + Path("d.json"));
+  ASSERT_EQ(d.status, 0) << d.output;
+  int defect_rejections = 0;
+  const Json dj = ReadJsonFile(Path("d.json"));
+  for (const auto& rj : dj["rejected"]) defect_rejections += rj["reason"] == "defect_map";
+  EXPECT_GT(defect_rejections, 0);
+}
+
+}  // namespace
+}  // namespace ssiu
