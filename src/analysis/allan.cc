@@ -77,6 +77,7 @@ void NoiseFitOptions::Check() const {
   if (tau_max_s > 0 && tau_max_s <= tau_min_s) throw std::invalid_argument("NoiseFitOptions: tau_max_s <= tau_min_s");
   if (!(dominance > 0 && dominance <= 1)) throw std::invalid_argument("NoiseFitOptions.dominance must be in (0, 1]");
   if (iterations < 1 || iterations > 100) throw std::invalid_argument("NoiseFitOptions.iterations must be in 1..100");
+  if (!(model_error >= 0 && model_error < 1)) throw std::invalid_argument("NoiseFitOptions.model_error must be in [0, 1)");
   if (!std::isfinite(term_penalty)) throw std::invalid_argument("NoiseFitOptions.term_penalty must be finite");
 }
 
@@ -235,6 +236,8 @@ NoiseFit FitNoiseTerms(const AllanCurve& curve, const NoiseFitOptions& options) 
     if (curve.adev[i] > 0 && (fit.adev_min == 0 || curve.adev[i] < fit.adev_min)) {
       fit.adev_min = curve.adev[i];
       fit.tau_at_min_s = curve.tau_s[i];
+      // 1-sigma of an ADEV point: adev / sqrt(2 edf) (delta method on the chi-squared avar).
+      fit.adev_min_sigma = curve.edf[i] > 0 ? curve.adev[i] / std::sqrt(2 * curve.edf[i]) : 0;
     }
   }
   const bool enabled[5] = {options.fit_quantization, true, options.fit_bias_instability, true, options.fit_rate_ramp};
@@ -279,7 +282,10 @@ NoiseFit FitNoiseTerms(const AllanCurve& curve, const NoiseFitOptions& options) 
   for (int iter = 0; iter < options.iterations; ++iter) {
     // var(avar_i) = 2 avar_i^2 / edf_i (chi-squared); weight scaled by the point's octave share.
     Eigen::VectorXd w(p);
-    for (size_t r = 0; r < p; ++r) w(r) = share(r) * edf(r) / (2 * model(r) * model(r));
+    // A relative floor on the ADEV error stands for model error (real flicker is not flat, filters
+    // shape the shortest taus), so that points with huge edf do not alone decide the fit.
+    const double floor2 = 4 * options.model_error * options.model_error;
+    for (size_t r = 0; r < p; ++r) w(r) = share(r) / (model(r) * model(r) * (2 / edf(r) + floor2));
     best_cost = std::numeric_limits<double>::infinity();
     // Exact NNLS over five unknowns: the best feasible least-squares solution over all active sets.
     for (int mask = 1; mask < 32; ++mask) {
@@ -342,16 +348,19 @@ NoiseFit FitNoiseTerms(const AllanCurve& curve, const NoiseFitOptions& options) 
     if (c <= 0) continue;
     t.value = std::sqrt(c);
     t.sigma = std::sqrt(std::max(0.0, best_cov(j, j) * inflate)) / (2 * t.value);  // delta method on sqrt
+    int support = 0;
     for (size_t r = 0; r < p; ++r) {
       const double f = a(r, j) * c / model(r);
       t.max_fraction = std::max(t.max_fraction, f);
       if (f >= options.dominance) {
+        ++support;
         const double tau = curve.tau_s[idx[r]];
         if (t.tau_min_s == 0 || tau < t.tau_min_s) t.tau_min_s = tau;
         t.tau_max_s = std::max(t.tau_max_s, tau);
       }
     }
-    t.significant = t.tau_max_s > 0 && t.value > 2 * t.sigma;
+    // One dominated point (often the last, with few degrees of freedom) is not support.
+    t.significant = support >= 2 && t.value > 2 * t.sigma;
   }
   fit.model_adev.resize(k);
   for (size_t i = 0; i < k; ++i) fit.model_adev[i] = curve.tau_s[i] > 0 ? fit.ModelAdev(curve.tau_s[i]) : 0;

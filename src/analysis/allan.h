@@ -74,7 +74,7 @@ struct NoiseTerm {
   double tau_min_s = 0;  // tau range where this term carries >= `dominance` of the model variance
   double tau_max_s = 0;  //   (both 0 when it dominates nowhere)
   double max_fraction = 0;  // largest share of the model Allan variance this term carries on the curve
-  bool significant = false;  // dominant somewhere and value > 2 sigma
+  bool significant = false;  // dominant at two or more points and value > 2 sigma
 };
 
 struct NoiseFitOptions {
@@ -85,6 +85,7 @@ struct NoiseFitOptions {
   double tau_max_s = 0;
   double dominance = 0.5;   // share of the model variance for a term to "support" a tau
   int iterations = 6;       // reweighting passes (weights from the model, not the noisy data)
+  double model_error = 0.02;  // relative ADEV error floor added to each point's statistical error
   double term_penalty = -1; // chi-squared cost of each term in model selection; < 0 = ln(effective points)
   void Check() const;
 };
@@ -101,6 +102,7 @@ struct NoiseFit {
   size_t points_used = 0;
   double adev_min = 0;         // minimum of the curve and its tau: the classic B = adev_min / 0.664
   double tau_at_min_s = 0;
+  double adev_min_sigma = 0;   // its 1-sigma from the point's edf
   std::vector<double> model_adev;  // the fitted model at the curve's taus
   // The fitted model's Allan deviation at tau (IEEE 952 eq. C.13 without the sinusoidal term).
   double ModelAdev(double tau_s) const;

@@ -389,6 +389,14 @@ GyroNoiseTerms ToGyroUnits(const NoiseFit& f) {
   g.bias_instability_dph = Scaled(f.bias_instability, kRadToDeg * 3600.0);
   g.rrw_deg_per_h_per_sqrt_h = Scaled(f.rrw, kRadToDeg * 3600.0 * 60.0);
   g.rate_ramp_deg_per_h2 = Scaled(f.rate_ramp, kRadToDeg * 3600.0 * 3600.0);
+  // Bias instability read from the curve's floor (IEEE 952 C.1.3: B = floor / 0.664), as datasheets
+  // quote it; an upper bound when random walk or ramp rise before a flat region appears.
+  const double k_floor = kRadToDeg * 3600.0 / std::sqrt(2 * std::log(2.0) / kPi);
+  NoiseTerm& fl = g.bias_instability_floor_dph;
+  fl.value = f.adev_min * k_floor;
+  fl.sigma = f.adev_min_sigma * k_floor;
+  fl.tau_min_s = fl.tau_max_s = f.tau_at_min_s;
+  fl.significant = fl.value > 2 * fl.sigma;
   return g;
 }
 
@@ -422,8 +430,6 @@ Json AllanReportJson(const AllanCurve& c, const NoiseFit& fit, const Json& prove
   f["points_used"] = fit.points_used;
   f["adev_min_dph"] = fit.adev_min * to_dph;
   f["tau_at_min_s"] = fit.tau_at_min_s;
-  // The classic reading of bias instability: the flat minimum divided by sqrt(2 ln2 / pi) = 0.664.
-  f["bias_instability_from_min_dph"] = fit.adev_min * to_dph / std::sqrt(2 * std::log(2.0) / kPi);
   j["fit"] = f;
   const GyroNoiseTerms g = ToGyroUnits(fit);
   Json t;
@@ -432,6 +438,7 @@ Json AllanReportJson(const AllanCurve& c, const NoiseFit& fit, const Json& prove
   t["bias_instability_dph"] = TermJson(g.bias_instability_dph, "deg/h");
   t["rrw_deg_per_h_per_sqrt_h"] = TermJson(g.rrw_deg_per_h_per_sqrt_h, "deg/h/sqrt(h)");
   t["rate_ramp_deg_per_h2"] = TermJson(g.rate_ramp_deg_per_h2, "deg/h^2");
+  t["bias_instability_floor_dph"] = TermJson(g.bias_instability_floor_dph, "deg/h");
   j["terms"] = t;
   return j;
 }

@@ -46,13 +46,18 @@ std::vector<double> Ticks(double lo, double hi, bool log) {
   return t;
 }
 
-void DashedLine(cv::Mat& img, cv::Point2d a, cv::Point2d b, cv::Scalar color, int thickness) {
+// Dashes of 8 px on, 8 px off; `phase` carries the pattern across the segments of one polyline.
+void DashedLine(cv::Mat& img, cv::Point2d a, cv::Point2d b, cv::Scalar color, int thickness, double* phase) {
   const double len = std::hypot(b.x - a.x, b.y - a.y), dash = 8;
   if (len <= 0) return;
-  for (double s = 0; s < len; s += 2 * dash) {
-    const double e = std::min(len, s + dash);
-    cv::line(img, a + (b - a) * (s / len), a + (b - a) * (e / len), color, thickness, cv::LINE_AA);
+  double s = 0;
+  while (s < len) {
+    const double in_period = std::fmod(*phase + s, 2 * dash);
+    const double step = std::min(len - s, in_period < dash ? dash - in_period : 2 * dash - in_period);
+    if (in_period < dash) cv::line(img, a + (b - a) * (s / len), a + (b - a) * ((s + step) / len), color, thickness, cv::LINE_AA);
+    s += step;
   }
+  *phase = std::fmod(*phase + len, 2 * dash);
 }
 
 }  // namespace
@@ -183,9 +188,10 @@ void WritePlotPng(const std::string& path, const std::vector<PlotSeries>& series
       }
     }
     if (s.line) {
+      double phase = 0;
       for (size_t i = 1; i < s.x.size(); ++i) {
         if (!ok(i - 1) || !ok(i)) continue;
-        if (s.dashed) DashedLine(area, pt(i - 1), pt(i), c, s.thickness_px);
+        if (s.dashed) DashedLine(area, pt(i - 1), pt(i), c, s.thickness_px, &phase);
         else cv::line(area, pt(i - 1), pt(i), c, s.thickness_px, cv::LINE_AA);
       }
     }
