@@ -1,0 +1,159 @@
+#include "attitude/quest.h"
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+#include <cmath>
+
+namespace ssiu {
+namespace {
+
+struct Profile {
+  Mat3 b = Mat3::Zero();  // B = sum a b r^T (Shuster's attitude profile matrix)
+  double a_sum = 0;
+};
+
+Profile MakeProfile(const std::vector<WahbaObservation>& obs, const Mat3& rot_ref) {
+  Profile p;
+  for (const auto& o : obs) {
+    const double a = 1.0 / (o.sigma_rad * o.sigma_rad);
+    p.b += a * o.b_sensor * (rot_ref * o.r_inertial).transpose();
+    p.a_sum += a;
+  }
+  return p;
+}
+
+// Attitude matrix A (reference -> sensor) of a quaternion [e, q4] in Shuster's convention.
+Mat3 ShusterA(const Vec3& e, double q4) {
+  Mat3 ex;
+  ex << 0, -e[2], e[1], e[2], 0, -e[0], -e[1], e[0], 0;
+  return (q4 * q4 - e.squaredNorm()) * Mat3::Identity() + 2 * e * e.transpose() - 2 * q4 * ex;
+}
+
+Quat FromSensorToInertial(const Mat3& a_ref_to_sensor) {
+  Quat q(Mat3(a_ref_to_sensor.transpose()));
+  q.normalize();
+  if (q.w() < 0) q.coeffs() = -q.coeffs();
+  return q;
+}
+
+// One QUEST solve in the (possibly rotated) reference frame. Returns |q4| of the solution (small
+// near a 180-degree rotation, where QUEST loses precision) and A (reference -> sensor).
+double QuestOnce(const Profile& p, Mat3* a_out) {
+  const Mat3& b = p.b;
+  const Mat3 s = b + b.transpose();
+  const Vec3 z(b(1, 2) - b(2, 1), b(2, 0) - b(0, 2), b(0, 1) - b(1, 0));
+  const double sigma = b.trace();
+  // adj(S) without inverting S (S may be singular).
+  Mat3 adj;
+  adj(0, 0) = s(1, 1) * s(2, 2) - s(1, 2) * s(2, 1);
+  adj(1, 1) = s(0, 0) * s(2, 2) - s(0, 2) * s(2, 0);
+  adj(2, 2) = s(0, 0) * s(1, 1) - s(0, 1) * s(1, 0);
+  const double kappa = adj(0, 0) + adj(1, 1) + adj(2, 2);
+  const double delta = s.determinant();
+  // Characteristic equation of K (Shuster & Oh 1981, eq. 70-71), Newton from lambda0 = sum a_i.
+  const double ca = sigma * sigma - kappa;
+  const double cb = sigma * sigma + z.squaredNorm();
+  const double cc = delta + z.dot(s * z);
+  const double cd = z.dot(s * s * z);
+  double lambda = p.a_sum;
+  for (int i = 0; i < 50; ++i) {
+    const double l2 = lambda * lambda;
+    const double f = l2 * l2 - (ca + cb) * l2 - cc * lambda + (ca * cb + cc * sigma - cd);
+    const double df = 4 * l2 * lambda - 2 * (ca + cb) * lambda - cc;
+    const double step = f / df;
+    lambda -= step;
+    if (std::abs(step) < 1e-15 * p.a_sum) break;
+  }
+  const double alpha = lambda * lambda - sigma * sigma + kappa;
+  const double beta = lambda - sigma;
+  const double gamma = (lambda + sigma) * alpha - delta;
+  const Vec3 x = (alpha * Mat3::Identity() + beta * s + s * s) * z;
+  const double norm = std::sqrt(gamma * gamma + x.squaredNorm());
+  *a_out = ShusterA(x / norm, gamma / norm);
+  return std::abs(gamma) / norm;
+}
+
+}  // namespace
+
+Mat3 QuestCovariance(const std::vector<WahbaObservation>& obs) {
+  Mat3 f = Mat3::Zero();
+  for (const auto& o : obs) f += (Mat3::Identity() - o.b_sensor * o.b_sensor.transpose()) / (o.sigma_rad * o.sigma_rad);
+  return f.inverse();
+}
+
+AttitudeSolution SolveQuest(const std::vector<WahbaObservation>& obs) {
+  AttitudeSolution out;
+  out.num_observations = static_cast<int>(obs.size());
+  if (obs.size() < 2) {
+    out.status = "too_few_stars";
+    return out;
+  }
+  // Method of sequential rotations (Shuster & Oh 1981, sec. VI): if q4 is small (rotation near
+  // 180 deg), solve with the reference frame turned by pi about x, y or z and undo it.
+  Mat3 a;
+  const double q4 = QuestOnce(MakeProfile(obs, Mat3::Identity()), &a);
+  if (q4 < 0.3) {
+    // Of the three turned frames, at least one has |q4| >= 1/2; take the best conditioned.
+    double best = q4;
+    for (int axis = 0; axis < 3; ++axis) {
+      Mat3 rot = -Mat3::Identity();
+      rot(axis, axis) = 1;  // pi about `axis`
+      Mat3 a2;
+      const double q4_rot = QuestOnce(MakeProfile(obs, rot), &a2);
+      if (q4_rot > best) {
+        best = q4_rot;
+        a = a2 * rot;  // b = A2 (rot r)
+      }
+    }
+  }
+  out.status = "solved";
+  out.q_inertial_from_sensor = FromSensorToInertial(a);
+  out.covariance_rad2 = QuestCovariance(obs);
+  out.sigma_cross_rad = std::sqrt((out.covariance_rad2(0, 0) + out.covariance_rad2(1, 1)) / 2);
+  out.sigma_roll_rad = std::sqrt(out.covariance_rad2(2, 2));
+  for (const auto& o : obs) out.loss += 0.5 * (o.b_sensor - a * o.r_inertial).squaredNorm() / (o.sigma_rad * o.sigma_rad);
+  return out;
+}
+
+Quat SolveDavenport(const std::vector<WahbaObservation>& obs) {
+  const Profile p = MakeProfile(obs, Mat3::Identity());
+  const Mat3 s = p.b + p.b.transpose();
+  const Vec3 z(p.b(1, 2) - p.b(2, 1), p.b(2, 0) - p.b(0, 2), p.b(0, 1) - p.b(1, 0));
+  const double sigma = p.b.trace();
+  Mat4 k;
+  k.topLeftCorner<3, 3>() = s - sigma * Mat3::Identity();
+  k.topRightCorner<3, 1>() = z;
+  k.bottomLeftCorner<1, 3>() = z.transpose();
+  k(3, 3) = sigma;
+  Eigen::SelfAdjointEigenSolver<Mat4> es(k);
+  const Vec4 q = es.eigenvectors().col(3);  // eigenvalues ascending
+  return FromSensorToInertial(ShusterA(q.head<3>(), q[3]));
+}
+
+AttitudeSolution SolveAttitude(const Identification& id) {
+  if (id.status != "solved") {
+    AttitudeSolution out;
+    out.status = id.status;
+    return out;
+  }
+  std::vector<WahbaObservation> obs;
+  for (const auto& m : id.matches) obs.push_back({m.b_sensor, m.r_inertial, m.sigma_rad});
+  return SolveQuest(obs);
+}
+
+AttitudeSolution SolveMultiHead(const std::vector<Identification>& heads, const std::vector<Quat>& q_body_from_sensor) {
+  std::vector<WahbaObservation> obs;
+  for (size_t h = 0; h < heads.size() && h < q_body_from_sensor.size(); ++h) {
+    if (heads[h].status != "solved") continue;
+    const Mat3 r = q_body_from_sensor[h].normalized().toRotationMatrix();
+    for (const auto& m : heads[h].matches) obs.push_back({r * m.b_sensor, m.r_inertial, m.sigma_rad});
+  }
+  if (obs.size() < 3) {
+    AttitudeSolution out;
+    out.status = "no_match";
+    return out;
+  }
+  return SolveQuest(obs);
+}
+
+}  // namespace ssiu

@@ -1,0 +1,51 @@
+// Attitude from verified star matches: QUEST (Shuster & Oh 1981, "Three-axis attitude determination
+// from vector observations", J. Guidance Control 4(1)) with Shuster's QUEST measurement model for
+// the covariance, and Davenport's q-method as an independent reference for tests.
+//
+//   AttitudeSolution s = SolveAttitude(identification);   // solved matches -> q, covariance
+//
+// Covariance: the error rotation delta_theta in the sensor (or body) frame, q_est = q_true * [1, dtheta/2],
+// has P = (sum_i sigma_i^-2 (I - b_i b_i^T))^-1 (Shuster 1989, "Maximum likelihood estimation of
+// spacecraft attitude", J. Astronaut. Sci. 37(1), eq. 53).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/types.h"
+#include "identify/identify.h"
+
+namespace ssiu {
+
+struct WahbaObservation {
+  Vec3 b_sensor;            // measured unit vector (sensor or body frame)
+  Vec3 r_inertial;          // catalog unit vector
+  double sigma_rad = 1e-4;  // 1-sigma angular noise
+};
+
+struct AttitudeSolution {
+  std::string status = "no_match";  // as the identification's status
+  Quat q_inertial_from_sensor = Quat::Identity();
+  Mat3 covariance_rad2 = Mat3::Zero();  // of dtheta in the sensor/body frame
+  double sigma_cross_rad = 0;  // RMS of the two cross-boresight axes' 1-sigma
+  double sigma_roll_rad = 0;   // about +Z (boresight)
+  double loss = 0;             // Wahba loss, sum (1/sigma^2)|b - A r|^2 / 2
+  int num_observations = 0;
+};
+
+// QUEST: Newton-Raphson on the characteristic equation of Davenport's K from lambda0 = sum(weights),
+// with the 180-degree singularity avoided by solving in a frame rotated by pi about an axis.
+AttitudeSolution SolveQuest(const std::vector<WahbaObservation>& obs);
+// Davenport's q-method: the eigenvector of K with the largest eigenvalue (Eigen's solver).
+Quat SolveDavenport(const std::vector<WahbaObservation>& obs);
+// Shuster's covariance of the rotation error, sensor frame.
+Mat3 QuestCovariance(const std::vector<WahbaObservation>& obs);
+
+// QUEST on the matches of a solved identification (status copied; no_match gives no attitude).
+AttitudeSolution SolveAttitude(const Identification& id);
+
+// Several optical heads: matches of head i (sensor frame) rotated to the body frame by
+// q_body_from_sensor[i] and fused in one QUEST solution of the body attitude (inertial <- body).
+AttitudeSolution SolveMultiHead(const std::vector<Identification>& heads, const std::vector<Quat>& q_body_from_sensor);
+
+}  // namespace ssiu
