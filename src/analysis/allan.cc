@@ -78,6 +78,7 @@ void NoiseFitOptions::Check() const {
   if (!(dominance > 0 && dominance <= 1)) throw std::invalid_argument("NoiseFitOptions.dominance must be in (0, 1]");
   if (iterations < 1 || iterations > 100) throw std::invalid_argument("NoiseFitOptions.iterations must be in 1..100");
   if (!(model_error >= 0 && model_error < 1)) throw std::invalid_argument("NoiseFitOptions.model_error must be in [0, 1)");
+  if (!(floor_min_edf >= 0)) throw std::invalid_argument("NoiseFitOptions.floor_min_edf must be >= 0");
   if (!std::isfinite(term_penalty)) throw std::invalid_argument("NoiseFitOptions.term_penalty must be finite");
 }
 
@@ -232,12 +233,20 @@ NoiseFit FitNoiseTerms(const AllanCurve& curve, const NoiseFitOptions& options) 
     if (options.tau_max_s > 0 && t > options.tau_max_s) continue;
     idx.push_back(i);
   }
+  // The floor among points with at least floor_min_edf degrees of freedom (a lone long-tau dip is
+  // noise), or among all points when none has that many.
+  bool any_well_determined = false;
+  for (size_t i = 0; i < k; ++i) any_well_determined |= curve.adev[i] > 0 && curve.edf[i] >= options.floor_min_edf;
   for (size_t i = 0; i < k; ++i) {
+    if (any_well_determined && !(curve.edf[i] >= options.floor_min_edf)) continue;
     if (curve.adev[i] > 0 && (fit.adev_min == 0 || curve.adev[i] < fit.adev_min)) {
       fit.adev_min = curve.adev[i];
       fit.tau_at_min_s = curve.tau_s[i];
       // 1-sigma of an ADEV point: adev / sqrt(2 edf) (delta method on the chi-squared avar).
       fit.adev_min_sigma = curve.edf[i] > 0 ? curve.adev[i] / std::sqrt(2 * curve.edf[i]) : 0;
+      // Still falling there: no flat region was reached, so the floor only bounds B from above.
+      fit.adev_min_is_upper_bound =
+          i < curve.noise.size() && (curve.noise[i] == AllanNoise::kWhiteRate || curve.noise[i] == AllanNoise::kQuantization);
     }
   }
   const bool enabled[5] = {options.fit_quantization, true, options.fit_bias_instability, true, options.fit_rate_ramp};

@@ -86,6 +86,7 @@ struct NoiseFitOptions {
   double dominance = 0.5;   // share of the model variance for a term to "support" a tau
   int iterations = 6;       // reweighting passes (weights from the model, not the noisy data)
   double model_error = 0.02;  // relative ADEV error floor added to each point's statistical error
+  double floor_min_edf = 10;  // the curve's floor (adev_min) is sought among points with this edf
   double term_penalty = -1; // chi-squared cost of each term in model selection; < 0 = ln(effective points)
   void Check() const;
 };
@@ -100,9 +101,10 @@ struct NoiseFit {
   NoiseTerm rate_ramp;         // R
   double chi2_per_dof = 0;     // of the final weighted fit (points treated as independent)
   size_t points_used = 0;
-  double adev_min = 0;         // minimum of the curve and its tau: the classic B = adev_min / 0.664
+  double adev_min = 0;         // floor of the curve (see floor_min_edf) and its tau: B = adev_min / 0.664
   double tau_at_min_s = 0;
   double adev_min_sigma = 0;   // its 1-sigma from the point's edf
+  bool adev_min_is_upper_bound = false;  // the curve still falls (white noise) at its floor
   std::vector<double> model_adev;  // the fitted model at the curve's taus
   // The fitted model's Allan deviation at tau (IEEE 952 eq. C.13 without the sinusoidal term).
   double ModelAdev(double tau_s) const;

@@ -439,6 +439,7 @@ Json AllanReportJson(const AllanCurve& c, const NoiseFit& fit, const Json& prove
   t["rrw_deg_per_h_per_sqrt_h"] = TermJson(g.rrw_deg_per_h_per_sqrt_h, "deg/h/sqrt(h)");
   t["rate_ramp_deg_per_h2"] = TermJson(g.rate_ramp_deg_per_h2, "deg/h^2");
   t["bias_instability_floor_dph"] = TermJson(g.bias_instability_floor_dph, "deg/h");
+  t["bias_instability_floor_dph"]["upper_bound"] = fit.adev_min_is_upper_bound;
   j["terms"] = t;
   return j;
 }

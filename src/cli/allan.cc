@@ -95,7 +95,8 @@ void Run(const Opts& o) {
   PrintTerm("quantization", g.quantization_arcsec, "arcsec");
   PrintTerm("angle random walk", g.arw_deg_per_sqrt_h, "deg/sqrt(h)");
   PrintTerm("bias instability", g.bias_instability_dph, "deg/h");
-  PrintTerm("bias instab. (floor)", g.bias_instability_floor_dph, "deg/h");
+  PrintTerm(fit.adev_min_is_upper_bound ? "bias instab. floor <=" : "bias instab. (floor)", g.bias_instability_floor_dph,
+            "deg/h");
   PrintTerm("rate random walk", g.rrw_deg_per_h_per_sqrt_h, "deg/h/sqrt(h)");
   PrintTerm("rate ramp", g.rate_ramp_deg_per_h2, "deg/h^2");
 }
