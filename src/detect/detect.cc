@@ -172,48 +172,56 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
       const uint16_t* r = img.row(y);
       for (int x = 0; x < w; ++x) colsum[x] += r[x];
     }
-    for (int yc = 0; yc < h; ++yc) {
-      const uint16_t* raw = view.row(yc);
-      int row_min = 65535;
-      for (int x = 0; x < w; ++x) row_min = std::min(row_min, static_cast<int>(raw[x]));
+    // Local copies no lambda captures: stores through the int32 pointers below then cannot alias
+    // the loop bounds, and the loops vectorise.
+    const int W = w, H = h, HALF = half;
+    int32_t* __restrict cs = colsum.data();
+    int32_t* __restrict br = boxrow.data();
+    float* __restrict thr = thr_row.data();
+    uint8_t* __restrict ab = above.data();
+    for (int yc = 0; yc < H; ++yc) {
+      const uint16_t* __restrict raw = view.row(yc);
+      uint16_t row_min = 65535;
+      for (int x = 0; x < W; ++x) row_min = raw[x] < row_min ? raw[x] : row_min;
       if (row_min < dead_level_max) {
         bg.RowLevels(yc, &low_row, -opt.dead_sigma, 1.0);
-        for (int x = 0; x < w; ++x) {
+        for (int x = 0; x < W; ++x) {
           if (raw[x] < low_row[x] && !(have_defects && defects->at(x, yc))) dead_pixels.emplace_back(x, yc);
         }
       }
-      if (yc < half || yc >= h - half) continue;
-      const uint16_t* add = img.row(yc + half);
-      for (int x = 0; x < w; ++x) colsum[x] += add[x];
+      if (yc < HALF || yc >= H - HALF) continue;
+      const uint16_t* __restrict add = img.row(yc + HALF);
+      for (int x = 0; x < W; ++x) cs[x] += add[x];
       // Horizontal box sum of the column sums (the b x b box sum centred on (x, yc)).
-      if (half == 1) {
-        for (int x = 1; x < w - 1; ++x) boxrow[x] = colsum[x - 1] + colsum[x] + colsum[x + 1];
+      if (HALF == 1) {
+        for (int x = 1; x < W - 1; ++x) br[x] = cs[x - 1] + cs[x] + cs[x + 1];
       } else {
-        for (int x = half; x < w - half; ++x) {
+        for (int x = HALF; x < W - HALF; ++x) {
           int32_t sum = 0;
-          for (int k = -half; k <= half; ++k) sum += colsum[x + k];
-          boxrow[x] = sum;
+          for (int k = -HALF; k <= HALF; ++k) sum += cs[x + k];
+          br[x] = sum;
         }
       }
       bg.RowBoxThreshold(yc, &thr_row, opt.threshold_sigma);
-      uint8_t any = 0;
-      for (int x = half; x < w - half; ++x) {
-        above[x] = static_cast<float>(boxrow[x]) > thr_row[x];
-        any |= above[x];
+      int any = 0;
+      for (int x = HALF; x < W - HALF; ++x) {
+        const int a = static_cast<float>(br[x]) > thr[x];
+        ab[x] = static_cast<uint8_t>(a);
+        any += a;
       }
       if (any) {
-        int x = half;
-        while (x < w - half) {
-          const void* hit = std::memchr(&above[x], 1, static_cast<size_t>(w - half - x));
+        int x = HALF;
+        while (x < W - HALF) {
+          const void* hit = std::memchr(&ab[x], 1, static_cast<size_t>(W - HALF - x));
           if (!hit) break;
-          x = static_cast<int>(static_cast<const uint8_t*>(hit) - above.data());
+          x = static_cast<int>(static_cast<const uint8_t*>(hit) - ab);
           const int xs = x;
-          while (x < w - half && above[x]) ++x;
+          while (x < W - HALF && ab[x]) ++x;
           runs.push_back({yc, xs, x - 1, -1});
         }
       }
-      const uint16_t* sub = img.row(yc - half);
-      for (int x = 0; x < w; ++x) colsum[x] -= sub[x];
+      const uint16_t* __restrict sub = img.row(yc - HALF);
+      for (int x = 0; x < W; ++x) cs[x] -= sub[x];
     }
   }
   out.timing_ms["threshold"] = MsSince(t0);

@@ -144,7 +144,8 @@ PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double 
         amp = na;
         bkg = nb;
         s = ns;
-        const bool done = std::abs(d(0)) < 1e-5 && std::abs(d(1)) < 1e-5 && chi2 - chi2n < 1e-6 * chi2;
+        // 1e-4 px is far below any centroid's noise.
+        const bool done = std::abs(d(0)) < 1e-4 && std::abs(d(1)) < 1e-4 && std::abs(d(4)) < 1e-3;
         chi2 = chi2n;
         jtj = jtj2;
         jtr = jtr2;
