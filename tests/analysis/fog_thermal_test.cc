@@ -3,7 +3,9 @@
 
 #include <cmath>
 
+#include "core/csv.h"
 #include "core/error.h"
+#include "core/types.h"
 #include "fog_thermal_mc.h"
 #include "sim/fog_bench_sim.h"
 #include "testing/testing.h"
@@ -116,6 +118,27 @@ TEST(FogThermal, BadInputIsInputError) {
   ThermalRun short_run = run;
   for (auto* v : {&short_run.t_s, &short_run.w_dph, &short_run.ref_dph, &short_run.temp_c}) v->resize(1200);
   EXPECT_THROW(FitThermalDrift({short_run}, ThermalFitOptions{}), InputError);  // 20 bins < 40
+}
+
+}  // namespace
+}  // namespace ssiu
+
+namespace ssiu {
+namespace {
+
+TEST(FogThermal, ReferenceFromLatitudeAndAxisWhenNoRefColumn) {
+  const std::string dir = testing::TempDir("ref");
+  ThermalBenchOptions o;
+  o.duration_s = 600;
+  const ThermalBenchRun sim = SimulateThermalRun(o);
+  WriteCsv(dir + "/noref.csv", {"t_s", "w_dph", "temp_c"}, {sim.t_s, sim.w_dph, sim.temp_c});
+  const ThermalRun up = ReadThermalRun(dir + "/noref.csv", 50.05, "up");
+  EXPECT_NEAR(up.ref_dph.front(), 15.041067 * std::sin(50.05 * kDegToRad), 1e-9);
+  EXPECT_NEAR(up.ref_dph.front(), sim.ref_dph.front(), 1e-9);  // the simulator's axis is "up"
+  const ThermalRun north = ReadThermalRun(dir + "/noref.csv", 50.05, "north");
+  EXPECT_NEAR(north.ref_dph.front(), 15.041067 * std::cos(50.05 * kDegToRad), 1e-9);
+  EXPECT_THROW(ReadThermalRun(dir + "/noref.csv", std::nan(""), "up"), InputError);
+  EXPECT_THROW(ReadThermalRun(dir + "/noref.csv", 50.05, "sideways"), InputError);
 }
 
 }  // namespace
