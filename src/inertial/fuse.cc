@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <deque>
+#include <limits>
 
 #include "core/attitude.h"
 #include "core/csv.h"
@@ -220,26 +221,33 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
     isolating = false;
   };
 
+  int consecutive_rejects = 0;
   auto star_update = [&](size_t jj) {
     const double gap = st.t_s[jj] - t_last_st;
     res.longest_st_gap_s = std::max(res.longest_st_gap_s, gap);
     t_last_st = st.t_s[jj];
-    const MekfUpdate u = filter.UpdateAttitude(st.q_inertial_from_body[jj], st_r(jj), options.nis_gate);
+    // Star rates for isolation do not depend on the filter: every star sample counts.
+    if (isolating) {
+      if (gap > 5.0) isolator.BreakChain();
+      isolator.AddStar(st.t_s[jj], st.q_inertial_from_body[jj]);
+    }
+    // A run of rejections means the filter, not the star tracker, is wrong: accept the next one.
+    const double gate = consecutive_rejects >= 5 ? std::numeric_limits<double>::infinity() : options.nis_gate;
+    const MekfUpdate u = filter.UpdateAttitude(st.q_inertial_from_body[jj], st_r(jj), gate);
     if (!u.accepted) {
       ++res.n_st_rejected;
-      if (isolating) isolator.BreakChain();
-      return;
-    }
-    ++res.n_st_used;
-    resid_sum2 += u.residual_rad.squaredNorm();
-    ++resid_n;
-    bias_history.emplace_back(st.t_s[jj], filter.bias());
-    while (bias_history.size() > 2 && bias_history.front().first < st.t_s[jj] - 3 * options.fdi_options.window_s) {
-      bias_history.pop_front();
+      ++consecutive_rejects;
+    } else {
+      consecutive_rejects = 0;
+      ++res.n_st_used;
+      resid_sum2 += u.residual_rad.squaredNorm();
+      ++resid_n;
+      bias_history.emplace_back(st.t_s[jj], filter.bias());
+      while (bias_history.size() > 2 && bias_history.front().first < st.t_s[jj] - 3 * options.fdi_options.window_s) {
+        bias_history.pop_front();
+      }
     }
     if (!isolating) return;
-    if (gap > 5.0) isolator.BreakChain();
-    isolator.AddStar(st.t_s[jj], st.q_inertial_from_body[jj]);
     FaultEvent& ev = res.faults.back();
     if (isolator.covered_s() >= options.fdi_options.isolation_window_s) {
       const GyroVec r = isolator.ResidualDph();
@@ -279,6 +287,14 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
         const GyroVec c = axes * (b_before * kRadSToDph) + monitor.V().transpose() * monitor.baseline();
         isolator = StarRateIsolator(axes, use, c);
         isolating = true;
+        // Until isolation the fault feeds the bias: open the bias covariance by the largest body
+        // bias the parity jump can imply, so that the filter follows instead of diverging.
+        double worst = 0;
+        for (int i = 0; i < n; ++i) {
+          const double vi = monitor.V().col(i).norm();
+          if (use[i] && vi > 1e-9) worst = std::max(worst, solver.Pinv().col(i).norm() * ev.parity_jump_dph / vi);
+        }
+        filter.InflateBias(worst * kDphToRadS);
       }
     }
 
