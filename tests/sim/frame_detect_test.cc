@@ -96,6 +96,7 @@ TEST(FrameDetect, DefaultFramesMeetRecallFalseAlarmAndCramerRao) {
   EXPECT_GE(ratio, 0.8) << "errors below the bound: the test or the bound is wrong";
   RecordProperty("recall", std::to_string(recall));
   RecordProperty("crb_ratio", std::to_string(ratio));
+  RecordProperty("false_detections", std::to_string(false_det) + " in " + std::to_string(frames) + " frames");
 }
 
 TEST(FrameDetect, NoiseEstimateIgnoresManyHotPixels) {
