@@ -1,0 +1,254 @@
+#include "attitude/star_solver.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "core/attitude.h"
+#include "core/csv.h"
+#include "core/error.h"
+
+namespace ssiu {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+Json NumOrNull(double v) { return std::isfinite(v) ? Json(v) : Json(nullptr); }
+
+void Finish(SolveResult* r) {
+  r->status = r->identification.status;
+  r->message = r->identification.message;
+  for (const auto& [k, v] : r->identification.timing_ms) r->timing_ms[k] = v;
+  if (r->status == "solved") {
+    const auto t0 = Clock::now();
+    r->attitude = SolveAttitude(r->identification);
+    r->timing_ms["attitude"] = MsSince(t0);
+  }
+}
+
+}  // namespace
+
+void SolveOptions::Check() const {
+  identify.Check();
+  try {
+    detect.Check();
+  } catch (const std::invalid_argument& e) {
+    throw InputError("detect options", e.what());
+  }
+  if (!(track_search_radius_px > 0 && track_search_radius_px < 1000))
+    throw InputError("solve options", "track_search_radius_px must be in (0, 1000)");
+}
+
+StarIdentifier MakeIdentifierForCamera(const std::string& dir, const Camera& cam, double fov_tolerance_pct,
+                                       double mag_max, const std::string& source) {
+  CatalogBuildOptions b;
+  b.fov_deg = std::round(cam.FovXRad() * kRadToDeg * (1 + fov_tolerance_pct / 100.0) * 10) / 10;
+  b.mag_max = mag_max;
+  const std::string src = source.empty() ? DefaultSourceFor(b.fov_deg) : source;
+  if (dir.empty()) return StarIdentifier(LoadOrBuildCatalog(src, b));
+  if (std::ifstream(dir + "/catalog.bin")) return StarIdentifier(LoadSolverCatalog(dir));
+  SolverCatalog c = BuildSolverCatalog(LoadSourceCatalog(src), b);
+  SaveSolverCatalog(c, dir);
+  return StarIdentifier(std::move(c));
+}
+
+std::vector<Centroid> CentroidsFromDetections(const Detections& d) {
+  std::vector<Centroid> out;
+  out.reserve(d.stars.size());
+  for (const auto& s : d.stars) {
+    Centroid c;
+    c.x_px = s.x_px;
+    c.y_px = s.y_px;
+    c.flux = s.flux_adu;
+    const double v = 0.5 * (s.x_sigma_px * s.x_sigma_px + s.y_sigma_px * s.y_sigma_px);
+    c.sigma_px = std::isfinite(v) && v > 0 ? std::sqrt(v) : 0.0;
+    out.push_back(c);
+  }
+  return out;
+}
+
+std::vector<Centroid> ReadCentroidsCsv(const std::string& path) {
+  const CsvTable t = ReadCsv(path);
+  const auto& x = t.Column("x_px");
+  const auto& y = t.Column("y_px");
+  std::vector<Centroid> out(t.rows());
+  for (size_t i = 0; i < t.rows(); ++i) {
+    out[i].x_px = x[i];
+    out[i].y_px = y[i];
+  }
+  if (t.Has("flux")) {
+    const auto& f = t.Column("flux");
+    for (size_t i = 0; i < t.rows(); ++i) out[i].flux = f[i];
+  }
+  if (t.Has("sigma_px")) {
+    const auto& s = t.Column("sigma_px");
+    for (size_t i = 0; i < t.rows(); ++i) {
+      if (s[i] < 0) throw InputError(path, "column sigma_px, row " + std::to_string(i + 1) + ": negative");
+      out[i].sigma_px = s[i];
+    }
+  }
+  return out;
+}
+
+SolveResult SolveCentroids(const StarIdentifier& id, const std::vector<Centroid>& centroids, const Camera& camera,
+                           const SolveOptions& options) {
+  options.Check();
+  SolveResult r;
+  r.centroids = centroids;
+  r.identification = id.Identify(centroids, camera, options.identify);
+  Finish(&r);
+  return r;
+}
+
+SolveResult SolveFrame(const StarIdentifier& id, const ImageView& image, const Camera& camera,
+                       const SolveOptions& options, const DefectMap* defects) {
+  options.Check();
+  if (image.width != camera.width || image.height != camera.height) {
+    throw InputError("camera", "image is " + std::to_string(image.width) + "x" + std::to_string(image.height) +
+                                   " but the camera is " + std::to_string(camera.width) + "x" + std::to_string(camera.height));
+  }
+  const auto t0 = Clock::now();
+  DetectOptions dopt = options.detect;
+  if (dopt.gain_e_per_adu == 0) dopt.gain_e_per_adu = camera.gain_e_per_adu;
+  Detections det = Detect(image, dopt, defects);
+  const double detect_ms = MsSince(t0);
+  SolveResult r = SolveCentroids(id, CentroidsFromDetections(det), camera, options);
+  r.detections = std::move(det);
+  r.timing_ms["detect"] = detect_ms;
+  return r;
+}
+
+Json SolveResultToJson(const SolveResult& r) {
+  Json j;
+  j["status"] = r.status;
+  j["mode"] = r.mode;
+  j["message"] = r.message;
+  const bool ok = r.status == "solved";
+  const double nan = std::nan("");
+  if (ok) {
+    const auto q = ToWxyz(r.attitude.q_inertial_from_sensor);
+    j["q"] = {q[0], q[1], q[2], q[3]};
+  } else {
+    j["q"] = nullptr;
+  }
+  const RaDecRoll rdr = RaDecRollFromQuat(r.attitude.q_inertial_from_sensor);
+  j["ra_deg"] = NumOrNull(ok ? rdr.ra_rad * kRadToDeg : nan);
+  j["dec_deg"] = NumOrNull(ok ? rdr.dec_rad * kRadToDeg : nan);
+  j["roll_deg"] = NumOrNull(ok ? rdr.roll_rad * kRadToDeg : nan);
+  j["sigma_cross_arcsec"] = NumOrNull(ok ? r.attitude.sigma_cross_rad * kRadToArcsec : nan);
+  j["sigma_roll_arcsec"] = NumOrNull(ok ? r.attitude.sigma_roll_rad * kRadToArcsec : nan);
+  j["focal_length_px"] = NumOrNull(r.identification.focal_length_px);
+  j["false_match_probability"] = r.identification.false_match_probability;
+  Json m = Json::array();
+  if (ok) {
+    for (const auto& s : r.identification.matches) {
+      const Vec3 pred = r.attitude.q_inertial_from_sensor.conjugate() * s.r_inertial;
+      const double res = std::atan2(pred.cross(s.b_sensor).norm(), pred.dot(s.b_sensor));
+      m.push_back({{"x_px", s.x_px}, {"y_px", s.y_px}, {"star_id", s.star_id}, {"mag", s.mag}, {"residual_arcsec", res * kRadToArcsec}});
+    }
+  }
+  j["matches"] = m;
+  j["num_centroids"] = r.centroids.size();
+  j["hypotheses"] = r.identification.hypotheses;
+  Json t = Json::object();
+  for (const auto& [k, v] : r.timing_ms) t[k] = v;
+  j["timing_ms"] = t;
+  return j;
+}
+
+std::string TanWcsHeader(const Quat& q, const Camera& cam) {
+  const Mat3 r = q.normalized().toRotationMatrix();
+  // Pixel direction at the principal point is the boresight; standard coordinates (xi east, eta north)
+  // of a pixel offset (dx, dy) are (R^T e_east . (dx, dy, 0) / f, R^T e_north . (dx, dy, 0) / f)
+  // (Calabretta & Greisen 2002, TAN: x = xi, y = eta in degrees).
+  const Vec3 bore = r.col(2);
+  double ra, dec;
+  RaDecFromUnit(bore, &ra, &dec);
+  const Vec3 east(-std::sin(ra), std::cos(ra), 0);
+  const Vec3 north(-std::sin(dec) * std::cos(ra), -std::sin(dec) * std::sin(ra), std::cos(dec));
+  const Vec3 e_s = r.transpose() * east, n_s = r.transpose() * north;
+  const double s = kRadToDeg / cam.focal_length_px;
+  std::vector<std::string> cards;
+  auto card = [&](const std::string& key, const std::string& value, const std::string& comment) {
+    char buf[81];
+    std::snprintf(buf, sizeof buf, "%-8.8s= %20s / %-47.47s", key.c_str(), value.c_str(), comment.c_str());
+    cards.push_back(buf);
+  };
+  auto num = [](double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.12G", v);
+    return std::string(b);
+  };
+  card("WCSAXES", "2", "ssiu solve");
+  card("CTYPE1", "'RA---TAN'", "TAN (gnomonic) projection");
+  card("CTYPE2", "'DEC--TAN'", "TAN (gnomonic) projection");
+  card("EQUINOX", "2000.0", "ICRS/J2000");
+  card("CRVAL1", num(ra * kRadToDeg), "RA of the reference pixel (deg)");
+  card("CRVAL2", num(dec * kRadToDeg), "Dec of the reference pixel (deg)");
+  card("CRPIX1", num(cam.cx_px + 1), "principal point x (FITS 1-based)");
+  card("CRPIX2", num(cam.cy_px + 1), "principal point y (FITS 1-based)");
+  card("CUNIT1", "'deg'", "");
+  card("CUNIT2", "'deg'", "");
+  card("CD1_1", num(e_s.x() * s), "deg/px");
+  card("CD1_2", num(e_s.y() * s), "deg/px");
+  card("CD2_1", num(n_s.x() * s), "deg/px");
+  card("CD2_2", num(n_s.y() * s), "deg/px");
+  card("IMAGEW", std::to_string(cam.width), "image width (px)");
+  card("IMAGEH", std::to_string(cam.height), "image height (px)");
+  std::string out;
+  for (auto& c : cards) out += c.substr(0, 80) + std::string(80 - std::min<size_t>(80, c.size()), ' ');
+  out += "END" + std::string(77, ' ');
+  out += std::string((2880 - out.size() % 2880) % 2880, ' ');
+  return out;
+}
+
+SolveResult Tracker::Update(const std::vector<Centroid>& centroids, double t_s) {
+  options_.Check();
+  const auto t0 = Clock::now();
+  SolveResult r;
+  r.centroids = centroids;
+  if (locked_) {
+    const double dt = t_s - t_last_;
+    Quat q_pred = q_last_;
+    if (have_rate_) {
+      const Vec3 th = w_sensor_rad_s_ * dt;
+      if (th.norm() > 0) q_pred = q_last_ * Quat(Eigen::AngleAxisd(th.norm(), th.normalized()));
+    }
+    r.identification = id_.MatchWithAttitude(centroids, camera_, q_pred, options_.track_search_radius_px, options_.identify);
+    r.mode = "tracking";
+  }
+  if (!locked_ || r.identification.status != "solved") {
+    r.identification = id_.Identify(centroids, camera_, options_.identify);
+    r.mode = "lost_in_space";
+    have_rate_ = false;
+    if (r.identification.status == "solved" && options_.identify.fov_tolerance_pct > 0)
+      camera_.focal_length_px = r.identification.focal_length_px;  // keep the fitted focal length
+  }
+  Finish(&r);
+  if (r.status == "solved") {
+    const Quat q = r.attitude.q_inertial_from_sensor;
+    if (locked_) {
+      const double dt = t_s - t_last_;
+      if (dt > 0) {
+        Quat d = q_last_.conjugate() * q;  // sensor-frame rotation over dt
+        if (d.w() < 0) d.coeffs() = -d.coeffs();
+        const Eigen::AngleAxisd aa(d);
+        w_sensor_rad_s_ = aa.axis() * aa.angle() / dt;
+        have_rate_ = true;
+      }
+    }
+    q_last_ = q;
+    t_last_ = t_s;
+    locked_ = true;
+  } else {
+    locked_ = false;
+    have_rate_ = false;
+  }
+  r.timing_ms["total"] = MsSince(t0);
+  return r;
+}
+
+}  // namespace ssiu

@@ -1,0 +1,87 @@
+// The star tracker pipeline: frame or centroids -> verified identification -> QUEST attitude, and a
+// tracker that re-uses the previous attitude. `ssiu solve` and `ssiu track` are thin wrappers.
+//
+//   StarIdentifier id(LoadOrBuildCatalog(DefaultSourceFor(fov_deg), catalog_options));
+//   SolveResult r = SolveFrame(id, frame.image.view(), camera, SolveOptions{});
+//   WriteJsonFile("-", SolveResultToJson(r));
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "attitude/quest.h"
+#include "core/camera.h"
+#include "core/image.h"
+#include "core/json.h"
+#include "detect/detect.h"
+#include "identify/identify.h"
+
+namespace ssiu {
+
+struct SolveOptions {
+  IdentifyOptions identify;
+  DetectOptions detect;
+  double track_search_radius_px = 25.0;  // tracking: how far a star may be from its prediction
+  void Check() const;                    // throws InputError naming the field
+};
+
+struct SolveResult {
+  std::string status = "too_few_stars";  // solved, no_match, too_few_stars
+  std::string mode = "lost_in_space";    // or "tracking"
+  std::string message;
+  Identification identification;
+  AttitudeSolution attitude;
+  std::vector<Centroid> centroids;  // what was identified (detections or the CSV)
+  Detections detections;            // empty when solved from centroids
+  std::map<std::string, double> timing_ms;
+};
+
+// The solver catalog in `dir` (built and saved there when absent), or with an empty dir the cached
+// catalog (identify/star_catalog.h CatalogCacheDir) for the camera's horizontal FOV widened by the
+// focal-length tolerance. source "" = DefaultSourceFor(FOV); mag_max 0 = from the FOV.
+StarIdentifier MakeIdentifierForCamera(const std::string& dir, const Camera& camera, double fov_tolerance_pct,
+                                       double mag_max = 0, const std::string& source = "");
+
+// Centroid list from detections (flux, and the fit's 1-sigma as the position noise).
+std::vector<Centroid> CentroidsFromDetections(const Detections& d);
+// Reads a centroid CSV: x_px,y_px[,flux][,sigma_px]. InputError naming the file/column/row.
+std::vector<Centroid> ReadCentroidsCsv(const std::string& path);
+
+SolveResult SolveCentroids(const StarIdentifier& id, const std::vector<Centroid>& centroids, const Camera& camera,
+                           const SolveOptions& options);
+SolveResult SolveFrame(const StarIdentifier& id, const ImageView& image, const Camera& camera,
+                       const SolveOptions& options, const DefectMap* defects = nullptr);
+
+// The JSON of `ssiu solve` (docs/identify.md): status, q [w,x,y,z], ra/dec/roll (deg), sigmas
+// (arcsec), focal length, false-match probability, matches, timing; unsolved fields are null.
+Json SolveResultToJson(const SolveResult& r);
+
+// FITS TAN WCS header (80-character cards, END-terminated) of a solution: CRPIX at the principal
+// point (FITS 1-based pixels), CRVAL its RA/Dec, CD from the attitude and focal length. Lens
+// distortion is not written (no SIP terms).
+std::string TanWcsHeader(const Quat& q_inertial_from_sensor, const Camera& camera);
+
+// Lost-in-space on the first frame, then prediction from the previous attitude and rate
+// (constant-rate extrapolation from the last two solutions), falling back to lost in space when
+// the lock is lost.
+class Tracker {
+ public:
+  Tracker(const StarIdentifier& id, const Camera& camera, const SolveOptions& options)
+      : id_(id), camera_(camera), options_(options) {}
+  // t_s: frame time; frames without times use their index.
+  SolveResult Update(const std::vector<Centroid>& centroids, double t_s);
+  bool locked() const { return locked_; }
+
+ private:
+  const StarIdentifier& id_;
+  Camera camera_;
+  SolveOptions options_;
+  bool locked_ = false;
+  bool have_rate_ = false;
+  Quat q_last_ = Quat::Identity();
+  Vec3 w_sensor_rad_s_ = Vec3::Zero();
+  double t_last_ = 0;
+};
+
+}  // namespace ssiu

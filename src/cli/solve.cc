@@ -1,0 +1,150 @@
+// `ssiu solve`: a frame (or a centroid CSV) -> verified star identification -> attitude JSON,
+// optionally an overlay PNG and a FITS TAN WCS header; `--heads` fuses up to three optical heads.
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <memory>
+
+#include "attitude/overlay.h"
+#include "attitude/star_solver.h"
+#include "cli/command.h"
+#include "core/attitude.h"
+#include "core/error.h"
+
+namespace ssiu::cli {
+namespace {
+
+struct Opts {
+  std::vector<std::string> frames;
+  std::string camera, catalog, centroids, json = "-", overlay, wcs, heads, dark;
+  SolveOptions solve;
+  double mag_max = 0;
+  std::string source;
+};
+
+void AddSolverFlags(CLI::App* cmd, Opts* o) {
+  cmd->add_option("--fov-tolerance-pct", o->solve.identify.fov_tolerance_pct,
+                  "Focal length known to +/- this percent: search and refine it");
+  cmd->add_option("--max-false-prob", o->solve.identify.max_false_match_prob, "Accept below this chance probability")
+      ->capture_default_str();
+  cmd->add_option("--centroid-sigma-px", o->solve.identify.centroid_sigma_px, "Centroid noise when not measured")
+      ->capture_default_str();
+  cmd->add_option("--systematic-px", o->solve.identify.systematic_px, "Unmodelled position error (distortion)")
+      ->capture_default_str();
+  cmd->add_option("--threshold-sigma", o->solve.detect.threshold_sigma, "Detection threshold")->capture_default_str();
+  cmd->add_option("--mag-max", o->mag_max, "Catalog magnitude limit when it is built (0 = from the FOV)");
+  cmd->add_option("--source", o->source, "Source catalog when it is built (default: by FOV)");
+}
+
+StarIdentifier MakeIdentifier(const Opts& o, const Camera& cam) {
+  return MakeIdentifierForCamera(o.catalog, cam, o.solve.identify.fov_tolerance_pct, o.mag_max, o.source);
+}
+
+void PrintSummary(const std::string& what, const SolveResult& r) {
+  std::cerr << what << ": " << r.status;
+  if (r.status == "solved") {
+    const RaDecRoll a = RaDecRollFromQuat(r.attitude.q_inertial_from_sensor);
+    std::cerr << " ra " << a.ra_rad * kRadToDeg << " dec " << a.dec_rad * kRadToDeg << " roll " << a.roll_rad * kRadToDeg
+              << " deg, " << r.identification.matches.size() << " stars";
+  }
+  std::cerr << " (" << r.message << ")\n";
+}
+
+void RunSingle(const Opts& o) {
+  if (o.camera.empty()) throw InputError("--camera", "required (camera.json)");
+  const Camera cam = LoadCamera(o.camera);
+  const StarIdentifier id = MakeIdentifier(o, cam);
+  SolveResult r;
+  Frame fr;
+  if (!o.centroids.empty()) {
+    r = SolveCentroids(id, ReadCentroidsCsv(o.centroids), cam, o.solve);
+  } else {
+    if (o.frames.empty()) throw InputError("ssiu solve", "give a FRAME or --centroids FILE.csv");
+    fr = o.dark.empty() ? ReadFrame(o.frames[0]) : SubtractDark(ReadFrame(o.frames[0]), ReadFrame(o.dark));
+    SolveOptions so = o.solve;
+    so.detect.saturation_adu = fr.saturation_adu;
+    r = SolveFrame(id, fr.image.view(), cam, so);
+  }
+  WriteJsonFile(o.json, SolveResultToJson(r));
+  PrintSummary(o.centroids.empty() ? o.frames[0] : o.centroids, r);
+  if (!o.overlay.empty()) {
+    if (fr.image.pixels.empty()) throw InputError(o.overlay, "--overlay needs a frame, not --centroids");
+    WriteSolveOverlay(o.overlay, fr.image.view(), cam, id, r);
+  }
+  if (!o.wcs.empty() && r.status == "solved") {
+    Camera c = cam;
+    c.focal_length_px = r.identification.focal_length_px;
+    std::ofstream(o.wcs) << TanWcsHeader(r.attitude.q_inertial_from_sensor, c);
+  }
+}
+
+void RunHeads(const Opts& o) {
+  const Json hj = ReadJsonFile(o.heads);
+  if (!hj.is_array() || hj.empty() || hj.size() > 3) throw InputError(o.heads, "must be a list of 1 to 3 heads");
+  if (o.frames.size() != hj.size())
+    throw InputError(o.heads, "lists " + std::to_string(hj.size()) + " heads but " + std::to_string(o.frames.size()) + " frames were given");
+  std::vector<Identification> ids;
+  std::vector<Quat> mounts;
+  Json heads = Json::array();
+  for (size_t h = 0; h < hj.size(); ++h) {
+    const std::string where = o.heads + ": head " + std::to_string(h);
+    if (!hj[h].contains("camera") || !hj[h].contains("q_body_sensor") || !hj[h]["q_body_sensor"].is_array() ||
+        hj[h]["q_body_sensor"].size() != 4)
+      throw InputError(where, "needs \"camera\" and \"q_body_sensor\": [w,x,y,z]");
+    const Camera cam = CameraFromJson(hj[h]["camera"], where);
+    const auto& qj = hj[h]["q_body_sensor"];
+    for (const auto& v : qj)
+      if (!v.is_number()) throw InputError(where, "q_body_sensor must hold numbers");
+    mounts.push_back(FromWxyz(qj[0], qj[1], qj[2], qj[3], "q_body_sensor"));
+    const StarIdentifier id = MakeIdentifier(o, cam);
+    const Frame fr = ReadFrame(o.frames[h]);
+    SolveOptions so = o.solve;
+    so.detect.saturation_adu = fr.saturation_adu;
+    const SolveResult r = SolveFrame(id, fr.image.view(), cam, so);
+    PrintSummary(o.frames[h], r);
+    heads.push_back(SolveResultToJson(r));
+    ids.push_back(r.identification);
+  }
+  const AttitudeSolution s = SolveMultiHead(ids, mounts);
+  Json j;
+  j["status"] = s.status;
+  if (s.status == "solved") {
+    const auto q = ToWxyz(s.q_inertial_from_sensor);
+    const RaDecRoll a = RaDecRollFromQuat(s.q_inertial_from_sensor);
+    j["q"] = {q[0], q[1], q[2], q[3]};
+    j["ra_deg"] = a.ra_rad * kRadToDeg, j["dec_deg"] = a.dec_rad * kRadToDeg, j["roll_deg"] = a.roll_rad * kRadToDeg;
+    j["sigma_cross_arcsec"] = s.sigma_cross_rad * kRadToArcsec;
+    j["sigma_roll_arcsec"] = s.sigma_roll_rad * kRadToArcsec;
+  } else {
+    j["q"] = nullptr;
+  }
+  j["frame"] = "body";
+  j["num_stars"] = s.num_observations;
+  j["heads"] = heads;
+  WriteJsonFile(o.json, j);
+}
+
+SSIU_REGISTER_COMMAND(solve, [](CLI::App& root) {
+  auto* cmd = root.add_subcommand("solve", "Lost-in-space attitude from a star frame (or centroids)");
+  auto o = std::make_shared<Opts>();
+  cmd->add_option("frames", o->frames, "Frame (PNG/TIFF/FITS); with --heads one frame per head");
+  cmd->add_option("--camera", o->camera, "camera.json");
+  cmd->add_option("--catalog", o->catalog, "Solver catalog directory (built there if absent; default: cache)");
+  cmd->add_option("--centroids", o->centroids, "CSV x_px,y_px[,flux][,sigma_px] instead of a frame");
+  cmd->add_option("--json", o->json, "Output JSON, - for stdout")->capture_default_str();
+  cmd->add_option("--overlay", o->overlay, "Overlay PNG with detected, matched and rejected objects");
+  cmd->add_option("--wcs", o->wcs, "FITS TAN WCS header of the solution");
+  cmd->add_option("--heads", o->heads, "heads.json: up to three heads, fused into one body attitude");
+  cmd->add_option("--dark", o->dark, "Dark/median frame subtracted before detection");
+  AddSolverFlags(cmd, o.get());
+  cmd->callback([o] {
+    if (o->heads.empty()) {
+      RunSingle(*o);
+    } else {
+      RunHeads(*o);
+    }
+  });
+});
+
+}  // namespace
+}  // namespace ssiu::cli
