@@ -123,7 +123,7 @@ PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double 
 
   if (o.fit) {
     // Levenberg-Marquardt on (x, y, flux, background, sigma).
-    double lambda = 1e-3;
+    double lambda = 1e-4;
     Eigen::Matrix<double, 5, 5> jtj;
     Eigen::Matrix<double, 5, 1> jtr;
     double chi2 = residual_chi2(cx, cy, amp, bkg, s, &jtj, &jtr);
@@ -144,12 +144,12 @@ PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double 
         amp = na;
         bkg = nb;
         s = ns;
-        // 1e-4 px is far below any centroid's noise.
-        const bool done = std::abs(d(0)) < 1e-4 && std::abs(d(1)) < 1e-4 && std::abs(d(4)) < 1e-3;
+        // 2e-3 px is far below any centroid's noise (0.01 px at SNR 500).
+        const bool done = std::abs(d(0)) < 2e-3 && std::abs(d(1)) < 2e-3 && std::abs(d(4)) < 5e-3;
         chi2 = chi2n;
         jtj = jtj2;
         jtr = jtr2;
-        lambda = std::max(lambda * 0.3, 1e-7);
+        lambda = std::max(lambda * 0.1, 1e-8);
         if (done) break;
       } else {
         lambda *= 10;
