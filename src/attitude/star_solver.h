@@ -21,7 +21,14 @@ namespace ssiu {
 
 struct SolveOptions {
   IdentifyOptions identify;
-  DetectOptions detect;
+  // Identification needs only the brighter stars; a high threshold keeps noise peaks and faint
+  // residuals of hot pixels out of the patterns (5 sigma gives ~1000 detections on the
+  // openstartracker frames, none of which solve; 8 sigma solves them).
+  DetectOptions detect = [] {
+    DetectOptions d;
+    d.threshold_sigma = 8.0;
+    return d;
+  }();
   double track_search_radius_px = 25.0;  // tracking: how far a star may be from its prediction
   void Check() const;                    // throws InputError naming the field
 };

@@ -1,0 +1,105 @@
+// Real frames with published plate solutions (../shared/data/SOURCES.md): openstartracker img0, 2,
+// 3 (astrometry.net) and the tetra3 TIFFs. Skipped when ../shared is absent.
+#include <cmath>
+#include <memory>
+#include <string>
+
+#include "attitude/star_solver.h"
+#include "core/attitude.h"
+#include "core/image.h"
+#include "testing/testing.h"
+
+namespace ssiu {
+namespace {
+
+double SepArcsec(double ra1_deg, double dec1_deg, double ra2_deg, double dec2_deg) {
+  const Vec3 a = UnitFromRaDec(ra1_deg * kDegToRad, dec1_deg * kDegToRad);
+  const Vec3 b = UnitFromRaDec(ra2_deg * kDegToRad, dec2_deg * kDegToRad);
+  return std::atan2(a.cross(b).norm(), a.dot(b)) * kRadToArcsec;
+}
+
+struct Published {
+  const char* file;
+  double ra_deg, dec_deg;
+};
+
+TEST(RealFrames, OpenStarTrackerWithinTenArcsecOfAstrometryNet) {
+  SSIU_REQUIRE_SHARED(dark_path, "openstartracker/median_image.png");
+  Camera cam;
+  cam.width = 1392, cam.height = 1040;
+  cam.focal_length_px = 206264.806 / 15.7768356032;  // calibration.txt PIXSCALE
+  cam.cx_px = 695.5, cam.cy_px = 519.5;
+  SolveOptions so;
+  so.identify.fov_tolerance_pct = 1.0;
+  const StarIdentifier id = MakeIdentifierForCamera("", cam, so.identify.fov_tolerance_pct);
+  const Frame dark = ReadFrame(dark_path);
+  const Published refs[] = {{"img0.png", 181.171161, 16.836005}, {"img2.png", 154.015478, 19.157137},
+                            {"img3.png", 169.985553, 13.750871}};
+  for (const auto& ref : refs) {
+    SSIU_REQUIRE_SHARED(path, std::string("openstartracker/") + ref.file);
+    const Frame fr = SubtractDark(ReadFrame(path), dark);
+    const SolveResult r = SolveFrame(id, fr.image.view(), cam, so);
+    ASSERT_EQ(r.status, "solved") << ref.file << ": " << r.message;
+    const RaDecRoll a = RaDecRollFromQuat(r.attitude.q_inertial_from_sensor);
+    const double err = SepArcsec(a.ra_rad * kRadToDeg, a.dec_rad * kRadToDeg, ref.ra_deg, ref.dec_deg);
+    EXPECT_LT(err, 10.0) << ref.file;
+    std::printf("%s: %zu stars, boresight %.2f arcsec from astrometry.net, f %.1f px\n", ref.file,
+                r.identification.matches.size(), err, r.identification.focal_length_px);
+  }
+}
+
+TEST(RealFrames, Tetra3AllEightSolvedPublishedOnesWithinTenArcsec) {
+  SSIU_REQUIRE_SHARED(dir, "tetra3");
+  Camera cam;
+  cam.width = 1024, cam.height = 768;
+  cam.focal_length_px = 512.0 / std::tan(5.7 * kDegToRad);  // about 11.4 deg across
+  cam.cx_px = 511.5, cam.cy_px = 383.5;
+  SolveOptions so;
+  so.identify.fov_tolerance_pct = 3.0;
+  const StarIdentifier id = MakeIdentifierForCamera("", cam, so.identify.fov_tolerance_pct);
+  const char* names[] = {"Alt40_Azi-135", "Alt40_Azi-45", "Alt40_Azi135", "Alt40_Azi45",
+                         "Alt60_Azi-135", "Alt60_Azi-45", "Alt60_Azi135", "Alt60_Azi45"};
+  for (const char* n : names) {
+    const std::string path = dir + "/2019-07-29T204726_" + n + "_Try1.tiff";
+    const Frame fr = ReadFrame(path);
+    const SolveResult r = SolveFrame(id, fr.image.view(), cam, so);
+    ASSERT_EQ(r.status, "solved") << n << ": " << r.message;
+    const RaDecRoll a = RaDecRollFromQuat(r.attitude.q_inertial_from_sensor);
+    double err = -1;
+    if (std::string(n) == "Alt40_Azi-45") err = SepArcsec(a.ra_rad * kRadToDeg, a.dec_rad * kRadToDeg, 172.3689, 57.6493);
+    if (std::string(n) == "Alt60_Azi-45") err = SepArcsec(a.ra_rad * kRadToDeg, a.dec_rad * kRadToDeg, 212.2123, 64.2002);
+    if (err >= 0) {
+      EXPECT_LT(err, 10.0) << n;
+    }
+    std::printf("%s: %zu stars, ra %.4f dec %.4f roll %.3f, f %.1f px, vs published %.2f arcsec\n", n,
+                r.identification.matches.size(), a.ra_rad * kRadToDeg, a.dec_rad * kRadToDeg, a.roll_rad * kRadToDeg,
+                r.identification.focal_length_px, err);
+  }
+}
+
+TEST(RealFrames, OpenStarTrackerHardFramesAreNeverWrong) {
+  // img1, 5, 8 have no published solution: a solve must at least be self-consistent (chance
+  // probability below the threshold and sub-10-arcsec residuals); no_match is acceptable.
+  SSIU_REQUIRE_SHARED(dark_path, "openstartracker/median_image.png");
+  Camera cam;
+  cam.width = 1392, cam.height = 1040;
+  cam.focal_length_px = 206264.806 / 15.7768356032;
+  cam.cx_px = 695.5, cam.cy_px = 519.5;
+  SolveOptions so;
+  so.identify.fov_tolerance_pct = 1.0;
+  const StarIdentifier id = MakeIdentifierForCamera("", cam, so.identify.fov_tolerance_pct);
+  const Frame dark = ReadFrame(dark_path);
+  for (const char* f : {"img1.png", "img5.png", "img8.png"}) {
+    SSIU_REQUIRE_SHARED(path, std::string("openstartracker/") + f);
+    const SolveResult r = SolveFrame(id, SubtractDark(ReadFrame(path), dark).image.view(), cam, so);
+    std::printf("%s: %s (%s)\n", f, r.status.c_str(), r.message.c_str());
+    EXPECT_NE(r.status, "too_few_stars") << f;
+    if (r.status == "solved") {
+      EXPECT_LT(r.identification.false_match_probability, 1e-5);
+      for (const auto& m : r.identification.matches) EXPECT_LT(m.residual_rad * kRadToArcsec, 15.0) << f;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace ssiu
