@@ -38,6 +38,8 @@ void SolveOptions::Check() const {
   } catch (const std::invalid_argument& e) {
     throw InputError("detect options", e.what());
   }
+  if (!(detector_sigma_scale > 0 && detector_sigma_scale < 100))
+    throw InputError("solve options", "detector_sigma_scale must be in (0, 100)");
   if (!(track_search_radius_px > 0 && track_search_radius_px < 1000))
     throw InputError("solve options", "track_search_radius_px must be in (0, 1000)");
 }
@@ -55,7 +57,7 @@ StarIdentifier MakeIdentifierForCamera(const std::string& dir, const Camera& cam
   return StarIdentifier(std::move(c));
 }
 
-std::vector<Centroid> CentroidsFromDetections(const Detections& d) {
+std::vector<Centroid> CentroidsFromDetections(const Detections& d, double sigma_scale) {
   std::vector<Centroid> out;
   out.reserve(d.stars.size());
   for (const auto& s : d.stars) {
@@ -64,7 +66,7 @@ std::vector<Centroid> CentroidsFromDetections(const Detections& d) {
     c.y_px = s.y_px;
     c.flux = s.flux_adu;
     const double v = 0.5 * (s.x_sigma_px * s.x_sigma_px + s.y_sigma_px * s.y_sigma_px);
-    c.sigma_px = std::isfinite(v) && v > 0 ? std::sqrt(v) : 0.0;
+    c.sigma_px = std::isfinite(v) && v > 0 ? sigma_scale * std::sqrt(v) : 0.0;
     out.push_back(c);
   }
   return out;
@@ -115,7 +117,7 @@ SolveResult SolveFrame(const StarIdentifier& id, const ImageView& image, const C
   if (dopt.gain_e_per_adu == 0) dopt.gain_e_per_adu = camera.gain_e_per_adu;
   Detections det = Detect(image, dopt, defects);
   const double detect_ms = MsSince(t0);
-  SolveResult r = SolveCentroids(id, CentroidsFromDetections(det), camera, options);
+  SolveResult r = SolveCentroids(id, CentroidsFromDetections(det, options.detector_sigma_scale), camera, options);
   r.detections = std::move(det);
   r.timing_ms["detect"] = detect_ms;
   return r;

@@ -1,0 +1,28 @@
+#include <cmath>
+#include <cstdio>
+
+#include "attitude/sim_campaign.h"
+#include "testing/testing.h"
+
+namespace ssiu {
+namespace {
+
+// Issue 4 acceptance: 1000 frames, >= 99.5% solved, none more than 1 arcmin off, median boresight
+// error <= 1 arcsec at 16.6 deg, covariance consistent (mean NEES within its 95% bounds).
+TEST(SimulatedFramesLong, ThousandRandomFrames) {
+  const testing::CampaignStats st = testing::RunCampaign(1000, 100000);
+  const double nees = st.nees_sum / st.nees_n;
+  const double half = 1.96 * std::sqrt(6.0 / st.nees_n);
+  std::printf("solved %d/%d, wrong %d, median cross error at 16.6 deg %.3f arcsec (%zu frames), mean NEES %.3f "
+              "(95%% bounds %.3f..%.3f), median identify %.3f ms\n",
+              st.solved, st.frames, st.wrong, testing::Median(st.cross_arcsec_166), st.cross_arcsec_166.size(), nees,
+              3 - half, 3 + half, testing::Median(st.solve_ms));
+  EXPECT_GE(st.solved, 995);
+  EXPECT_EQ(st.wrong, 0);
+  EXPECT_LE(testing::Median(st.cross_arcsec_166), 1.0);
+  EXPECT_GT(nees, 3 - half);
+  EXPECT_LT(nees, 3 + half);
+}
+
+}  // namespace
+}  // namespace ssiu
