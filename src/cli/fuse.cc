@@ -20,8 +20,7 @@ void Run(Opts o) {
   GyroLog log;
   if (!o.unit.empty()) {
     unit = LoadGyroUnit(o.unit);
-    log = ReadGyroLog(o.gyro, 0);
-    if (!log.body_rates) log = ReadGyroLog(o.gyro, unit.size());
+    log = ReadGyroLog(o.gyro, unit.size());
   } else {
     log = ReadGyroLog(o.gyro, 0);
     unit = DefaultFourFogUnit();

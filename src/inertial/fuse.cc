@@ -28,7 +28,7 @@ GyroLog ReadGyroLog(const std::string& path, int n_gyros) {
   if (t.rows() < 2) throw InputError(path, "too few rows (need at least 2 gyro samples)");
   t.CheckIncreasing("t_s");
   std::vector<std::string> names;
-  if (n_gyros == 0 && t.Has("wx_dph")) {
+  if (t.Has("wx_dph")) {
     log.body_rates = true;
     names = {"wx_dph", "wy_dph", "wz_dph"};
   } else {

@@ -31,8 +31,8 @@ struct StarTrackerLog {
   std::vector<double> sigma_cross_arcsec, sigma_roll_arcsec;  // empty when the columns are absent
 };
 
-// Reads a gyro log. `n_gyros` > 0 asks for g1_dph..gN_dph; 0 takes body rates when present, else
-// the g*_dph columns found. InputError (file, column, row) for a missing column, a non-number or NaN,
+// Reads a gyro log: body rates when wx_dph is present; otherwise g1_dph..gN_dph with N = `n_gyros`
+// when > 0, else as many g*_dph columns as are found. InputError (file, column, row) for a missing column, a non-number or NaN,
 // a time column that does not strictly increase, or fewer than 2 rows.
 GyroLog ReadGyroLog(const std::string& path, int n_gyros = 0);
 StarTrackerLog ReadStarTrackerLog(const std::string& path);
