@@ -167,7 +167,11 @@ MotionProfile MotionProfileFromJson(const Json& j, const std::string& file) {
     if (!j["faults"].is_array()) throw InputError(file, "field 'faults' must be an array");
     for (const auto& f : j["faults"]) {
       GyroFault g;
-      g.gyro = static_cast<int>(JsonNumber(f, "gyro", file));
+      const double gyro = JsonNumber(f, "gyro", file);
+      if (!(gyro >= 1 && gyro <= kMaxGyros) || gyro != std::floor(gyro)) {
+        throw InputError(file, "faults: gyro must be an integer 1..6");
+      }
+      g.gyro = static_cast<int>(gyro);
       g.t_s = JsonNumber(f, "t_s", file);
       g.step_dph = JsonNumberOr(f, "step_dph", 0, file);
       g.ramp_dph_per_h = JsonNumberOr(f, "ramp_dph_per_h", 0, file);
@@ -189,6 +193,7 @@ GyroSimulation SimulateGyro(const GyroUnit& unit, const MotionProfile& profile, 
   options.Check();
   const int n = unit.size();
   const double h = 1.0 / unit.rate_hz;
+  if (options.duration_s * unit.rate_hz > 1e9) throw InputError("simulate gyro", "more than 1e9 samples requested");
   const long k_max = static_cast<long>(std::floor(options.duration_s * unit.rate_hz + 1e-9));
   Rng rng(options.seed);
   Rng rng_st(options.seed * 0x9E3779B97F4A7C15ull + 17);  // own stream: star noise independent of gyros
