@@ -256,6 +256,9 @@ NoiseFit FitNoiseTerms(const AllanCurve& curve, const NoiseFitOptions& options) 
     fit.status = "too_few_points";
     fit.message = "need at least " + std::to_string(n_enabled + 1) + " positive Allan points, have " +
                   std::to_string(idx.size());
+    if (k > 0 && std::all_of(curve.adev.begin(), curve.adev.end(), [](double v) { return v == 0; })) {
+      fit.message += " (the Allan deviation is zero at every tau: a constant signal)";
+    }
     return fit;
   }
   const size_t p = idx.size();

@@ -240,6 +240,10 @@ TEST(FitNoiseTerms, TooFewPointsIsAStatusNotACrash) {
   NoiseFitOptions o;
   o.dominance = 2;
   EXPECT_THROW(FitNoiseTerms(c, o), std::invalid_argument);
+  // A constant signal: zero deviation everywhere is reported, not fitted.
+  const NoiseFit z = FitNoiseTerms(OverlappingAllanDeviation(std::vector<double>(1000, 3.0), kFs));
+  EXPECT_EQ(z.status, "too_few_points");
+  EXPECT_THAT(z.message, ::testing::HasSubstr("constant signal"));
 }
 
 TEST(OverlappingAllanDeviation, RejectsBadData) {
