@@ -305,8 +305,11 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
     double nearest_px = 1e9;  // distance to the nearest other peak of the blob
   };
   std::vector<Peak> peaks;
+  // Peaks are stored blob by blob: those of blob b are [blob_first[b], blob_first[b + 1]).
+  std::vector<size_t> blob_first(blobs.size() + 1, 0);
   const size_t kMaxPeaksPerBlob = 12;
   for (size_t bi = 0; bi < blobs.size(); ++bi) {
+    blob_first[bi] = peaks.size();
     const Blob& b = blobs[bi];
     const double level9 = 9 * bg.LevelAt(b.peak_x, b.peak_y), sigma_s = 3 * bg.SigmaAt(b.peak_x, b.peak_y);
     std::vector<Peak> local;
@@ -375,6 +378,7 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
       peaks.push_back(p);
     }
   }
+  blob_first[blobs.size()] = peaks.size();
 
   // 5. Classify each peak; single-pixel spikes first, so that the fits of stars beside them leave
   //    them out.
@@ -451,15 +455,22 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
   for (size_t pi = 0; pi < peaks.size(); ++pi) {
     peaks[pi].nearest_px = 1e9;
     if (is_spike[pi]) continue;
-    for (size_t q = 0; q < peaks.size(); ++q) {
-      if (q != pi && !is_spike[q] && peaks[q].blob == peaks[pi].blob) {
+    for (size_t q = blob_first[peaks[pi].blob]; q < blob_first[peaks[pi].blob + 1]; ++q) {
+      if (q != pi && !is_spike[q]) {
         peaks[pi].nearest_px = std::min(peaks[pi].nearest_px, std::hypot(peaks[q].x - peaks[pi].x, peaks[q].y - peaks[pi].y));
       }
     }
   }
   const int fit_r = std::max(3, static_cast<int>(std::ceil(3 * psf_guess)));
+  // Fit the brightest peaks first and at most 3 x max_stars of them: on a frame full of faint
+  // structure the rest could not enter the output anyway, and each fit costs tens of microseconds.
+  std::vector<size_t> order;
   for (size_t pi = 0; pi < peaks.size(); ++pi) {
-    if (is_spike[pi]) continue;
+    if (!is_spike[pi]) order.push_back(pi);
+  }
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return peaks[a].score > peaks[b].score; });
+  if (order.size() > static_cast<size_t>(3 * opt.max_stars)) order.resize(static_cast<size_t>(3 * opt.max_stars));
+  for (size_t pi : order) {
     const Peak& pk = peaks[pi];
     const Blob& b = blobs[pk.blob];
     Candidate c;
@@ -480,8 +491,8 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
       if (is_bad(x, y)) return true;
       if (pk.nearest_px > 2 * fit_r + 2) return false;
       const double d0 = (x - pk.x) * (x - pk.x) + (y - pk.y) * (y - pk.y);
-      for (size_t q = 0; q < peaks.size(); ++q) {
-        if (q == pi || peaks[q].blob != pk.blob) continue;
+      for (size_t q = blob_first[pk.blob]; q < blob_first[pk.blob + 1]; ++q) {
+        if (q == pi) continue;
         const double d1 = (x - peaks[q].x) * (x - peaks[q].x) + (y - peaks[q].y) * (y - peaks[q].y);
         if (d1 < d0) return true;
       }
