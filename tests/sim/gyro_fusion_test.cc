@@ -147,3 +147,49 @@ INSTANTIATE_TEST_SUITE_P(EachGyro, GyroFaultTest, ::testing::Values(1, 2, 3, 4))
 
 }  // namespace
 }  // namespace ssiu
+
+namespace ssiu {
+namespace {
+
+// Five gyros have two parity relations: the parity direction alone isolates the failed gyro, at
+// detection time, on a sinusoidal motion.
+TEST(GyroFusion, FiveGyroUnitIsolatesByParityOnSineMotion) {
+  GyroUnit u = DefaultFourFogUnit();
+  u.rate_hz = 20;
+  u.axes_body.push_back(Vec3(1, -1, 0.5).normalized());
+  u.gyros.push_back(GyroErrorModel{});
+  for (int i = 0; i < 5; ++i) u.gyros[i].bias_dph = 1.0 + 0.5 * i;
+  MotionProfile p = MotionProfileFromJson(Json{{"type", "sine"}, {"period_s", 120.0}}, "mem");
+  p.faults = {GyroFault{1, 400.0, 20.0, 0.0}};
+  GyroSimOptions o;
+  o.duration_s = 900;
+  o.seed = 61;
+  const GyroSimulation sim = SimulateGyro(u, p, o);
+  GyroLog log;
+  log.t_s = sim.t_s;
+  log.rates_dph = sim.gyro_dph;
+  StarTrackerLog st;
+  st.t_s = sim.st_t_s;
+  st.q_inertial_from_body = sim.st_q;
+  const FuseResult r = Fuse(log, st, u, FuseOptions{});
+  ASSERT_EQ(r.faults.size(), 1u);
+  EXPECT_EQ(r.faults[0].method, "parity");
+  EXPECT_EQ(r.faults[0].gyro, 1);
+  EXPECT_GT(r.faults[0].t_detect_s, 400.0);
+  EXPECT_LT(r.faults[0].t_detect_s, 460.0);
+  EXPECT_EQ(r.faults[0].t_isolate_s, r.faults[0].t_detect_s);
+  EXPECT_EQ(r.gyros_in_use, (std::vector<int>{2, 3, 4, 5}));
+  // After isolation the attitude stays within the star-tracker noise.
+  double sum2 = 0;
+  long n = 0;
+  for (size_t k = 0; k < r.samples.size(); ++k) {
+    if (r.samples[k].t_s < 520) continue;
+    const Vec3 e = RotationVectorFromQuat(sim.q_true[k].conjugate() * r.samples[k].q_inertial_from_body);
+    sum2 += e.head<2>().squaredNorm() / 2;
+    ++n;
+  }
+  EXPECT_LT(std::sqrt(sum2 / n) * kRadToArcsec, 5.0);
+}
+
+}  // namespace
+}  // namespace ssiu
