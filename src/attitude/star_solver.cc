@@ -232,7 +232,7 @@ SolveResult Tracker::Update(const std::vector<Centroid>& centroids, double t_s) 
   Finish(&r);
   if (r.status == "solved") {
     const Quat q = r.attitude.q_inertial_from_sensor;
-    if (locked_) {
+    if (locked_ && r.mode == "tracking") {  // a rate only from two attitudes of one lock
       const double dt = t_s - t_last_;
       if (dt > 0) {
         Quat d = q_last_.conjugate() * q;  // sensor-frame rotation over dt

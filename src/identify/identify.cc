@@ -22,6 +22,7 @@ struct StarIdentifier::Index {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+constexpr double kMinTrackedFraction = 0.3;  // tracking: matched / min(predicted, centroids)
 double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 double Angle(const Vec3& a, const Vec3& b) { return std::atan2(a.cross(b).norm(), a.dot(b)); }
@@ -416,6 +417,7 @@ Identification StarIdentifier::MatchWithAttitude(const std::vector<Centroid>& ce
   const Context ctx = MakeContext(this, centroids, o);
   const Mat3 r_pred = q_predicted.normalized().toRotationMatrix();
   Verification v = Verify(ctx, camera, r_pred, std::max(search_radius_px, ctx.match_radius_px));
+  const size_t initial_pairs = v.matches.size();
   if (static_cast<int>(v.matches.size()) < o.min_matches) {
     out.status = "no_match";
     out.message = "lost lock: " + std::to_string(v.matches.size()) + " stars near their predicted positions";
@@ -426,8 +428,21 @@ Identification StarIdentifier::MatchWithAttitude(const std::vector<Centroid>& ce
   fixed.fov_tolerance_pct = 0;  // tracking keeps the focal length found when the lock was acquired
   Refined rf = Refine(ctx, fixed, camera, r_pred, std::move(v));
   const int k = static_cast<int>(rf.v.matches.size());
-  const double prob = ChanceProbability(ctx.m, rf.v.n_cat, ctx.match_radius_px, camera, k);
+  // The refit attitude has three free parameters that can line up a few wrong pairs (a 5-degree
+  // jump found 5 such matches in a test): count them out as in lost in space, take a Bonferroni
+  // factor for the candidate pairs of the wide first search, and require that a fair share of the
+  // stars that should be visible are matched.
+  const double n_pairs = std::max(1.0, static_cast<double>(initial_pairs));
+  const double prob =
+      std::min(1.0, ChanceProbability(ctx.m - 3, rf.v.n_cat, ctx.match_radius_px, camera, k - 3) * n_pairs);
+  const double expected = std::min(rf.v.n_cat, ctx.m);
   out.false_match_probability = prob;
+  if (k < kMinTrackedFraction * expected) {
+    out.status = "no_match";
+    out.message = "lost lock: " + std::to_string(k) + " of " + std::to_string(static_cast<int>(expected)) +
+                  " predicted stars matched";
+    return out;
+  }
   out.hypotheses = 1;
   out.catalog_stars_in_field = rf.v.n_cat;
   out.timing_ms["identify"] = MsSince(t0);

@@ -1,0 +1,64 @@
+// `ssiu track`: a sequence of frames; lost in space on the first, then tracking from the previous
+// attitude and rate, falling back to lost in space when the lock is lost.
+#include <iostream>
+#include <memory>
+
+#include "attitude/star_solver.h"
+#include "cli/command.h"
+#include "core/error.h"
+
+namespace ssiu::cli {
+namespace {
+
+struct Opts {
+  std::vector<std::string> frames;
+  std::string camera, catalog, json = "-", dark;
+  double dt_s = 1.0;
+  SolveOptions solve;
+};
+
+SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
+  auto* cmd = root.add_subcommand("track", "Attitude of a frame sequence: lost in space, then tracking");
+  auto o = std::make_shared<Opts>();
+  cmd->add_option("frames", o->frames, "Frames in time order")->required();
+  cmd->add_option("--camera", o->camera, "camera.json")->required();
+  cmd->add_option("--catalog", o->catalog, "Solver catalog directory (built there if absent; default: cache)");
+  cmd->add_option("--json", o->json, "Output JSON (list of per-frame results), - for stdout")->capture_default_str();
+  cmd->add_option("--dt-s", o->dt_s, "Time between frames (s)")->capture_default_str();
+  cmd->add_option("--dark", o->dark, "Dark/median frame subtracted before detection");
+  cmd->add_option("--fov-tolerance-pct", o->solve.identify.fov_tolerance_pct, "Focal length uncertainty (%), first frame");
+  cmd->add_option("--search-radius-px", o->solve.track_search_radius_px, "Tracking search radius")->capture_default_str();
+  cmd->add_option("--systematic-px", o->solve.identify.systematic_px, "Unmodelled position error")->capture_default_str();
+  cmd->callback([o] {
+    if (!(o->dt_s > 0)) throw InputError("--dt-s", "must be > 0");
+    const Camera cam = LoadCamera(o->camera);
+    const StarIdentifier id = MakeIdentifierForCamera(o->catalog, cam, o->solve.identify.fov_tolerance_pct);
+    Tracker tracker(id, cam, o->solve);
+    Frame dark;
+    if (!o->dark.empty()) dark = ReadFrame(o->dark);
+    Json out = Json::array();
+    int solved = 0, tracked = 0;
+    for (size_t k = 0; k < o->frames.size(); ++k) {
+      const Frame fr = o->dark.empty() ? ReadFrame(o->frames[k]) : SubtractDark(ReadFrame(o->frames[k]), dark);
+      if (fr.image.width != cam.width || fr.image.height != cam.height)
+        throw InputError(o->frames[k], "image size differs from " + o->camera);
+      DetectOptions dopt = o->solve.detect;
+      dopt.saturation_adu = fr.saturation_adu;
+      if (dopt.gain_e_per_adu == 0) dopt.gain_e_per_adu = cam.gain_e_per_adu;
+      const Detections det = Detect(fr.image.view(), dopt);
+      SolveResult r = tracker.Update(CentroidsFromDetections(det, o->solve.detector_sigma_scale), k * o->dt_s);
+      r.timing_ms["detect"] = det.timing_ms.count("total") ? det.timing_ms.at("total") : 0.0;
+      Json j = SolveResultToJson(r);
+      j["frame"] = o->frames[k];
+      j["t_s"] = k * o->dt_s;
+      out.push_back(j);
+      solved += r.status == "solved";
+      tracked += r.mode == "tracking" && r.status == "solved";
+    }
+    WriteJsonFile(o->json, out);
+    std::cerr << "track: " << solved << "/" << o->frames.size() << " solved, " << tracked << " by tracking\n";
+  });
+});
+
+}  // namespace
+}  // namespace ssiu::cli
