@@ -116,7 +116,7 @@ SSIU_REGISTER_COMMAND(allan, [](CLI::App& root) {
   cmd->add_option("--plot", o->plot, "Output PNG of the curve and the fitted terms");
   cmd->add_option("--unit", o->unit, "Rate unit when not in the column name: rad/s, deg/s or deg/h");
   cmd->add_option("--tau-column", o->tau_column, "Curve: tau column (default: tau_s, tau, ...)");
-  cmd->add_option("--adev-column", o->adev_column, "Curve: ADEV column (default: adev*, else avar* squared)");
+  cmd->add_option("--adev-column", o->adev_column, "Curve: ADEV column (default: adev*, else avar*, square-rooted)");
   cmd->add_option("--channel", o->channel, "Curve: rows of this channel (e.g. \"Gyro. X\")");
   cmd->add_option("--tau-file", o->tau_file, "Curve: taus in a separate one-column file (imu_utils)");
   cmd->add_option("--sample-rate-hz", o->sample_rate_hz, "Log: instead of t_s; curve: rate behind the curve (for edf)");
