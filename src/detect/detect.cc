@@ -165,10 +165,11 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
     for (size_t k = 0; k < bg.level.size(); ++k) {
       dead_level_max = std::max(dead_level_max, double(bg.level[k]) - opt.dead_sigma * bg.sigma[k]);
     }
-    std::vector<int32_t> colsum(static_cast<size_t>(w), 0), boxrow(static_cast<size_t>(w), 0);
+    std::vector<int32_t> colsum(static_cast<size_t>(w), 0);
     std::vector<float> thr_row(static_cast<size_t>(w)), low_row(static_cast<size_t>(w));
     std::vector<uint8_t> above(static_cast<size_t>(w) + 1, 0);
-    for (int y = 0; y < box - 1; ++y) {
+    // Column sums of rows 0 .. box-1: the box rows of the first centre row, HALF.
+    for (int y = 0; y < box; ++y) {
       const uint16_t* r = img.row(y);
       for (int x = 0; x < w; ++x) colsum[x] += r[x];
     }
@@ -176,7 +177,6 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
     // the loop bounds, and the loops vectorise.
     const int W = w, H = h, HALF = half;
     int32_t* __restrict cs = colsum.data();
-    int32_t* __restrict br = boxrow.data();
     float* __restrict thr = thr_row.data();
     uint8_t* __restrict ab = above.data();
     for (int yc = 0; yc < H; ++yc) {
@@ -190,24 +190,23 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
         }
       }
       if (yc < HALF || yc >= H - HALF) continue;
-      const uint16_t* __restrict add = img.row(yc + HALF);
-      for (int x = 0; x < W; ++x) cs[x] += add[x];
-      // Horizontal box sum of the column sums (the b x b box sum centred on (x, yc)).
+      // cs holds the column sums of rows yc-HALF .. yc+HALF: box sum and threshold test in one pass.
+      bg.RowBoxThreshold(yc, &thr_row, opt.threshold_sigma);
+      int any = 0;
       if (HALF == 1) {
-        for (int x = 1; x < W - 1; ++x) br[x] = cs[x - 1] + cs[x] + cs[x + 1];
+        for (int x = 1; x < W - 1; ++x) {
+          const int a = static_cast<float>(cs[x - 1] + cs[x] + cs[x + 1]) > thr[x];
+          ab[x] = static_cast<uint8_t>(a);
+          any += a;
+        }
       } else {
         for (int x = HALF; x < W - HALF; ++x) {
           int32_t sum = 0;
           for (int k = -HALF; k <= HALF; ++k) sum += cs[x + k];
-          br[x] = sum;
+          const int a = static_cast<float>(sum) > thr[x];
+          ab[x] = static_cast<uint8_t>(a);
+          any += a;
         }
-      }
-      bg.RowBoxThreshold(yc, &thr_row, opt.threshold_sigma);
-      int any = 0;
-      for (int x = HALF; x < W - HALF; ++x) {
-        const int a = static_cast<float>(br[x]) > thr[x];
-        ab[x] = static_cast<uint8_t>(a);
-        any += a;
       }
       if (any) {
         int x = HALF;
@@ -220,8 +219,12 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
           runs.push_back({yc, xs, x - 1, -1});
         }
       }
-      const uint16_t* __restrict sub = img.row(yc - HALF);
-      for (int x = 0; x < W; ++x) cs[x] -= sub[x];
+      // Slide the column sums down one row.
+      if (yc + HALF + 1 < H) {
+        const uint16_t* __restrict add = img.row(yc + HALF + 1);
+        const uint16_t* __restrict sub = img.row(yc - HALF);
+        for (int x = 0; x < W; ++x) cs[x] += static_cast<int32_t>(add[x]) - static_cast<int32_t>(sub[x]);
+      }
     }
   }
   out.timing_ms["threshold"] = MsSince(t0);
