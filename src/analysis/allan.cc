@@ -150,7 +150,7 @@ void SetConfidenceIntervals(AllanCurve* c, double confidence) {
   c->adev_lo.resize(c->adev.size());
   c->adev_hi.resize(c->adev.size());
   for (size_t i = 0; i < c->adev.size(); ++i) {
-    // avar * edf / true ~ chi2(edf) (NIST SP 1065 eq. 39).
+    // avar * edf / true ~ chi2(edf) (NIST SP 1065, confidence intervals of the Allan variance).
     const double e = c->edf[i];
     c->adev_lo[i] = c->adev[i] * std::sqrt(e / ChiSquaredQuantile(1 - tail, e));
     c->adev_hi[i] = c->adev[i] * std::sqrt(e / ChiSquaredQuantile(tail, e));
@@ -194,7 +194,7 @@ AllanCurve OverlappingAllanDeviation(const std::vector<double>& rate, double fs,
   c.edf_source = "formula";
   const double np = static_cast<double>(n + 1);  // phase points
   for (size_t m : ms) {
-    // NIST SP 1065 eq. 14 on phase x: avar = sum (x[i+2m] - 2x[i+m] + x[i])^2 / (2 tau^2 (N - 2m)).
+    // Overlapping estimator on phase x (NIST SP 1065): avar = sum (x[i+2m] - 2x[i+m] + x[i])^2 / (2 tau^2 (N - 2m)).
     const size_t terms = n + 1 - 2 * m;
     double sum = 0;
     const double* p = x.data();
@@ -262,7 +262,7 @@ NoiseFit FitNoiseTerms(const AllanCurve& curve, const NoiseFitOptions& options) 
     return fit;
   }
   const size_t p = idx.size();
-  // Basis of IEEE 952 eq. C.13 in the squared coefficients c = (Q^2, N^2, B^2, K^2, R^2).
+  // Basis of the IEEE 952 Annex C model in the squared coefficients c = (Q^2, N^2, B^2, K^2, R^2).
   auto basis = [](int j, double t) {
     switch (j) {
       case 0: return 3 / (t * t);

@@ -42,10 +42,10 @@ struct AllanCurve {
   std::string edf_source;       // "formula", "file", "rel_error" or "assumed"
 };
 
-// Overlapping Allan deviation (IEEE 952 Annex C, eq. C.7; NIST SP 1065 eq. 14) of equally spaced
+// Overlapping Allan deviation (IEEE Std 952-1997 Annex C; NIST SP 1065, overlapping ADEV) of equally spaced
 // rate samples, with chi-squared confidence intervals from the equivalent degrees of freedom of
 // Howe, Allan & Barnes (1981) as tabulated in NIST SP 1065 Table 5. The noise type at each tau is
-// identified from the local log-log slope of the curve. InputError-free: the caller validates data;
+// identified from the local log-log slope of the curve. The caller validates input files;
 // std::invalid_argument on too few samples, a non-finite sample or a bad rate.
 AllanCurve OverlappingAllanDeviation(const std::vector<double>& rate, double sample_rate_hz,
                                      const AllanOptions& options = {});
@@ -106,12 +106,12 @@ struct NoiseFit {
   double adev_min_sigma = 0;   // its 1-sigma from the point's edf
   bool adev_min_is_upper_bound = false;  // the curve still falls (white noise) at its floor
   std::vector<double> model_adev;  // the fitted model at the curve's taus
-  // The fitted model's Allan deviation at tau (IEEE 952 eq. C.13 without the sinusoidal term).
+  // The fitted model's Allan deviation at tau (IEEE 952 Annex C model without the sinusoidal term).
   double ModelAdev(double tau_s) const;
 };
 
 // Weighted non-negative least squares of avar(tau) = 3Q^2/tau^2 + N^2/tau + (2 ln2/pi) B^2 + K^2 tau/3
-// + R^2 tau^2/2 (IEEE 952 eq. C.13) to a curve; weights from each point's edf, each point counted for
+// + R^2 tau^2/2 (IEEE 952 Annex C) to a curve; weights from each point's edf, each point counted for
 // its share of an octave since overlapping estimates closer than that are strongly correlated.
 // Works on any curve with tau_s, adev and edf (from a log or read from a file).
 NoiseFit FitNoiseTerms(const AllanCurve& curve, const NoiseFitOptions& options = {});

@@ -389,7 +389,7 @@ GyroNoiseTerms ToGyroUnits(const NoiseFit& f) {
   g.bias_instability_dph = Scaled(f.bias_instability, kRadToDeg * 3600.0);
   g.rrw_deg_per_h_per_sqrt_h = Scaled(f.rrw, kRadToDeg * 3600.0 * 60.0);
   g.rate_ramp_deg_per_h2 = Scaled(f.rate_ramp, kRadToDeg * 3600.0 * 3600.0);
-  // Bias instability read from the curve's floor (IEEE 952 C.1.3: B = floor / 0.664), as datasheets
+  // Bias instability read from the curve's floor (IEEE 952 Annex C: B = floor / 0.664), as datasheets
   // quote it; an upper bound when random walk or ramp rise before a flat region appears.
   const double k_floor = kRadToDeg * 3600.0 / std::sqrt(2 * std::log(2.0) / kPi);
   NoiseTerm& fl = g.bias_instability_floor_dph;

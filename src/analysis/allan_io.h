@@ -62,7 +62,7 @@ CurveFile ReadAllanCurveFile(const std::string& path, const CurveFileOptions& op
 struct GyroNoiseTerms {
   NoiseTerm quantization_arcsec, arw_deg_per_sqrt_h, bias_instability_dph, rrw_deg_per_h_per_sqrt_h,
       rate_ramp_deg_per_h2;
-  NoiseTerm bias_instability_floor_dph;  // the curve's minimum / 0.664 (IEEE 952 C.1.3), at its tau
+  NoiseTerm bias_instability_floor_dph;  // the curve's minimum / 0.664 (IEEE 952 Annex C), at its tau
 };
 GyroNoiseTerms ToGyroUnits(const NoiseFit& fit_rad_s);
 

@@ -14,7 +14,7 @@
 namespace ssiu {
 namespace {
 
-// White rate noise of angle random walk n [u*sqrt(s)]: per-sample sigma n*sqrt(fs) (IEEE 952 C.2).
+// White rate noise of angle random walk n [u*sqrt(s)]: per-sample sigma n*sqrt(fs) (IEEE 952 Annex C).
 void AddWhite(std::vector<double>* r, double n, double fs, Rng* rng) {
   const double s = n * std::sqrt(fs);
   for (double& v : *r) v += s * rng->Normal();
@@ -33,7 +33,7 @@ void AddRandomWalk(std::vector<double>* r, double k, double fs, Rng* rng) {
 // Flicker rate noise of bias instability b [u]: Gauss-Markov processes with correlation times
 // log-spaced by a ratio q cover a 1/f band when each has variance b^2 ln(q) / pi, since
 // sum 2 s^2 T / (1 + (2 pi f T)^2) over ln T / ln q approximates s^2 / (2 f ln q) = b^2 / (2 pi f),
-// the PSD whose Allan variance is (2 ln2 / pi) b^2 (IEEE 952 Table C.1).
+// the PSD whose Allan variance is (2 ln2 / pi) b^2 (IEEE 952 Annex C).
 void AddFlicker(std::vector<double>* r, double b, double fs, double t_lo, double t_hi, Rng* rng) {
   const double q = std::sqrt(10.0);
   const double var = b * b * std::log(q) / M_PI;
@@ -48,7 +48,7 @@ void AddFlicker(std::vector<double>* r, double b, double fs, double t_lo, double
 }
 
 // White angle noise s [u*s] read out as rate: (e_k - e_{k-1}) fs; its Allan variance is 3 s^2/tau^2,
-// the quantisation term with Q = s (IEEE 952 C.13).
+// the quantisation term with Q = s (IEEE 952 Annex C).
 void AddWhiteAngle(std::vector<double>* r, double s, double fs, Rng* rng) {
   double prev = s * rng->Normal();
   for (double& v : *r) {
