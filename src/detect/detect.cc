@@ -464,7 +464,7 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
       }
     }
   }
-  const int fit_r = std::max(3, static_cast<int>(std::ceil(3 * psf_guess)));
+  const int fit_r = std::max(3, static_cast<int>(std::ceil(2.5 * psf_guess)));  // +-2.5 sigma holds the position information
   // Fit the brightest peaks first and at most 3 x max_stars of them: on a frame full of faint
   // structure the rest could not enter the output anyway, and each fit costs tens of microseconds.
   std::vector<size_t> order;
