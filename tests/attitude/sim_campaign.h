@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <string>
 #include <map>
 #include <memory>
 #include <vector>
@@ -21,12 +23,24 @@ struct CampaignStats {
   int frames = 0, solved = 0, wrong = 0;  // wrong: solved more than 1 arcmin from truth
   std::vector<double> cross_arcsec_166;   // boresight errors of the 16.6 deg frames
   double nees_sum = 0;
+  std::vector<double> nees;
   int nees_n = 0;
   std::vector<double> solve_ms;
+  std::map<int, int> unsolved_by_fov_deg;
 };
 
 inline CampaignStats RunCampaign(int n_frames, uint64_t seed0) {
-  static const StarCatalog sky = LoadXplanetBsc(DefaultBscPath(), 7.0);
+  // The sky: Hipparcos/Tycho (KStars) to V 7 when installed, so that the 8-deg fields hold enough
+  // stars (the BSC alone leaves some 8-deg fields with fewer than 5 stars); else the BSC.
+  static const StarCatalog sky = [] {
+    const std::string kstars = "/usr/share/kstars/stars.dat";
+    if (!std::ifstream(kstars)) return LoadXplanetBsc(DefaultBscPath(), 7.0);
+    StarCatalog c;
+    c.source = kstars;
+    for (const auto& s : LoadKstarsStars(kstars).stars)
+      if (s.star.mag <= 7.0) c.stars.push_back(s.star);
+    return c;
+  }();
   static std::map<int, std::unique_ptr<StarIdentifier>> ids;  // by FOV in tenths of a degree
   const double fovs[] = {8.0, 12.0, 16.6, 20.0};
   CampaignStats st;
@@ -62,7 +76,10 @@ inline CampaignStats RunCampaign(int n_frames, uint64_t seed0) {
     const SolveResult r = SolveCentroids(*ids[key], cs, cam, so);
     ++st.frames;
     st.solve_ms.push_back(r.timing_ms.count("identify") ? r.timing_ms.at("identify") : 0.0);
-    if (r.status != "solved") continue;
+    if (r.status != "solved") {
+      ++st.unsolved_by_fov_deg[static_cast<int>(fov)];
+      continue;
+    }
     ++st.solved;
     const Quat qe = r.attitude.q_inertial_from_sensor;
     if (AttitudeErrorRad(qe, q) * kRadToArcsec > 60) ++st.wrong;
@@ -70,7 +87,8 @@ inline CampaignStats RunCampaign(int n_frames, uint64_t seed0) {
     Quat d = q.conjugate() * qe;
     if (d.w() < 0) d.coeffs() = -d.coeffs();
     const Vec3 e = 2 * d.vec();
-    st.nees_sum += e.dot(r.attitude.covariance_rad2.inverse() * e);
+    st.nees.push_back(e.dot(r.attitude.covariance_rad2.inverse() * e));
+    st.nees_sum += st.nees.back();
     ++st.nees_n;
   }
   return st;

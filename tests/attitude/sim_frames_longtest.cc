@@ -17,6 +17,7 @@ TEST(SimulatedFramesLong, ThousandRandomFrames) {
               "(95%% bounds %.3f..%.3f), median identify %.3f ms\n",
               st.solved, st.frames, st.wrong, testing::Median(st.cross_arcsec_166), st.cross_arcsec_166.size(), nees,
               3 - half, 3 + half, testing::Median(st.solve_ms));
+  for (const auto& [fov, n] : st.unsolved_by_fov_deg) std::printf("unsolved at %d deg: %d\n", fov, n);
   EXPECT_GE(st.solved, 995);
   EXPECT_EQ(st.wrong, 0);
   EXPECT_LE(testing::Median(st.cross_arcsec_166), 1.0);

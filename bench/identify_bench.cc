@@ -1,0 +1,106 @@
+// Lost-in-space solve from centroids (median and 99th percentile over 500 frames), tracking update,
+// catalog build time and index size. Frames: SimulateFrame + Detect at random attitudes, 16.6 deg,
+// 1024x1024, default simulator noise (the detector's centroids, as a real pipeline would see).
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <chrono>
+#include <ctime>
+#include <memory>
+#include <vector>
+
+#include "attitude/star_solver.h"
+#include "core/catalog.h"
+#include "sim/frame_sim.h"
+
+namespace ssiu {
+namespace {
+
+// CPU time of this thread (ms): the machine is shared, so wall time measures the neighbours too.
+double CpuMs() {
+  timespec ts;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
+
+struct Fixture {
+  StarCatalog sky = LoadXplanetBsc(DefaultBscPath(), 7.0);
+  Camera cam = MakeCamera(1024, 1024, 16.6);
+  std::unique_ptr<StarIdentifier> id;
+  std::vector<std::vector<Centroid>> frames;
+  std::vector<Quat> truth;
+  Fixture() {
+    CatalogBuildOptions co;
+    co.fov_deg = 16.6;
+    id = std::make_unique<StarIdentifier>(BuildSolverCatalog(LoadSourceCatalog(DefaultBscPath()), co));
+    FrameSimOptions fo;
+    fo.false_stars = 3;
+    DetectOptions d = SolveOptions{}.detect;
+    d.gain_e_per_adu = fo.gain_e_per_adu;
+    for (int i = 0; i < 500; ++i) {
+      const Quat q = RandomAttitude(777 + i);
+      frames.push_back(CentroidsFromDetections(Detect(SimulateFrame(cam, sky, q, fo, 777 + i).image.view(), d), 1.25));
+      truth.push_back(q);
+    }
+  }
+};
+
+Fixture& F() {
+  static Fixture f;
+  return f;
+}
+
+void BM_LostInSpaceFromCentroids(benchmark::State& state) {
+  Fixture& f = F();
+  SolveOptions so;
+  std::vector<double> ms;
+  size_t i = 0;
+  int solved = 0;
+  for (auto _ : state) {
+    const double t0 = CpuMs();
+    const SolveResult r = SolveCentroids(*f.id, f.frames[i % f.frames.size()], f.cam, so);
+    ms.push_back(CpuMs() - t0);
+    solved += r.status == "solved";
+    benchmark::DoNotOptimize(r);
+    ++i;
+  }
+  std::sort(ms.begin(), ms.end());
+  state.counters["median_cpu_ms"] = ms[ms.size() / 2];
+  state.counters["p99_cpu_ms"] = ms[std::min(ms.size() - 1, ms.size() * 99 / 100)];
+  state.counters["solved_frac"] = static_cast<double>(solved) / ms.size();
+}
+BENCHMARK(BM_LostInSpaceFromCentroids)->Iterations(1000)->Unit(benchmark::kMillisecond);
+
+void BM_TrackingUpdate(benchmark::State& state) {
+  Fixture& f = F();
+  SolveOptions so;
+  const auto& c = f.frames[0];
+  const Identification lis = f.id->Identify(c, f.cam, so.identify);
+  for (auto _ : state) {
+    const Identification r = f.id->MatchWithAttitude(c, f.cam, lis.q_inertial_from_sensor, so.track_search_radius_px, so.identify);
+    benchmark::DoNotOptimize(SolveAttitude(r));
+  }
+}
+BENCHMARK(BM_TrackingUpdate)->Unit(benchmark::kMicrosecond);
+
+void BM_CatalogBuild(benchmark::State& state) {
+  const double fov = state.range(0) / 10.0;
+  const std::string src = DefaultSourceFor(fov);
+  const SourceCatalog s = LoadSourceCatalog(src);
+  size_t bytes = 0, tri = 0;
+  for (auto _ : state) {
+    CatalogBuildOptions co;
+    co.fov_deg = fov;
+    const SolverCatalog c = BuildSolverCatalog(s, co);
+    bytes = c.IndexBytes() + c.stars.size() * (sizeof(StarId) + 3 * sizeof(double));
+    tri = c.triangles.size();
+  }
+  state.counters["index_MB"] = bytes / 1e6;
+  state.counters["triangles"] = static_cast<double>(tri);
+}
+BENCHMARK(BM_CatalogBuild)->Arg(166)->Arg(114)->Arg(61)->Iterations(1)->Unit(benchmark::kSecond);
+
+}  // namespace
+}  // namespace ssiu
+
+BENCHMARK_MAIN();

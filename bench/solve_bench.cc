@@ -1,0 +1,63 @@
+// Whole frame to quaternion: read a 1024x1024 16-bit PNG, detect, identify, QUEST (simulated
+// frames at random attitudes, 16.6 deg FOV).
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <chrono>
+#include <ctime>
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "attitude/star_solver.h"
+#include "core/catalog.h"
+#include "sim/frame_sim.h"
+
+namespace ssiu {
+namespace {
+
+// CPU time of this thread (ms): the machine is shared, so wall time measures the neighbours too.
+double CpuMs() {
+  timespec ts;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
+
+void BM_FrameToQuaternion(benchmark::State& state) {
+  const StarCatalog sky = LoadXplanetBsc(DefaultBscPath(), 7.0);
+  const Camera cam = MakeCamera(1024, 1024, 16.6);
+  CatalogBuildOptions co;
+  co.fov_deg = 16.6;
+  const StarIdentifier id(BuildSolverCatalog(LoadSourceCatalog(DefaultBscPath()), co));
+  std::vector<std::string> files;
+  for (int i = 0; i < 20; ++i) {
+    const std::string p = "/tmp/ssiu_solve_bench_" + std::to_string(i) + ".png";
+    FrameSimOptions fo;
+    WritePng16(p, SimulateFrame(cam, sky, RandomAttitude(900 + i), fo, 900 + i).image);
+    files.push_back(p);
+  }
+  SolveOptions so;
+  so.detect.gain_e_per_adu = 0.5;
+  std::vector<double> ms;
+  int solved = 0;
+  size_t i = 0;
+  for (auto _ : state) {
+    const double t0 = CpuMs();
+    const Frame fr = ReadFrame(files[i++ % files.size()]);
+    const SolveResult r = SolveFrame(id, fr.image.view(), cam, so);
+    ms.push_back(CpuMs() - t0);
+    solved += r.status == "solved";
+  }
+  for (const auto& f : files) std::remove(f.c_str());
+  std::sort(ms.begin(), ms.end());
+  state.counters["median_cpu_ms"] = ms[ms.size() / 2];
+  state.counters["p99_cpu_ms"] = ms[std::min(ms.size() - 1, ms.size() * 99 / 100)];
+  state.counters["solved_frac"] = static_cast<double>(solved) / ms.size();
+}
+BENCHMARK(BM_FrameToQuaternion)->Iterations(100)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace ssiu
+
+BENCHMARK_MAIN();
