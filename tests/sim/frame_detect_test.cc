@@ -227,3 +227,54 @@ TEST(FrameDetect, SimulatorIsDeterministicAndSwitchesEffectsOff) {
 
 }  // namespace
 }  // namespace ssiu
+
+namespace ssiu {
+namespace {
+
+TEST(FrameDetect, ExtendedObjectIsRejectedNotAStar) {
+  // A galaxy- or planet-sized blob (Gaussian, sigma 5 px) added to a default frame.
+  const Camera cam;
+  const FrameSimOptions so;
+  SimulatedFrame f = SimulateFrame(cam, Bsc(), RandomAttitude(21), so, 21);
+  double bx = 300, by = 300;
+  for (int tries = 0; tries < 50; ++tries) {  // a spot with no star within 40 px
+    bool clear = true;
+    for (const auto& s : f.stars) clear = clear && std::hypot(s.x_px - bx, s.y_px - by) > 40;
+    if (clear) break;
+    bx += 97;
+    by += 61;
+    if (bx > 980) bx -= 900;
+    if (by > 980) by -= 900;
+  }
+  const double sigma = 5.0, peak_adu = 3000;
+  for (int y = static_cast<int>(by) - 25; y <= static_cast<int>(by) + 25; ++y) {
+    for (int x = static_cast<int>(bx) - 25; x <= static_cast<int>(bx) + 25; ++x) {
+      const double r2 = (x - bx) * (x - bx) + (y - by) * (y - by);
+      f.image.at(x, y) = static_cast<uint16_t>(std::min(65535.0, f.image.at(x, y) + peak_adu * std::exp(-r2 / (2 * sigma * sigma))));
+    }
+  }
+  const Detections d = DetectSim(f, so);
+  for (const auto& s : d.stars) EXPECT_GT(std::hypot(s.x_px - bx, s.y_px - by), 10) << "star on the extended object";
+  bool rejected = false;
+  for (const auto& r : d.rejected) {
+    rejected = rejected || (r.reason == RejectReason::kExtended && std::hypot(r.x_px - bx, r.y_px - by) < 5);
+  }
+  EXPECT_TRUE(rejected);
+}
+
+TEST(FrameDetect, DefocusedStarsAreStillFoundAndCentred) {
+  const Camera cam;
+  FrameSimOptions so;
+  so.defocus_radius_px = 2.0;
+  so.mag_max = 6.5;
+  const SimulatedFrame f = SimulateFrame(cam, Bsc(), RandomAttitude(33), so, 33);
+  const Detections d = DetectSim(f, so);
+  const DetectionScore sc = ScoreDetections(f, d, 1.0);
+  ASSERT_GT(sc.true_stars_snr10, 10);
+  EXPECT_GE(double(sc.found_snr10) / sc.true_stars_snr10, 0.95);
+  EXPECT_LT(sc.centroid_rms_px, 0.15);
+  EXPECT_GT(d.psf_sigma_px, 1.5);  // the wider PSF is seen
+}
+
+}  // namespace
+}  // namespace ssiu
