@@ -508,6 +508,7 @@ void WriteAllanPlot(const std::string& path, const AllanCurve& c, const NoiseFit
   o.title = title;
   o.x_label = "tau [s]";
   o.y_label = "Allan deviation [deg/h]";
+  o.legend_bottom_left = true;
   // Keep the term lines from stretching the axes far below the data.
   double lo = 1e300;
   for (double v : data.y) {

@@ -221,15 +221,23 @@ void WritePlotPng(const std::string& path, const std::vector<PlotSeries>& series
       rotated.copyTo(img(cv::Rect(4, y0, rotated.cols, rotated.rows)));
     }
   }
-  // Legend, top right inside the plot area.
+  // Legend inside the plot area, top right or bottom left.
+  int entries = 0, widest = 0;
+  for (const auto& s : series) {
+    if (s.label.empty()) continue;
+    int base = 0;
+    widest = std::max(widest, cv::getTextSize(s.label, font, 0.45, 1, &base).width);
+    ++entries;
+  }
   int row = 0;
   for (const auto& s : series) {
     if (s.label.empty()) continue;
     int base = 0;
     const cv::Size sz = cv::getTextSize(s.label, font, 0.45, 1, &base);
-    const int y = f.top + 18 + 18 * row++;
-    const int x = f.right - sz.width - 45;
-    cv::rectangle(img, {x - 34, y - 13}, {f.right - 4, y + 5}, cv::Scalar(255, 255, 255), cv::FILLED);
+    const int y = o.legend_bottom_left ? f.bottom - 10 - 18 * (entries - 1 - row++) : f.top + 18 + 18 * row++;
+    const int x = o.legend_bottom_left ? f.left + 45 : f.right - sz.width - 45;
+    const int x_end = o.legend_bottom_left ? f.left + 45 + widest + 6 : f.right - 4;
+    cv::rectangle(img, {x - 34, y - 13}, {x_end, y + 5}, cv::Scalar(255, 255, 255), cv::FILLED);
     cv::line(img, {x - 30, y - 4}, {x - 6, y - 4}, Bgr(s.color), 2, cv::LINE_AA);
     cv::putText(img, s.label, {x, y}, font, 0.45, black, 1, cv::LINE_AA);
   }

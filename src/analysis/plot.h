@@ -30,6 +30,7 @@ struct PlotOptions {
   bool log_x = false;
   bool log_y = false;
   std::string title, x_label, y_label;
+  bool legend_bottom_left = false;  // default top right; bottom left suits falling curves (ADEV)
   void Check() const;  // std::invalid_argument on a bad value
 };
 
