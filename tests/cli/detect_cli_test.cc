@@ -150,6 +150,17 @@ TEST_F(CliTest, BadCameraFilesExitOneNamingTheField) {
   ExpectBadInput("simulate frame --random --psf-sigma-px -1 --out " + Path("o"), "psf_sigma_px", "");
 }
 
+TEST_F(CliTest, DemoSolvesItsFrameAgainstTheTruth) {
+  // The README's main job: simulate, detect, solve lost-in-space, compare with the truth.
+  const Result r = Ssiu("demo --seed 5 --json " + Path("demo.json"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  const Json j = ReadJsonFile(Path("demo.json"));
+  EXPECT_EQ(j["status"], "solved");
+  EXPECT_LT(j["error_cross_arcsec"].get<double>(), 5.0);
+  EXPECT_LT(std::abs(j["error_roll_arcsec"].get<double>()), 60.0);
+  EXPECT_GE(j["recall_snr10"].get<double>(), 0.95);
+}
+
 TEST_F(CliTest, UsageErrorsExitOne) {
   EXPECT_EQ(Ssiu("detect").status, 1);
   EXPECT_EQ(Ssiu("no-such-command").status, 1);
