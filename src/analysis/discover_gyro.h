@@ -1,0 +1,89 @@
+// Model discrepancy of single-axis gyro bench logs (`ssiu discover gyro`, docs/discrepancy.md):
+// start from the base model (a constant bias per log + white noise + slow bounded wander), test each
+// candidate cause of the fixed vocabulary (conventions.md) against it, name the best significant one
+// or `none`, fit it and measure the gain on data the fit did not see.
+//
+// Method:
+//  1. Each log t_s,w_dph,ref_dph,temp_c[,azimuth_deg] is averaged into at most max_bins_per_log bins;
+//     the drift is y = w - ref. Regressors per bin (linear, so bin means are exact):
+//       temperature K10, K20 (Z1, Z1^2), temperature_gradient K01 (Z2), with T and dT/dt from the
+//       local-polynomial estimate of fog_thermal.h; magnetic_field S sin(psi + phi) as
+//       (sin psi, cos psi); misalignment delta * d(ref)/d(psi) (a fixed-phase harmonic, nested in
+//       the magnetic one); scale_factor ref * 1e-6 (ppm); time_delay -d(ref)/dt (seconds).
+//  2. The noise of the full model (every applicable regressor) is fitted as white + first-order
+//     Gauss-Markov (ARMA(1,1) autocovariance, as in fog_thermal) and the data are whitened exactly
+//     (GLS) by the innovations of its Kalman filter. Correlation left in the whitened residuals
+//     shrinks the sample size to n_eff = n / f (Bartlett-weighted integrated autocorrelation).
+//  3. Each candidate: Wald chi^2 of its terms against the base model (q <= 2 dof), scaled by f;
+//     `bias` (a step in the bias) is located by a scan and its p-value Bonferroni-corrected for the
+//     scanned positions;
+//     A candidate is significant when p < alpha / (number of candidates tested).
+//     rate_random_walk is the likelihood ratio of the base noise model plus a random walk of the
+//     bias against the base noise model, both fitted by maximum likelihood (Kalman filter).
+//  4. Among the significant candidates the lowest exact-likelihood BIC wins (noise model refitted
+//     by maximum likelihood on the residual of each), so that steps, walks and slow regressors
+//     compete on the same footing.
+//  5. Gain: each log is cut into cv_blocks blocks; the model is fitted on the even blocks and scored
+//     on the odd ones and vice versa (bin RMS of the drift after a bias-only fit / after the cause).
+//     For rate_random_walk: one-step prediction of the bins of the second half of each log by a
+//     constant bias vs an exponentially smoothed level tuned on the first half.
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "analysis/fog_thermal.h"
+#include "core/json.h"
+
+namespace ssiu {
+
+struct GyroBenchLog {
+  std::string file;
+  std::vector<double> t_s, w_dph, ref_dph, temp_c, azimuth_deg;  // azimuth empty when absent
+};
+
+// Reads t_s,w_dph,ref_dph,temp_c[,azimuth_deg]. InputError on a missing column, a non-number,
+// unsorted time or fewer than 50 rows.
+GyroBenchLog ReadGyroBenchLog(const std::string& path);
+void CheckGyroBenchLog(const GyroBenchLog& log);
+
+struct GyroDiscoverOptions {
+  double alpha = 0.01;           // family-wise false-alarm probability over all candidates
+  int max_bins_per_log = 1000;   // bin width = max(sample interval, duration / this)
+  TemperatureRateOptions rate;   // T and dT/dt estimation
+  int max_noise_lag = 30;        // bins used for the noise model and the effective sample size
+  double wander_tau_max_s = 1800;  // the base model's wander is bounded with correlation time <= this
+  int cv_blocks = 32;            // per log, for the cross-validated gain
+  void Check() const;
+};
+
+struct GyroCandidate {
+  std::string cause;
+  double statistic = 0;   // Wald chi^2 (deterministic, bias) or likelihood ratio (rate_random_walk)
+  double p_value = 1;
+  double delta_bic = 0;   // BIC(base) - BIC(base + cause) under the GLS whitening; > 0 favours the cause
+  double bic = 0;         // exact-likelihood BIC (noise refitted), significant candidates only; lowest wins
+  int dof = 0;
+  bool applicable = true;  // false when the logs cannot show it (e.g. no azimuth column)
+  bool significant = false;
+};
+
+struct GyroDiscovery {
+  std::string cause = "none";
+  std::map<std::string, double> parameters;  // names of the FOG calibration issue (K10_dph, amplitude_dph, ...)
+  std::map<std::string, double> sigmas;      // 1-sigma of each parameter (same keys)
+  double rms_before_dph = 0, rms_after_dph = 0, gain = 1;  // cross-validated, held-out bins
+  std::vector<GyroCandidate> candidates;
+  // Evidence: noise model and sample sizes.
+  int n_bins = 0;
+  double n_eff = 0, variance_inflation = 1;
+  double noise_white_dph = 0, noise_wander_dph = 0, noise_wander_tau_s = 0;
+  double alpha_per_candidate = 0;
+};
+
+GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDiscoverOptions& options);
+
+Json GyroDiscoveryToJson(const GyroDiscovery& d);
+
+}  // namespace ssiu

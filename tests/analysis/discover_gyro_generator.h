@@ -1,0 +1,171 @@
+// Test generator for `ssiu discover gyro`: one case = a 12 h static turntable run at 0.1 Hz (temperature
+// programme, azimuth turns every 45 min, Earth rate at 50 deg latitude) and a 20 min rate-table run at
+// 100 Hz (rate steps and oscillations), both with the base noise (bias, white noise, Gauss-Markov
+// wander), plus at most one hidden cause at a realistic strength. Written for the tests; it shares no
+// code with the library under test (the truth is computed analytically here).
+#pragma once
+
+#include <cmath>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "analysis/discover_gyro.h"
+#include "core/rng.h"
+#include "core/types.h"
+
+namespace ssiu::testing {
+
+struct GyroCase {
+  std::string cause = "none";
+  std::map<std::string, double> truth;  // parameter values under the library's names
+  std::vector<GyroBenchLog> logs;
+};
+
+inline const std::vector<std::string>& GyroCauses() {
+  static const std::vector<std::string> k = {"none",         "temperature",  "temperature_gradient",
+                                             "magnetic_field", "misalignment", "scale_factor",
+                                             "time_delay",   "bias",         "rate_random_walk"};
+  return k;
+}
+
+// Gauss-Markov wander + white noise sampler.
+struct BaseNoise {
+  double white_dph, gm_dph, gm_tau_s, rrw_dph_per_sqrt_s = 0;
+  double x = 0, walk = 0;
+  bool started = false;
+  double Next(Rng& rng, double dt) {
+    if (!started) {
+      x = gm_dph * rng.Normal();
+      started = true;
+    } else {
+      const double phi = std::exp(-dt / gm_tau_s);
+      x = phi * x + gm_dph * std::sqrt(1 - phi * phi) * rng.Normal();
+      walk += rrw_dph_per_sqrt_s * std::sqrt(dt) * rng.Normal();
+    }
+    return x + walk + white_dph * rng.Normal();
+  }
+};
+
+inline double RandomSign(Rng& rng) { return rng.Uniform() < 0.5 ? -1.0 : 1.0; }
+
+inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
+  Rng rng(seed);
+  GyroCase c;
+  c.cause = cause;
+  const double lat = 50.0 * kDegToRad;
+  const double earth_dph = 15.041067;
+  const double omega_h = earth_dph * std::cos(lat), omega_v = earth_dph * std::sin(lat);
+  // Base noise: ARW ~0.005 deg/sqrt(h) = 0.3 dph sqrt(s) -> per-sample sigma 0.3 / sqrt(dt).
+  const double arw = rng.Uniform(0.2, 0.4);  // dph sqrt(s)
+  const double gm = rng.Uniform(0.003, 0.008), gm_tau = rng.Uniform(300, 1500);
+  const double bias = rng.Uniform(-0.5, 0.5);
+  // Hidden-cause strengths.
+  double k10 = 0, k20 = 0, k01 = 0, mag_amp = 0, mag_phase = 0, mis_rad = 0, sf_ppm = 0, delay_s = 0;
+  double step = 0, step_t = 0, rrw = 0;
+  if (cause == "temperature") {
+    k10 = RandomSign(rng) * rng.Uniform(0.02, 0.06);
+    k20 = RandomSign(rng) * rng.Uniform(0.0, 0.03);
+    c.truth = {{"K10_dph", k10}, {"K20_dph", k20}};
+  } else if (cause == "temperature_gradient") {
+    k01 = RandomSign(rng) * rng.Uniform(0.015, 0.04);
+    c.truth = {{"K01_dph", k01}};
+  } else if (cause == "magnetic_field") {
+    mag_amp = rng.Uniform(0.01, 0.03);
+    mag_phase = rng.Uniform(-kPi, kPi);
+    c.truth = {{"amplitude_dph", mag_amp}, {"phase_deg", mag_phase * kRadToDeg}};
+  } else if (cause == "misalignment") {
+    mis_rad = RandomSign(rng) * rng.Uniform(300, 900) * kArcsecToRad;
+    c.truth = {{"misalignment_arcsec", mis_rad * kRadToArcsec}};
+  } else if (cause == "scale_factor") {
+    sf_ppm = RandomSign(rng) * rng.Uniform(20, 200);
+    c.truth = {{"scale_factor_ppm", sf_ppm}};
+  } else if (cause == "time_delay") {
+    delay_s = rng.Uniform(0.5e-3, 3e-3);
+    c.truth = {{"delay_s", delay_s}};
+  } else if (cause == "bias") {
+    step = RandomSign(rng) * rng.Uniform(0.03, 0.06);
+    step_t = rng.Uniform(0.2, 0.8) * 43200;
+    c.truth = {{"step_dph", step}, {"step_time_s", step_t}};
+  } else if (cause == "rate_random_walk") {
+    rrw = rng.Uniform(0.05, 0.1);  // dph / sqrt(h)
+    c.truth = {{"K_dph_per_sqrt_h", rrw}};
+  }
+
+  // Static turntable run.
+  {
+    GyroBenchLog log;
+    log.file = "static.csv";
+    const double dt = 10.0;
+    BaseNoise noise{arw / std::sqrt(dt), gm, gm_tau, rrw / 60.0};
+    const double t_ramp1 = rng.Uniform(3000, 6000), rate1 = rng.Uniform(0.1, 0.25);  // C/min
+    const double hold = rng.Uniform(3000, 7000), rate2 = -rng.Uniform(0.08, 0.2);
+    const double psi0 = rng.Uniform(0, 360);
+    for (int k = 0; k * dt < 43200; ++k) {
+      const double t = k * dt;
+      // Temperature programme: 20 C, ramp up, hold, ramp down, hold.
+      double temp = 20, g = 0;
+      if (t < t_ramp1) {
+        temp = 20 + rate1 * t / 60, g = rate1;
+      } else if (t < t_ramp1 + hold) {
+        temp = 20 + rate1 * t_ramp1 / 60;
+      } else {
+        const double top = 20 + rate1 * t_ramp1 / 60;
+        const double t2 = t - t_ramp1 - hold;
+        const double dur2 = (top - 18) / -rate2 * 60;
+        temp = t2 < dur2 ? top + rate2 * t2 / 60 : 18;
+        g = t2 < dur2 ? rate2 : 0;
+      }
+      const double psi = std::fmod(psi0 + 45.0 * std::floor(t / 2700), 360.0) * kDegToRad;
+      const double ref = omega_h * std::cos(psi) + omega_v * 0;  // sensing axis horizontal
+      const double z1 = (temp - 20) / 10, z2 = g / 0.25;
+      double w = ref + bias + k10 * z1 + k20 * z1 * z1 + k01 * z2 + mag_amp * std::sin(psi + mag_phase);
+      w += omega_h * (std::cos(psi + mis_rad) - std::cos(psi));
+      if (step != 0 && t >= step_t) w += step;
+      w += noise.Next(rng, dt);
+      log.t_s.push_back(t);
+      log.w_dph.push_back(w);
+      log.ref_dph.push_back(ref);
+      log.temp_c.push_back(temp + 0.02 * rng.Normal());
+      log.azimuth_deg.push_back(psi * kRadToDeg);
+    }
+    c.logs.push_back(std::move(log));
+  }
+  // Rate-table run: 100 Hz, 20 min, rate steps of a few deg/s with smooth 1 s edges and a sine.
+  {
+    GyroBenchLog log;
+    log.file = "ratetable.csv";
+    const double dt = 0.01;
+    BaseNoise noise{arw / std::sqrt(dt), gm, gm_tau, 0.0};
+    std::vector<double> levels;
+    for (int i = 0; i < 10; ++i) levels.push_back(rng.Uniform(-20, 20) * 3600);  // dph
+    const double sine_amp = rng.Uniform(2, 10) * 3600, sine_period = 120.0 / std::floor(rng.Uniform(6, 15));
+    // Even 2-min segments: a smooth 1 s step between levels; odd ones: a whole number of sine
+    // periods on top of the level (the rate is continuous).
+    auto level = [&](int seg) { return seg < 0 ? 0.0 : levels[(seg / 2) % 10]; };
+    auto rate = [&](double t) {
+      const int seg = static_cast<int>(t / 120);
+      const double ts = t - seg * 120;
+      if (seg % 2 == 1) return level(seg - 1) + sine_amp * std::sin(2 * kPi * ts / sine_period);
+      const double prev = level(seg - 2), cur = level(seg);
+      const double u = std::min(1.0, ts / 1.0);
+      return prev + (cur - prev) * (3 * u * u - 2 * u * u * u);
+    };
+    const double temp = rng.Uniform(22, 26);
+    for (int k = 0; k * dt < 1200; ++k) {
+      const double t = k * dt;
+      const double ref = rate(t) + omega_v;  // axis vertical on the table
+      const double z1 = (temp - 20) / 10;
+      double w = rate(t - delay_s) + omega_v;
+      w += bias + k10 * z1 + k20 * z1 * z1 + sf_ppm * 1e-6 * ref + noise.Next(rng, dt);
+      log.t_s.push_back(t);
+      log.w_dph.push_back(w);
+      log.ref_dph.push_back(ref);
+      log.temp_c.push_back(temp + 0.02 * rng.Normal());
+    }
+    c.logs.push_back(std::move(log));
+  }
+  return c;
+}
+
+}  // namespace ssiu::testing
