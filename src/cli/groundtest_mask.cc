@@ -45,7 +45,9 @@ SSIU_REGISTER_COMMAND(groundtest_mask, [](CLI::App& root) {
     std::error_code ec;
     std::filesystem::create_directories(o->out, ec);
     if (ec) throw InputError(o->out, "cannot create the output directory");
-    SaveMask(m, o->out + "/mask.json");
+    Json j = MaskToJson(m);
+    j["png_dpi"] = o->dpi;  // mask.png's scale (PNG carries no DPI tag here)
+    WriteJsonFile(o->out + "/mask.json", j);
     WriteMaskSvg(m, o->out + "/mask.svg");
     WriteMaskPng(m, o->out + "/mask.png", o->dpi);
     std::cerr << "mask: " << m.holes.size() << " holes (" << m.clamped_holes << " clamped at " << m.hole_max_diameter_mm

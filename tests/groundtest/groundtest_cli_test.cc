@@ -1,0 +1,90 @@
+// `ssiu groundtest mask | simulate | reference | compare` end to end, and bad input -> exit 1.
+#include <algorithm>
+#include <fstream>
+
+#include "core/csv.h"
+#include "core/json.h"
+#include "core/types.h"
+#include "testing/testing.h"
+
+namespace ssiu {
+namespace {
+
+class GroundtestCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = testing::TempDir("groundtest_cli");
+    std::ofstream(dir_ + "/cam.json") << R"({"width": 1024, "height": 1024, "focal_length_px": 3510.0})";
+    std::ofstream(dir_ + "/other.json") << R"({"width": 1024, "height": 1024, "focal_length_px": 2500.0})";
+    ASSERT_EQ(Ssiu("groundtest mask --camera " + dir_ + "/cam.json --collimator-focal-mm 500 --ra-deg 83.8 --dec-deg -1 "
+                   "--roll-deg 20 --dpi 100 --out " + dir_ + "/mask --catalog " + dir_ + "/cat"),
+              0)
+        << out_;
+  }
+  int Ssiu(const std::string& args) { return testing::Run(testing::SsiuProgram() + " " + args, &out_); }
+  std::string dir_, out_;
+};
+
+TEST_F(GroundtestCli, MaskSimulateReferenceCompareRecoverTheMisalignment) {
+  const Json mask = ReadJsonFile(dir_ + "/mask/mask.json");
+  EXPECT_GT(mask["holes"].size(), 50u);
+  EXPECT_EQ(mask["tags"].size(), 8u);
+  EXPECT_EQ(mask["tag_family"], "tag36h11");
+  EXPECT_DOUBLE_EQ(mask["png_dpi"].get<double>(), 100.0);
+  std::ifstream svg(dir_ + "/mask/mask.svg");
+  EXPECT_TRUE(svg.good());
+  const std::string sim = dir_ + "/sim";
+  ASSERT_EQ(Ssiu("groundtest simulate --mask " + dir_ + "/mask/mask.json --camera " + dir_ +
+                 "/cam.json --positions 4 --misalignment-arcmin 2,-3,5 --seed 4 --solve --catalog " + dir_ + "/cat --out " + sim),
+            0)
+      << out_;
+  ASSERT_EQ(Ssiu("groundtest reference --mask " + dir_ + "/mask/mask.json --encoders " + sim + "/encoders.csv --photos " + sim +
+                 "/photo_000.png " + sim + "/photo_001.png " + sim + "/photo_002.png " + sim + "/photo_003.png --aux-camera " +
+                 sim + "/aux_camera.json --out " + dir_ + "/ref.csv"),
+            0)
+      << out_;
+  ASSERT_EQ(Ssiu("groundtest compare --reference " + dir_ + "/ref.csv --computed " + sim + "/computed.csv --json " + dir_ +
+                 "/cmp.json --plot " + dir_ + "/plots --requirement-arcsec 6"),
+            0)
+      << out_;
+  const Json c = ReadJsonFile(dir_ + "/cmp.json");
+  EXPECT_EQ(c["pictures"], 4);
+  const double truth[3] = {120, -180, 300};
+  for (int k = 0; k < 3; ++k)
+    EXPECT_NEAR(c["misalignment_arcsec"][k].get<double>(), truth[k], 3 * c["misalignment_sigma_arcsec"][k].get<double>())
+        << "axis " << k;
+  EXPECT_TRUE(c["pass"].get<bool>()) << c["verdict"];
+  std::ifstream plot(dir_ + "/plots/errors.png");
+  EXPECT_TRUE(plot.good());
+}
+
+TEST_F(GroundtestCli, BadInputExitsOneWithAReason) {
+  const std::string m = dir_ + "/mask/mask.json";
+  // A mask designed for another camera.
+  EXPECT_EQ(Ssiu("groundtest simulate --mask " + m + " --camera " + dir_ + "/other.json --positions 1 --out " + dir_ + "/x"), 1);
+  EXPECT_THAT(out_, ::testing::HasSubstr("designed for another camera"));
+  // No fiducials on the photo; then the wrong family.
+  ASSERT_EQ(Ssiu("groundtest simulate --mask " + m + " --positions 1 --photo-hide-tags --out " + dir_ + "/blank"), 0) << out_;
+  EXPECT_EQ(Ssiu("groundtest reference --mask " + m + " --photos " + dir_ + "/blank/photo_000.png --aux-camera " + dir_ +
+                 "/blank/aux_camera.json --out " + dir_ + "/r.csv"),
+            1);
+  EXPECT_THAT(out_, ::testing::HasSubstr("no tag36h11 fiducials visible"));
+  EXPECT_EQ(std::count(out_.begin(), out_.end(), '\n'), 1) << out_;
+  ASSERT_EQ(Ssiu("groundtest simulate --mask " + m + " --positions 1 --photo-tag-family tag25h9 --out " + dir_ + "/fam"), 0) << out_;
+  EXPECT_EQ(Ssiu("groundtest reference --mask " + m + " --photos " + dir_ + "/fam/photo_000.png --aux-camera " + dir_ +
+                 "/fam/aux_camera.json --out " + dir_ + "/r.csv"),
+            1);
+  EXPECT_THAT(out_, ::testing::HasSubstr("wrong tag family"));
+  // Compare: a tracker log without a quaternion column.
+  std::ofstream(dir_ + "/bad.csv") << "t_s,qw,qx,qy\n0,1,0,0\n1,1,0,0\n";
+  std::ofstream(dir_ + "/ok.csv") << "t_s,qw,qx,qy,qz\n0,1,0,0,0\n1,1,0,0,0\n";
+  EXPECT_EQ(Ssiu("groundtest compare --reference " + dir_ + "/ok.csv --computed " + dir_ + "/bad.csv"), 1);
+  EXPECT_THAT(out_, ::testing::HasSubstr("qz"));
+  // Encoders with a NaN.
+  std::ofstream(dir_ + "/enc.csv") << "t_s,az_deg,el_deg,rot_deg\n0,0,0,0\n1,nan,0,0\n";
+  EXPECT_EQ(Ssiu("groundtest reference --mask " + m + " --encoders " + dir_ + "/enc.csv --out " + dir_ + "/r.csv"), 1);
+  EXPECT_THAT(out_, ::testing::HasSubstr("az_deg"));
+}
+
+}  // namespace
+}  // namespace ssiu
