@@ -139,6 +139,34 @@ PlatePoseEstimate EstimatePlatePose(const Mask& m, const AuxCamera& aux, const u
     G.col(k) = RotationVector(q2 * e.q_c_from_m.conjugate()) / h;
   }
   e.q_c_from_m_cov_rad2 = G * e.covariance * G.transpose();
+  // The formal covariance treats the corners as independent; a tag's four corners share its edge
+  // fits, so their errors are correlated. A leave-one-tag-out jackknife (Efron & Stein 1981) sees
+  // that; each axis takes the larger of the two variances, keeping the formal correlations.
+  const int nt = static_cast<int>(e.tag_ids.size());
+  if (nt >= 3) {
+    std::vector<Vec3> d;
+    for (int leave = 0; leave < nt; ++leave) {
+      std::vector<cv::Point3d> o2;
+      std::vector<cv::Point2d> i2;
+      for (int k = 0; k < static_cast<int>(obj.size()); ++k)
+        if (k / 4 != leave) o2.push_back(obj[k]), i2.push_back(img[k]);
+      cv::Mat r2 = rvec.clone(), t2 = tvec.clone();
+      cv::solvePnPRefineLM(o2, i2, K, dist, r2, t2);
+      const Vec3 rv2(r2.at<double>(0), r2.at<double>(1), r2.at<double>(2));
+      const Vec3 tv2(t2.at<double>(0), t2.at<double>(1), t2.at<double>(2));
+      d.push_back(RotationVector(MaskRotation(m, PoseInC(aux, FromRvec(rv2), tv2)) * e.q_c_from_m.conjugate()));
+    }
+    Vec3 mean = Vec3::Zero();
+    for (const auto& v : d) mean += v / nt;
+    Mat3 jack = Mat3::Zero();
+    for (const auto& v : d) jack += (v - mean) * (v - mean).transpose();
+    jack *= (nt - 1.0) / nt;
+    e.jackknife_cov_rad2 = jack;
+    Vec3 scale;
+    for (int k = 0; k < 3; ++k)
+      scale(k) = std::sqrt(std::max(1.0, jack(k, k) / std::max(1e-30, e.q_c_from_m_cov_rad2(k, k))));
+    e.q_c_from_m_cov_rad2 = scale.asDiagonal() * e.q_c_from_m_cov_rad2 * scale.asDiagonal();
+  }
   return e;
 }
 

@@ -8,7 +8,8 @@
 // solvePnP gives the plate pose in the auxiliary camera, the camera's calibrated pose in C gives it
 // in C. Its covariance is sigma^2 (J^T J)^-1 (J: reprojection Jacobian of the 6 pose parameters),
 // with the corner noise sigma estimated from the PnP residuals (RSS / (2N - 6)), propagated to the
-// mask rotation numerically. Encoder noise adds sigma_enc^2 per axis (small-angle approximation).
+// mask rotation numerically; per axis it is raised to a leave-one-tag-out jackknife variance where
+// that is larger (corners of one tag have correlated errors). Encoder noise adds sigma_enc^2 per axis (small-angle approximation).
 #pragma once
 
 #include <array>
@@ -49,7 +50,8 @@ struct PlatePoseEstimate {
   double corner_sigma_px = 0;                  // from the residuals
   double rms_reprojection_px = 0;
   Quat q_c_from_m = Quat::Identity();
-  Mat3 q_c_from_m_cov_rad2 = Mat3::Zero();     // of its rotation vector, C frame
+  Mat3 q_c_from_m_cov_rad2 = Mat3::Zero();     // of its rotation vector, C frame (formal, or larger jackknife)
+  Mat3 jackknife_cov_rad2 = Mat3::Zero();      // leave-one-tag-out estimate (3 or more tags)
 };
 
 // Throws InputError naming `photo_name` when no tag of the mask's family is visible (naming another
