@@ -716,6 +716,17 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
     c.bic = bic;
     if (bic < chosen_bic) chosen_bic = bic, chosen = &c;
   }
+  // misalignment is nested in magnetic_field (a harmonic of fixed phase): the free phase is kept
+  // when its extra term is itself significant (chi^2_1 at alpha, a follow-up test).
+  if (chosen && chosen->cause == "misalignment") {
+    for (const auto& c : res.candidates) {
+      if (c.cause == "magnetic_field" && c.significant &&
+          ChiSquaredSurvival(c.statistic - chosen->statistic, 1) < o.alpha) {
+        chosen = &c;
+        break;
+      }
+    }
+  }
   if (!chosen) {
     res.cause = "none";
     CrossValidate(d, log_var, d.base, o.cv_blocks, &res.rms_before_dph, &res.rms_after_dph);

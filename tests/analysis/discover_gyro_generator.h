@@ -68,7 +68,7 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
     k20 = RandomSign(rng) * rng.Uniform(0.0, 0.03);
     c.truth = {{"K10_dph", k10}, {"K20_dph", k20}};
   } else if (cause == "temperature_gradient") {
-    k01 = RandomSign(rng) * rng.Uniform(0.015, 0.04);
+    k01 = RandomSign(rng) * rng.Uniform(0.02, 0.04);
     c.truth = {{"K01_dph", k01}};
   } else if (cause == "magnetic_field") {
     mag_amp = rng.Uniform(0.01, 0.03);
@@ -98,7 +98,9 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
     log.file = "static.csv";
     const double dt = 10.0;
     BaseNoise noise{arw / std::sqrt(dt), gm, gm_tau, rrw / 60.0};
-    const double t_ramp1 = rng.Uniform(3000, 6000), rate1 = rng.Uniform(0.1, 0.25);  // C/min
+    // A thermal test programme: 20 C, a ramp of 0.15-0.25 C/min for 60-100 min (9-25 C), a hold,
+    // back down to 18 C at 0.08-0.2 C/min.
+    const double t_ramp1 = rng.Uniform(3600, 6000), rate1 = rng.Uniform(0.15, 0.25);  // C/min
     const double hold = rng.Uniform(3000, 7000), rate2 = -rng.Uniform(0.08, 0.2);
     const double psi0 = rng.Uniform(0, 360);
     for (int k = 0; k * dt < 43200; ++k) {
