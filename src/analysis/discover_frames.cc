@@ -1,0 +1,428 @@
+#include "analysis/discover_frames.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "core/error.h"
+#include "core/types.h"
+
+namespace ssiu {
+namespace {
+
+using Eigen::MatrixXd;
+using Eigen::VectorXd;
+
+// Camera parameter blocks: 0 focal_length (df), 1-2 principal_point (dcx, dcy), 3 lens_distortion (dk1).
+constexpr int kCam = 4;
+
+Camera Apply(const Camera& c0, const double* cam) {
+  Camera c = c0;
+  c.focal_length_px += cam[0];
+  c.cx_px += cam[1];
+  c.cy_px += cam[2];
+  c.distortion.k1 += cam[3];
+  return c;
+}
+
+Quat Perturbed(const Quat& q, const double* d) {
+  // q * exp(d/2): a small rotation in the sensor frame.
+  Quat dq(1, d[0] / 2, d[1] / 2, d[2] / 2);
+  dq.normalize();
+  return (q * dq).normalized();
+}
+
+struct GeoFit {
+  std::vector<double> rot;        // 3 per frame
+  double cam[kCam] = {0, 0, 0, 0};
+  double rss = 0;                 // weighted
+  MatrixXd cov_cam;               // unscaled covariance of the active camera parameters
+  VectorXd res;                   // 2 per star (px)
+};
+
+// Predicted pixel of star s (nullopt-free: behind the camera gives a huge residual).
+Vec2 Predict(const Camera& c, const Quat& q, const FrameStar& s) {
+  const Vec3 v = q.conjugate() * s.r_inertial;
+  const auto p = c.Project(v);
+  return p ? *p : Vec2(1e6, 1e6);
+}
+
+// Gauss-Newton over the per-frame rotations of `frames` (others ignored) and the active camera
+// parameters (mask), numerical Jacobian. fixed_cam: start (and, when mask is empty, held) values.
+GeoFit FitGeometry(const SolvedFrameSet& set, const Camera& cam0, const std::vector<bool>& use_frame,
+                   const std::array<bool, kCam>& mask, const double* fixed_cam, const FrameDiscoverOptions& o) {
+  const int nf = static_cast<int>(set.q.size());
+  GeoFit g;
+  g.rot.assign(3 * nf, 0.0);
+  for (int k = 0; k < kCam; ++k) g.cam[k] = fixed_cam ? fixed_cam[k] : 0.0;
+  std::vector<int> rows;
+  for (int i = 0; i < static_cast<int>(set.stars.size()); ++i) {
+    if (use_frame[set.stars[i].frame]) rows.push_back(i);
+  }
+  std::vector<int> cam_idx;
+  for (int k = 0; k < kCam; ++k) {
+    if (mask[k]) cam_idx.push_back(k);
+  }
+  std::vector<int> frame_col(nf, -1);
+  int np = 0;
+  for (int f = 0; f < nf; ++f) {
+    if (use_frame[f]) frame_col[f] = np, np += 3;
+  }
+  const int ncam0 = np;
+  np += static_cast<int>(cam_idx.size());
+  const int nr = 2 * static_cast<int>(rows.size());
+  auto residuals = [&](const GeoFit& st, VectorXd* r) {
+    const Camera c = Apply(cam0, st.cam);
+    r->resize(nr);
+    for (size_t k = 0; k < rows.size(); ++k) {
+      const FrameStar& s = set.stars[rows[k]];
+      const Vec2 p = Predict(c, Perturbed(set.q[s.frame], &st.rot[3 * s.frame]), s);
+      const double w = 1 / std::max(s.sigma_px, o.min_sigma_px);
+      (*r)(2 * k) = (s.x_px - p.x()) * w;
+      (*r)(2 * k + 1) = (s.y_px - p.y()) * w;
+    }
+  };
+  VectorXd r;
+  MatrixXd jtj;
+  for (int it = 0; it < o.iterations; ++it) {
+    residuals(g, &r);
+    MatrixXd j = MatrixXd::Zero(nr, np);
+    const double h_rot = 1e-7;
+    const double h_cam[kCam] = {1e-3, 1e-3, 1e-3, 1e-7};
+    for (int f = 0; f < nf; ++f) {
+      if (frame_col[f] < 0) continue;
+      for (int a = 0; a < 3; ++a) {
+        GeoFit t = g;
+        t.rot[3 * f + a] += h_rot;
+        VectorXd r2;
+        residuals(t, &r2);
+        j.col(frame_col[f] + a) = (r2 - r) / h_rot;
+      }
+    }
+    for (size_t k = 0; k < cam_idx.size(); ++k) {
+      GeoFit t = g;
+      t.cam[cam_idx[k]] += h_cam[cam_idx[k]];
+      VectorXd r2;
+      residuals(t, &r2);
+      j.col(ncam0 + k) = (r2 - r) / h_cam[cam_idx[k]];
+    }
+    // r = measured - model: d r / d p = -d model / d p, so the step is -(J^T J)^-1 J^T r.
+    jtj = j.transpose() * j;
+    const VectorXd step = -jtj.ldlt().solve(j.transpose() * r);
+    if (!step.allFinite()) break;
+    for (int f = 0; f < nf; ++f) {
+      if (frame_col[f] < 0) continue;
+      for (int a = 0; a < 3; ++a) g.rot[3 * f + a] += step(frame_col[f] + a);
+    }
+    for (size_t k = 0; k < cam_idx.size(); ++k) g.cam[cam_idx[k]] += step(ncam0 + k);
+    if (step.cwiseAbs().maxCoeff() < 1e-12) break;
+  }
+  residuals(g, &r);
+  g.rss = r.squaredNorm();
+  g.res = r;
+  if (!cam_idx.empty() && jtj.rows() == np) {
+    const MatrixXd inv = jtj.ldlt().solve(MatrixXd::Identity(np, np));
+    g.cov_cam = inv.bottomRightCorner(cam_idx.size(), cam_idx.size());
+  }
+  return g;
+}
+
+double ChiSq1or2Survival(double w, int dof) {
+  if (w <= 0) return 1.0;
+  return dof == 1 ? std::erfc(std::sqrt(w / 2)) : std::exp(-w / 2);
+}
+
+// Unweighted pixel residual RMS of the stars of `use_frame` under camera offsets `cam`, rotations refitted.
+double HeldOutRms(const SolvedFrameSet& set, const Camera& cam0, const std::vector<bool>& use_frame, const double* cam,
+                  const FrameDiscoverOptions& o) {
+  const GeoFit g = FitGeometry(set, cam0, use_frame, {false, false, false, false}, cam, o);
+  const Camera c = Apply(cam0, cam);
+  double ss = 0;
+  int n = 0;
+  for (const auto& s : set.stars) {
+    if (!use_frame[s.frame]) continue;
+    const Vec2 p = Predict(c, Perturbed(set.q[s.frame], &g.rot[3 * s.frame]), s);
+    ss += (Vec2(s.x_px, s.y_px) - p).squaredNorm();
+    n += 2;
+  }
+  return n ? std::sqrt(ss / n) : 0.0;
+}
+
+void Fail(const std::string& what) { throw InputError("options", what); }
+
+}  // namespace
+
+void FrameDiscoverOptions::Check() const {
+  if (!(alpha > 0 && alpha < 0.5)) Fail("alpha must be in (0, 0.5)");
+  if (iterations < 1) Fail("iterations must be >= 1");
+  if (!(min_sigma_px > 0)) Fail("min_sigma_px must be > 0");
+}
+
+SolvedFrameSet SolveFrameSet(const StarIdentifier& id, const std::vector<ImageView>& images,
+                             const std::vector<std::string>& names, const Camera& camera, const SolveOptions& options) {
+  SolvedFrameSet set;
+  set.names = names;
+  for (size_t i = 0; i < images.size(); ++i) {
+    const SolveResult r = SolveFrame(id, images[i], camera, options);
+    set.status.push_back(r.status);
+    if (r.status != "solved") continue;
+    const int f = static_cast<int>(set.q.size());
+    set.q.push_back(r.attitude.q_inertial_from_sensor);
+    set.solved_index.push_back(static_cast<int>(i));
+    for (const auto& m : r.identification.matches) {
+      FrameStar s;
+      s.frame = f;
+      s.x_px = m.x_px;
+      s.y_px = m.y_px;
+      s.mag = m.mag;
+      s.r_inertial = m.r_inertial;
+      if (m.centroid >= 0 && m.centroid < static_cast<int>(r.centroids.size())) {
+        s.flux = r.centroids[m.centroid].flux;
+        s.sigma_px = r.centroids[m.centroid].sigma_px > 0 ? r.centroids[m.centroid].sigma_px : 0.1;
+      }
+      set.stars.push_back(s);
+    }
+  }
+  return set;
+}
+
+FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, const FrameDiscoverOptions& o) {
+  o.Check();
+  FrameDiscovery d;
+  d.frames = static_cast<int>(set.status.size());
+  d.frames_solved = static_cast<int>(set.q.size());
+  d.stars = static_cast<int>(set.stars.size());
+  d.fitted_camera = camera;
+  const int nf = d.frames_solved;
+  if (nf == 0 || d.stars < 10) {
+    d.cause = "none";
+    return d;
+  }
+  const std::vector<bool> all(nf, true);
+  const double arcsec_per_px = kRadToArcsec / camera.focal_length_px;
+  struct Spec {
+    std::string cause;
+    std::array<bool, kCam> mask;
+  };
+  const std::vector<Spec> specs = {{"focal_length", {true, false, false, false}},
+                                   {"principal_point", {false, true, true, false}},
+                                   {"lens_distortion", {false, false, false, true}}};
+  const GeoFit base = FitGeometry(set, camera, all, {false, false, false, false}, nullptr, o);
+  const GeoFit fullest = FitGeometry(set, camera, all, {true, true, true, true}, nullptr, o);
+  const int nobs = 2 * d.stars;
+  const int npar = 3 * nf + kCam;
+  const double s2 = fullest.rss / std::max(1, nobs - npar);
+  const double alpha_each = o.alpha / 4;
+  std::map<std::string, GeoFit> fits;
+  for (const auto& sp : specs) {
+    FrameCandidate c;
+    c.cause = sp.cause;
+    c.dof = static_cast<int>(std::count(sp.mask.begin(), sp.mask.end(), true));
+    const GeoFit g = FitGeometry(set, camera, all, sp.mask, nullptr, o);
+    c.statistic = std::max(0.0, (base.rss - g.rss) / s2);
+    c.p_value = ChiSq1or2Survival(c.statistic, c.dof);
+    c.delta_bic = c.statistic - c.dof * std::log(static_cast<double>(nobs));
+    c.significant = c.p_value < alpha_each;
+    fits[sp.cause] = g;
+    d.candidates.push_back(c);
+  }
+  // Vignetting: y = ln(flux) + 0.4 ln(10) V against u = (r / r_corner)^2.
+  double vig_slope = 0, vig_se = 0, vig_s = 0;
+  std::vector<double> vu, vy;
+  {
+    const double rc2 = std::pow(std::max(camera.cx_px, camera.width - 1 - camera.cx_px), 2) +
+                       std::pow(std::max(camera.cy_px, camera.height - 1 - camera.cy_px), 2);
+    for (const auto& s : set.stars) {
+      if (!(s.flux > 0)) continue;
+      vu.push_back((std::pow(s.x_px - camera.cx_px, 2) + std::pow(s.y_px - camera.cy_px, 2)) / rc2);
+      vy.push_back(std::log(s.flux) + 0.4 * std::log(10.0) * s.mag);
+    }
+    FrameCandidate c;
+    c.cause = "vignetting";
+    c.dof = 1;
+    const int n = static_cast<int>(vu.size());
+    if (n >= 10) {
+      double mu = 0, my = 0;
+      for (int i = 0; i < n; ++i) mu += vu[i] / n, my += vy[i] / n;
+      double suu = 0, suy = 0;
+      for (int i = 0; i < n; ++i) suu += (vu[i] - mu) * (vu[i] - mu), suy += (vu[i] - mu) * (vy[i] - my);
+      vig_slope = suy / suu;
+      double ss = 0;
+      for (int i = 0; i < n; ++i) ss += std::pow(vy[i] - my - vig_slope * (vu[i] - mu), 2);
+      vig_s = std::sqrt(ss / (n - 2));
+      vig_se = vig_s / std::sqrt(suu);
+      c.statistic = std::pow(vig_slope / vig_se, 2);
+      c.p_value = ChiSq1or2Survival(c.statistic, 1);
+      c.delta_bic = c.statistic - std::log(static_cast<double>(n));
+      c.significant = c.p_value < alpha_each;
+    }
+    d.candidates.push_back(c);
+  }
+  const FrameCandidate* chosen = nullptr;
+  for (const auto& c : d.candidates) {
+    if (c.significant && (!chosen || c.delta_bic > chosen->delta_bic)) chosen = &c;
+  }
+  // Residuals before (base) for the plot.
+  const GeoFit* after = &base;
+  if (chosen && chosen->cause != "vignetting") after = &fits[chosen->cause];
+  for (int i = 0; i < d.stars; ++i) {
+    const auto& s = set.stars[i];
+    const double w = std::max(s.sigma_px, o.min_sigma_px);
+    d.x_px.push_back(s.x_px);
+    d.y_px.push_back(s.y_px);
+    d.dx_before_px.push_back(base.res(2 * i) * w);
+    d.dy_before_px.push_back(base.res(2 * i + 1) * w);
+    d.dx_after_px.push_back(after->res(2 * i) * w);
+    d.dy_after_px.push_back(after->res(2 * i + 1) * w);
+  }
+  auto rms_of = [&](const std::vector<double>& a, const std::vector<double>& b) {
+    double ss = 0;
+    for (size_t i = 0; i < a.size(); ++i) ss += a[i] * a[i] + b[i] * b[i];
+    return std::sqrt(ss / std::max<size_t>(1, 2 * a.size())) * arcsec_per_px;
+  };
+  d.residual_rms_before_arcsec = rms_of(d.dx_before_px, d.dy_before_px);
+  d.residual_rms_after_arcsec = d.residual_rms_before_arcsec;
+  if (!chosen) return d;
+  d.cause = chosen->cause;
+  if (d.cause == "vignetting") {
+    // The law itself, y = c + ln(1 - v u), by a 1-D search over v (c is the mean for each v);
+    // sigma from the curvature of the sum of squares with the residual scale.
+    auto ss_of = [&](double v) {
+      const int n = static_cast<int>(vu.size());
+      double c = 0;
+      for (int i = 0; i < n; ++i) c += (vy[i] - std::log(1 - v * vu[i])) / n;
+      double ss = 0;
+      for (int i = 0; i < n; ++i) ss += std::pow(vy[i] - c - std::log(1 - v * vu[i]), 2);
+      return ss;
+    };
+    double lo = -1.0, hi = 0.95;
+    for (int it = 0; it < 100; ++it) {  // golden section
+      const double a = hi - 0.618 * (hi - lo), b = lo + 0.618 * (hi - lo);
+      (ss_of(a) < ss_of(b) ? hi : lo) = ss_of(a) < ss_of(b) ? b : a;
+    }
+    const double v = 0.5 * (lo + hi), h = 1e-3;
+    const double curv = (ss_of(v + h) - 2 * ss_of(v) + ss_of(v - h)) / (h * h);
+    const double s2v = ss_of(v) / std::max<size_t>(1, vu.size() - 2);
+    d.parameters["vignetting"] = v;
+    d.sigmas["vignetting"] = curv > 0 ? std::sqrt(2 * s2v / curv) : 1.0;
+    // Held-out flux scatter (mag): slope from even frames, scored on odd ones and vice versa.
+    double ssb = 0, ssa = 0;
+    int n = 0;
+    std::vector<int> frame_of;
+    for (const auto& s : set.stars) {
+      if (s.flux > 0) frame_of.push_back(s.frame);
+    }
+    for (int fold = 0; fold < 2; ++fold) {
+      double mu = 0, my = 0, cnt = 0;
+      for (size_t i = 0; i < vu.size(); ++i) {
+        if (frame_of[i] % 2 == fold) mu += vu[i], my += vy[i], cnt += 1;
+      }
+      if (cnt < 3) continue;
+      mu /= cnt, my /= cnt;
+      double suu = 0, suy = 0;
+      for (size_t i = 0; i < vu.size(); ++i) {
+        if (frame_of[i] % 2 == fold) suu += (vu[i] - mu) * (vu[i] - mu), suy += (vu[i] - mu) * (vy[i] - my);
+      }
+      const double b = suu > 0 ? suy / suu : 0.0;
+      double yb = 0;
+      for (size_t i = 0; i < vu.size(); ++i) {
+        if (frame_of[i] % 2 == fold) yb += vy[i] - b * vu[i];
+      }
+      yb /= cnt;
+      for (size_t i = 0; i < vu.size(); ++i) {
+        if (frame_of[i] % 2 == fold) continue;
+        ssb += std::pow(vy[i] - my, 2);
+        ssa += std::pow(vy[i] - yb - b * vu[i], 2);
+        ++n;
+      }
+    }
+    const double to_mag = 2.5 / std::log(10.0);
+    if (n > 0) {
+      d.flux_rms_before_mag = std::sqrt(ssb / n) * to_mag;
+      d.flux_rms_after_mag = std::sqrt(ssa / n) * to_mag;
+      d.gain = d.flux_rms_after_mag > 0 ? d.flux_rms_before_mag / d.flux_rms_after_mag : 1.0;
+    }
+    return d;
+  }
+  const GeoFit& g = fits[d.cause];
+  d.fitted_camera = Apply(camera, g.cam);
+  const double sc = std::sqrt(s2);
+  std::vector<int> idx;
+  for (const auto& sp : specs) {
+    if (sp.cause != d.cause) continue;
+    for (int k = 0; k < kCam; ++k) {
+      if (sp.mask[k]) idx.push_back(k);
+    }
+  }
+  const char* names[kCam] = {"focal_length_px", "cx_px", "cy_px", "k1"};
+  const double nominal[kCam] = {camera.focal_length_px, camera.cx_px, camera.cy_px, camera.distortion.k1};
+  for (size_t k = 0; k < idx.size(); ++k) {
+    d.parameters[names[idx[k]]] = nominal[idx[k]] + g.cam[idx[k]];
+    d.sigmas[names[idx[k]]] = std::sqrt(g.cov_cam(k, k)) * sc;
+  }
+  if (d.cause == "focal_length") {
+    d.parameters["focal_length_ppm"] = g.cam[0] / camera.focal_length_px * 1e6;
+    d.sigmas["focal_length_ppm"] = d.sigmas["focal_length_px"] / camera.focal_length_px * 1e6;
+  }
+  d.residual_rms_after_arcsec = rms_of(d.dx_after_px, d.dy_after_px);
+  // Held-out gain over frames (even/odd); with a single frame, the fitted figures stand.
+  if (nf >= 2) {
+    double ssb = 0, ssa = 0;
+    int cnt = 0;
+    for (int fold = 0; fold < 2; ++fold) {
+      std::vector<bool> train(nf), test(nf);
+      int ntest = 0;
+      for (int f = 0; f < nf; ++f) train[f] = f % 2 == fold, test[f] = !train[f], ntest += test[f];
+      if (ntest == 0) continue;
+      const Spec* sp = nullptr;
+      for (const auto& s : specs) {
+        if (s.cause == d.cause) sp = &s;
+      }
+      const GeoFit gt = FitGeometry(set, camera, train, sp->mask, nullptr, o);
+      const double zero[kCam] = {0, 0, 0, 0};
+      const double b = HeldOutRms(set, camera, test, zero, o), a = HeldOutRms(set, camera, test, gt.cam, o);
+      ssb += b * b * ntest, ssa += a * a * ntest, cnt += ntest;
+    }
+    d.residual_rms_before_arcsec = std::sqrt(ssb / cnt) * arcsec_per_px;
+    d.residual_rms_after_arcsec = std::sqrt(ssa / cnt) * arcsec_per_px;
+    d.gain = d.residual_rms_after_arcsec > 0 ? d.residual_rms_before_arcsec / d.residual_rms_after_arcsec : 1.0;
+  } else {
+    d.gain = d.residual_rms_after_arcsec > 0 ? d.residual_rms_before_arcsec / d.residual_rms_after_arcsec : 1.0;
+  }
+  return d;
+}
+
+Json FrameDiscoveryToJson(const FrameDiscovery& d) {
+  Json j;
+  j["cause"] = d.cause;
+  j["parameters"] = Json::object();
+  for (const auto& [k, v] : d.parameters) j["parameters"][k] = v;
+  j["parameter_sigmas"] = Json::object();
+  for (const auto& [k, v] : d.sigmas) j["parameter_sigmas"][k] = v;
+  j["fitted_camera"] = CameraToJson(d.fitted_camera);
+  j["residual_rms_before_arcsec"] = d.residual_rms_before_arcsec;
+  j["residual_rms_after_arcsec"] = d.residual_rms_after_arcsec;
+  j["gain"] = d.gain;
+  j["gain_method"] = d.frames_solved >= 2 ? "held-out frames (even/odd)" : "fitted frame (one frame solved)";
+  if (d.cause == "vignetting") {
+    j["flux_rms_before_mag"] = d.flux_rms_before_mag;
+    j["flux_rms_after_mag"] = d.flux_rms_after_mag;
+    j["fitted_camera"]["vignetting"] = d.parameters.at("vignetting");
+  }
+  j["frames"] = d.frames;
+  j["frames_solved"] = d.frames_solved;
+  j["stars"] = d.stars;
+  j["candidates"] = Json::array();
+  for (const auto& c : d.candidates) {
+    j["candidates"].push_back({{"cause", c.cause},
+                               {"statistic", c.statistic},
+                               {"p_value", c.p_value},
+                               {"delta_bic", c.delta_bic},
+                               {"significant", c.significant}});
+  }
+  j["not_tested"] = {"hot_pixels", "psf_shape"};
+  return j;
+}
+
+}  // namespace ssiu
