@@ -172,6 +172,7 @@ std::vector<uint8_t> RenderAuxPhoto(const Mask& m, const PlatePose& pose, const 
   // Reflectance of a plate point: dark grey anodised plate, tags black/white, background darker.
   auto reflectance = [&](double x, double y) {
     if (std::abs(x) > m.plate_half_mm || std::abs(y) > m.plate_half_mm) return 0.05;
+    if (std::abs(x) < m.field_half_x_mm && std::abs(y) < m.field_half_y_mm) return 0.25;  // no tag in the star field
     for (const auto& t : tex) {
       const int k = static_cast<int>(std::floor((x - t.x0) / t.cell)), r = static_cast<int>(std::floor((y - t.y0) / t.cell));
       if (k >= 0 && r >= 0 && k < t.n && r < t.n) return t.p[static_cast<size_t>(r) * t.n + k] > 127 ? 0.9 : 0.06;
@@ -183,6 +184,8 @@ std::vector<uint8_t> RenderAuxPhoto(const Mask& m, const PlatePose& pose, const 
   const Mat3 r_pa = r_ap.transpose();
   const Vec3 origin_p = -(r_pa * t_ap);
   const int w = aux.camera.width, h = aux.camera.height, ss = o.supersample;
+  const bool pinhole = aux.camera.distortion.IsZero();
+  const double f = aux.camera.focal_length_px;
   cv::Mat img(h, w, CV_64F);
   // Stratified jittered samples: a regular sub-grid would quantise the position of the nearly
   // axis-aligned tag edges to 1/ss pixel, a bias the corner detector would faithfully report.
@@ -193,7 +196,10 @@ std::vector<uint8_t> RenderAuxPhoto(const Mask& m, const PlatePose& pose, const 
       for (int j = 0; j < ss; ++j)
         for (int i = 0; i < ss; ++i) {
           const Vec2 px(x - 0.5 + (i + jitter.Uniform()) / ss, y - 0.5 + (j + jitter.Uniform()) / ss);
-          const Vec3 dir = r_pa * aux.camera.Unproject(px);
+          // Pinhole fast path (Unproject iterates the distortion inverse).
+          const Vec3 ray = pinhole ? Vec3((px.x() - aux.camera.cx_px) / f, (px.y() - aux.camera.cy_px) / f, 1.0)
+                                   : aux.camera.Unproject(px);
+          const Vec3 dir = r_pa * ray;
           if (dir.z() * -origin_p.z() <= 0) {
             acc += 0.05;
             continue;

@@ -102,6 +102,22 @@ TEST(GroundtestMask, ResolvingASimulatedPictureGivesTheDesignAttitude) {
   EXPECT_LT(std::abs(e.roll_rad), 3 * p.sample.sigma_roll_rad);
 }
 
+TEST(GroundtestMask, DistortedTrackerNeedsNoCompensationOnThePlate) {
+  // Holes are true directions; the tracker's distortion is in its camera model, so the picture
+  // (rendered through the distorted camera) still solves to the design attitude.
+  Camera cam = TrackerCamera();
+  cam.distortion.k1 = -0.2;  // ~5 px barrel at the corners
+  const Mask m = DesignMask(cam, Identifier().catalog().stars, kDesign, MaskOptions{});
+  EXPECT_GT(m.field_half_x_mm, OrionMask().field_half_x_mm);  // barrel distortion widens the field
+  TrackerViewOptions vo;
+  const Image16 img = RenderTrackerView(m, PlatePose{}, Quat::Identity(), vo, 6);
+  const PictureSolve p = SolveStandPicture(Identifier(), img.view(), cam, vo.detector.gain_e_per_adu, 0);
+  ASSERT_EQ(p.status, "solved");
+  const AttitudeErrorSplit e = SplitAttitudeError(p.sample.q, kDesign);
+  EXPECT_LT(e.cross_rad, 3 * std::sqrt(2.0) * p.sample.sigma_cross_rad);
+  EXPECT_LT(std::abs(e.roll_rad), 3 * p.sample.sigma_roll_rad);
+}
+
 TEST(GroundtestStand, PlateShiftIsARotationOfTheSky) {
   // A lateral shift t moves every star by t/F (small angle); an in-plane turn is a roll.
   const Mask& m = OrionMask();
