@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "analysis/allan_io.h"
+#include "analysis/discover_allan.h"
 #include "analysis/discover_frames.h"
 #include "analysis/discover_gyro.h"
 #include "attitude/star_solver.h"
@@ -30,7 +32,55 @@ struct FrameOpts {
   ssiu::FrameDiscoverOptions opt;
 };
 
+struct AllanOpts {
+  std::string curve, channel, unit, tau_file, json;
+  double duration_s = 0, sample_rate_hz = 0;
+  ssiu::AllanDiscrepancyOptions opt;
+};
+
 }  // namespace
+
+SSIU_REGISTER_COMMAND(discover_allan, [](CLI::App& root) {
+  auto* discover = ssiu::cli::GetOrAddSubcommand(root, "discover", "Find what the model gets wrong in measured data");
+  auto* cmd = discover->add_subcommand("allan", "Where the default gyro noise model (ARW + bias instability) leaves a measured Allan curve");
+  auto o = std::make_shared<AllanOpts>();
+  cmd->add_option("--curve", o->curve, "Allan curve file (as for `ssiu allan --curve`)")->required();
+  cmd->add_option("--channel", o->channel, "Channel within the file");
+  cmd->add_option("--unit", o->unit, "Rate unit of the ADEV column (rad/s, deg/s, deg/h)");
+  cmd->add_option("--tau-file", o->tau_file, "Taus in a separate file (imu_utils)");
+  cmd->add_option("--duration-s", o->duration_s, "Log length behind the curve (for the edf)");
+  cmd->add_option("--sample-rate-hz", o->sample_rate_hz, "Sample rate behind the curve");
+  cmd->add_option("--json", o->json, "Output JSON, - for stdout");
+  cmd->callback([o] {
+    ssiu::CurveFileOptions co;
+    co.channel = o->channel;
+    co.unit = o->unit;
+    co.tau_file = o->tau_file;
+    co.duration_s = o->duration_s;
+    co.sample_rate_hz = o->sample_rate_hz;
+    const ssiu::CurveFile cf = ssiu::ReadAllanCurveFile(o->curve, co);
+    const ssiu::AllanDiscrepancy d = ssiu::CompareAllanToDefaultModel(cf.curve, o->opt);
+    const double dph = 180 / M_PI * 3600;  // rad/s -> deg/h
+    ssiu::Json j;
+    j["file"] = o->curve;
+    j["channel"] = cf.channel;
+    j["base_model"] = {{"arw_deg_per_sqrt_h", d.base_arw * dph / 60}, {"bias_instability_dph", d.base_bias_instability * dph}};
+    j["chi2_per_dof_before"] = d.chi2_per_dof_before;
+    j["chi2_per_dof_after"] = d.chi2_per_dof_after;
+    j["departures_tau_s"] = ssiu::Json::array();
+    for (const auto& [lo, hi] : d.departures_s) j["departures_tau_s"].push_back({lo, hi});
+    j["missing_terms"] = d.missing_terms;
+    const auto g = ssiu::ToGyroUnits(d.extended);
+    j["extended"] = {{"arw_deg_per_sqrt_h", g.arw_deg_per_sqrt_h.value},
+                     {"bias_instability_dph", g.bias_instability_dph.value},
+                     {"rrw_deg_per_h_per_sqrt_h", g.rrw_deg_per_h_per_sqrt_h.value},
+                     {"quantization_arcsec", g.quantization_arcsec.value},
+                     {"rate_ramp_deg_per_h2", g.rate_ramp_deg_per_h2.value}};
+    std::cerr << "discover allan: " << o->curve << " " << cf.channel << ": chi2/dof " << d.chi2_per_dof_before << " -> "
+              << d.chi2_per_dof_after << ", departs in " << d.departures_s.size() << " tau range(s)\n";
+    if (!o->json.empty()) ssiu::WriteJsonFile(o->json, j);
+  });
+});
 
 SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
   auto* discover = ssiu::cli::GetOrAddSubcommand(root, "discover", "Find what the model gets wrong in measured data");

@@ -1,0 +1,46 @@
+#include "analysis/allan.h"
+#include "analysis/allan_io.h"
+#include "analysis/discover_allan.h"
+#include "core/rng.h"
+#include "testing/testing.h"
+
+namespace ssiu {
+namespace {
+
+// A white + rate-random-walk log: the default model (ARW + bias instability) must leave the curve
+// at long tau and the extended fit must name rate_random_walk; a white-only log gives no departure.
+TEST(DiscoverAllan, NamesMissingRateRandomWalk) {
+  Rng rng(3);
+  const double rate_hz = 10, n_arw = 1e-4, k_rrw = 2e-6;  // rad/s sqrt(s), rad/s/sqrt(s)
+  std::vector<double> with_rrw, white;
+  double walk = 0;
+  for (int i = 0; i < 200000; ++i) {
+    const double w = n_arw * std::sqrt(rate_hz) * rng.Normal();
+    walk += k_rrw / std::sqrt(rate_hz) * rng.Normal();
+    with_rrw.push_back(w + walk);
+    white.push_back(w);
+  }
+  const auto d = CompareAllanToDefaultModel(OverlappingAllanDeviation(with_rrw, rate_hz), {});
+  ASSERT_FALSE(d.departures_s.empty());
+  EXPECT_GT(d.departures_s.back().second, 100.0);
+  EXPECT_NE(std::find(d.missing_terms.begin(), d.missing_terms.end(), "rate_random_walk"), d.missing_terms.end());
+  EXPECT_LT(d.chi2_per_dof_after, d.chi2_per_dof_before);
+  EXPECT_NEAR(d.extended.rrw.value, k_rrw, 3 * d.extended.rrw.sigma);
+  const auto c = CompareAllanToDefaultModel(OverlappingAllanDeviation(white, rate_hz), {});
+  EXPECT_TRUE(c.missing_terms.empty());
+  EXPECT_NEAR(c.base_arw, n_arw, 0.03 * n_arw);
+}
+
+// The real KVH 1750 curve (docs/discrepancy.md): the default model misses the rate random walk.
+TEST(DiscoverAllan, Kvh1750MissesRateRandomWalk) {
+  SSIU_REQUIRE_SHARED(path, "gyro/smac-avar/kvh1750_av.csv");
+  CurveFileOptions co;
+  co.channel = "Gyro. X";
+  co.unit = "deg/s";
+  const auto d = CompareAllanToDefaultModel(ReadAllanCurveFile(path, co).curve, {});
+  EXPECT_EQ(d.missing_terms, std::vector<std::string>{"rate_random_walk"});
+  EXPECT_GT(d.chi2_per_dof_before, 4 * d.chi2_per_dof_after);
+}
+
+}  // namespace
+}  // namespace ssiu
