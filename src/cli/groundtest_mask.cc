@@ -45,11 +45,11 @@ SSIU_REGISTER_COMMAND(groundtest_mask, [](CLI::App& root) {
     std::error_code ec;
     std::filesystem::create_directories(o->out, ec);
     if (ec) throw InputError(o->out, "cannot create the output directory");
+    WriteMaskPng(m, o->out + "/mask.png", o->dpi);  // first: it is the one that can refuse (--dpi)
     Json j = MaskToJson(m);
     j["png_dpi"] = o->dpi;  // mask.png's scale (PNG carries no DPI tag here)
     WriteJsonFile(o->out + "/mask.json", j);
     WriteMaskSvg(m, o->out + "/mask.svg");
-    WriteMaskPng(m, o->out + "/mask.png", o->dpi);
     std::cerr << "mask: " << m.holes.size() << " holes (" << m.clamped_holes << " clamped at " << m.hole_max_diameter_mm
               << " mm), " << m.tags.size() << " " << m.tag_family << " fiducials, plate " << 2 * m.plate_half_mm
               << " mm square; mask.png at " << o->dpi << " dpi\n";

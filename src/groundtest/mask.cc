@@ -271,7 +271,10 @@ void WriteMaskSvg(const Mask& m, const std::string& path) {
 void WriteMaskPng(const Mask& m, const std::string& path, double dpi) {
   if (!(dpi >= 10 && dpi <= 4800)) throw InputError("--dpi", "must be in [10, 4800]");
   const double px_per_mm = dpi / 25.4;
-  const int n = static_cast<int>(std::ceil(2 * m.plate_half_mm * px_per_mm));
+  const double side_px = std::ceil(2 * m.plate_half_mm * px_per_mm);
+  if (side_px > 30000)
+    throw InputError("--dpi", std::to_string(static_cast<long>(side_px)) + " px across the plate is too large for a PNG; lower --dpi or use mask.svg");
+  const int n = static_cast<int>(side_px);
   cv::Mat img(n, n, CV_8UC1, cv::Scalar(0));
   auto to_px = [&](double mm) { return (mm + m.plate_half_mm) * px_per_mm - 0.5; };
   constexpr int kShift = 4;  // sub-pixel drawing
