@@ -189,6 +189,18 @@ TEST(GroundtestReference, BadPhotosAreInputErrors) {
     EXPECT_THAT(e.what(), ::testing::HasSubstr("tag25h9"));
     EXPECT_THAT(e.what(), ::testing::HasSubstr("wrong tag family"));
   }
+  // The fiducials of another plate (other tag ids): not this mask's.
+  MaskOptions other_ids;
+  other_ids.first_tag_id = 100;
+  const Mask m2 = DesignMask(TrackerCamera(), Identifier().catalog().stars, kDesign, other_ids);
+  const auto foreign = RenderAuxPhoto(m2, PlatePose{}, aux, PhotoOptions{}, 1);
+  try {
+    EstimatePlatePose(m, aux, foreign.data(), aux.camera.width, aux.camera.height, "foreign.png");
+    FAIL() << "no exception";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("0 of this mask's tag36h11 fiducials visible"));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("tags 100,101,102,103,104,105,106,107 belong to another mask"));
+  }
   Camera c2 = TrackerCamera();
   c2.focal_length_px *= 1.1;
   EXPECT_THROW(CheckMaskCamera(m, c2, "mask.json"), InputError);
