@@ -170,6 +170,8 @@ SolvedFrameSet SolveFrameSet(const StarIdentifier& id, const std::vector<ImageVi
     const int f = static_cast<int>(set.q.size());
     set.q.push_back(r.attitude.q_inertial_from_sensor);
     set.solved_index.push_back(static_cast<int>(i));
+    set.background_adu.push_back(r.detections.background_adu);
+    set.noise_adu.push_back(r.detections.noise_adu);
     for (const auto& m : r.identification.matches) {
       FrameStar s;
       s.frame = f;
@@ -180,6 +182,9 @@ SolvedFrameSet SolveFrameSet(const StarIdentifier& id, const std::vector<ImageVi
       if (m.centroid >= 0 && m.centroid < static_cast<int>(r.centroids.size())) {
         s.flux = r.centroids[m.centroid].flux;
         s.sigma_px = r.centroids[m.centroid].sigma_px > 0 ? r.centroids[m.centroid].sigma_px : 0.1;
+      }
+      if (m.centroid >= 0 && m.centroid < static_cast<int>(r.detections.stars.size())) {
+        s.psf_sigma_px = r.detections.stars[m.centroid].sigma_px;  // centroids are the detections in order
       }
       set.stars.push_back(s);
     }
@@ -258,6 +263,27 @@ FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, c
       c.significant = c.p_value < alpha_each;
     }
     d.candidates.push_back(c);
+  }
+  {  // measured figures for the comparison with the simulator
+    auto median = [](std::vector<double> v) {
+      if (v.empty()) return 0.0;
+      std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+      return v[v.size() / 2];
+    };
+    if (!vy.empty()) {
+      double m = 0, ss = 0;
+      for (double v : vy) m += v / vy.size();
+      for (double v : vy) ss += (v - m) * (v - m);
+      d.zero_point_adu = std::exp(m);
+      d.photometric_scatter_mag = std::sqrt(ss / vy.size()) * 2.5 / std::log(10.0);
+    }
+    std::vector<double> ps;
+    for (const auto& s : set.stars) {
+      if (s.psf_sigma_px > 0) ps.push_back(s.psf_sigma_px);
+    }
+    d.psf_sigma_median_px = median(ps);
+    d.background_median_adu = median(set.background_adu);
+    d.noise_median_adu = median(set.noise_adu);
   }
   const FrameCandidate* chosen = nullptr;
   for (const auto& c : d.candidates) {
@@ -410,6 +436,11 @@ Json FrameDiscoveryToJson(const FrameDiscovery& d) {
     j["flux_rms_after_mag"] = d.flux_rms_after_mag;
     j["fitted_camera"]["vignetting"] = d.parameters.at("vignetting");
   }
+  j["measured"] = {{"zero_point_adu_v0", d.zero_point_adu},
+                   {"photometric_scatter_mag", d.photometric_scatter_mag},
+                   {"psf_sigma_median_px", d.psf_sigma_median_px},
+                   {"background_median_adu", d.background_median_adu},
+                   {"noise_median_adu", d.noise_median_adu}};
   j["frames"] = d.frames;
   j["frames_solved"] = d.frames_solved;
   j["stars"] = d.stars;

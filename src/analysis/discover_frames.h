@@ -29,6 +29,7 @@ namespace ssiu {
 struct FrameStar {
   int frame = 0;
   double x_px = 0, y_px = 0, sigma_px = 0.1, flux = 0, mag = 0;
+  double psf_sigma_px = 0;  // fitted Gaussian sigma of the spot (0 if not fitted)
   Vec3 r_inertial = Vec3::UnitZ();
 };
 
@@ -38,6 +39,7 @@ struct SolvedFrameSet {
   std::vector<Quat> q;              // per solved frame (index = FrameStar::frame)
   std::vector<int> solved_index;    // input frame of each solved frame
   std::vector<FrameStar> stars;
+  std::vector<double> background_adu, noise_adu;  // per solved frame (detector's tile medians)
 };
 
 // Solves each image (SolveFrame) and collects the identified stars.
@@ -66,6 +68,11 @@ struct FrameDiscovery {
   double flux_rms_before_mag = 0, flux_rms_after_mag = 0;                         // vignetting only
   std::vector<FrameCandidate> candidates;
   int frames = 0, frames_solved = 0, stars = 0;
+  // Measured figures to compare with the simulator (docs/discrepancy.md): flux of a V = 0 star
+  // (ADU, geometric mean over the stars), the scatter of flux about it (mag), median spot sigma,
+  // background and noise (ADU, medians over frames).
+  double zero_point_adu = 0, photometric_scatter_mag = 0, psf_sigma_median_px = 0;
+  double background_median_adu = 0, noise_median_adu = 0;
   // Per star, for the quiver plot: position and residual (measured - model, px) before and after.
   std::vector<double> x_px, y_px, dx_before_px, dy_before_px, dx_after_px, dy_after_px;
 };

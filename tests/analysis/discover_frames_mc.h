@@ -111,7 +111,9 @@ inline FrameMcSummary RunFrameMonteCarlo(int n, int frames, uint64_t seed0, bool
     if (verbose) {
       std::cout << "set " << i << " true " << cause << " found " << d.cause << " solved " << d.frames_solved << "/"
                 << d.frames << " stars " << d.stars << " rms " << d.residual_rms_before_arcsec << " -> "
-                << d.residual_rms_after_arcsec << " gain " << d.gain << ps << "\n";
+                << d.residual_rms_after_arcsec << " gain " << d.gain << ps << " | zero point " << d.zero_point_adu
+                << " ADU, scatter " << d.photometric_scatter_mag << " mag, spot sigma " << d.psf_sigma_median_px
+                << " px, background " << d.background_median_adu << " noise " << d.noise_median_adu << " ADU\n";
       for (const auto& cd : d.candidates)
         std::cout << "   " << cd.cause << " stat " << cd.statistic << " p " << cd.p_value << " dbic " << cd.delta_bic << "\n";
     }
