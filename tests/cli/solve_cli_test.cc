@@ -1,0 +1,143 @@
+// `ssiu catalog build`, `ssiu solve` and `ssiu track` end to end on simulated frames: the JSON
+// contract, the attitude against the simulator's truth, side outputs, and bad input.
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <set>
+
+#include "core/attitude.h"
+#include "core/json.h"
+#include "testing/testing.h"
+
+namespace ssiu {
+namespace {
+
+struct Result {
+  int status;
+  std::string output;
+};
+
+Result Ssiu(const std::string& args) {
+  Result r;
+  r.status = testing::Run(testing::SsiuProgram() + " " + args, &r.output);
+  return r;
+}
+
+Quat QuatOf(const Json& q) { return FromWxyz(q[0], q[1], q[2], q[3]); }
+
+class SolveCli : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new std::string(testing::TempDir("solve_cli"));
+    // One catalog for the default 16.6 deg camera, built once through the CLI.
+    build_ = new Result(Ssiu("catalog build --fov-deg 16.6 --out " + *dir_ + "/cat"));
+  }
+  static void TearDownTestSuite() {
+    delete dir_;
+    delete build_;
+  }
+  static std::string Path(const std::string& n) { return *dir_ + "/" + n; }
+  static std::string* dir_;
+  static Result* build_;
+};
+std::string* SolveCli::dir_ = nullptr;
+Result* SolveCli::build_ = nullptr;
+
+TEST_F(SolveCli, CatalogBuildWritesACatalog) {
+  ASSERT_EQ(build_->status, 0) << build_->output;
+  EXPECT_TRUE(std::filesystem::is_directory(Path("cat")));
+  EXPECT_FALSE(std::filesystem::is_empty(Path("cat")));
+}
+
+TEST_F(SolveCli, SolveFrameMatchesTruthAndWritesOverlayAndWcs) {
+  ASSERT_EQ(Ssiu("simulate frame --random --seed 77 --out " + Path("f")).status, 0);
+  const Result r = Ssiu("solve " + Path("f/frame_0000.png") + " --camera " + Path("f/camera.json") + " --catalog " +
+                        Path("cat") + " --json " + Path("s.json") + " --overlay " + Path("o.png") + " --wcs " +
+                        Path("s.wcs"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  const Json s = ReadJsonFile(Path("s.json"));
+  for (const char* k : {"status", "q", "ra_deg", "dec_deg", "roll_deg", "sigma_cross_arcsec", "sigma_roll_arcsec",
+                        "focal_length_px", "false_match_probability", "matches", "timing_ms"}) {
+    EXPECT_TRUE(s.contains(k)) << k;
+  }
+  ASSERT_EQ(s["status"], "solved");
+  const Json truth = ReadJsonFile(Path("f/frame_0000.json"));
+  const AttitudeErrorSplit e = SplitAttitudeError(QuatOf(s["q"]), QuatOf(truth["q"]));
+  EXPECT_LT(e.cross_rad * kRadToArcsec, 5.0);
+  EXPECT_LT(std::abs(e.roll_rad) * kRadToArcsec, 60.0);
+  EXPECT_GE(s["q"][0].get<double>(), 0.0);  // w >= 0
+  ASSERT_GT(s["matches"].size(), 10u);
+  for (const char* k : {"x_px", "y_px", "star_id", "mag", "residual_arcsec"}) EXPECT_TRUE(s["matches"][0].contains(k)) << k;
+  // Every matched id is a star the simulator drew.
+  std::set<int> drawn;
+  for (const auto& t : truth["stars"]) drawn.insert(t["star_id"].get<int>());
+  int known = 0;
+  for (const auto& m : s["matches"]) known += drawn.count(m["star_id"].get<int>()) > 0;
+  EXPECT_GE(known, static_cast<int>(s["matches"].size()) - 1);
+  EXPECT_GT(std::filesystem::file_size(Path("o.png")), 1000u);
+  std::ifstream wcs(Path("s.wcs"));
+  const std::string header((std::istreambuf_iterator<char>(wcs)), std::istreambuf_iterator<char>());
+  EXPECT_NE(header.find("CTYPE1"), std::string::npos);
+  EXPECT_NE(header.find("RA---TAN"), std::string::npos);
+}
+
+TEST_F(SolveCli, SolveFromCentroidsCsvAndNoiseGivesNoSolution) {
+  ASSERT_EQ(Ssiu("simulate frame --random --seed 78 --out " + Path("g")).status, 0);
+  const Json truth = ReadJsonFile(Path("g/frame_0000.json"));
+  {
+    std::ofstream csv(Path("c.csv"));
+    csv << "x_px,y_px,flux\n";
+    for (const auto& t : truth["stars"]) {
+      if (t["mag"].get<double>() < 6.5) csv << t["x_px"].get<double>() << "," << t["y_px"].get<double>() << "," << t["flux_adu"].get<double>() << "\n";
+    }
+  }
+  Result r = Ssiu("solve --centroids " + Path("c.csv") + " --camera " + Path("g/camera.json") + " --catalog " +
+                  Path("cat") + " --json " + Path("c.json"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  const Json s = ReadJsonFile(Path("c.json"));
+  ASSERT_EQ(s["status"], "solved");
+  EXPECT_LT(AttitudeErrorRad(QuatOf(s["q"]), QuatOf(truth["q"])) * kRadToArcsec, 60.0);
+
+  // Pure noise (no stars, no artefacts): never solved.
+  ASSERT_EQ(Ssiu("simulate frame --random --seed 79 --mag-max -5 --hot-pixels 0 --cosmic-rays 0 --out " + Path("n")).status, 0);
+  r = Ssiu("solve " + Path("n/frame_0000.png") + " --camera " + Path("n/camera.json") + " --catalog " + Path("cat") +
+           " --json " + Path("n.json"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(ReadJsonFile(Path("n.json"))["status"], "solved");
+
+  // Bad centroid files: exit 1 with one line naming the file.
+  std::ofstream(Path("bad.csv")) << "x_px,y_px\n1,2\n3,nan\n";
+  r = Ssiu("solve --centroids " + Path("bad.csv") + " --camera " + Path("g/camera.json") + " --catalog " + Path("cat"));
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_THAT(r.output, ::testing::HasSubstr("bad.csv"));
+  std::ofstream(Path("noy.csv")) << "x_px,flux\n1,2\n";
+  r = Ssiu("solve --centroids " + Path("noy.csv") + " --camera " + Path("g/camera.json") + " --catalog " + Path("cat"));
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_THAT(r.output, ::testing::HasSubstr("y_px"));
+}
+
+TEST_F(SolveCli, TrackFollowsASlewAfterALostInSpaceStart) {
+  // Three frames 0.2 deg apart along RA: lost in space first, then tracking.
+  for (int k = 0; k < 3; ++k) {
+    const std::string out = Path("t" + std::to_string(k));
+    ASSERT_EQ(Ssiu("simulate frame --ra-deg " + std::to_string(150.0 + 0.2 * k) + " --dec-deg 20 --roll-deg 30 --seed " +
+                   std::to_string(90 + k) + " --out " + out).status, 0);
+  }
+  const Result r = Ssiu("track " + Path("t0/frame_0000.png") + " " + Path("t1/frame_0000.png") + " " +
+                        Path("t2/frame_0000.png") + " --camera " + Path("t0/camera.json") + " --catalog " +
+                        Path("cat") + " --json " + Path("t.json"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  const Json t = ReadJsonFile(Path("t.json"));
+  const Json frames = t.is_array() ? t : t["frames"];
+  ASSERT_EQ(frames.size(), 3u);
+  EXPECT_EQ(frames[0]["mode"], "lost_in_space");
+  EXPECT_EQ(frames[2]["mode"], "tracking");
+  for (int k = 0; k < 3; ++k) {
+    ASSERT_EQ(frames[k]["status"], "solved") << k;
+    const Json truth = ReadJsonFile(Path("t" + std::to_string(k) + "/frame_0000.json"));
+    EXPECT_LT(SplitAttitudeError(QuatOf(frames[k]["q"]), QuatOf(truth["q"])).cross_rad * kRadToArcsec, 5.0) << k;
+  }
+}
+
+}  // namespace
+}  // namespace ssiu
