@@ -39,8 +39,12 @@ class SkyGrid {
     Vec3 u;
   };
   int Cell(double c) const { return static_cast<int>(std::floor(c / cell_)); }
+  // 21 bits per signed cell index (unique for |index| < 2^20), packed without shifting negatives.
   static int64_t Key(int x, int y, int z) {
-    return (static_cast<int64_t>(x + 4096) << 26) | (static_cast<int64_t>(y + 4096) << 13) | (z + 4096);
+    const uint64_t m = 0x1FFFFF;
+    return static_cast<int64_t>(((static_cast<uint64_t>(static_cast<uint32_t>(x)) & m) << 42) |
+                                ((static_cast<uint64_t>(static_cast<uint32_t>(y)) & m) << 21) |
+                                (static_cast<uint64_t>(static_cast<uint32_t>(z)) & m));
   }
   double cell_;
   std::unordered_map<int64_t, std::vector<Entry>> cells_;
