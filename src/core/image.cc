@@ -207,8 +207,8 @@ Frame SubtractDark(const Frame& frame, const Frame& dark, double pedestal_adu) {
   return out;
 }
 
-void WritePng16(const std::string& path, const Image16& image) {
-  cv::Mat m(image.height, image.width, CV_16UC1, const_cast<uint16_t*>(image.pixels.data()));
+namespace {
+void WritePng(const std::string& path, const cv::Mat& m) {
   bool ok = false;
   try {
     ok = cv::imwrite(path, m);
@@ -217,16 +217,14 @@ void WritePng16(const std::string& path, const Image16& image) {
   }
   if (!ok) throw InputError(path, "cannot write PNG");
 }
+}  // namespace
+
+void WritePng16(const std::string& path, const Image16& image) {
+  WritePng(path, cv::Mat(image.height, image.width, CV_16UC1, const_cast<uint16_t*>(image.pixels.data())));
+}
 
 void WritePng8(const std::string& path, int width, int height, const std::vector<uint8_t>& pixels) {
-  cv::Mat m(height, width, CV_8UC1, const_cast<uint8_t*>(pixels.data()));
-  bool ok = false;
-  try {
-    ok = cv::imwrite(path, m);
-  } catch (const cv::Exception&) {
-    ok = false;
-  }
-  if (!ok) throw InputError(path, "cannot write PNG");
+  WritePng(path, cv::Mat(height, width, CV_8UC1, const_cast<uint8_t*>(pixels.data())));
 }
 
 void WriteFits16(const std::string& path, const Image16& image) {

@@ -13,16 +13,8 @@ namespace {
 
 using ::testing::HasSubstr;
 
-struct Result {
-  int status;
-  std::string output;
-};
-
-Result Ssiu(const std::string& args) {
-  Result r;
-  r.status = testing::Run(testing::SsiuProgram() + " " + args, &r.output);
-  return r;
-}
+using Result = testing::SsiuResult;
+Result Ssiu(const std::string& args) { return testing::RunSsiu(args); }
 
 int Lines(const std::string& s) {
   int n = 0;

@@ -12,16 +12,8 @@
 namespace ssiu {
 namespace {
 
-struct Result {
-  int status;
-  std::string output;
-};
-
-Result Ssiu(const std::string& args) {
-  Result r;
-  r.status = testing::Run(testing::SsiuProgram() + " " + args, &r.output);
-  return r;
-}
+using Result = testing::SsiuResult;
+Result Ssiu(const std::string& args) { return testing::RunSsiu(args); }
 
 Quat QuatOf(const Json& q) { return FromWxyz(q[0], q[1], q[2], q[3]); }
 

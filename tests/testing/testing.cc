@@ -51,4 +51,10 @@ int Run(const std::string& command, std::string* output) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
 }
 
+SsiuResult RunSsiu(const std::string& args) {
+  SsiuResult r;
+  r.status = Run(SsiuProgram() + " " + args, &r.output);
+  return r;
+}
+
 }  // namespace ssiu::testing

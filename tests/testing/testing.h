@@ -22,6 +22,13 @@ std::string TempDir(const std::string& name);
 // Runs a shell command; returns its exit status, stdout+stderr in *output.
 int Run(const std::string& command, std::string* output);
 
+// Runs the `ssiu` program with `args`: its exit status and combined output.
+struct SsiuResult {
+  int status = -1;
+  std::string output;
+};
+SsiuResult RunSsiu(const std::string& args);
+
 }  // namespace ssiu::testing
 
 // Skips the test with a clear message when shared data is missing.
