@@ -80,10 +80,35 @@ TEST_F(GroundtestCli, BadInputExitsOneWithAReason) {
   std::ofstream(dir_ + "/ok.csv") << "t_s,qw,qx,qy,qz\n0,1,0,0,0\n1,1,0,0,0\n";
   EXPECT_EQ(Ssiu("groundtest compare --reference " + dir_ + "/ok.csv --computed " + dir_ + "/bad.csv"), 1);
   EXPECT_THAT(out_, ::testing::HasSubstr("qz"));
-  // Encoders with a NaN.
-  std::ofstream(dir_ + "/enc.csv") << "t_s,az_deg,el_deg,rot_deg\n0,0,0,0\n1,nan,0,0\n";
-  EXPECT_EQ(Ssiu("groundtest reference --mask " + m + " --encoders " + dir_ + "/enc.csv --out " + dir_ + "/r.csv"), 1);
+  // Encoders with a NaN, a missing column, time going backwards: each names the file and the column.
+  auto reference_with = [&](const std::string& name, const std::string& csv) {
+    std::ofstream(dir_ + "/" + name) << csv;
+    const int status = Ssiu("groundtest reference --mask " + m + " --encoders " + dir_ + "/" + name + " --out " + dir_ + "/r.csv");
+    EXPECT_THAT(out_, ::testing::HasSubstr(name)) << name;
+    EXPECT_EQ(std::count(out_.begin(), out_.end(), '\n'), 1) << out_;
+    return status;
+  };
+  EXPECT_EQ(reference_with("enc_nan.csv", "t_s,az_deg,el_deg,rot_deg\n0,0,0,0\n1,nan,0,0\n"), 1);
   EXPECT_THAT(out_, ::testing::HasSubstr("az_deg"));
+  EXPECT_EQ(reference_with("enc_cols.csv", "t_s,az_deg,el_deg\n0,0,0\n1,0.1,0\n"), 1);
+  EXPECT_THAT(out_, ::testing::HasSubstr("rot_deg"));
+  EXPECT_EQ(reference_with("enc_time.csv", "t_s,az_deg,el_deg,rot_deg\n0,0,0,0\n60,0.1,0,0\n30,0.2,0,0\n"), 1);
+  EXPECT_THAT(out_, ::testing::HasSubstr("t_s"));
+  EXPECT_EQ(reference_with("enc_empty.csv", "t_s,az_deg,el_deg,rot_deg\n"), 1);
+  // The mask checked against another tracker camera by `reference` too.
+  EXPECT_EQ(Ssiu("groundtest reference --mask " + m + " --camera " + dir_ + "/other.json --encoders " + dir_ +
+                 "/enc_time.csv --out " + dir_ + "/r.csv"),
+            1);
+  EXPECT_THAT(out_, ::testing::HasSubstr("mask.json: designed for another camera"));
+  // Reference and tracker logs whose times do not match (another session's log).
+  std::ofstream(dir_ + "/late.csv") << "t_s,qw,qx,qy,qz\n500,1,0,0,0\n560,1,0,0,0\n620,1,0,0,0\n";
+  EXPECT_EQ(Ssiu("groundtest compare --reference " + dir_ + "/ok.csv --computed " + dir_ + "/late.csv"), 1);
+  EXPECT_THAT(out_, ::testing::HasSubstr("late.csv: 0 picture(s) matched a reference time"));
+  EXPECT_EQ(std::count(out_.begin(), out_.end(), '\n'), 1) << out_;
+  // A tracker log with time going backwards.
+  std::ofstream(dir_ + "/back.csv") << "t_s,qw,qx,qy,qz\n1,1,0,0,0\n0,1,0,0,0\n";
+  EXPECT_EQ(Ssiu("groundtest compare --reference " + dir_ + "/ok.csv --computed " + dir_ + "/back.csv"), 1);
+  EXPECT_THAT(out_, ::testing::HasSubstr("back.csv"));
 }
 
 }  // namespace
