@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 
+#include "analysis/discover_frames_internal.h"
 #include "core/error.h"
 #include "core/types.h"
 
@@ -157,21 +158,36 @@ void FrameDiscoverOptions::Check() const {
   if (!(alpha > 0 && alpha < 0.5)) Fail("alpha must be in (0, 0.5)");
   if (iterations < 1) Fail("iterations must be >= 1");
   if (!(min_sigma_px > 0)) Fail("min_sigma_px must be > 0");
+  if (!(psf_sigma_px >= 0 && psf_sigma_px < 50)) Fail("psf_sigma_px must be in [0, 50) (0 = not tested)");
+  if (!(psf_width_floor_pct >= 0 && psf_width_floor_pct < 100)) Fail("psf_width_floor_pct must be in [0, 100)");
+  if (!(psf_ellipticity_floor >= 0 && psf_ellipticity_floor < 1)) Fail("psf_ellipticity_floor must be in [0, 1)");
 }
 
 SolvedFrameSet SolveFrameSet(const StarIdentifier& id, const std::vector<ImageView>& images,
-                             const std::vector<std::string>& names, const Camera& camera, const SolveOptions& options) {
+                             const std::vector<std::string>& names, const Camera& camera, const SolveOptions& options,
+                             const DefectMap* known_defects) {
   SolvedFrameSet set;
   set.names = names;
+  set.width = camera.width, set.height = camera.height;
+  constexpr int kStampHalf = 5;  // 11 x 11: +-3 sigma of a 1.8 px PSF
   for (size_t i = 0; i < images.size(); ++i) {
-    const SolveResult r = SolveFrame(id, images[i], camera, options);
+    const ImageView& img = images[i];
+    const SolveResult r = SolveFrame(id, img, camera, options, known_defects);
     set.status.push_back(r.status);
+    std::vector<PixelSource> spikes;
+    for (const auto& rej : r.detections.rejected) {
+      if (rej.reason == RejectReason::kHotPixel) {
+        spikes.push_back({static_cast<int>(std::lround(rej.x_px)), static_cast<int>(std::lround(rej.y_px)), rej.flux_adu});
+      }
+    }
+    set.spikes.push_back(spikes);
     if (r.status != "solved") continue;
     const int f = static_cast<int>(set.q.size());
     set.q.push_back(r.attitude.q_inertial_from_sensor);
     set.solved_index.push_back(static_cast<int>(i));
     set.background_adu.push_back(r.detections.background_adu);
     set.noise_adu.push_back(r.detections.noise_adu);
+    const auto& dets = r.detections.stars;
     for (const auto& m : r.identification.matches) {
       FrameStar s;
       s.frame = f;
@@ -179,12 +195,40 @@ SolvedFrameSet SolveFrameSet(const StarIdentifier& id, const std::vector<ImageVi
       s.y_px = m.y_px;
       s.mag = m.mag;
       s.r_inertial = m.r_inertial;
+      s.noise_adu = r.detections.noise_adu;
       if (m.centroid >= 0 && m.centroid < static_cast<int>(r.centroids.size())) {
         s.flux = r.centroids[m.centroid].flux;
         s.sigma_px = r.centroids[m.centroid].sigma_px > 0 ? r.centroids[m.centroid].sigma_px : 0.1;
       }
-      if (m.centroid >= 0 && m.centroid < static_cast<int>(r.detections.stars.size())) {
-        s.psf_sigma_px = r.detections.stars[m.centroid].sigma_px;  // centroids are the detections in order
+      if (m.centroid >= 0 && m.centroid < static_cast<int>(dets.size())) {
+        const StarDetection& det = dets[m.centroid];  // centroids are the detections in order
+        s.psf_sigma_px = det.sigma_px;
+        // Stamp for the PSF analysis: unsaturated, inside the image, no other source within it.
+        const int cx = static_cast<int>(std::lround(det.x_px)), cy = static_cast<int>(std::lround(det.y_px));
+        const int x0 = cx - kStampHalf, y0 = cy - kStampHalf, wd = 2 * kStampHalf + 1, guard = kStampHalf + 2;
+        bool ok = !det.saturated && x0 >= 0 && y0 >= 0 && x0 + wd <= img.width && y0 + wd <= img.height;
+        for (size_t k = 0; ok && k < dets.size(); ++k) {
+          ok = static_cast<int>(k) == m.centroid || std::abs(dets[k].x_px - det.x_px) > guard ||
+               std::abs(dets[k].y_px - det.y_px) > guard;
+        }
+        for (const auto& rej : r.detections.rejected) {
+          if (ok && rej.reason != RejectReason::kHotPixel) {
+            ok = std::abs(rej.x_px - det.x_px) > guard || std::abs(rej.y_px - det.y_px) > guard;
+          }
+        }
+        if (ok) {
+          s.stamp_x0 = x0, s.stamp_y0 = y0, s.stamp_half = kStampHalf;
+          s.stamp.resize(static_cast<size_t>(wd) * wd);
+          for (int y = 0; y < wd; ++y) {
+            for (int x = 0; x < wd; ++x) {
+              const bool bad = (known_defects && !known_defects->empty() && known_defects->at(x0 + x, y0 + y)) ||
+                               std::any_of(spikes.begin(), spikes.end(),
+                                           [&](const PixelSource& p) { return p.x == x0 + x && p.y == y0 + y; });
+              s.stamp[static_cast<size_t>(y) * wd + x] =
+                  bad ? std::numeric_limits<float>::quiet_NaN() : static_cast<float>(img.at(x0 + x, y0 + y));
+            }
+          }
+        }
       }
       set.stars.push_back(s);
     }
@@ -200,8 +244,27 @@ FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, c
   d.stars = static_cast<int>(set.stars.size());
   d.fitted_camera = camera;
   const int nf = d.frames_solved;
+  const discover_internal::CauseResult hot = discover_internal::AnalyseHotPixels(set, o, &d);
+  const discover_internal::CauseResult psf = discover_internal::AnalysePsfShape(set, camera, o, &d);
+  if (!hot.tested) d.not_tested.push_back("hot_pixels");
+  if (!psf.tested) d.not_tested.push_back("psf_shape");
+  // Bonferroni over the candidates actually tested (4 geometric/photometric + these).
+  const double alpha_each = o.alpha / (4 + hot.tested + psf.tested);
+  // Names a cause found without the geometric fits (hot_pixels, psf_shape).
+  auto name_other = [&](const discover_internal::CauseResult& c) {
+    d.cause = c.candidate.cause;
+    d.parameters = c.parameters;
+    d.sigmas = c.sigmas;
+    d.gain = c.gain;
+    if (d.cause == "hot_pixels") {
+      d.spikes_before = c.before, d.spikes_after = c.after;
+    } else {
+      d.stamp_rms_before = c.before, d.stamp_rms_after = c.after;
+    }
+  };
   if (nf == 0 || d.stars < 10) {
     d.cause = "none";
+    if (hot.tested && hot.candidate.p_value < alpha_each) name_other(hot);
     return d;
   }
   const std::vector<bool> all(nf, true);
@@ -218,7 +281,6 @@ FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, c
   const int nobs = 2 * d.stars;
   const int npar = 3 * nf + kCam;
   const double s2 = fullest.rss / std::max(1, nobs - npar);
-  const double alpha_each = o.alpha / 4;
   std::map<std::string, GeoFit> fits;
   for (const auto& sp : specs) {
     FrameCandidate c;
@@ -285,13 +347,18 @@ FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, c
     d.background_median_adu = median(set.background_adu);
     d.noise_median_adu = median(set.noise_adu);
   }
+  for (const auto* c : {&hot, &psf}) {
+    if (!c->tested) continue;
+    d.candidates.push_back(c->candidate);
+    d.candidates.back().significant = c->candidate.p_value < alpha_each;
+  }
   const FrameCandidate* chosen = nullptr;
   for (const auto& c : d.candidates) {
     if (c.significant && (!chosen || c.delta_bic > chosen->delta_bic)) chosen = &c;
   }
   // Residuals before (base) for the plot.
   const GeoFit* after = &base;
-  if (chosen && chosen->cause != "vignetting") after = &fits[chosen->cause];
+  if (chosen && fits.count(chosen->cause)) after = &fits[chosen->cause];
   for (int i = 0; i < d.stars; ++i) {
     const auto& s = set.stars[i];
     const double w = std::max(s.sigma_px, o.min_sigma_px);
@@ -310,6 +377,10 @@ FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, c
   d.residual_rms_before_arcsec = rms_of(d.dx_before_px, d.dy_before_px);
   d.residual_rms_after_arcsec = d.residual_rms_before_arcsec;
   if (!chosen) return d;
+  if (chosen->cause == "hot_pixels" || chosen->cause == "psf_shape") {
+    name_other(chosen->cause == "hot_pixels" ? hot : psf);
+    return d;
+  }
   d.cause = chosen->cause;
   if (d.cause == "vignetting") {
     // The law itself, y = c + ln(1 - v u), by a 1-D search over v (c is the mean for each v);
@@ -431,6 +502,31 @@ Json FrameDiscoveryToJson(const FrameDiscovery& d) {
   j["residual_rms_after_arcsec"] = d.residual_rms_after_arcsec;
   j["gain"] = d.gain;
   j["gain_method"] = d.frames_solved >= 2 ? "held-out frames (even/odd)" : "fitted frame (one frame solved)";
+  if (d.cause == "psf_shape") {
+    j["gain_method"] = std::string(d.frames_solved >= 2 ? "held-out frames (even/odd)" : "fitted frame") +
+                       ": stamp residual RMS in noise sigmas, model PSF vs fitted shape";
+    j["stamp_rms_before"] = d.stamp_rms_before;
+    j["stamp_rms_after"] = d.stamp_rms_after;
+    j["fitted_camera"]["psf_sigma_px"] = d.parameters.at("psf_sigma_px");
+    j["fitted_camera"]["psf_ellipticity"] = d.parameters.at("psf_ellipticity");
+    j["fitted_camera"]["psf_angle_deg"] = d.parameters.at("psf_angle_deg");
+  }
+  if (d.cause == "hot_pixels") {
+    j["gain_method"] = "held-out frames (even/odd): single-pixel spikes per frame, (before + 1) / (after + 1) after "
+                       "masking the pixels found on the other frames";
+    j["spikes_per_frame_before"] = d.spikes_before;
+    j["spikes_per_frame_after"] = d.spikes_after;
+  }
+  j["hot_pixels"] = Json::array();
+  for (size_t i = 0; i < d.hot_pixels.size(); ++i) {
+    j["hot_pixels"].push_back(
+        {{"x_px", d.hot_pixels[i].x}, {"y_px", d.hot_pixels[i].y}, {"excess_adu", d.hot_pixels[i].excess_adu},
+         {"frames", d.hot_pixel_frames[i]}});
+  }
+  if (d.cause == "hot_pixels") {
+    j["fitted_camera"]["hot_pixels"] = Json::array();
+    for (const auto& h : d.hot_pixels) j["fitted_camera"]["hot_pixels"].push_back({h.x, h.y});
+  }
   if (d.cause == "vignetting") {
     j["flux_rms_before_mag"] = d.flux_rms_before_mag;
     j["flux_rms_after_mag"] = d.flux_rms_after_mag;
@@ -439,6 +535,10 @@ Json FrameDiscoveryToJson(const FrameDiscovery& d) {
   j["measured"] = {{"zero_point_adu_v0", d.zero_point_adu},
                    {"photometric_scatter_mag", d.photometric_scatter_mag},
                    {"psf_sigma_median_px", d.psf_sigma_median_px},
+                   {"psf_sigma_stamp_fit_px", d.psf_sigma_fit_px},
+                   {"psf_e1", d.psf_e1},
+                   {"psf_e2", d.psf_e2},
+                   {"psf_stars", d.psf_stars},
                    {"background_median_adu", d.background_median_adu},
                    {"noise_median_adu", d.noise_median_adu}};
   j["frames"] = d.frames;
@@ -452,7 +552,7 @@ Json FrameDiscoveryToJson(const FrameDiscovery& d) {
                                {"delta_bic", c.delta_bic},
                                {"significant", c.significant}});
   }
-  j["not_tested"] = {"hot_pixels", "psf_shape"};
+  j["not_tested"] = d.not_tested;
   return j;
 }
 

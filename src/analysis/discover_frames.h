@@ -13,6 +13,19 @@
 // the largest BIC gain among the significant ones is named.
 // Gain: the camera fitted on the even frames is scored on the odd ones (rotations refitted there
 // with the camera held) and vice versa; residual RMS with the nominal and with the fitted camera.
+//
+// psf_shape (needs the model's PSF sigma, FrameDiscoverOptions::psf_sigma_px): an elliptical
+// Gaussian, integrated over the pixels, is fitted to a stamp around every isolated matched star
+// (FitSpot); its covariance C gives T = (Cxx + Cyy) / 2 and the ellipticity e1 = (Cxx - Cyy) / 2T,
+// e2 = Cxy / T. T - sigma_model^2 is regressed on (r / r_corner)^2 (common width and field
+// dependence), e1 and e2 are averaged; Wald chi^2 with 4 dof against the model (T = sigma^2, e = 0).
+// Gain: stamp residual RMS (in noise sigmas) of held-out frames with the model PSF and with the
+// shape fitted on the other frames.
+// hot_pixels: the detector's single-pixel spikes, pixel by pixel across the frames. A pixel flagged
+// in at least max(2, ceil(N/2)) of N frames persists; the count of such pixels is tested against
+// what spikes at random positions (cosmic rays, transient hot pixels) would give (Poisson, with the
+// per-pixel rate from the per-frame counts). Gain: spikes in held-out frames not at a pixel found
+// on the other frames (i.e. after masking them), before and after.
 #pragma once
 
 #include <map>
@@ -23,6 +36,7 @@
 #include "core/camera.h"
 #include "core/image.h"
 #include "core/json.h"
+#include "detect/detect.h"
 
 namespace ssiu {
 
@@ -31,6 +45,18 @@ struct FrameStar {
   double x_px = 0, y_px = 0, sigma_px = 0.1, flux = 0, mag = 0;
   double psf_sigma_px = 0;  // fitted Gaussian sigma of the spot (0 if not fitted)
   Vec3 r_inertial = Vec3::UnitZ();
+  // Stamp around the star for the PSF analysis: (2 half + 1)^2 pixels from (stamp_x0, stamp_y0),
+  // row-major, NaN = left out (a spike); empty when the star is saturated, near the edge or has
+  // another source in its stamp.
+  int stamp_x0 = 0, stamp_y0 = 0, stamp_half = 0;
+  std::vector<float> stamp;
+  double noise_adu = 0;  // the frame's background noise
+};
+
+// A single-pixel source (the detector's hot_pixel rejection) at an integer pixel.
+struct PixelSource {
+  int x = 0, y = 0;
+  double excess_adu = 0;
 };
 
 struct SolvedFrameSet {
@@ -40,16 +66,41 @@ struct SolvedFrameSet {
   std::vector<int> solved_index;    // input frame of each solved frame
   std::vector<FrameStar> stars;
   std::vector<double> background_adu, noise_adu;  // per solved frame (detector's tile medians)
+  int width = 0, height = 0;
+  std::vector<std::vector<PixelSource>> spikes;   // per input frame (solved or not)
 };
 
-// Solves each image (SolveFrame) and collects the identified stars.
+// Solves each image (SolveFrame, with the known defects repaired when given) and collects the
+// identified stars, their stamps and every frame's single-pixel spikes.
 SolvedFrameSet SolveFrameSet(const StarIdentifier& id, const std::vector<ImageView>& images,
-                             const std::vector<std::string>& names, const Camera& camera, const SolveOptions& options);
+                             const std::vector<std::string>& names, const Camera& camera, const SolveOptions& options,
+                             const DefectMap* known_defects = nullptr);
+
+// Fit of A * (pixel-integrated 2-D Gaussian of covariance C centred at (x, y)) + background to a
+// stamp (FrameStar layout: row-major, NaN left out; coordinates relative to the stamp's pixel 0).
+// fixed_c (cxx, cyy, cxy) non-null: the shape is held and only flux, position and background fit.
+struct SpotFit {
+  bool ok = false;
+  double x_px = 0, y_px = 0, flux_adu = 0, background_adu = 0;
+  double cxx = 0, cyy = 0, cxy = 0;   // px^2 (the PSF's, before pixel integration)
+  double t_px2 = 0, e1 = 0, e2 = 0;   // (cxx + cyy) / 2, (cxx - cyy) / 2t, cxy / t
+  double t_var = 0, e1_var = 0, e2_var = 0;  // formal variances (residual scale)
+  double rss_adu2 = 0;
+  int n = 0;
+};
+SpotFit FitSpot(const std::vector<float>& stamp, int half, double x_guess, double y_guess, double sigma_guess_px,
+                const double* fixed_c = nullptr);
 
 struct FrameDiscoverOptions {
   double alpha = 0.01;     // family-wise false-alarm probability over the candidates
   int iterations = 6;      // Gauss-Newton iterations
   double min_sigma_px = 0.05;  // floor of the centroid sigma used as weight
+  // The model's PSF sigma (px; camera.json "psf_sigma_px" or --psf-sigma-px); 0 = psf_shape not tested.
+  double psf_sigma_px = 0;
+  // Model tolerance added in quadrature to the sigma of the mean width and ellipticity (the stamp
+  // fit's own systematic floor), so that thousands of stars do not call a 1 % departure a cause.
+  double psf_width_floor_pct = 1.0;
+  double psf_ellipticity_floor = 0.01;
   void Check() const;
 };
 
@@ -66,12 +117,19 @@ struct FrameDiscovery {
   Camera fitted_camera;
   double residual_rms_before_arcsec = 0, residual_rms_after_arcsec = 0, gain = 1;  // held-out frames
   double flux_rms_before_mag = 0, flux_rms_after_mag = 0;                         // vignetting only
+  double stamp_rms_before = 0, stamp_rms_after = 0;  // psf_shape: held-out stamp residual, noise sigmas
+  double spikes_before = 0, spikes_after = 0;        // hot_pixels: held-out spikes per frame
+  std::vector<PixelSource> hot_pixels;               // persistent pixels (excess: median over frames)
+  std::vector<int> hot_pixel_frames;                 // in how many frames each was flagged
+  std::vector<std::string> not_tested;
   std::vector<FrameCandidate> candidates;
   int frames = 0, frames_solved = 0, stars = 0;
   // Measured figures to compare with the simulator (docs/discrepancy.md): flux of a V = 0 star
   // (ADU, geometric mean over the stars), the scatter of flux about it (mag), median spot sigma,
   // background and noise (ADU, medians over frames).
   double zero_point_adu = 0, photometric_scatter_mag = 0, psf_sigma_median_px = 0;
+  double psf_sigma_fit_px = 0, psf_e1 = 0, psf_e2 = 0;  // stamp fits (mean), whether or not a cause
+  int psf_stars = 0;
   double background_median_adu = 0, noise_median_adu = 0;
   // Per star, for the quiver plot: position and residual (measured - model, px) before and after.
   std::vector<double> x_px, y_px, dx_before_px, dy_before_px, dx_after_px, dy_after_px;

@@ -27,7 +27,8 @@ struct GyroOpts {
 
 struct FrameOpts {
   std::vector<std::string> frames;
-  std::string camera, json, plot, dark, catalog;
+  std::string camera, json, plot, dark, catalog, defects, defects_out;
+  double psf_sigma_px = -1;  // < 0: camera.json "psf_sigma_px" if present, else not tested
   double fov_tolerance_pct = 1.0;
   ssiu::FrameDiscoverOptions opt;
 };
@@ -96,8 +97,24 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
   cmd->add_option("--fov-tolerance-pct", o->fov_tolerance_pct, "Focal length known to +/- this percent")
       ->capture_default_str();
   cmd->add_option("--alpha", o->opt.alpha, "Family-wise false-alarm probability")->capture_default_str();
+  cmd->add_option("--psf-sigma-px", o->psf_sigma_px,
+                  "The model's PSF sigma, px (default: camera.json \"psf_sigma_px\"; absent: psf_shape not tested)");
+  cmd->add_option("--defects", o->defects, "Known defect map PNG (0 good): repaired before detection, not a cause");
+  cmd->add_option("--defects-out", o->defects_out, "Write the persistent hot pixels found as a defect map PNG");
   cmd->callback([o] {
     const ssiu::Camera cam = ssiu::LoadCamera(o->camera);
+    if (o->psf_sigma_px >= 0) {
+      o->opt.psf_sigma_px = o->psf_sigma_px;
+    } else {
+      const ssiu::Json cj = ssiu::ReadJsonFile(o->camera);
+      if (cj.contains("psf_sigma_px")) o->opt.psf_sigma_px = ssiu::JsonNumber(cj, "psf_sigma_px", o->camera);
+    }
+    ssiu::DefectMap known;
+    if (!o->defects.empty()) {
+      known = ssiu::LoadDefectMap(o->defects);
+      if (known.width != cam.width || known.height != cam.height)
+        throw ssiu::InputError(o->defects, "defect map size differs from the camera's");
+    }
     ssiu::SolveOptions so;
     so.identify.fov_tolerance_pct = o->fov_tolerance_pct;
     const ssiu::StarIdentifier id = ssiu::MakeIdentifierForCamera(o->catalog, cam, o->fov_tolerance_pct);
@@ -108,7 +125,12 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
     std::vector<ssiu::ImageView> views;
     for (const auto& f : frames) views.push_back(f.image.view());
     so.detect.saturation_adu = frames.front().saturation_adu;
-    const ssiu::SolvedFrameSet set = ssiu::SolveFrameSet(id, views, o->frames, cam, so);
+    for (size_t i = 0; i < frames.size(); ++i) {
+      if (frames[i].image.width != cam.width || frames[i].image.height != cam.height)
+        throw ssiu::InputError(o->frames[i], "frame size differs from the camera's width/height");
+    }
+    const ssiu::SolvedFrameSet set =
+        ssiu::SolveFrameSet(id, views, o->frames, cam, so, known.empty() ? nullptr : &known);
     const ssiu::FrameDiscovery d = ssiu::DiscoverFrames(set, cam, o->opt);
     std::cerr << "discover frames: " << d.frames_solved << "/" << d.frames << " solved, " << d.stars << " stars; cause "
               << d.cause;
@@ -120,6 +142,15 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
     for (size_t i = 0; i < set.status.size(); ++i) j["frame_status"][o->frames[i]] = set.status[i];
     if (!o->json.empty()) ssiu::WriteJsonFile(o->json, j);
     if (!o->plot.empty()) ssiu::WriteResidualQuiver(o->plot, d, cam);
+    if (!o->defects_out.empty()) {
+      ssiu::DefectMap map = known;
+      if (map.empty()) {
+        map.width = cam.width, map.height = cam.height;
+        map.mask.assign(static_cast<size_t>(cam.width) * cam.height, 0);
+      }
+      for (const auto& h : d.hot_pixels) map.mask[static_cast<size_t>(h.y) * map.width + h.x] = 1;
+      ssiu::SaveDefectMap(o->defects_out, map);
+    }
   });
 });
 

@@ -1,22 +1,137 @@
+#include <cmath>
+
 #include "analysis/discover_frames.h"
 #include "core/error.h"
+#include "core/rng.h"
 #include "discover_frames_mc.h"
 #include "testing/testing.h"
 
 namespace ssiu {
 namespace {
 
-// Small version of the 30-set acceptance (discover_frames_longtest.cc): one set per cause.
-TEST(DiscoverFrames, FiveHiddenCameraEffects) {
-  const auto s = testing::RunFrameMonteCarlo(5, 3, 2024, true);
-  EXPECT_GE(s.right, 4) << "right cause in " << s.right << " of " << s.sets;
+// Small version of the acceptance (discover_frames_longtest.cc): one set per cause, including
+// hot_pixels (persistent over the set, while the `none` set carries transient ones) and psf_shape.
+TEST(DiscoverFrames, SevenHiddenCameraEffects) {
+  const auto s = testing::RunFrameMonteCarlo(7, 3, 2024, true);
+  EXPECT_GE(s.right, 6) << "right cause in " << s.right << " of " << s.sets;
+  EXPECT_EQ(s.none_right, s.none_sets);
   EXPECT_EQ(s.geometric_reduced, s.geometric_named);
+  EXPECT_EQ(s.other_gain, s.other_named);
+  EXPECT_GE(s.hot_found, 0.8 * s.hot_detectable) << s.hot_found << " of " << s.hot_detectable;
+  EXPECT_EQ(s.hot_false, 0);
 }
 
 TEST(DiscoverFrames, OptionsCheckRejectsBadValues) {
   FrameDiscoverOptions o;
   o.alpha = 0;
   EXPECT_THROW(o.Check(), InputError);
+  o = FrameDiscoverOptions{};
+  o.psf_sigma_px = -1;
+  EXPECT_THROW(o.Check(), InputError);
+}
+
+// An elliptical Gaussian spot integrated over each pixel by 10 x 10 sub-samples (written for the
+// test, independent of FitSpot's own integration), plus background and Gaussian noise.
+std::vector<float> DrawSpot(int half, double x0, double y0, double flux, const double c[3], double bg, double noise,
+                            Rng* rng) {
+  const int w = 2 * half + 1, k = 10;
+  const double det = c[0] * c[1] - c[2] * c[2];
+  std::vector<float> out(static_cast<size_t>(w) * w);
+  for (int y = 0; y < w; ++y) {
+    for (int x = 0; x < w; ++x) {
+      double v = 0;
+      for (int sy = 0; sy < k; ++sy) {
+        for (int sx = 0; sx < k; ++sx) {
+          const double dx = x - 0.5 + (sx + 0.5) / k - x0, dy = y - 0.5 + (sy + 0.5) / k - y0;
+          const double q = (c[1] * dx * dx - 2 * c[2] * dx * dy + c[0] * dy * dy) / det;
+          v += std::exp(-0.5 * q) / (2 * M_PI * std::sqrt(det)) / (k * k);
+        }
+      }
+      out[static_cast<size_t>(y) * w + x] = static_cast<float>(bg + flux * v + noise * rng->Normal());
+    }
+  }
+  return out;
+}
+
+// Covariance of a PSF with major-axis sigma s, ellipticity 1 - minor/major, angle from +x.
+void PsfCov(double s, double ellipticity, double angle_deg, double c[3]) {
+  const double a2 = s * s, b2 = std::pow(s * (1 - ellipticity), 2), th = angle_deg * kDegToRad;
+  c[0] = a2 * std::cos(th) * std::cos(th) + b2 * std::sin(th) * std::sin(th);
+  c[1] = a2 * std::sin(th) * std::sin(th) + b2 * std::cos(th) * std::cos(th);
+  c[2] = (a2 - b2) * std::sin(th) * std::cos(th);
+}
+
+TEST(FitSpot, RecoversAnEllipticalSpotWithHonestSigmas) {
+  Rng rng(7);
+  double c[3];
+  PsfCov(1.5, 0.3, 30, c);
+  const double t_true = (c[0] + c[1]) / 2, e1_true = (c[0] - c[1]) / (2 * t_true), e2_true = c[2] / t_true;
+  double sum_pull_t = 0, sum_pull_t2 = 0, sum_e1 = 0, sum_e2 = 0, e_var = 0;
+  const int n = 60;
+  for (int i = 0; i < n; ++i) {
+    const double x0 = 5 + rng.Uniform(-0.5, 0.5), y0 = 5 + rng.Uniform(-0.5, 0.5);
+    const auto stamp = DrawSpot(5, x0, y0, 20000, c, 400, 28, &rng);
+    const SpotFit f = FitSpot(stamp, 5, 5, 5, 1.2);
+    ASSERT_TRUE(f.ok);
+    EXPECT_NEAR(f.x_px, x0, 0.05);
+    const double pull = (f.t_px2 - t_true) / std::sqrt(f.t_var);
+    sum_pull_t += pull, sum_pull_t2 += pull * pull;
+    sum_e1 += f.e1, sum_e2 += f.e2, e_var += f.e1_var;
+  }
+  const double mean_pull = sum_pull_t / n, rms_pull = std::sqrt(sum_pull_t2 / n);
+  EXPECT_LT(std::abs(mean_pull), 0.5) << "width biased: mean pull " << mean_pull;
+  EXPECT_GT(rms_pull, 0.7);
+  EXPECT_LT(rms_pull, 1.4) << "formal sigma of T off by " << rms_pull;
+  EXPECT_NEAR(sum_e1 / n, e1_true, 4 * std::sqrt(e_var / n) + 0.005);
+  EXPECT_NEAR(sum_e2 / n, e2_true, 4 * std::sqrt(e_var / n) + 0.005);
+}
+
+// psf_shape end to end in the library: a frame set whose stamps carry an elliptical PSF
+// (ellipticity 0.3 at 30 deg, drawn by DrawSpot) against the circular 1.2 px model.
+TEST(DiscoverFrames, EllipticalPsfNamedWithItsEllipticity) {
+  const Camera cam = MakeCamera(1024, 1024, 16.6);
+  Rng rng(11);
+  double c[3];
+  PsfCov(1.3, 0.3, 30, c);
+  SolvedFrameSet set;
+  set.width = cam.width, set.height = cam.height;
+  for (int f = 0; f < 4; ++f) {
+    const Quat q = RandomAttitude(100 + f);
+    set.status.push_back("solved");
+    set.names.push_back("f" + std::to_string(f));
+    set.q.push_back(q);
+    set.solved_index.push_back(f);
+    set.spikes.emplace_back();
+    set.background_adu.push_back(400);
+    set.noise_adu.push_back(28);
+    for (int i = 0; i < 40; ++i) {
+      FrameStar s;
+      s.frame = f;
+      const double xt = rng.Uniform(20, 1003), yt = rng.Uniform(20, 1003);
+      s.r_inertial = q * cam.Unproject(Vec2(xt, yt));
+      s.mag = rng.Uniform(3, 6);
+      s.flux = 1e6 * std::pow(10, -0.4 * s.mag);
+      s.x_px = xt + 0.05 * rng.Normal(), s.y_px = yt + 0.05 * rng.Normal(), s.sigma_px = 0.05;
+      s.stamp_half = 5, s.stamp_x0 = static_cast<int>(std::lround(xt)) - 5, s.stamp_y0 = static_cast<int>(std::lround(yt)) - 5;
+      s.stamp = DrawSpot(5, xt - s.stamp_x0, yt - s.stamp_y0, s.flux, c, 400, 28, &rng);
+      s.noise_adu = 28;
+      set.stars.push_back(s);
+    }
+  }
+  FrameDiscoverOptions o;
+  o.psf_sigma_px = 1.2;
+  const FrameDiscovery d = DiscoverFrames(set, cam, o);
+  EXPECT_EQ(d.cause, "psf_shape");
+  ASSERT_TRUE(d.parameters.count("psf_ellipticity"));
+  EXPECT_NEAR(d.parameters.at("psf_ellipticity"), 0.3, 3 * d.sigmas.at("psf_ellipticity") + 0.01);
+  EXPECT_NEAR(d.parameters.at("psf_angle_deg"), 30, 3 * d.sigmas.at("psf_angle_deg") + 1);
+  const double t = (c[0] + c[1]) / 2;
+  EXPECT_NEAR(d.parameters.at("psf_sigma_px"), std::sqrt(t), 3 * d.sigmas.at("psf_sigma_px") + 0.01);
+  EXPECT_GT(d.gain, 1.0);
+  EXPECT_GT(d.stamp_rms_before, d.stamp_rms_after);
+  std::printf("elliptical PSF: sigma %.3f +- %.3f px (true %.3f), ellipticity %.3f +- %.3f at %.1f deg, stamp rms %.2f -> %.2f\n",
+              d.parameters.at("psf_sigma_px"), d.sigmas.at("psf_sigma_px"), std::sqrt(t), d.parameters.at("psf_ellipticity"),
+              d.sigmas.at("psf_ellipticity"), d.parameters.at("psf_angle_deg"), d.stamp_rms_before, d.stamp_rms_after);
 }
 
 }  // namespace
