@@ -5,8 +5,10 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <ctime>
 #include <memory>
+#include <numeric>
 #include <vector>
 
 #include "attitude/star_solver.h"
@@ -54,16 +56,31 @@ void BM_LostInSpaceFromCentroids(benchmark::State& state) {
   Fixture& f = F();
   SolveOptions so;
   std::vector<double> ms;
+  std::vector<int> hyp;
   size_t i = 0;
   int solved = 0;
   for (auto _ : state) {
     const double t0 = CpuMs();
     const SolveResult r = SolveCentroids(*f.id, f.frames[i % f.frames.size()], f.cam, so);
     ms.push_back(CpuMs() - t0);
+    hyp.push_back(r.identification.hypotheses);
     solved += r.status == "solved";
     benchmark::DoNotOptimize(r);
     ++i;
   }
+  // The tail: which frames are slow and how many hypotheses they verified.
+  std::vector<size_t> order(ms.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return ms[a] > ms[b]; });
+  for (size_t k = 0; k < std::min<size_t>(12, order.size()); ++k) {
+    const size_t j = order[k];
+    std::fprintf(stderr, "slow: frame %zu (seed %zu) %.2f ms, %d hypotheses, %zu centroids\n", j % f.frames.size(),
+                 777 + j % f.frames.size(), ms[j], hyp[j], f.frames[j % f.frames.size()].size());
+  }
+  std::vector<int> hs = hyp;
+  std::sort(hs.begin(), hs.end());
+  state.counters["median_hypotheses"] = hs[hs.size() / 2];
+  state.counters["max_hypotheses"] = hs.back();
   std::sort(ms.begin(), ms.end());
   state.counters["median_cpu_ms"] = ms[ms.size() / 2];
   state.counters["p99_cpu_ms"] = ms[std::min(ms.size() - 1, ms.size() * 99 / 100)];

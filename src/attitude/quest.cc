@@ -2,7 +2,10 @@
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
+#include <algorithm>
 #include <cmath>
+
+#include "core/error.h"
 
 namespace ssiu {
 namespace {
@@ -141,19 +144,101 @@ AttitudeSolution SolveAttitude(const Identification& id) {
   return SolveQuest(obs);
 }
 
-AttitudeSolution SolveMultiHead(const std::vector<Identification>& heads, const std::vector<Quat>& q_body_from_sensor) {
-  std::vector<WahbaObservation> obs;
-  for (size_t h = 0; h < heads.size() && h < q_body_from_sensor.size(); ++h) {
+void MultiHeadOptions::Check() const {
+  if (!(consistency_sigmas > 0 && consistency_sigmas < 1000))
+    throw InputError("multi-head options", "consistency_sigmas must be in (0, 1000)");
+  if (!(mount_tolerance_arcsec >= 0 && mount_tolerance_arcsec < 36000))
+    throw InputError("multi-head options", "mount_tolerance_arcsec must be in [0, 36000)");
+}
+
+MultiHeadSolution SolveMultiHeadChecked(const std::vector<Identification>& heads, const std::vector<Quat>& q_body_from_sensor,
+                                        const MultiHeadOptions& o) {
+  o.Check();
+  if (heads.size() != q_body_from_sensor.size())
+    throw InputError("multi-head", std::to_string(heads.size()) + " heads but " + std::to_string(q_body_from_sensor.size()) +
+                                       " mounts");
+  const size_t n = heads.size();
+  MultiHeadSolution out;
+  out.head_status.resize(n);
+  out.q_inertial_from_body_per_head.assign(n, Quat::Identity());
+  // Each solved head's own body attitude and its covariance in body axes: with
+  // q_inertial_from_body = q_sensor * conj(mount), a sensor-frame error dtheta_s is R(mount) dtheta_s in body axes.
+  std::vector<Mat3> p_body(n, Mat3::Zero());
+  std::vector<int> solved;
+  for (size_t h = 0; h < n; ++h) {
+    out.head_status[h] = heads[h].status;
     if (heads[h].status != "solved") continue;
+    const AttitudeSolution s = SolveAttitude(heads[h]);
+    if (s.status != "solved") continue;
+    const Quat m = q_body_from_sensor[h].normalized();
+    const Mat3 rm = m.toRotationMatrix();
+    out.q_inertial_from_body_per_head[h] = (s.q_inertial_from_sensor * m.conjugate()).normalized();
+    p_body[h] = rm * s.covariance_rad2 * rm.transpose();
+    solved.push_back(static_cast<int>(h));
+  }
+  const double tol = o.mount_tolerance_arcsec * kArcsecToRad;
+  auto agree = [&](int i, int j) {
+    Quat d = out.q_inertial_from_body_per_head[i].conjugate() * out.q_inertial_from_body_per_head[j];
+    if (d.w() < 0) d.coeffs() = -d.coeffs();
+    const Vec3 e = 2 * d.vec();
+    const Mat3 s = p_body[i] + p_body[j] + tol * tol * Mat3::Identity();
+    return e.dot(s.inverse() * e) <= o.consistency_sigmas * o.consistency_sigmas;
+  };
+  // Largest pairwise-consistent subset (at most a few heads: enumerate the subsets).
+  const int ns = static_cast<int>(solved.size());
+  unsigned best = 0;
+  auto better = [&](unsigned a, unsigned b) {  // is subset a better than b?
+    const int ca = __builtin_popcount(a), cb = __builtin_popcount(b);
+    if (ca != cb) return ca > cb;
+    size_t ma = 0, mb = 0;
+    double pa = 0, pb = 0;
+    for (int k = 0; k < ns; ++k) {
+      const auto& id = heads[static_cast<size_t>(solved[k])];
+      if (a >> k & 1u) ma += id.matches.size(), pa += id.false_match_probability;
+      if (b >> k & 1u) mb += id.matches.size(), pb += id.false_match_probability;
+    }
+    if (ma != mb) return ma > mb;
+    return pa < pb;
+  };
+  for (unsigned set = 1; ns <= 16 && set < (1u << ns); ++set) {
+    bool ok = true;
+    for (int a = 0; a < ns && ok; ++a)
+      for (int b = a + 1; b < ns && ok; ++b)
+        if ((set >> a & 1u) && (set >> b & 1u)) ok = agree(solved[a], solved[b]);
+    if (ok && (best == 0 || better(set, best))) best = set;
+  }
+  std::vector<WahbaObservation> obs;
+  out.false_match_probability = 0;
+  int used = 0;
+  for (int k = 0; k < ns; ++k) {
+    const size_t h = static_cast<size_t>(solved[k]);
+    if (!(best >> k & 1u)) {
+      out.head_status[h] = "inconsistent";
+      continue;
+    }
+    out.head_status[h] = "used";
+    ++used;
+    out.false_match_probability += heads[h].false_match_probability;
     const Mat3 r = q_body_from_sensor[h].normalized().toRotationMatrix();
     for (const auto& m : heads[h].matches) obs.push_back({r * m.b_sensor, m.r_inertial, m.sigma_rad});
   }
-  if (obs.size() < 3) {
-    AttitudeSolution out;
-    out.status = "no_match";
+  out.false_match_probability = std::min(1.0, out.false_match_probability);
+  if (used == 0 || obs.size() < 3) {
+    bool any_no_match = false;
+    for (const auto& id : heads) any_no_match |= id.status != "too_few_stars";
+    out.attitude.status = any_no_match || heads.empty() ? "no_match" : "too_few_stars";
+    out.false_match_probability = 1.0;
+    out.message = "no head solved";
     return out;
   }
-  return SolveQuest(obs);
+  out.attitude = SolveQuest(obs);
+  out.message = std::to_string(used) + " of " + std::to_string(n) + " heads fused, " + std::to_string(obs.size()) + " stars";
+  if (used < ns) out.message += "; " + std::to_string(ns - used) + " solved head(s) disagree with the others (wrong solve or mount)";
+  return out;
+}
+
+AttitudeSolution SolveMultiHead(const std::vector<Identification>& heads, const std::vector<Quat>& q_body_from_sensor) {
+  return SolveMultiHeadChecked(heads, q_body_from_sensor).attitude;
 }
 
 }  // namespace ssiu

@@ -46,6 +46,28 @@ AttitudeSolution SolveAttitude(const Identification& id);
 
 // Several optical heads: matches of head i (sensor frame) rotated to the body frame by
 // q_body_from_sensor[i] and fused in one QUEST solution of the body attitude (inertial <- body).
+// Heads that did not solve are left out. Before fusing, the heads' own body attitudes are compared
+// pairwise: two heads agree when the difference d of their body attitudes (body axes) has
+// d^T (P_i + P_j + tol^2 I)^-1 d <= consistency_sigmas^2; the largest set of heads that agree
+// pairwise is fused (ties: more matches, then lower false-match probability), the others are
+// reported "inconsistent" (a head solved wrongly, or a wrong mount in heads.json).
+struct MultiHeadOptions {
+  double consistency_sigmas = 6.0;       // chi (3 dof) of the pairwise difference
+  double mount_tolerance_arcsec = 60.0;  // unmodelled mount error per axis, added to P_i + P_j
+  void Check() const;                    // throws InputError naming the field
+};
+
+struct MultiHeadSolution {
+  AttitudeSolution attitude;             // body attitude (q_inertial_from_sensor = inertial <- body), body-axis covariance
+  std::vector<std::string> head_status;  // per head: "used", "inconsistent", or its own status (no_match, too_few_stars)
+  std::vector<Quat> q_inertial_from_body_per_head;  // each solved head's own body attitude (identity otherwise)
+  double false_match_probability = 1.0;  // of the fused heads together: sum of theirs (union bound)
+  std::string message;
+};
+
+MultiHeadSolution SolveMultiHeadChecked(const std::vector<Identification>& heads, const std::vector<Quat>& q_body_from_sensor,
+                                        const MultiHeadOptions& options = {});
+// The fused attitude of SolveMultiHeadChecked with default options.
 AttitudeSolution SolveMultiHead(const std::vector<Identification>& heads, const std::vector<Quat>& q_body_from_sensor);
 
 }  // namespace ssiu

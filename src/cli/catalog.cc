@@ -25,6 +25,9 @@ SSIU_REGISTER_COMMAND(catalog, [](CLI::App& root) {
   cmd->add_option("--fov-deg", o->build.fov_deg, "Horizontal field of view (deg)")->required();
   cmd->add_option("--double-arcsec", o->build.double_star_arcsec, "Merge stars closer than this (0 = 3 px of a 1024-px sensor)");
   cmd->add_option("--pattern-stars", o->build.pattern_stars_per_fov, "Pattern stars per half-FOV cap")->capture_default_str();
+  cmd->add_option("--neighbours", o->build.pattern_neighbours,
+                  "Triangles per pattern star: among its K nearest pattern neighbours (0 = all in the FOV)")
+      ->capture_default_str();
   cmd->add_option("--out", o->out, "Output directory")->required();
   cmd->callback([o] {
     const std::string src = o->source.empty() ? DefaultSourceFor(o->build.fov_deg) : o->source;
@@ -32,7 +35,7 @@ SSIU_REGISTER_COMMAND(catalog, [](CLI::App& root) {
     SaveSolverCatalog(c, o->out);
     std::cerr << "catalog: " << c.stars.size() << " stars to V " << c.mag_max << " from " << src << ", "
               << c.num_pattern_stars << " pattern stars, " << c.triangles.size() << " triangles ("
-              << c.IndexBytes() / 1e6 << " MB), " << c.build_time_s << " s -> " << o->out << "\n";
+              << c.IndexBytes() / 1e6 << " MB index), " << c.build_time_s << " s -> " << o->out << "\n";
   });
 });
 

@@ -1,5 +1,6 @@
 // `ssiu solve`: a frame (or a centroid CSV) -> verified star identification -> attitude JSON,
 // optionally an overlay PNG and a FITS TAN WCS header; `--heads` fuses up to three optical heads.
+#include <chrono>
 #include <cmath>
 #include <fstream>
 #include <iostream>
@@ -86,6 +87,7 @@ void RunHeads(const Opts& o) {
   std::vector<Identification> ids;
   std::vector<Quat> mounts;
   Json heads = Json::array();
+  double heads_ms = 0;  // read excluded: detect + identify + attitude of every head
   for (size_t h = 0; h < hj.size(); ++h) {
     const std::string where = o.heads + ": head " + std::to_string(h);
     if (!hj[h].contains("camera") || !hj[h].contains("q_body_sensor") || !hj[h]["q_body_sensor"].is_array() ||
@@ -103,23 +105,52 @@ void RunHeads(const Opts& o) {
     const SolveResult r = SolveFrame(id, fr.image.view(), cam, so);
     PrintSummary(o.frames[h], r);
     heads.push_back(SolveResultToJson(r));
+    for (const auto& [k, v] : r.timing_ms) heads_ms += v;
     ids.push_back(r.identification);
   }
-  const AttitudeSolution s = SolveMultiHead(ids, mounts);
+  const auto t_fuse = std::chrono::steady_clock::now();
+  const MultiHeadSolution mh = SolveMultiHeadChecked(ids, mounts);
+  const double fuse_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_fuse).count();
+  const AttitudeSolution& s = mh.attitude;
+  // The JSON contract of a single-head solve, for the body attitude (inertial <- body, "frame": "body");
+  // per-head results under "heads", each with "use": used / inconsistent / its own status.
   Json j;
   j["status"] = s.status;
-  if (s.status == "solved") {
+  j["mode"] = "lost_in_space";
+  j["frame"] = "body";
+  j["message"] = mh.message;
+  const bool ok = s.status == "solved";
+  const RaDecRoll a = RaDecRollFromQuat(s.q_inertial_from_sensor);
+  if (ok) {
     const auto q = ToWxyz(s.q_inertial_from_sensor);
-    const RaDecRoll a = RaDecRollFromQuat(s.q_inertial_from_sensor);
     j["q"] = {q[0], q[1], q[2], q[3]};
-    j["ra_deg"] = a.ra_rad * kRadToDeg, j["dec_deg"] = a.dec_rad * kRadToDeg, j["roll_deg"] = a.roll_rad * kRadToDeg;
-    j["sigma_cross_arcsec"] = s.sigma_cross_rad * kRadToArcsec;
-    j["sigma_roll_arcsec"] = s.sigma_roll_rad * kRadToArcsec;
   } else {
     j["q"] = nullptr;
   }
-  j["frame"] = "body";
+  auto num = [ok](double v) { return ok ? Json(v) : Json(nullptr); };
+  j["ra_deg"] = num(a.ra_rad * kRadToDeg);
+  j["dec_deg"] = num(a.dec_rad * kRadToDeg);
+  j["roll_deg"] = num(a.roll_rad * kRadToDeg);
+  j["sigma_cross_arcsec"] = num(s.sigma_cross_rad * kRadToArcsec);
+  j["sigma_roll_arcsec"] = num(s.sigma_roll_rad * kRadToArcsec);
+  j["focal_length_px"] = nullptr;  // one per head, under "heads"
+  j["false_match_probability"] = mh.false_match_probability;
+  Json matches = Json::array();
+  for (size_t h = 0; h < ids.size(); ++h) {
+    heads[h]["use"] = mh.head_status[h];
+    if (!ok || mh.head_status[h] != "used") continue;
+    const Mat3 rm = mounts[h].normalized().toRotationMatrix();
+    for (const auto& m : ids[h].matches) {
+      const Vec3 pred = s.q_inertial_from_sensor.conjugate() * m.r_inertial;  // body axes
+      const Vec3 b = rm * m.b_sensor;
+      const double res = std::atan2(pred.cross(b).norm(), pred.dot(b));
+      matches.push_back({{"head", h}, {"x_px", m.x_px}, {"y_px", m.y_px}, {"star_id", m.star_id}, {"mag", m.mag},
+                         {"residual_arcsec", res * kRadToArcsec}});
+    }
+  }
+  j["matches"] = matches;
   j["num_stars"] = s.num_observations;
+  j["timing_ms"] = {{"heads", heads_ms}, {"fuse", fuse_ms}};
   j["heads"] = heads;
   WriteJsonFile(o.json, j);
 }

@@ -13,7 +13,11 @@
 namespace ssiu {
 
 struct StarIdentifier::Index {
-  std::vector<float> features;  // (ratio_a, ratio_b) per triangle
+  // (ratio_a, ratio_b, ln longest_rad) per triangle. The log of the longest side makes its
+  // tolerance relative (d ln L = dL / L), about as large as the ratios' (~sqrt(2) dL / L), so one
+  // isotropic radius search selects on shape and size together; with the shape alone a short
+  // observed triangle (wide ratio tolerance) returned thousands of candidates.
+  std::vector<float> features;
   std::vector<double> units;    // star unit vectors
   std::unique_ptr<flann::Index<flann::L2<float>>> triangles;
   std::unique_ptr<flann::Index<flann::L2<double>>> stars;
@@ -240,13 +244,14 @@ double BinomialTail(int n, double p, int k) {
 
 StarIdentifier::StarIdentifier(SolverCatalog catalog) : catalog_(std::move(catalog)), index_(std::make_unique<Index>()) {
   auto& ix = *index_;
-  ix.features.reserve(catalog_.triangles.size() * 2);
+  ix.features.reserve(catalog_.triangles.size() * 3);
   for (const auto& t : catalog_.triangles) {
     ix.features.push_back(t.ratio_a);
     ix.features.push_back(t.ratio_b);
+    ix.features.push_back(std::log(t.longest_rad));
   }
   if (!catalog_.triangles.empty()) {
-    flann::Matrix<float> m(ix.features.data(), catalog_.triangles.size(), 2);
+    flann::Matrix<float> m(ix.features.data(), catalog_.triangles.size(), 3);
     ix.triangles = std::make_unique<flann::Index<flann::L2<float>>>(m, flann::KDTreeSingleIndexParams(16));
     ix.triangles->buildIndex();
   }
@@ -305,9 +310,8 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
   const double f = camera.focal_length_px;
   const double ptol = o.fov_tolerance_pct / 100.0;
   const double fov = catalog_.fov_deg * kDegToRad;
-  double sig_pat = 0;
-  for (int i = 0; i < k_pat; ++i) sig_pat = std::max(sig_pat, ctx.sigma_px[ctx.order[i]]);
-  const double tol_side = o.tolerance_sigmas * std::sqrt(2.0) * sig_pat / f;  // side-length tolerance (rad)
+  // ln of the focal-length scale range: observed longest side / catalog longest side.
+  const double ln_scale_tol = ptol > 0 ? std::max(std::log1p(ptol), -std::log1p(-ptol)) : 0.0;
 
   std::vector<std::vector<int>> idx;
   std::vector<std::vector<float>> dist;
@@ -322,19 +326,27 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
     for (int b = 1; b < c; ++b) {
       for (int a = 0; a < b; ++a) {
         const int vtx[3] = {a, b, c};
+        // Side-length tolerance (rad) from this triangle's own centroid noise (a poorly measured
+        // centroid elsewhere in the frame does not widen every search).
+        const double sig_tri = std::max({ctx.sigma_px[ctx.order[a]], ctx.sigma_px[ctx.order[b]], ctx.sigma_px[ctx.order[c]]});
+        const double tol_side = o.tolerance_sigmas * std::sqrt(2.0) * sig_tri / f;
         const double side[3] = {Angle(u[b], u[c]), Angle(u[a], u[c]), Angle(u[a], u[b])};
         double s[3] = {side[0], side[1], side[2]};
         std::sort(s, s + 3);
         if (s[2] > fov * (1 + ptol) + tol_side || s[0] < 1e-9) continue;
-        // Ratio tolerance: d(a/c) = sqrt(da^2 + (a/c)^2 dc^2) / c <= sqrt(2) tol / c.
+        // Ratio tolerance: d(a/c) = sqrt(da^2 + (a/c)^2 dc^2) / c <= sqrt(2) tol / c; ln of the
+        // longest side: the focal-length range plus tol / c.
         const double tol_r = tol_side * std::sqrt(2.0) / s[2] + 1e-4;
-        float q[2] = {static_cast<float>(s[0] / s[2]), static_cast<float>(s[1] / s[2])};
-        flann::Matrix<float> qm(q, 1, 2);
-        index_->triangles->radiusSearch(qm, idx, dist, static_cast<float>(2 * tol_r * tol_r), sp);
+        const double tol_l = ln_scale_tol + 1.1 * tol_side / s[2] + 1e-4;
+        float q[3] = {static_cast<float>(s[0] / s[2]), static_cast<float>(s[1] / s[2]), static_cast<float>(std::log(s[2]))};
+        flann::Matrix<float> qm(q, 1, 3);
+        index_->triangles->radiusSearch(qm, idx, dist, static_cast<float>(2 * tol_r * tol_r + tol_l * tol_l), sp);
         for (int ti : idx[0]) {
           const CatalogTriangle& t = catalog_.triangles[ti];
           const Vec3* r[3] = {&catalog_.stars[t.v[0]].unit, &catalog_.stars[t.v[1]].unit, &catalog_.stars[t.v[2]].unit};
-          const double cside[3] = {Angle(*r[1], *r[2]), Angle(*r[0], *r[2]), Angle(*r[0], *r[1])};
+          // Catalog sides from the stored features (vertex i is opposite side i, shortest first).
+          const double cside[3] = {t.ratio_a * static_cast<double>(t.longest_rad), t.ratio_b * static_cast<double>(t.longest_rad),
+                                   static_cast<double>(t.longest_rad)};
           const double scale = s[2] / t.longest_rad;  // observed / catalog angle ~ f_true / f_nominal
           if (std::abs(scale - 1) > ptol + tol_side / s[2]) continue;
           for (const auto& pm : kPerm) {

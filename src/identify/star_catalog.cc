@@ -12,6 +12,7 @@
 #include <fstream>
 #include <iomanip>
 #include <sstream>
+#include <unordered_set>
 
 #include "core/attitude.h"
 #include "core/error.h"
@@ -22,7 +23,7 @@ namespace ssiu {
 namespace {
 
 constexpr double kMasToRad = kArcsecToRad / 1000.0;
-constexpr char kMagic[8] = {'S', 'S', 'I', 'U', 'C', 'A', 'T', '1'};
+constexpr char kMagic[8] = {'S', 'S', 'I', 'U', 'C', 'A', 'T', '2'};  // 2: triangles as vertices only
 
 bool FileExists(const std::string& p) {
   struct stat st;
@@ -77,6 +78,8 @@ void CatalogBuildOptions::Check() const {
     throw InputError("catalog options", "pattern_stars_per_fov must be in [4, 60]");
   if (!(stars_per_fov >= 5)) throw InputError("catalog options", "stars_per_fov must be >= 5");
   if (!(min_side_frac >= 0 && min_side_frac < 0.5)) throw InputError("catalog options", "min_side_frac must be in [0, 0.5)");
+  if (pattern_neighbours != 0 && (pattern_neighbours < 2 || pattern_neighbours > 100))
+    throw InputError("catalog options", "pattern_neighbours must be 0 (all) or in [2, 100]");
 }
 
 SourceCatalog LoadBsc5(const std::string& path) {
@@ -258,22 +261,33 @@ SolverCatalog BuildFromStars(std::vector<CatalogStar> stars, const std::string& 
     }
   }
   cat.num_pattern_stars = static_cast<int>(pattern.size());
-  // Triangles of pattern stars whose sides all fit in the FOV.
+  cat.pattern_neighbours = o.pattern_neighbours;
+  // Triangles of pattern stars whose sides all fit in the FOV: with pattern_neighbours = K, those
+  // of each pattern star with two of its K nearest pattern neighbours (deduplicated), else all.
   internal::SkyGrid grid(fov);
   for (size_t p = 0; p < pattern.size(); ++p) grid.Insert(static_cast<int>(p), cat.stars[pattern[p]].unit);
   const double min_side = o.min_side_frac * fov;
-  const double cos_fov = std::cos(fov);
-  std::vector<int> nb;
+  const double cos_fov = std::cos(fov), cos_min = std::cos(min_side);
+  const int k_nb = o.pattern_neighbours;
+  std::unordered_set<uint64_t> seen;
+  std::vector<std::pair<double, int>> nb;
   for (size_t p = 0; p < pattern.size(); ++p) {
     const Vec3& u0 = cat.stars[pattern[p]].unit;
     nb.clear();
-    grid.ForEachWithin(u0, fov, [&](int id, const Vec3&) {
-      if (id > static_cast<int>(p)) nb.push_back(id);
+    grid.ForEachWithin(u0, fov, [&](int id, const Vec3& u) {
+      const double c = u.dot(u0);
+      if (id == static_cast<int>(p) || c > cos_min) return;
+      if (k_nb > 0 || id > static_cast<int>(p)) nb.push_back({-c, id});
     });
-    std::sort(nb.begin(), nb.end());
+    if (k_nb > 0 && static_cast<int>(nb.size()) > k_nb) {
+      std::partial_sort(nb.begin(), nb.begin() + k_nb, nb.end());  // nearest first (largest cosine)
+      nb.resize(static_cast<size_t>(k_nb));
+    }
+    std::sort(nb.begin(), nb.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
     for (size_t j = 0; j < nb.size(); ++j) {
       for (size_t k = j + 1; k < nb.size(); ++k) {
-        const int idx[3] = {pattern[p], pattern[nb[j]], pattern[nb[k]]};
+        int tri[3] = {static_cast<int>(p), nb[j].second, nb[k].second};
+        const int idx[3] = {pattern[tri[0]], pattern[tri[1]], pattern[tri[2]]};
         const Vec3& a = cat.stars[idx[0]].unit;
         const Vec3& b = cat.stars[idx[1]].unit;
         const Vec3& c = cat.stars[idx[2]].unit;
@@ -284,6 +298,12 @@ SolverCatalog BuildFromStars(std::vector<CatalogStar> stars, const std::string& 
         int ord[3] = {0, 1, 2};
         std::sort(ord, ord + 3, [&](int x, int y) { return side[x] < side[y]; });
         if (side[ord[0]] < min_side) continue;
+        if (k_nb > 0) {
+          std::sort(tri, tri + 3);
+          const uint64_t key = (static_cast<uint64_t>(tri[0]) << 42) | (static_cast<uint64_t>(tri[1]) << 21) |
+                               static_cast<uint64_t>(tri[2]);
+          if (!seen.insert(key).second) continue;
+        }
         CatalogTriangle t;
         for (int m = 0; m < 3; ++m) t.v[m] = idx[ord[m]];
         t.longest_rad = static_cast<float>(side[ord[2]]);
@@ -332,8 +352,8 @@ void SaveSolverCatalog(const SolverCatalog& cat, const std::string& dir) {
     put(kMagic, 8);
     const double hdr[5] = {cat.epoch_year, cat.fov_deg, cat.mag_max, cat.double_star_arcsec, cat.build_time_s};
     put(hdr, sizeof hdr);
-    const int64_t counts[3] = {static_cast<int64_t>(cat.stars.size()), static_cast<int64_t>(cat.triangles.size()),
-                               cat.num_pattern_stars};
+    const int64_t counts[4] = {static_cast<int64_t>(cat.stars.size()), static_cast<int64_t>(cat.triangles.size()),
+                               cat.num_pattern_stars, cat.pattern_neighbours};
     put(counts, sizeof counts);
     const int64_t slen = static_cast<int64_t>(cat.source.size());
     put(&slen, 8);
@@ -343,7 +363,7 @@ void SaveSolverCatalog(const SolverCatalog& cat, const std::string& dir) {
       put(&s.id, sizeof s.id);
       put(d, sizeof d);
     }
-    put(cat.triangles.data(), cat.triangles.size() * sizeof(CatalogTriangle));
+    for (const auto& t : cat.triangles) put(t.v.data(), sizeof t.v);
     if (!out) throw InputError(path, "write failed");
   }
   {
@@ -360,6 +380,7 @@ void SaveSolverCatalog(const SolverCatalog& cat, const std::string& dir) {
                {"stars", cat.stars.size()},
                {"pattern_stars", cat.num_pattern_stars},
                {"triangles", cat.triangles.size()},
+               {"pattern_neighbours", cat.pattern_neighbours},
                {"index_bytes", cat.IndexBytes()},
                {"build_time_s", cat.build_time_s}};
   WriteJsonFile(dir + "/meta.json", meta);
@@ -379,7 +400,7 @@ SolverCatalog LoadSolverCatalog(const std::string& dir) {
   double hdr[5];
   get(hdr, sizeof hdr);
   cat.epoch_year = hdr[0], cat.fov_deg = hdr[1], cat.mag_max = hdr[2], cat.double_star_arcsec = hdr[3], cat.build_time_s = hdr[4];
-  int64_t counts[3], slen;
+  int64_t counts[4], slen;
   get(counts, sizeof counts);
   get(&slen, 8);
   if (counts[0] < 0 || counts[0] > 10000000 || counts[1] < 0 || counts[1] > 200000000 || slen < 0 || slen > 4096)
@@ -387,6 +408,7 @@ SolverCatalog LoadSolverCatalog(const std::string& dir) {
   cat.source.resize(static_cast<size_t>(slen));
   get(cat.source.data(), cat.source.size());
   cat.num_pattern_stars = static_cast<int>(counts[2]);
+  cat.pattern_neighbours = static_cast<int>(counts[3]);
   cat.stars.resize(static_cast<size_t>(counts[0]));
   for (auto& s : cat.stars) {
     double d[3];
@@ -396,10 +418,23 @@ SolverCatalog LoadSolverCatalog(const std::string& dir) {
     s.unit = UnitFromRaDec(s.ra_rad, s.dec_rad);
   }
   cat.triangles.resize(static_cast<size_t>(counts[1]));
-  get(cat.triangles.data(), cat.triangles.size() * sizeof(CatalogTriangle));
-  for (const auto& t : cat.triangles)
-    for (int v : t.v)
-      if (v < 0 || v >= static_cast<int>(cat.stars.size())) throw InputError(path, "corrupt triangle index");
+  std::vector<int32_t> v(cat.triangles.size() * 3);
+  get(v.data(), v.size() * sizeof(int32_t));
+  for (size_t i = 0; i < cat.triangles.size(); ++i) {
+    auto& t = cat.triangles[i];
+    for (int k = 0; k < 3; ++k) {
+      t.v[k] = v[3 * i + k];
+      if (t.v[k] < 0 || t.v[k] >= static_cast<int>(cat.stars.size())) throw InputError(path, "corrupt triangle index");
+    }
+    // Features from the stars (vertices are stored ordered by the side opposite them).
+    const Vec3 &a = cat.stars[t.v[0]].unit, &b = cat.stars[t.v[1]].unit, &c = cat.stars[t.v[2]].unit;
+    const double s0 = std::acos(std::min(1.0, b.dot(c))), s1 = std::acos(std::min(1.0, a.dot(c))),
+                 s2 = std::acos(std::min(1.0, a.dot(b)));
+    if (!(s2 > 0)) throw InputError(path, "corrupt triangle index (degenerate triangle)");
+    t.longest_rad = static_cast<float>(s2);
+    t.ratio_a = static_cast<float>(s0 / s2);
+    t.ratio_b = static_cast<float>(s1 / s2);
+  }
   return cat;
 }
 
@@ -416,8 +451,9 @@ SolverCatalog LoadOrBuildCatalog(const std::string& source_path, const CatalogBu
   for (char& c : base)
     if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
   char key[256];
-  std::snprintf(key, sizeof key, "%s_fov%.2f_mag%.2f_ep%.1f_dbl%.1f_p%d_s%.0f", base.c_str(), o.fov_deg, o.mag_max,
-                o.epoch_year, o.double_star_arcsec, o.pattern_stars_per_fov, o.stars_per_fov);
+  std::snprintf(key, sizeof key, "%s_fov%.2f_mag%.2f_ep%.1f_dbl%.1f_p%d_s%.0f_k%d_v2", base.c_str(), o.fov_deg,
+                o.mag_max, o.epoch_year, o.double_star_arcsec, o.pattern_stars_per_fov, o.stars_per_fov,
+                o.pattern_neighbours);
   const std::string dir = CatalogCacheDir() + "/" + key;
   if (FileExists(dir + "/catalog.bin")) {
     try {

@@ -30,6 +30,10 @@ struct CatalogBuildOptions {
   int pattern_stars_per_fov = 10;   // pattern stars kept per cap of radius fov/2 (uniform sky cover)
   double stars_per_fov = 40.0;      // auto mag limit: mean stars in a cap of diameter fov_deg
   double min_side_frac = 0.02;      // triangle sides shorter than this fraction of the FOV are skipped
+  // Triangles per pattern star: only those among the star and its K nearest pattern neighbours
+  // (within the FOV), which keeps the index near N * K(K-1)/2 instead of growing with the square of
+  // the neighbours in a field; 0 = every triangle that fits in the FOV.
+  int pattern_neighbours = 10;
   void Check() const;               // throws InputError naming the field
 };
 
@@ -50,9 +54,11 @@ struct SolverCatalog {
   std::vector<CatalogStar> stars;   // brightest first, positions at epoch_year
   std::vector<CatalogTriangle> triangles;
   int num_pattern_stars = 0;
+  int pattern_neighbours = 0;       // CatalogBuildOptions::pattern_neighbours the index was built with
   double build_time_s = 0;
 
-  size_t IndexBytes() const { return triangles.size() * sizeof(CatalogTriangle); }
+  // Pattern index on disk: three star indices per triangle (the features are recomputed at load).
+  size_t IndexBytes() const { return triangles.size() * sizeof(CatalogTriangle::v); }
 };
 
 // A source catalog with proper motions (rad/yr; pm_ra is mu_alpha * cos(dec)).
@@ -86,7 +92,8 @@ SolverCatalog BuildSolverCatalog(const SourceCatalog& source, const CatalogBuild
 // From a plain star table already at its epoch (e.g. the simulator's catalog): no proper motion.
 SolverCatalog BuildSolverCatalog(const StarCatalog& stars, const CatalogBuildOptions& options);
 
-// DIR/stars.csv (human-readable table), DIR/catalog.bin (everything, loaded back), DIR/meta.json.
+// DIR/stars.csv (human-readable table), DIR/catalog.bin (stars and triangle vertices, loaded back;
+// triangle features are recomputed from the star positions), DIR/meta.json.
 void SaveSolverCatalog(const SolverCatalog& catalog, const std::string& dir);
 SolverCatalog LoadSolverCatalog(const std::string& dir);  // InputError naming the file
 

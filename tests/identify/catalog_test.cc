@@ -1,7 +1,10 @@
 #include "identify/star_catalog.h"
 
+#include <array>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
+#include <set>
 
 #include "core/attitude.h"
 #include "core/error.h"
@@ -113,8 +116,49 @@ TEST(Catalog, BuildSaveLoadRoundTripAndIndexCoversTheSky) {
   EXPECT_THROW(LoadSolverCatalog(dir), InputError);
 }
 
+// The K-nearest-neighbour index is a subset of the full one (every triangle that fits in the FOV),
+// several times smaller, and its features survive the save/load (they are recomputed at load).
+TEST(Catalog, NeighbourLimitedIndexIsASmallerSubset) {
+  const SourceCatalog src = LoadSourceCatalog(DefaultBscPath());
+  CatalogBuildOptions o;
+  o.fov_deg = 16.6;
+  o.pattern_neighbours = 0;
+  const SolverCatalog all = BuildSolverCatalog(src, o);
+  o.pattern_neighbours = 10;
+  const SolverCatalog k10 = BuildSolverCatalog(src, o);
+  ASSERT_EQ(all.stars.size(), k10.stars.size());
+  EXPECT_LT(k10.triangles.size() * 4, all.triangles.size());
+  // Each pattern star of N holds at most K(K-1)/2 triangles with two of its neighbours.
+  EXPECT_LE(k10.triangles.size(), static_cast<size_t>(k10.num_pattern_stars) * 45);
+  EXPECT_GT(k10.triangles.size(), static_cast<size_t>(k10.num_pattern_stars) * 10);
+  std::set<std::array<int32_t, 3>> full;
+  for (const auto& t : all.triangles) full.insert(t.v);
+  std::set<std::array<int32_t, 3>> seen;
+  for (const auto& t : k10.triangles) {
+    EXPECT_TRUE(full.count(t.v)) << t.v[0] << " " << t.v[1] << " " << t.v[2];
+    EXPECT_TRUE(seen.insert(t.v).second) << "duplicate triangle";
+  }
+  const std::string dir = testing::TempDir("catalog_k10");
+  SaveSolverCatalog(k10, dir);
+  const SolverCatalog back = LoadSolverCatalog(dir);
+  EXPECT_EQ(back.pattern_neighbours, 10);
+  ASSERT_EQ(back.triangles.size(), k10.triangles.size());
+  for (size_t i = 0; i < k10.triangles.size(); i += 101) {
+    EXPECT_EQ(back.triangles[i].v, k10.triangles[i].v);
+    EXPECT_NEAR(back.triangles[i].longest_rad, k10.triangles[i].longest_rad, 1e-6);
+    EXPECT_NEAR(back.triangles[i].ratio_a, k10.triangles[i].ratio_a, 1e-6);
+    EXPECT_NEAR(back.triangles[i].ratio_b, k10.triangles[i].ratio_b, 1e-6);
+  }
+  // On disk: 12 bytes per triangle plus 28 per star and a small header.
+  const auto bytes = std::filesystem::file_size(dir + "/catalog.bin");
+  EXPECT_LT(bytes, k10.triangles.size() * 12 + k10.stars.size() * 28 + 4096);
+}
+
 TEST(Catalog, BadOptionsAreRejected) {
   CatalogBuildOptions o;
+  o.pattern_neighbours = 1;
+  EXPECT_THROW(o.Check(), InputError);
+  o = {};
   o.fov_deg = 0;
   EXPECT_THROW(o.Check(), InputError);
   o = {};
