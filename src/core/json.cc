@@ -13,7 +13,7 @@ Json ReadJsonFile(const std::string& path) {
   if (!in) throw InputError(path, "cannot open file");
   try {
     return Json::parse(in, nullptr, true, /*ignore_comments=*/true);
-  } catch (const Json::parse_error& e) {
+  } catch (const Json::exception& e) {  // parse_error, and out_of_range for a number overflow (1e999)
     throw InputError(path, std::string("not valid JSON (") + e.what() + ")");
   }
 }
