@@ -106,11 +106,9 @@ Json FuseResult::ToJson() const {
           {"seconds_elapsed", seconds_elapsed}};
 }
 
-namespace {
-
 // The filter's noise model for the gyros in use: white rate noise and bias walk of the
 // least-squares body rate (Markley & Crassidis eq. 6.93 spectral densities, in rad).
-MekfNoise NoiseFor(const GyroUnit& unit, const RateSolver& solver, double floor_dph_per_sqrt_h) {
+MekfNoise FuseNoiseModel(const GyroUnit& unit, const RateSolver& solver, double floor_dph_per_sqrt_h) {
   MekfNoise n;
   const double arw_to_rad = kDegToRad / 60.0;  // deg/sqrt(h) -> rad/sqrt(s)
   n.rate_white = solver.Cov() * (arw_to_rad * arw_to_rad);
@@ -124,8 +122,6 @@ MekfNoise NoiseFor(const GyroUnit& unit, const RateSolver& solver, double floor_
   n.bias_walk += Mat3::Identity() * (f * f + 1e-30);
   return n;
 }
-
-}  // namespace
 
 FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& unit_in, const FuseOptions& options) {
   const auto t_start = std::chrono::steady_clock::now();
@@ -156,7 +152,7 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
   std::vector<bool> use(n, true);
   GyroVec correction = GyroVec::Zero(n);  // gyro-level parity bias removed after an isolation (deg/h)
   RateSolver solver(axes, arw, use);
-  MekfNoise noise = NoiseFor(unit, solver, options.bias_drift_floor_dph_per_sqrt_h);
+  MekfNoise noise = FuseNoiseModel(unit, solver, options.bias_drift_floor_dph_per_sqrt_h);
 
   std::vector<double> dts;
   for (size_t k = 1; k < gyro.t_s.size(); ++k) dts.push_back(gyro.t_s[k] - gyro.t_s[k - 1]);
@@ -215,7 +211,7 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
     const double leak = solver.Pinv().col(gi).norm() * std::abs(fault_dph) * kDphToRadS;
     use[gi] = false;
     solver = RateSolver(axes, arw, use);
-    noise = NoiseFor(unit, solver, options.bias_drift_floor_dph_per_sqrt_h);
+    noise = FuseNoiseModel(unit, solver, options.bias_drift_floor_dph_per_sqrt_h);
     monitor = ParityMonitor(axes, use, sample_sigma_dph, dt_nominal, options.fdi_options);
     filter.InflateBias(leak);
     isolating = false;

@@ -80,6 +80,10 @@ struct FuseResult {
 // InputError when the log's gyro count does not match the unit.
 FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& unit, const FuseOptions& options);
 
+// The MEKF's noise model for the gyros `solver` uses: white rate noise and bias walk of the
+// least-squares body rate (rad^2/s, rad^2/s^3), plus a bias-walk floor (deg/h per sqrt(h)).
+MekfNoise FuseNoiseModel(const GyroUnit& unit, const RateSolver& solver, double floor_dph_per_sqrt_h);
+
 // Writes t_s,qw,qx,qy,qz,sigma_x_arcsec,sigma_y_arcsec,sigma_z_arcsec,bx_dph,by_dph,bz_dph.
 void WriteFusedAttitude(const std::string& path, const FuseResult& result);
 

@@ -1,0 +1,156 @@
+#include "inertial/unit_processor.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "attitude/quest.h"
+#include "core/error.h"
+#include "detect/detect.h"
+
+namespace ssiu {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+constexpr double kRadSToDph = 3600.0 * kRadToDeg;
+
+}  // namespace
+
+void UnitProcessorOptions::Check() const {
+  solve.Check();
+  fuse.Check();
+  if (!(solution_sigma_scale > 0 && solution_sigma_scale < 100)) {
+    throw InputError("processor options", "solution_sigma_scale must be in (0, 100)");
+  }
+  if (!(solution_sigma_floor_arcsec >= 0 && solution_sigma_floor_arcsec < 3600)) {
+    throw InputError("processor options", "solution_sigma_floor_arcsec must be in [0, 3600)");
+  }
+}
+
+UnitProcessor::UnitProcessor(std::vector<OpticalHead> heads,
+                             std::vector<std::shared_ptr<const StarIdentifier>> identifiers, const GyroUnit& unit,
+                             const UnitProcessorOptions& options)
+    : heads_(std::move(heads)), ids_(std::move(identifiers)), options_(options), fusion_(unit, options.fuse) {
+  options_.Check();
+  if (heads_.empty() || heads_.size() > static_cast<size_t>(kMaxHeads)) {
+    throw InputError("heads", "the unit has 1 to 3 optical heads, not " + std::to_string(heads_.size()));
+  }
+  if (ids_.size() != heads_.size()) throw InputError("heads", "one star identifier per head is needed");
+  for (size_t h = 0; h < heads_.size(); ++h) {
+    if (!ids_[h]) throw InputError("heads", "head " + std::to_string(h + 1) + " has no star identifier");
+    heads_[h].camera.Check("head " + std::to_string(h + 1) + " camera");
+    heads_[h].q_body_from_sensor.normalize();
+  }
+}
+
+void UnitProcessor::OnGyroSample(double t_s, const GyroVec& g_dph) { fusion_.AddGyro(t_s, g_dph); }
+
+HeadResult UnitProcessor::SolveHead(int h, const ImageView& image, Identification* id) {
+  const auto t0 = Clock::now();
+  HeadResult r;
+  r.has_frame = true;
+  const OpticalHead& head = heads_[h];
+  const StarIdentifier& sid = *ids_[h];
+  const SolveOptions& so = options_.solve;
+  if (image.width != head.camera.width || image.height != head.camera.height) {
+    throw InputError("head " + std::to_string(h + 1), "frame is " + std::to_string(image.width) + "x" +
+                                                         std::to_string(image.height) + " but the camera is " +
+                                                         std::to_string(head.camera.width) + "x" +
+                                                         std::to_string(head.camera.height));
+  }
+  DetectOptions dopt = so.detect;
+  if (dopt.gain_e_per_adu == 0) dopt.gain_e_per_adu = head.camera.gain_e_per_adu;
+  const Detections det = Detect(image, dopt);
+  r.timing_ms["detect"] = MsSince(t0);
+  r.detections = static_cast<int>(det.stars.size());
+  const std::vector<Centroid> c = CentroidsFromDetections(det, so.detector_sigma_scale);
+
+  // Tracking around the attitude the gyros carried forward; lost in space before the first fix or
+  // when tracking fails (the same fallback as attitude/star_solver.h's Tracker).
+  const auto t1 = Clock::now();
+  if (fusion_.initialised()) {
+    const Quat q_pred = fusion_.q() * head.q_body_from_sensor;
+    *id = sid.MatchWithAttitude(c, head.camera, q_pred, so.track_search_radius_px, so.identify);
+    r.mode = "tracking";
+  }
+  if (!fusion_.initialised() || id->status != "solved") {
+    *id = sid.Identify(c, head.camera, so.identify);
+    r.mode = "lost_in_space";
+  }
+  r.timing_ms["identify"] = MsSince(t1);
+  r.status = id->status;
+  if (id->status == "solved") {
+    const auto t2 = Clock::now();
+    const AttitudeSolution a = SolveAttitude(*id);
+    r.timing_ms["attitude"] = MsSince(t2);
+    r.matches = static_cast<int>(id->matches.size());
+    r.q_inertial_from_sensor = a.q_inertial_from_sensor;
+    r.sigma_cross_arcsec = a.sigma_cross_rad * kRadToArcsec;
+    r.sigma_roll_arcsec = a.sigma_roll_rad * kRadToArcsec;
+  }
+  r.timing_ms["total"] = MsSince(t0);
+  return r;
+}
+
+FrameReport UnitProcessor::OnFrames(double t_s, const std::vector<ImageView>& images) {
+  const auto t0 = Clock::now();
+  if (images.size() != heads_.size()) {
+    throw InputError("frames", std::to_string(images.size()) + " frames for " + std::to_string(heads_.size()) +
+                                   " heads (give an empty view for a head without a frame)");
+  }
+  FrameReport f;
+  f.t_s = t_s;
+  std::vector<Identification> ids(heads_.size());
+  std::vector<Quat> mounts;
+  for (size_t h = 0; h < heads_.size(); ++h) {
+    mounts.push_back(heads_[h].q_body_from_sensor);
+    if (images[h].data == nullptr) {
+      f.heads.emplace_back();
+      continue;
+    }
+    f.heads.push_back(SolveHead(static_cast<int>(h), images[h], &ids[h]));
+    if (f.heads.back().status == "solved") ++f.heads_solved;
+  }
+  if (f.heads_solved == 0) {
+    f.status = "no_frame";
+    for (const auto& h : f.heads) {
+      if (h.has_frame) f.status = h.status;  // the last head's reason
+    }
+    f.total_ms = MsSince(t0);
+    return f;
+  }
+  // One QUEST over the matches of every solved head, in body axes (attitude/quest.h SolveMultiHead).
+  const AttitudeSolution body = SolveMultiHead(ids, mounts);
+  if (body.status != "solved") {
+    f.status = body.status;
+    f.total_ms = MsSince(t0);
+    return f;
+  }
+  f.status = "solved";
+  f.q_inertial_from_body = body.q_inertial_from_sensor;
+  const double s = options_.solution_sigma_scale;
+  const double floor_rad = options_.solution_sigma_floor_arcsec * kArcsecToRad;
+  f.covariance_rad2 = body.covariance_rad2 * (s * s) + Mat3::Identity() * (floor_rad * floor_rad);
+  f.initialised_filter = !fusion_.initialised();
+  f.update = fusion_.AddAttitude(t_s, f.q_inertial_from_body, f.covariance_rad2);
+  f.total_ms = MsSince(t0);
+  return f;
+}
+
+UnitAttitude UnitProcessor::Attitude() const {
+  UnitAttitude a;
+  a.valid = fusion_.initialised();
+  a.t_s = fusion_.t_s();
+  a.q_inertial_from_body = fusion_.q();
+  const Mat6& p = fusion_.P();
+  a.covariance_rad2 = p.block<3, 3>(MekfIndex::kAttitude, MekfIndex::kAttitude);
+  a.bias_dph = fusion_.bias_rad_s() * kRadSToDph;
+  for (int i = 0; i < 3; ++i) a.bias_sigma_dph[i] = std::sqrt(p(MekfIndex::kBias + i, MekfIndex::kBias + i)) * kRadSToDph;
+  a.faults = fusion_.faults();
+  a.gyros_in_use = fusion_.GyrosInUse();
+  return a;
+}
+
+}  // namespace ssiu

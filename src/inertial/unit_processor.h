@@ -1,0 +1,110 @@
+// The unit's processor: what the SSIU's on-board loop calls. Star frames of one to three optical heads
+// are detected, identified (lost in space first, then tracking around the attitude the gyros
+// propagate), solved together for the body attitude (QUEST over every head's matches), and fused
+// with the four-FOG unit in the MEKF that also estimates the gyro biases and watches the gyros for a
+// fault. `ssiu run` drives it with a simulated mission (sim/mission.h); docs/inertial.md.
+//
+//   UnitProcessor p(heads, identifiers, DefaultFourFogUnit(), UnitProcessorOptions{});
+//   p.OnGyroSample(t_s, g_dph);              // every gyro sample (mean output over the interval)
+//   FrameReport f = p.OnFrames(t_s, views);  // one ImageView per head (empty view: no frame)
+//   UnitAttitude a = p.Attitude();           // body attitude, covariance, bias, faults
+#pragma once
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "attitude/star_solver.h"
+#include "core/camera.h"
+#include "core/image.h"
+#include "core/json.h"
+#include "core/types.h"
+#include "identify/identify.h"
+#include "inertial/fuse.h"
+#include "inertial/gyro_unit.h"
+#include "inertial/online_fusion.h"
+
+namespace ssiu {
+
+// One optical head (conventions.md heads.json): its camera and q_body_from_sensor, which rotates
+// vectors from the head's sensor frame to the body frame.
+struct OpticalHead {
+  Camera camera;
+  Quat q_body_from_sensor = Quat::Identity();
+};
+constexpr int kMaxHeads = 3;
+
+struct UnitProcessorOptions {
+  SolveOptions solve;  // detection threshold, identification, tracking search radius
+  FuseOptions fuse;    // MEKF prior, NIS gate, FDI (the star noise comes from each solution's covariance)
+  // The QUEST covariance is multiplied by this squared before it enters the filter (1 = trusted as is).
+  double solution_sigma_scale = 1.0;
+  // Added in quadrature to each axis' 1-sigma of a solution (arcsec): the QUEST covariance knows only
+  // the centroid noise, not the unmodelled errors (distortion, catalog positions, motion in the exposure).
+  double solution_sigma_floor_arcsec = 0.5;
+  void Check() const;  // InputError naming the field
+};
+
+// What one head's frame gave.
+struct HeadResult {
+  bool has_frame = false;
+  std::string status = "no_frame";  // solved, no_match, too_few_stars, no_frame
+  std::string mode;                 // lost_in_space or tracking
+  int detections = 0, matches = 0;
+  double sigma_cross_arcsec = 0, sigma_roll_arcsec = 0;  // this head's own solution
+  Quat q_inertial_from_sensor = Quat::Identity();        // when solved
+  std::map<std::string, double> timing_ms;               // detect, identify, attitude, total
+};
+
+// What one set of simultaneous frames gave.
+struct FrameReport {
+  double t_s = 0;
+  std::vector<HeadResult> heads;
+  std::string status = "no_match";  // solved (at least one head) or the reason nothing was solved
+  int heads_solved = 0;
+  Quat q_inertial_from_body = Quat::Identity();  // the star-only body attitude (all solved heads)
+  Mat3 covariance_rad2 = Mat3::Zero();           // its error covariance, body axes
+  bool initialised_filter = false;               // this solution started the filter
+  MekfUpdate update;                             // the filter update it made
+  double total_ms = 0;                           // detect + solve + update, all heads
+};
+
+// The unit's current estimate.
+struct UnitAttitude {
+  bool valid = false;  // false until the first solved frame
+  double t_s = 0;
+  Quat q_inertial_from_body = Quat::Identity();
+  Mat3 covariance_rad2 = Mat3::Zero();  // attitude error, body axes
+  Vec3 bias_dph = Vec3::Zero(), bias_sigma_dph = Vec3::Zero();
+  std::vector<FaultEvent> faults;
+  std::vector<int> gyros_in_use;  // 1-based
+};
+
+class UnitProcessor {
+ public:
+  // One identifier per head (heads with the same camera may share one). InputError for 0 or more than
+  // 3 heads, a missing identifier, a bad camera, unit or options.
+  UnitProcessor(std::vector<OpticalHead> heads, std::vector<std::shared_ptr<const StarIdentifier>> identifiers,
+                const GyroUnit& unit, const UnitProcessorOptions& options);
+
+  // A gyro sample: the outputs g1..gN (deg/h), mean over (t_prev, t_s], in time order.
+  void OnGyroSample(double t_s, const GyroVec& g_dph);
+  // Frames taken at t_s (mid-exposure), one view per head in head order; a view with data == nullptr
+  // means that head has no frame this time. Expected failures (no stars, no match) are in the report.
+  FrameReport OnFrames(double t_s, const std::vector<ImageView>& images);
+
+  UnitAttitude Attitude() const;
+  const std::vector<OpticalHead>& heads() const { return heads_; }
+  const OnlineFusion& fusion() const { return fusion_; }
+
+ private:
+  HeadResult SolveHead(int h, const ImageView& image, Identification* id);
+
+  std::vector<OpticalHead> heads_;
+  std::vector<std::shared_ptr<const StarIdentifier>> ids_;
+  UnitProcessorOptions options_;
+  OnlineFusion fusion_;
+};
+
+}  // namespace ssiu

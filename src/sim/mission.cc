@@ -1,0 +1,563 @@
+#include "sim/mission.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <set>
+
+#include "attitude/star_solver.h"
+#include "core/attitude.h"
+#include "core/csv.h"
+#include "core/error.h"
+#include "inertial/propagate.h"
+
+namespace ssiu {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double SecondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+Quat QuatFromJsonArray(const Json& j, const std::string& key, const std::string& file) {
+  if (!j.contains(key)) throw InputError(file, "missing field '" + key + "'");
+  const Json& a = j.at(key);
+  if (!a.is_array() || a.size() != 4) throw InputError(file, "field '" + key + "' must be [w, x, y, z]");
+  double v[4];
+  for (int i = 0; i < 4; ++i) {
+    if (!a[i].is_number() || !std::isfinite(a[i].get<double>())) {
+      throw InputError(file, "field '" + key + "' must hold 4 finite numbers");
+    }
+    v[i] = a[i].get<double>();
+  }
+  return FromWxyz(v[0], v[1], v[2], v[3], (file + ": " + key).c_str());
+}
+
+void CheckKeys(const Json& j, const std::set<std::string>& allowed, const std::string& file) {
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    if (!allowed.count(it.key())) throw InputError(file, "unknown field '" + it.key() + "'");
+  }
+}
+
+// Deterministic, well-mixed per-frame seeds (splitmix64 finaliser).
+uint64_t Mix(uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+
+// Error of q_est against q_true as a rotation vector in body axes (q_est = q_true * exp(e)).
+Vec3 BodyError(const Quat& q_est, const Quat& q_true) { return RotationVectorFromQuat(q_true.conjugate() * q_est); }
+
+struct ErrorAccumulator {
+  double sc = 0, sr = 0, mc = 0, mr = 0;
+  long n = 0;
+  void Add(const Vec3& e_sensor) {
+    const double c = std::hypot(e_sensor.x(), e_sensor.y()) * kRadToArcsec;
+    const double r = std::abs(e_sensor.z()) * kRadToArcsec;
+    sc += c * c;
+    sr += r * r;
+    mc = std::max(mc, c);
+    mr = std::max(mr, r);
+    ++n;
+  }
+  ErrorStats Stats() const {
+    ErrorStats s;
+    s.n = n;
+    if (n == 0) return s;
+    s.cross_rms_arcsec = std::sqrt(sc / n);
+    s.roll_rms_arcsec = std::sqrt(sr / n);
+    s.cross_max_arcsec = mc;
+    s.roll_max_arcsec = mr;
+    return s;
+  }
+};
+
+Json StatsJson(const ErrorStats& s) {
+  return {{"cross_rms_arcsec", s.cross_rms_arcsec}, {"cross_max_arcsec", s.cross_max_arcsec},
+          {"roll_rms_arcsec", s.roll_rms_arcsec},   {"roll_max_arcsec", s.roll_max_arcsec},
+          {"samples", s.n}};
+}
+Json V3(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
+
+}  // namespace
+
+void MissionConfig::Check(const std::string& file) const {
+  if (!(duration_s > 0 && duration_s <= 86400)) throw InputError(file, "field 'duration_s' must be in (0, 86400]");
+  if (!(frame_rate_hz > 0 && frame_rate_hz <= 100)) throw InputError(file, "field 'frame_rate_hz' must be in (0, 100]");
+  if (duration_s * frame_rate_hz > 100000) throw InputError(file, "more than 100000 frame times (duration_s * frame_rate_hz)");
+  if (heads.empty() || heads.size() > static_cast<size_t>(kMaxHeads)) {
+    throw InputError(file, "field 'heads': " + std::to_string(heads.size()) + " heads given, the unit has 1 to 3");
+  }
+  for (size_t h = 0; h < heads.size(); ++h) heads[h].camera.Check(file + ": heads[" + std::to_string(h) + "].camera");
+  unit.Check(file + ": gyro_unit");
+  motion.Check(file + ": motion", unit.size());
+  try {
+    frame_sim.Check();
+  } catch (const InputError& e) {
+    throw InputError(file + ": frame_sim: " + e.what());
+  }
+  try {
+    processor.Check();
+  } catch (const InputError& e) {
+    throw InputError(file + ": processor: " + e.what());
+  }
+  if (!(score_after_s >= 0 && score_after_s < duration_s)) {
+    throw InputError(file, "field 'score_after_s' must be in [0, duration_s)");
+  }
+}
+
+MissionConfig DefaultMissionConfig() {
+  MissionConfig c;
+  // Two heads of 512x512 px and 16.6 deg: head 1 along body +Z, head 2 along body -Y (90 deg about
+  // body +X), so that each head's poorly observed roll is the other's cross-boresight.
+  OpticalHead h1;
+  h1.camera = MakeCamera(512, 512, 16.6);
+  OpticalHead h2 = h1;
+  h2.q_body_from_sensor = Quat(Eigen::AngleAxisd(90 * kDegToRad, Vec3::UnitX()));
+  c.heads = {h1, h2};
+  // Four FOGs (three orthogonal plus one skewed) with turn-on biases of a few deg/h.
+  c.unit = DefaultFourFogUnit();
+  const double biases_dph[4] = {2.0, -3.0, 1.5, 2.5};
+  for (int i = 0; i < 4; ++i) c.unit.gyros[i].bias_dph = biases_dph[i];
+  c.motion.type = "slew";
+  c.motion.rate_dps = 0.1;
+  c.motion.axis_body = Vec3(0.3, -0.5, 0.8).normalized();
+  c.motion.q0 = QuatFromRaDecRoll(84.0 * kDegToRad, -1.0 * kDegToRad, 0.0);  // head 1 near Orion's belt
+  // The simulated frames have no lens distortion and draw the solver's own catalog, so the centroid
+  // error the solver does not model is small (the identify default of 0.5 px is for real optics).
+  // It sets the solutions' covariance, and so how much the filter trusts each frame.
+  c.processor.solve.identify.systematic_px = 0.1;
+  return c;
+}
+
+MissionConfig MissionConfigFromJson(const Json& j, const std::string& file) {
+  if (!j.is_object()) throw InputError(file, "the config must be a JSON object");
+  CheckKeys(j, {"duration_s", "frame_rate_hz", "seed", "heads", "gyro_unit", "motion", "frame_sim", "processor",
+                "score_after_s", "comment"},
+            file);
+  MissionConfig c = DefaultMissionConfig();
+  c.duration_s = JsonNumber(j, "duration_s", file);
+  c.frame_rate_hz = JsonNumber(j, "frame_rate_hz", file);
+  const double seed = JsonNumber(j, "seed", file);
+  if (!(seed >= 0 && seed < 9e15) || seed != std::floor(seed)) {
+    throw InputError(file, "field 'seed' must be a whole number >= 0");
+  }
+  c.seed = static_cast<uint64_t>(seed);
+  c.score_after_s = JsonNumberOr(j, "score_after_s", std::min(c.score_after_s, 0.5 * c.duration_s), file);
+
+  if (!j.contains("heads")) throw InputError(file, "missing field 'heads'");
+  const Json& hs = j.at("heads");
+  if (!hs.is_array()) throw InputError(file, "field 'heads' must be a list of {camera, q_body_sensor}");
+  if (hs.empty() || hs.size() > static_cast<size_t>(kMaxHeads)) {
+    throw InputError(file, "field 'heads': " + std::to_string(hs.size()) + " heads given, the unit has 1 to 3");
+  }
+  c.heads.clear();
+  for (size_t h = 0; h < hs.size(); ++h) {
+    const std::string what = file + ": heads[" + std::to_string(h) + "]";
+    if (!hs[h].is_object()) throw InputError(what, "must be an object {camera, q_body_sensor}");
+    CheckKeys(hs[h], {"camera", "q_body_sensor"}, what);
+    if (!hs[h].contains("camera")) throw InputError(what, "missing field 'camera'");
+    OpticalHead head;
+    head.camera = CameraFromJson(hs[h].at("camera"), what + ".camera");
+    head.q_body_from_sensor = QuatFromJsonArray(hs[h], "q_body_sensor", what);
+    c.heads.push_back(head);
+  }
+  if (j.contains("gyro_unit")) c.unit = GyroUnitFromJson(j.at("gyro_unit"), file + ": gyro_unit");
+  if (j.contains("motion")) c.motion = MotionProfileFromJson(j.at("motion"), file + ": motion");
+  if (j.contains("frame_sim")) c.frame_sim = FrameSimOptionsFromJson(j.at("frame_sim"), file + ": frame_sim");
+  if (j.contains("processor")) {
+    const Json& p = j.at("processor");
+    const std::string what = file + ": processor";
+    if (!p.is_object()) throw InputError(what, "must be an object");
+    CheckKeys(p, {"threshold_sigma", "systematic_px", "track_search_radius_px", "nis_gate", "init_bias_sigma_dph",
+                  "fdi", "solution_sigma_scale", "solution_sigma_floor_arcsec"},
+              what);
+    UnitProcessorOptions& o = c.processor;
+    o.solve.identify.systematic_px = JsonNumberOr(p, "systematic_px", o.solve.identify.systematic_px, what);
+    o.solve.detect.threshold_sigma = JsonNumberOr(p, "threshold_sigma", o.solve.detect.threshold_sigma, what);
+    o.solve.track_search_radius_px = JsonNumberOr(p, "track_search_radius_px", o.solve.track_search_radius_px, what);
+    o.fuse.nis_gate = JsonNumberOr(p, "nis_gate", o.fuse.nis_gate, what);
+    o.fuse.init_bias_sigma_dph = JsonNumberOr(p, "init_bias_sigma_dph", o.fuse.init_bias_sigma_dph, what);
+    o.solution_sigma_scale = JsonNumberOr(p, "solution_sigma_scale", o.solution_sigma_scale, what);
+    o.solution_sigma_floor_arcsec = JsonNumberOr(p, "solution_sigma_floor_arcsec", o.solution_sigma_floor_arcsec, what);
+    if (p.contains("fdi")) {
+      if (!p.at("fdi").is_boolean()) throw InputError(what, "field 'fdi' must be true or false");
+      o.fuse.fdi = p.at("fdi").get<bool>();
+    }
+  }
+  c.Check(file);
+  return c;
+}
+
+MissionConfig LoadMissionConfig(const std::string& path) { return MissionConfigFromJson(ReadJsonFile(path), path); }
+
+Json MissionConfigToJson(const MissionConfig& c) {
+  Json heads = Json::array();
+  for (const auto& h : c.heads) {
+    const auto q = ToWxyz(h.q_body_from_sensor);
+    heads.push_back({{"camera", CameraToJson(h.camera)}, {"q_body_sensor", {q[0], q[1], q[2], q[3]}}});
+  }
+  const auto q0 = ToWxyz(c.motion.q0);
+  Json motion = {{"type", c.motion.type},
+                 {"q0", {q0[0], q0[1], q0[2], q0[3]}},
+                 {"axis", V3(c.motion.axis_body)},
+                 {"rate_dps", c.motion.rate_dps},
+                 {"amplitude_dps", V3(c.motion.amplitude_dps)},
+                 {"period_s", c.motion.period_s}};
+  if (!c.motion.faults.empty()) {
+    Json f = Json::array();
+    for (const auto& g : c.motion.faults) {
+      f.push_back({{"gyro", g.gyro}, {"t_s", g.t_s}, {"step_dph", g.step_dph}, {"ramp_dph_per_h", g.ramp_dph_per_h}});
+    }
+    motion["faults"] = f;
+  }
+  const UnitProcessorOptions& o = c.processor;
+  return {{"duration_s", c.duration_s},
+          {"frame_rate_hz", c.frame_rate_hz},
+          {"seed", c.seed},
+          {"score_after_s", c.score_after_s},
+          {"heads", heads},
+          {"gyro_unit", GyroUnitToJson(c.unit)},
+          {"motion", motion},
+          {"frame_sim", FrameSimOptionsToJson(c.frame_sim)},
+          {"processor",
+           {{"threshold_sigma", o.solve.detect.threshold_sigma},
+            {"systematic_px", o.solve.identify.systematic_px},
+            {"track_search_radius_px", o.solve.track_search_radius_px},
+            {"nis_gate", o.fuse.nis_gate},
+            {"init_bias_sigma_dph", o.fuse.init_bias_sigma_dph},
+            {"fdi", o.fuse.fdi},
+            {"solution_sigma_scale", o.solution_sigma_scale},
+            {"solution_sigma_floor_arcsec", o.solution_sigma_floor_arcsec}}}};
+}
+
+MissionData SimulateMission(const MissionConfig& config) {
+  config.Check("mission");
+  MissionData d;
+  GyroSimOptions go;
+  go.duration_s = config.duration_s;
+  go.seed = config.seed;
+  d.gyro = SimulateGyro(config.unit, config.motion, go);
+  for (long i = 0;; ++i) {
+    const double t = i / config.frame_rate_hz;
+    if (t > config.duration_s + 1e-9) break;
+    d.frame_t_s.push_back(t);
+  }
+  return d;
+}
+
+Quat TrueAttitudeAt(const MissionData& data, double t_s) {
+  const auto& t = data.gyro.t_s;
+  const auto& q = data.gyro.q_true;
+  if (t.empty() || t_s <= 0) return data.gyro.q0;
+  const size_t k = std::upper_bound(t.begin(), t.end(), t_s) - t.begin();  // first sample after t_s
+  if (k >= t.size()) return q.back();
+  const double t0 = k == 0 ? 0.0 : t[k - 1];
+  const Quat q0 = k == 0 ? data.gyro.q0 : q[k - 1];
+  const double a = (t_s - t0) / (t[k] - t0);
+  return q0.slerp(a, q[k]).normalized();
+}
+
+SimulatedFrame SimulateMissionFrame(const MissionConfig& config, const MissionData& data, const StarCatalog& catalog,
+                                    int frame, int head) {
+  const OpticalHead& h = config.heads.at(head);
+  FrameSimOptions so = config.frame_sim;
+  so.defect_seed = config.frame_sim.defect_seed + head;  // each head its own sensor defects
+  const Quat q_sensor = TrueAttitudeAt(data, data.frame_t_s.at(frame)) * h.q_body_from_sensor;
+  const uint64_t seed = Mix(Mix(config.seed) ^ (static_cast<uint64_t>(frame) * kMaxHeads + head));
+  return SimulateFrame(h.camera, catalog, q_sensor, so, seed);
+}
+
+MissionResult RunMission(const MissionConfig& config_in, const StarCatalog& catalog, const std::string& out_dir) {
+  MissionConfig config = config_in;
+  config.Check("mission");
+  // The processor knows its cameras' gain (a property of the unit); the simulator's is the truth.
+  for (auto& h : config.heads) {
+    if (h.camera.gain_e_per_adu == 0) h.camera.gain_e_per_adu = config.frame_sim.gain_e_per_adu;
+  }
+  const MissionData data = SimulateMission(config);
+  const int nh = static_cast<int>(config.heads.size());
+
+  // One identifier per distinct field of view (MakeIdentifierForCamera's catalog key).
+  std::map<long, std::shared_ptr<const StarIdentifier>> by_fov;
+  std::vector<std::shared_ptr<const StarIdentifier>> ids;
+  for (const auto& h : config.heads) {
+    const long key = std::lround(h.camera.FovXRad() * kRadToDeg * 10);
+    if (!by_fov.count(key)) {
+      by_fov[key] = std::make_shared<const StarIdentifier>(MakeIdentifierForCamera("", h.camera, 0.0));
+    }
+    ids.push_back(by_fov[key]);
+  }
+  UnitProcessor proc(config.heads, ids, config.unit, config.processor);
+
+  MissionResult res;
+  res.heads.resize(nh);
+  res.frames = static_cast<int>(data.frame_t_s.size());
+  const Quat q_sensor1_from_body = config.heads[0].q_body_from_sensor.conjugate();
+  ErrorAccumulator star_acc, fused_acc;
+  long within = 0, axis_samples = 0, nees_n = 0;
+  double nees_sum = 0, frame_ms_sum = 0, gyro_s = 0, sim_s = 0;
+  const bool write = !out_dir.empty();
+  if (write) std::filesystem::create_directories(out_dir);
+  std::vector<std::vector<double>> att_cols(write ? 18 : 0), frame_cols(write ? 6 + 5 * nh : 0);
+  bool first_valid = true;
+
+  const auto& g = data.gyro;
+  const auto t_run = Clock::now();
+  size_t fi = 0;
+  auto process_frames = [&](double t_f) {
+    const auto t0 = Clock::now();
+    std::vector<SimulatedFrame> frames;
+    for (int h = 0; h < nh; ++h) frames.push_back(SimulateMissionFrame(config, data, catalog, static_cast<int>(fi), h));
+    sim_s += SecondsSince(t0);
+    if (write && fi == 0) {
+      for (int h = 0; h < nh; ++h) WritePng16(out_dir + "/head" + std::to_string(h + 1) + "_first.png", frames[h].image);
+    }
+    std::vector<ImageView> views;
+    for (const auto& f : frames) views.push_back(f.image.view());
+    const FrameReport fr = proc.OnFrames(t_f, views);
+    frame_ms_sum += fr.total_ms;
+    res.frame_ms_max = std::max(res.frame_ms_max, fr.total_ms);
+    const Quat q_true = TrueAttitudeAt(data, t_f);
+    for (int h = 0; h < nh; ++h) {
+      const HeadResult& hr = fr.heads[h];
+      HeadSummary& s = res.heads[h];
+      ++s.frames;
+      if (hr.status == "solved") {
+        ++s.solved;
+        s.mean_matches += hr.matches;
+        s.mean_sigma_cross_arcsec += hr.sigma_cross_arcsec;
+        s.mean_sigma_roll_arcsec += hr.sigma_roll_arcsec;
+        (hr.mode == "tracking" ? s.tracking : s.lost_in_space)++;
+      }
+      auto ms = [&](const char* k) { return hr.timing_ms.count(k) ? hr.timing_ms.at(k) : 0.0; };
+      s.detect_ms_mean += ms("detect");
+      s.identify_ms_mean += ms("identify");
+      s.total_ms_mean += ms("total");
+      s.total_ms_max = std::max(s.total_ms_max, ms("total"));
+    }
+    Vec3 e_star = Vec3::Constant(std::nan(""));
+    if (fr.status == "solved") {
+      ++res.frames_solved;
+      e_star = BodyError(fr.q_inertial_from_body, q_true);
+      if (t_f >= config.score_after_s) star_acc.Add(q_sensor1_from_body * e_star);
+    }
+    const UnitAttitude a = proc.Attitude();
+    if (a.valid && t_f >= config.score_after_s) {
+      const Vec3 e = BodyError(a.q_inertial_from_body, q_true);
+      nees_sum += e.dot(a.covariance_rad2.ldlt().solve(e));
+      ++nees_n;
+    }
+    if (write) {
+      frame_cols[0].push_back(t_f);
+      frame_cols[1].push_back(fr.heads_solved);
+      frame_cols[2].push_back(fr.update.accepted ? 1 : 0);
+      for (int i = 0; i < 3; ++i) frame_cols[3 + i].push_back(e_star[i] * kRadToArcsec);
+      for (int h = 0; h < nh; ++h) {
+        const HeadResult& hr = fr.heads[h];
+        const bool ok = hr.status == "solved";
+        frame_cols[6 + 5 * h].push_back(ok ? 1 : 0);
+        frame_cols[7 + 5 * h].push_back(ok ? (hr.mode == "tracking" ? 1 : 0) : std::nan(""));
+        frame_cols[8 + 5 * h].push_back(hr.matches);
+        frame_cols[9 + 5 * h].push_back(ok ? hr.sigma_cross_arcsec : std::nan(""));
+        frame_cols[10 + 5 * h].push_back(hr.timing_ms.count("total") ? hr.timing_ms.at("total") : 0.0);
+      }
+    }
+    ++fi;
+  };
+
+  for (size_t k = 0; k < g.t_s.size(); ++k) {
+    while (fi < data.frame_t_s.size() && data.frame_t_s[fi] < g.t_s[k] - 1e-9) process_frames(data.frame_t_s[fi]);
+    const auto t0 = Clock::now();
+    proc.OnGyroSample(g.t_s[k], g.gyro_dph[k]);
+    gyro_s += SecondsSince(t0);
+    while (fi < data.frame_t_s.size() && data.frame_t_s[fi] <= g.t_s[k] + 1e-9) process_frames(data.frame_t_s[fi]);
+    const UnitAttitude a = proc.Attitude();
+    if (!a.valid) continue;
+    if (first_valid) {
+      res.bias_error_start_dph = (a.bias_dph - g.body_bias_dph[k]).norm();
+      first_valid = false;
+    }
+    const Vec3 e = BodyError(a.q_inertial_from_body, g.q_true[k]);
+    if (g.t_s[k] >= config.score_after_s) {
+      fused_acc.Add(q_sensor1_from_body * e);
+      for (int i = 0; i < 3; ++i) {
+        within += std::abs(e[i]) <= 3 * std::sqrt(a.covariance_rad2(i, i)) ? 1 : 0;
+        ++axis_samples;
+      }
+    }
+    if (write) {
+      const auto q = ToWxyz(a.q_inertial_from_body);
+      const auto qt = ToWxyz(g.q_true[k]);
+      att_cols[0].push_back(g.t_s[k]);
+      for (int i = 0; i < 4; ++i) att_cols[1 + i].push_back(q[i]);
+      for (int i = 0; i < 3; ++i) att_cols[5 + i].push_back(std::sqrt(a.covariance_rad2(i, i)) * kRadToArcsec);
+      for (int i = 0; i < 3; ++i) att_cols[8 + i].push_back(e[i] * kRadToArcsec);
+      for (int i = 0; i < 3; ++i) att_cols[11 + i].push_back(a.bias_dph[i]);
+      for (int i = 0; i < 4; ++i) att_cols[14 + i].push_back(qt[i]);
+    }
+  }
+  while (fi < data.frame_t_s.size()) process_frames(data.frame_t_s[fi]);
+  res.process_s = SecondsSince(t_run) - sim_s;
+  res.simulate_s = sim_s;
+
+  for (auto& s : res.heads) {
+    if (s.solved > 0) {
+      s.mean_matches /= s.solved;
+      s.mean_sigma_cross_arcsec /= s.solved;
+      s.mean_sigma_roll_arcsec /= s.solved;
+    }
+    if (s.frames > 0) {
+      s.detect_ms_mean /= s.frames;
+      s.identify_ms_mean /= s.frames;
+      s.total_ms_mean /= s.frames;
+    }
+  }
+  res.star_only = star_acc.Stats();
+  res.fused = fused_acc.Stats();
+  res.within_3sigma_fraction = axis_samples > 0 ? static_cast<double>(within) / axis_samples : 0.0;
+  res.nees_mean = nees_n > 0 ? nees_sum / nees_n : 0.0;
+  res.final_state = proc.Attitude();
+  res.bias_dph = res.final_state.bias_dph;
+  res.bias_sigma_dph = res.final_state.bias_sigma_dph;
+  res.bias_truth_dph = g.body_bias_dph.empty() ? Vec3::Zero() : g.body_bias_dph.back();
+  res.bias_error_end_dph = (res.bias_dph - res.bias_truth_dph).norm();
+  res.updates = proc.fusion().n_updates();
+  res.rejected = proc.fusion().n_rejected();
+  res.frame_ms_mean = res.frames > 0 ? frame_ms_sum / res.frames : 0.0;
+  res.gyro_us_mean = g.t_s.empty() ? 0.0 : gyro_s * 1e6 / g.t_s.size();
+
+  if (write) {
+    WriteCsv(out_dir + "/attitude.csv",
+             {"t_s", "qw", "qx", "qy", "qz", "sigma_x_arcsec", "sigma_y_arcsec", "sigma_z_arcsec", "err_x_arcsec",
+              "err_y_arcsec", "err_z_arcsec", "bx_dph", "by_dph", "bz_dph", "true_qw", "true_qx", "true_qy", "true_qz"},
+             att_cols, 12);
+    std::vector<std::string> fh = {"t_s", "heads_solved", "update_accepted", "star_err_x_arcsec", "star_err_y_arcsec",
+                                   "star_err_z_arcsec"};
+    for (int h = 1; h <= nh; ++h) {
+      const std::string p = "head" + std::to_string(h) + "_";
+      for (const char* n : {"solved", "tracking", "matches", "sigma_cross_arcsec", "ms"}) fh.push_back(p + n);
+    }
+    WriteCsv(out_dir + "/frames.csv", fh, frame_cols, 9);
+    std::vector<std::vector<double>> gc(1 + config.unit.size() + 1), tc(5);
+    for (size_t k = 0; k < g.t_s.size(); ++k) {
+      gc[0].push_back(g.t_s[k]);
+      for (int i = 0; i < config.unit.size(); ++i) gc[1 + i].push_back(g.gyro_dph[k][i]);
+      gc.back().push_back(g.temp_c[k]);
+      const auto q = ToWxyz(g.q_true[k]);
+      tc[0].push_back(g.t_s[k]);
+      for (int i = 0; i < 4; ++i) tc[1 + i].push_back(q[i]);
+    }
+    std::vector<std::string> gh = {"t_s"};
+    for (int i = 1; i <= config.unit.size(); ++i) gh.push_back("g" + std::to_string(i) + "_dph");
+    gh.push_back("temp_c");
+    WriteCsv(out_dir + "/gyro.csv", gh, gc, 12);
+    WriteCsv(out_dir + "/truth.csv", {"t_s", "qw", "qx", "qy", "qz"}, tc, 15);
+  }
+  return res;
+}
+
+std::string MissionResult::Text() const {
+  std::string s;
+  char b[512];
+  std::snprintf(b, sizeof b, "ssiu run: %d frame times, %d with a star solution; %zu head(s)\n", frames,
+                frames_solved, heads.size());
+  s += b;
+  for (size_t h = 0; h < heads.size(); ++h) {
+    const HeadSummary& x = heads[h];
+    std::snprintf(b, sizeof b,
+                  "  head %zu: %d/%d frames solved (%d lost in space, %d tracking), %.1f stars matched, "
+                  "1-sigma %.1f cross / %.1f roll arcsec; %.1f ms per frame (detect %.1f, identify %.1f, max %.1f)\n",
+                  h + 1, x.solved, x.frames, x.lost_in_space, x.tracking, x.mean_matches, x.mean_sigma_cross_arcsec,
+                  x.mean_sigma_roll_arcsec, x.total_ms_mean, x.detect_ms_mean, x.identify_ms_mean, x.total_ms_max);
+    s += b;
+  }
+  std::snprintf(b, sizeof b,
+                "  star solutions vs truth (about head 1's boresight): cross RMS %.2f max %.2f, roll RMS %.2f max "
+                "%.2f arcsec\n",
+                star_only.cross_rms_arcsec, star_only.cross_max_arcsec, star_only.roll_rms_arcsec,
+                star_only.roll_max_arcsec);
+  s += b;
+  std::snprintf(b, sizeof b,
+                "  fused vs truth (every gyro sample): cross RMS %.2f max %.2f, roll RMS %.2f max %.2f arcsec; "
+                "%.1f%% of axis errors within 3 sigma; NEES %.2f (3 expected)\n",
+                fused.cross_rms_arcsec, fused.cross_max_arcsec, fused.roll_rms_arcsec, fused.roll_max_arcsec,
+                100 * within_3sigma_fraction, nees_mean);
+  s += b;
+  std::snprintf(b, sizeof b,
+                "  gyro bias (body x, y, z): estimate %.3f %.3f %.3f, truth %.3f %.3f %.3f deg/h; error %.3f deg/h "
+                "(1-sigma %.3f %.3f %.3f), %.2f at the first fix\n",
+                bias_dph.x(), bias_dph.y(), bias_dph.z(), bias_truth_dph.x(), bias_truth_dph.y(), bias_truth_dph.z(),
+                bias_error_end_dph, bias_sigma_dph.x(), bias_sigma_dph.y(), bias_sigma_dph.z(), bias_error_start_dph);
+  s += b;
+  std::string in_use;
+  for (int g : final_state.gyros_in_use) in_use += (in_use.empty() ? "" : ",") + std::to_string(g);
+  if (final_state.faults.empty()) {
+    s += "  FDI: no fault; gyros in use " + in_use + "\n";
+  } else {
+    for (const auto& f : final_state.faults) {
+      std::snprintf(b, sizeof b, "  FDI: %s gyro %d, detected at %.2f s, isolated at %.2f s (%s), %.2f deg/h\n",
+                    f.status.c_str(), f.gyro, f.t_detect_s, f.t_isolate_s, f.method.c_str(), f.fault_dph);
+      s += b;
+    }
+    s += "  gyros in use " + in_use + "\n";
+  }
+  std::snprintf(b, sizeof b,
+                "  filter: %ld star updates, %ld rejected; processor %.1f ms per frame set (max %.1f), %.2f us per "
+                "gyro sample; %.1f s processing, %.1f s rendering frames\n",
+                updates, rejected, frame_ms_mean, frame_ms_max, gyro_us_mean, process_s, simulate_s);
+  s += b;
+  return s;
+}
+
+Json MissionResult::ToJson() const {
+  Json hs = Json::array();
+  for (size_t h = 0; h < heads.size(); ++h) {
+    const HeadSummary& x = heads[h];
+    hs.push_back({{"head", h + 1},
+                  {"frames", x.frames},
+                  {"solved", x.solved},
+                  {"lost_in_space", x.lost_in_space},
+                  {"tracking", x.tracking},
+                  {"mean_matches", x.mean_matches},
+                  {"mean_sigma_cross_arcsec", x.mean_sigma_cross_arcsec},
+                  {"mean_sigma_roll_arcsec", x.mean_sigma_roll_arcsec},
+                  {"timing_ms", {{"detect_mean", x.detect_ms_mean}, {"identify_mean", x.identify_ms_mean},
+                                 {"total_mean", x.total_ms_mean}, {"total_max", x.total_ms_max}}}});
+  }
+  Json faults = Json::array();
+  for (const auto& f : final_state.faults) faults.push_back(f.ToJson());
+  Json fused_json = StatsJson(fused);
+  fused_json["within_3sigma_fraction"] = within_3sigma_fraction;
+  fused_json["nees_mean"] = nees_mean;
+  const auto q = ToWxyz(final_state.q_inertial_from_body);
+  Vec3 sigma;
+  for (int i = 0; i < 3; ++i) sigma[i] = std::sqrt(final_state.covariance_rad2(i, i)) * kRadToArcsec;
+  return {{"status", frames_solved > 0 ? "ok" : "no_star_solution"},
+          {"frames", frames},
+          {"frames_solved", frames_solved},
+          {"heads", hs},
+          {"star_solution_error", StatsJson(star_only)},
+          {"fused_error", fused_json},
+          {"final", {{"t_s", final_state.t_s}, {"q", {q[0], q[1], q[2], q[3]}}, {"sigma_body_arcsec", V3(sigma)}}},
+          {"bias",
+           {{"estimate_dph", V3(bias_dph)},
+            {"truth_dph", V3(bias_truth_dph)},
+            {"sigma_dph", V3(bias_sigma_dph)},
+            {"error_dph", bias_error_end_dph},
+            {"error_at_first_fix_dph", bias_error_start_dph}}},
+          {"faults", faults},
+          {"gyros_in_use", final_state.gyros_in_use},
+          {"filter", {{"updates", updates}, {"rejected", rejected}}},
+          {"timing",
+           {{"frame_ms_mean", frame_ms_mean},
+            {"frame_ms_max", frame_ms_max},
+            {"gyro_sample_us_mean", gyro_us_mean},
+            {"process_s", process_s},
+            {"simulate_s", simulate_s}}}};
+}
+
+}  // namespace ssiu

@@ -1,0 +1,108 @@
+// `ssiu run` end to end: a tiny mission config writes the JSON figures and the side outputs; a bad
+// config exits 1 with one line naming the file and the field.
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+
+#include "core/json.h"
+#include "testing/testing.h"
+
+namespace ssiu {
+namespace {
+
+using ::testing::HasSubstr;
+
+class RunCli : public ::testing::Test {
+ protected:
+  void SetUp() override { dir_ = testing::TempDir("run_cli"); }
+  std::string Path(const std::string& n) const { return dir_ + "/" + n; }
+  void Write(const std::string& n, const std::string& text) const { std::ofstream(Path(n)) << text; }
+  std::string dir_;
+};
+
+const char* kHead = R"({"camera": {"width": 384, "height": 384, "focal_length_px": 1316}, "q_body_sensor": [1, 0, 0, 0]})";
+
+std::string Config(const std::string& fields) {
+  return R"({"comment": "tiny mission for the CLI test", "seed": 2, "heads": [)" + std::string(kHead) + "]" + fields + "}";
+}
+
+TEST_F(RunCli, TinyMissionWritesTheFigures) {
+  Write("ssiu.json", Config(R"(, "duration_s": 20, "frame_rate_hz": 0.5, "score_after_s": 5)"));
+  const auto r = testing::RunSsiu("run --config " + Path("ssiu.json") + " --json " + Path("out.json") + " --out " +
+                                  Path("out"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("head 1: 11/11 frames solved"));
+  const Json j = ReadJsonFile(Path("out.json"));
+  for (const char* k : {"status", "frames", "frames_solved", "heads", "star_solution_error", "fused_error", "bias",
+                        "faults", "gyros_in_use", "filter", "timing", "config"}) {
+    EXPECT_TRUE(j.contains(k)) << k;
+  }
+  EXPECT_EQ(j["status"], "ok");
+  EXPECT_EQ(j["frames"], 11);
+  EXPECT_EQ(j["frames_solved"], 11);
+  EXPECT_EQ(j["heads"][0]["lost_in_space"], 1);
+  EXPECT_EQ(j["heads"][0]["tracking"], 10);
+  for (const char* k : {"cross_rms_arcsec", "cross_max_arcsec", "roll_rms_arcsec", "roll_max_arcsec",
+                        "within_3sigma_fraction", "nees_mean"}) {
+    ASSERT_TRUE(j["fused_error"].contains(k)) << k;
+    EXPECT_TRUE(j["fused_error"][k].is_number()) << k;
+  }
+  // The fused cross-boresight error of a 19-arcsec-per-pixel head is a few arcsec, not degrees.
+  EXPECT_LT(j["fused_error"]["cross_rms_arcsec"].get<double>(), 20.0);
+  EXPECT_GT(j["fused_error"]["cross_rms_arcsec"].get<double>(), 0.0);
+  EXPECT_EQ(j["bias"]["estimate_dph"].size(), 3u);
+  EXPECT_EQ(j["gyros_in_use"], Json({1, 2, 3, 4}));
+  for (const char* f : {"attitude.csv", "frames.csv", "gyro.csv", "truth.csv", "head1_first.png"}) {
+    EXPECT_TRUE(std::filesystem::exists(Path("out/") + f)) << f;
+  }
+}
+
+TEST_F(RunCli, PrintConfigWritesTheBuiltInDefault) {
+  const auto r = testing::RunSsiu("run --print-config");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const Json j = Json::parse(r.output);
+  EXPECT_EQ(j["heads"].size(), 2u);
+  EXPECT_EQ(j["duration_s"], 120.0);
+  // What it prints is a valid config again.
+  Write("default.json", r.output);
+  const auto again = testing::RunSsiu("run --config " + Path("default.json") + " --print-config");
+  ASSERT_EQ(again.status, 0) << again.output;
+  EXPECT_EQ(Json::parse(again.output), j);
+}
+
+TEST_F(RunCli, BadConfigExitsOneWithOneLineNamingFileAndField) {
+  struct Case {
+    const char* file;
+    std::string text;
+    const char* field;
+  } cases[] = {
+      {"missing.json", Config(R"(, "frame_rate_hz": 1)"), "duration_s"},
+      {"nan.json", Config(R"(, "duration_s": "NaN", "frame_rate_hz": 1)"), "duration_s"},
+      {"nan_literal.json", Config(R"(, "duration_s": NaN, "frame_rate_hz": 1)"), "duration_s"},
+      {"overflow.json", Config(R"(, "duration_s": 20, "frame_rate_hz": -1e999)"), "1e999"},
+      {"rate.json", Config(R"(, "duration_s": 20, "frame_rate_hz": 0)"), "frame_rate_hz"},
+      {"four.json",
+       R"({"duration_s": 20, "frame_rate_hz": 1, "seed": 1, "heads": [)" + std::string(kHead) + "," + kHead + "," +
+           kHead + "," + kHead + "]}",
+       "heads"},
+      {"camera.json", R"({"duration_s": 20, "frame_rate_hz": 1, "seed": 1, "heads": [{"camera": {"width": 384}, "q_body_sensor": [1, 0, 0, 0]}]})",
+       "height"},
+      {"quat.json", R"({"duration_s": 20, "frame_rate_hz": 1, "seed": 1, "heads": [{"camera": {"width": 384, "height": 384, "focal_length_px": 1316}, "q_body_sensor": [0, 0, 0, 0]}]})",
+       "q_body_sensor"},
+      {"notjson.json", "{\"duration_s\": 20,", "not valid JSON"},
+  };
+  for (const auto& c : cases) {
+    Write(c.file, c.text);
+    const auto r = testing::RunSsiu("run --config " + Path(c.file) + " --json " + Path("x.json"));
+    EXPECT_EQ(r.status, 1) << c.file << "\n" << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_THAT(r.output, HasSubstr(c.file));
+    EXPECT_THAT(r.output, HasSubstr(c.field)) << r.output;
+  }
+  const auto r = testing::RunSsiu("run --config " + Path("absent.json"));
+  EXPECT_EQ(r.status, 1);
+  EXPECT_THAT(r.output, HasSubstr("absent.json"));
+}
+
+}  // namespace
+}  // namespace ssiu

@@ -1,0 +1,210 @@
+// The whole unit (issue 5, "The whole unit"): the on-board processing API (inertial/unit_processor.h,
+// inertial/online_fusion.h) on simulated missions (sim/mission.h), scored against the simulator's
+// truth. Small missions (512x512 frames, a few dozen frames) to stay lean under the sanitizers.
+#include <cmath>
+#include <cstdio>
+
+#include "core/error.h"
+#include "inertial/online_fusion.h"
+#include "sim/gyro_fusion_scenario.h"
+#include "sim/mission.h"
+#include "testing/testing.h"
+
+namespace ssiu {
+namespace {
+
+using ::testing::HasSubstr;
+
+const StarCatalog& Bsc() {
+  static const StarCatalog cat = LoadXplanetBsc(DefaultBscPath());
+  return cat;
+}
+
+// Replays a simulated log through OnlineFusion sample by sample: gyro sample k, then the star samples
+// at or before t_k (they fall on gyro sample times here).
+struct Replay {
+  std::vector<Quat> q;
+  std::vector<Vec3> bias_dph;
+  std::vector<FaultEvent> faults;
+};
+Replay ReplayOnline(const GyroSimulation& sim, const GyroUnit& unit, const FuseOptions& fo) {
+  OnlineFusion f(unit, fo);
+  const double c = fo.st_sigma_cross_arcsec * kArcsecToRad, r = fo.st_sigma_roll_arcsec * kArcsecToRad;
+  const Mat3 rr = Vec3(c * c, c * c, r * r).asDiagonal();
+  Replay out;
+  size_t j = 0;
+  for (size_t k = 0; k < sim.t_s.size(); ++k) {
+    while (j < sim.st_t_s.size() && sim.st_t_s[j] < sim.t_s[k] - 1e-9) {
+      f.AddAttitude(sim.st_t_s[j], sim.st_q[j], rr);
+      ++j;
+    }
+    f.AddGyro(sim.t_s[k], sim.gyro_dph[k]);
+    while (j < sim.st_t_s.size() && sim.st_t_s[j] <= sim.t_s[k] + 1e-9) {
+      f.AddAttitude(sim.st_t_s[j], sim.st_q[j], rr);
+      ++j;
+    }
+    out.q.push_back(f.q());
+    out.bias_dph.push_back(f.bias_rad_s() * (3600.0 * kRadToDeg));
+  }
+  out.faults = f.faults();
+  return out;
+}
+
+// The online filter is the batch Fuse() run sample by sample: same attitude, bias and fault events.
+TEST(OnlineFusion, ReproducesBatchFuseIncludingAFault) {
+  testing::FusionScenario sc;
+  sc.duration_s = 900;
+  sc.rate_hz = 20;
+  sc.seed = 5;
+  sc.faults = {GyroFault{2, 400.0, 20.0, 0.0}};
+  const auto s = testing::RunFusionScenario(sc, 800.0);
+  ASSERT_EQ(s.fused.status, "fused");
+  const GyroUnit unit = testing::ScenarioUnit(sc.rate_hz, sc.bias_instability_dph);
+  const Replay on = ReplayOnline(s.sim, unit, FuseOptions{});
+  ASSERT_EQ(on.q.size(), s.fused.samples.size());
+  double max_q_arcsec = 0, max_b_dph = 0;
+  for (size_t k = 0; k < on.q.size(); ++k) {
+    max_q_arcsec = std::max(max_q_arcsec, AttitudeErrorRad(on.q[k], s.fused.samples[k].q_inertial_from_body) * kRadToArcsec);
+    max_b_dph = std::max(max_b_dph, (on.bias_dph[k] - s.fused.samples[k].bias_dph).norm());
+  }
+  EXPECT_LT(max_q_arcsec, 1e-3);
+  EXPECT_LT(max_b_dph, 1e-6);
+  ASSERT_EQ(on.faults.size(), s.fused.faults.size());
+  ASSERT_EQ(on.faults.size(), 1u);
+  EXPECT_EQ(on.faults[0].gyro, 2);
+  EXPECT_EQ(on.faults[0].status, "isolated");
+  EXPECT_DOUBLE_EQ(on.faults[0].t_detect_s, s.fused.faults[0].t_detect_s);
+  EXPECT_DOUBLE_EQ(on.faults[0].t_isolate_s, s.fused.faults[0].t_isolate_s);
+}
+
+// A measurement older than the filter's time is refused, not applied at the wrong time.
+TEST(OnlineFusion, RefusesALateMeasurement) {
+  const GyroUnit unit = DefaultFourFogUnit();
+  OnlineFusion f(unit, FuseOptions{});
+  const Mat3 r = Mat3::Identity() * 1e-10;
+  EXPECT_TRUE(f.AddAttitude(0.0, Quat::Identity(), r).accepted);
+  for (int k = 1; k <= 10; ++k) f.AddGyro(k * 0.01, GyroVec::Zero(4));
+  EXPECT_FALSE(f.AddAttitude(0.05, Quat::Identity(), r).accepted);
+  EXPECT_EQ(f.n_late(), 1);
+  EXPECT_TRUE(f.AddAttitude(0.1, Quat::Identity(), r).accepted);
+}
+
+MissionConfig SmallMission(int heads) {
+  MissionConfig c = DefaultMissionConfig();
+  c.duration_s = 60;
+  c.frame_rate_hz = 0.5;
+  c.seed = 3;
+  c.heads.resize(heads);
+  c.score_after_s = 10;
+  return c;
+}
+
+struct MissionRuns {
+  MissionResult one, two;
+};
+const MissionRuns& Runs() {
+  static const MissionRuns r = [] {
+    MissionRuns m;
+    m.one = RunMission(SmallMission(1), Bsc());
+    m.two = RunMission(SmallMission(2), Bsc());
+    std::printf("one head:\n%stwo heads:\n%s", m.one.Text().c_str(), m.two.Text().c_str());
+    return m;
+  }();
+  return r;
+}
+
+// One head: every frame solved (lost in space once, then tracking), the fused attitude within its
+// reported 3 sigma and better than a single frame, the gyro bias converging on the truth.
+TEST(Mission, OneHeadWithinThreeSigmaBelowFrameNoiseAndBiasConverges) {
+  const MissionResult& r = Runs().one;
+  ASSERT_EQ(r.frames, 31);
+  EXPECT_EQ(r.frames_solved, r.frames);
+  ASSERT_EQ(r.heads.size(), 1u);
+  EXPECT_EQ(r.heads[0].solved, r.frames);
+  EXPECT_EQ(r.heads[0].lost_in_space, 1);
+  EXPECT_EQ(r.heads[0].tracking, r.frames - 1);
+  EXPECT_EQ(r.rejected, 0);
+  // Against the truth, at every gyro sample: below the star tracker's single-frame noise (its
+  // reported 1-sigma; cross is the angle between boresights, sqrt(2) x the per-axis sigma) and, about
+  // the roll axis where the gyros carry the attitude between frames, below the frames' actual error.
+  // (The frames' actual cross-boresight error, about 1 arcsec, is mostly fixed to the star field --
+  // faint neighbours, pixel phase -- so it does not average down over frames: docs/inertial.md.)
+  EXPECT_GT(r.fused.n, 4000);
+  EXPECT_LT(r.fused.cross_rms_arcsec, std::sqrt(2.0) * r.heads[0].mean_sigma_cross_arcsec);
+  EXPECT_LT(r.fused.roll_rms_arcsec, r.heads[0].mean_sigma_roll_arcsec);
+  EXPECT_LT(r.fused.roll_rms_arcsec, r.star_only.roll_rms_arcsec);
+  // Consistent with the filter's covariance.
+  EXPECT_GT(r.within_3sigma_fraction, 0.97);
+  EXPECT_GT(r.nees_mean, 0.5);
+  EXPECT_LT(r.nees_mean, 9.0);
+  // Bias: from several deg/h to a small fraction of it, within 3 sigma of the truth per axis.
+  EXPECT_GT(r.bias_error_start_dph, 2.0);
+  EXPECT_LT(r.bias_error_end_dph, 0.1 * r.bias_error_start_dph);
+  for (int a = 0; a < 3; ++a) EXPECT_LT(std::abs(r.bias_dph[a] - r.bias_truth_dph[a]), 3 * r.bias_sigma_dph[a]) << a;
+  EXPECT_TRUE(r.final_state.faults.empty());
+}
+
+// Two heads 90 deg apart: each head's roll is the other's cross-boresight, so the fused roll error is
+// at the cross-boresight level, far below one head's roll.
+TEST(Mission, TwoHeadsMakeTheRollErrorSmall) {
+  const MissionResult& one = Runs().one;
+  const MissionResult& two = Runs().two;
+  ASSERT_EQ(two.heads.size(), 2u);
+  EXPECT_EQ(two.heads[0].solved, two.frames);
+  EXPECT_EQ(two.heads[1].solved, two.frames);
+  EXPECT_LT(two.fused.roll_rms_arcsec, 0.5 * one.fused.roll_rms_arcsec);
+  EXPECT_LT(two.fused.roll_rms_arcsec, 3.0 * two.fused.cross_rms_arcsec);
+  EXPECT_LT(two.star_only.roll_rms_arcsec, 0.5 * one.star_only.roll_rms_arcsec);
+  EXPECT_GT(two.within_3sigma_fraction, 0.97);
+  EXPECT_LT(two.bias_error_end_dph, 0.1 * two.bias_error_start_dph);
+}
+
+// The on-board API directly: no frame from any head is a result, not an error; before the first
+// solved frame there is no attitude; a frame of the wrong size is an input error.
+TEST(UnitProcessor, ReportsMissingFramesAndRefusesAWrongSize) {
+  MissionConfig c = SmallMission(2);
+  const auto id = std::make_shared<const StarIdentifier>(MakeIdentifierForCamera("", c.heads[0].camera, 0.0));
+  UnitProcessor p(c.heads, {id, id}, c.unit, c.processor);
+  EXPECT_FALSE(p.Attitude().valid);
+  const FrameReport none = p.OnFrames(0.0, {ImageView{}, ImageView{}});
+  EXPECT_EQ(none.status, "no_frame");
+  EXPECT_EQ(none.heads_solved, 0);
+  EXPECT_FALSE(p.Attitude().valid);
+  const Image16 small(64, 64, 100);
+  EXPECT_THROW(p.OnFrames(1.0, {small.view(), ImageView{}}), InputError);
+  EXPECT_THROW(p.OnFrames(1.0, {ImageView{}}), InputError);
+  EXPECT_THROW(UnitProcessor(std::vector<OpticalHead>(4, c.heads[0]), {id, id, id, id}, c.unit, c.processor), InputError);
+}
+
+std::string ConfigError(const std::string& text) {
+  try {
+    MissionConfigFromJson(Json::parse(text), "cfg.json");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+TEST(MissionConfig, BadConfigNamesTheFileAndField) {
+  const std::string head = R"({"camera": {"width": 512, "height": 512, "focal_length_px": 1755}, "q_body_sensor": [1, 0, 0, 0]})";
+  const std::string ok = R"({"duration_s": 30, "frame_rate_hz": 1, "seed": 1, "heads": [)" + head + "]}";
+  EXPECT_EQ(ConfigError(ok), "(no error)");
+  EXPECT_THAT(ConfigError(R"({"frame_rate_hz": 1, "seed": 1, "heads": [)" + head + "]}"),
+              HasSubstr("cfg.json: missing field 'duration_s'"));
+  EXPECT_THAT(ConfigError(R"({"duration_s": "NaN", "frame_rate_hz": 1, "seed": 1, "heads": [)" + head + "]}"),
+              HasSubstr("cfg.json: field 'duration_s'"));
+  EXPECT_THAT(ConfigError(R"({"duration_s": 30, "frame_rate_hz": -1, "seed": 1, "heads": [)" + head + "]}"),
+              HasSubstr("cfg.json: field 'frame_rate_hz'"));
+  EXPECT_THAT(ConfigError(R"({"duration_s": 30, "frame_rate_hz": 1, "seed": 1, "heads": [)" + head + "," + head + "," +
+                          head + "," + head + "]}"),
+              HasSubstr("cfg.json: field 'heads': 4 heads given"));
+  EXPECT_THAT(ConfigError(R"({"duration_s": 30, "frame_rate_hz": 1, "seed": 1, "heads": [{"camera": {"width": 512, "height": 512, "focal_length_px": 1755}}]})"),
+              HasSubstr("cfg.json: heads[0]: missing field 'q_body_sensor'"));
+  EXPECT_THAT(ConfigError(R"({"duration_s": 30, "frame_rate_hz": 1, "seed": 1, "heads": [{"camera": {"width": 512, "height": 512}, "q_body_sensor": [1, 0, 0, 0]}]})"),
+              HasSubstr("cfg.json: heads[0].camera: missing field 'focal_length_px'"));
+  EXPECT_THAT(ConfigError(R"({"duration_s": 30, "frame_rate_hz": 1, "seed": 1, "heads": [)" + head + R"(], "durations": 3})"),
+              HasSubstr("cfg.json: unknown field 'durations'"));
+}
+
+}  // namespace
+}  // namespace ssiu
