@@ -20,12 +20,19 @@ struct BackgroundGrid {
   double SigmaAt(double x, double y) const { return Interp(sigma, x, y); }
   // out[x] = scale * (level(x, y) + k_sigma * sigma(x, y)) for every x of row y.
   void RowLevels(int y, std::vector<float>* out, double k_sigma, double scale) const;
-  // out[x] = box^2 * level(x, y) + k * box_sigma(x, y): the detection threshold of the box sum.
-  void RowBoxThreshold(int y, std::vector<float>* out, double k) const;
+  // box^2 * level(x, y) + k * box_sigma(x, y), the detection threshold of the box sum, at the ny
+  // tile-centre rows (ny x width, row-major), and for image row y
+  // the two centre rows and the weight between them: threshold(x, y) = (1 - ay) rows[j0][x] +
+  // ay rows[j1][x] (bilinear interpolation is linear in y between centre rows), so the full-frame
+  // pass needs no per-row interpolation in x.
+  void BoxThresholdAtCentres(double k, std::vector<float>* rows) const;
+  void CentreRowsOf(int y, int* j0, int* j1, float* ay) const;
 
  private:
   // out[x] = a * level + b * second, bilinear in the tile grid.
   void RowCombination(int y, std::vector<float>* out, double a, double b, const std::vector<float>& second) const;
+  // The same at tile-grid row coordinate fy (0 = centre of the first tile row), into out[0, width).
+  void RowCombinationAt(double fy, float* out, double a, double b, const std::vector<float>& second) const;
   double Interp(const std::vector<float>& v, double x, double y) const;
 };
 

@@ -12,6 +12,7 @@
 
 #include "detect/background.h"
 #include "detect/psf_fit.h"
+#include "detect/row_kernels.h"
 
 namespace ssiu {
 namespace {
@@ -166,65 +167,43 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
       dead_level_max = std::max(dead_level_max, double(bg.level[k]) - opt.dead_sigma * bg.sigma[k]);
     }
     std::vector<int32_t> colsum(static_cast<size_t>(w), 0);
-    std::vector<float> thr_row(static_cast<size_t>(w)), low_row(static_cast<size_t>(w));
+    std::vector<float> low_row(static_cast<size_t>(w)), thr_centres;
     std::vector<uint8_t> above(static_cast<size_t>(w) + 1, 0);
+    bg.BoxThresholdAtCentres(opt.threshold_sigma, &thr_centres);
     // Column sums of rows 0 .. box-1: the box rows of the first centre row, HALF.
     for (int y = 0; y < box; ++y) {
       const uint16_t* r = img.row(y);
       for (int x = 0; x < w; ++x) colsum[x] += r[x];
     }
-    // Local copies no lambda captures: stores through the int32 pointers below then cannot alias
-    // the loop bounds, and the loops vectorise.
-    const int W = w, H = h, HALF = half;
-    int32_t* __restrict cs = colsum.data();
-    float* __restrict thr = thr_row.data();
-    uint8_t* __restrict ab = above.data();
-    for (int yc = 0; yc < H; ++yc) {
-      const uint16_t* __restrict raw = view.row(yc);
-      uint16_t row_min = 65535;
-      for (int x = 0; x < W; ++x) row_min = raw[x] < row_min ? raw[x] : row_min;
-      if (row_min < dead_level_max) {
+    int32_t* cs = colsum.data();
+    uint8_t* ab = above.data();
+    for (int yc = 0; yc < h; ++yc) {
+      const uint16_t* raw = view.row(yc);
+      if (RowMin(raw, w) < dead_level_max) {
         bg.RowLevels(yc, &low_row, -opt.dead_sigma, 1.0);
-        for (int x = 0; x < W; ++x) {
+        for (int x = 0; x < w; ++x) {
           if (raw[x] < low_row[x] && !(have_defects && defects->at(x, yc))) dead_pixels.emplace_back(x, yc);
         }
       }
-      if (yc < HALF || yc >= H - HALF) continue;
-      // cs holds the column sums of rows yc-HALF .. yc+HALF: box sum and threshold test in one pass.
-      bg.RowBoxThreshold(yc, &thr_row, opt.threshold_sigma);
-      int any = 0;
-      if (HALF == 1) {
-        for (int x = 1; x < W - 1; ++x) {
-          const int a = static_cast<float>(cs[x - 1] + cs[x] + cs[x + 1]) > thr[x];
-          ab[x] = static_cast<uint8_t>(a);
-          any += a;
-        }
-      } else {
-        for (int x = HALF; x < W - HALF; ++x) {
-          int32_t sum = 0;
-          for (int k = -HALF; k <= HALF; ++k) sum += cs[x + k];
-          const int a = static_cast<float>(sum) > thr[x];
-          ab[x] = static_cast<uint8_t>(a);
-          any += a;
-        }
-      }
-      if (any) {
-        int x = HALF;
-        while (x < W - HALF) {
-          const void* hit = std::memchr(&ab[x], 1, static_cast<size_t>(W - HALF - x));
+      if (yc < half || yc >= h - half) continue;
+      // cs holds the column sums of rows yc-half .. yc+half: box sum and threshold test in one pass.
+      int j0 = 0, j1 = 0;
+      float ay = 0;
+      bg.CentreRowsOf(yc, &j0, &j1, &ay);
+      if (BoxAboveThreshold(cs, &thr_centres[static_cast<size_t>(j0) * w], &thr_centres[static_cast<size_t>(j1) * w],
+                            ay, half, w, ab)) {
+        int x = half;
+        while (x < w - half) {
+          const void* hit = std::memchr(&ab[x], 1, static_cast<size_t>(w - half - x));
           if (!hit) break;
           x = static_cast<int>(static_cast<const uint8_t*>(hit) - ab);
           const int xs = x;
-          while (x < W - HALF && ab[x]) ++x;
+          while (x < w - half && ab[x]) ++x;
           runs.push_back({yc, xs, x - 1, -1});
         }
       }
       // Slide the column sums down one row.
-      if (yc + HALF + 1 < H) {
-        const uint16_t* __restrict add = img.row(yc + HALF + 1);
-        const uint16_t* __restrict sub = img.row(yc - HALF);
-        for (int x = 0; x < W; ++x) cs[x] += static_cast<int32_t>(add[x]) - static_cast<int32_t>(sub[x]);
-      }
+      if (yc + half + 1 < h) SlideColumnSums(cs, img.row(yc + half + 1), img.row(yc - half), w);
     }
   }
   out.timing_ms["threshold"] = MsSince(t0);
@@ -271,20 +250,6 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
       b.y0 = std::min(b.y0, r.y);
       b.y1 = std::max(b.y1, r.y);
       b.npix += r.x1 - r.x0 + 1;
-      // Peak of the raw image inside the blob (3x3-smoothed score to be robust to noise).
-      for (int x = r.x0; x <= r.x1; ++x) {
-        int64_t s = 0;
-        for (int dy = -1; dy <= 1; ++dy) {
-          const int yy = std::clamp(r.y + dy, 0, h - 1);
-          for (int dx = -1; dx <= 1; ++dx) s += img.at(std::clamp(x + dx, 0, w - 1), yy);
-        }
-        s = s * 16 + img.at(x, r.y);  // tie-break on the centre pixel
-        if (s > b.peak_score) {
-          b.peak_score = s;
-          b.peak_x = x;
-          b.peak_y = r.y;
-        }
-      }
     }
   }
   out.timing_ms["blobs"] = MsSince(t0);
@@ -293,14 +258,37 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
   //    them from every brighter peak (so a star beside another star or a hot pixel is not lost).
   t0 = Clock::now();
   const double sat = opt.saturation_adu;
-  auto score_at = [&](int x, int y) {
-    int32_t s = 0;
-    for (int dy = -1; dy <= 1; ++dy) {
-      const int yy = std::clamp(y + dy, 0, h - 1);
-      for (int dx = -1; dx <= 1; ++dx) s += img.at(std::clamp(x + dx, 0, w - 1), yy);
+  // 3x3 sums of the image over a blob's bounding box plus a one-pixel margin (edge pixels
+  // replicated), computed once per blob from horizontal 3-sums: the peak search reads each sum
+  // about ten times.
+  struct ScoreGrid {
+    int x0 = 0, y0 = 0, gw = 0, gh = 0;
+    std::vector<int32_t> v, hs;
+    int32_t at(int x, int y) const { return v[static_cast<size_t>(y - y0) * gw + (x - x0)]; }
+  } grid;
+  auto fill_grid = [&](const Blob& b) {
+    grid.x0 = b.x0 - 1;
+    grid.y0 = b.y0 - 1;
+    grid.gw = b.x1 - b.x0 + 3;
+    grid.gh = b.y1 - b.y0 + 3;
+    const int gw = grid.gw, gh = grid.gh;
+    grid.hs.resize(static_cast<size_t>(gw) * (gh + 2));
+    grid.v.resize(static_cast<size_t>(gw) * gh);
+    for (int r = 0; r < gh + 2; ++r) {
+      const uint16_t* row = img.row(std::clamp(grid.y0 - 1 + r, 0, h - 1));
+      int32_t* o = &grid.hs[static_cast<size_t>(r) * gw];
+      for (int c = 0; c < gw; ++c) {
+        const int x = std::clamp(grid.x0 + c, 0, w - 1);
+        o[c] = row[std::max(x - 1, 0)] + row[x] + row[std::min(x + 1, w - 1)];
+      }
     }
-    return s;
+    for (int r = 0; r < gh; ++r) {
+      const int32_t* a = &grid.hs[static_cast<size_t>(r) * gw];
+      int32_t* o = &grid.v[static_cast<size_t>(r) * gw];
+      for (int c = 0; c < gw; ++c) o[c] = a[c] + a[c + gw] + a[c + 2 * gw];
+    }
   };
+  auto score_at = [&](int x, int y) { return grid.at(x, y); };
   struct Peak {
     int x, y;          // brightest raw pixel at the peak
     double score;      // 3x3 sum above background
@@ -313,7 +301,20 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
   const size_t kMaxPeaksPerBlob = 12;
   for (size_t bi = 0; bi < blobs.size(); ++bi) {
     blob_first[bi] = peaks.size();
-    const Blob& b = blobs[bi];
+    Blob& b = blobs[bi];
+    fill_grid(b);
+    // Peak of the raw image inside the blob (3x3-smoothed score to be robust to noise).
+    for (int ri : b.runs) {
+      const Run& r = runs[ri];
+      for (int x = r.x0; x <= r.x1; ++x) {
+        const int64_t sc = int64_t(score_at(x, r.y)) * 16 + img.at(x, r.y);  // tie-break on the centre pixel
+        if (sc > b.peak_score) {
+          b.peak_score = sc;
+          b.peak_x = x;
+          b.peak_y = r.y;
+        }
+      }
+    }
     const double level9 = 9 * bg.LevelAt(b.peak_x, b.peak_y), sigma_s = 3 * bg.SigmaAt(b.peak_x, b.peak_y);
     std::vector<Peak> local;
     for (int ri : b.runs) {
@@ -394,13 +395,24 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
   std::vector<Candidate> cands;
   cands.reserve(peaks.size());
   // Pixels every fit leaves out: defect-map pixels, dead pixels, single-pixel spikes.
-  std::vector<uint8_t> bad(static_cast<size_t>(w) * h, 0);
-  for (const auto& [x, y] : dead_pixels) bad[static_cast<size_t>(y) * w + x] = 1;
+  // One bit per pixel (128 kB for a megapixel, not a megabyte to clear and fault in).
+  std::vector<uint64_t> bad((static_cast<size_t>(w) * h + 63) / 64, 0);
+  auto mark_bad = [&](int x, int y) {
+    const size_t i = static_cast<size_t>(y) * w + x;
+    bad[i >> 6] |= uint64_t{1} << (i & 63);
+  };
+  auto is_bad = [&](int x, int y) {
+    const size_t i = static_cast<size_t>(y) * w + x;
+    return ((bad[i >> 6] >> (i & 63)) & 1) != 0;
+  };
+  for (const auto& [x, y] : dead_pixels) mark_bad(x, y);
   if (have_defects) {
-    for (size_t i = 0; i < bad.size(); ++i) bad[i] |= defects->mask[i] != 0;
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) {
+        if (defects->at(x, y)) mark_bad(x, y);
+      }
+    }
   }
-  auto is_bad = [&](int x, int y) { return bad[static_cast<size_t>(y) * w + x] != 0; };
-  auto mark_bad = [&](int x, int y) { bad[static_cast<size_t>(y) * w + x] = 1; };
   std::vector<bool> is_spike(peaks.size(), false);
   std::vector<double> dir_ratio(peaks.size(), 1.0), peak_above(peaks.size(), 0.0);
   for (size_t pi = 0; pi < peaks.size(); ++pi) {
