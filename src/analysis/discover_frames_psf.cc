@@ -40,17 +40,20 @@ SpotFit FitSpot(const std::vector<float>& stamp, int half, double x_guess, doubl
   double p[7];
   p[0] = std::max(1.0, sum - b0 * nvalid);
   p[1] = x_guess, p[2] = y_guess, p[3] = b0;
+  // Pixel integration by kSub x kSub midpoint sub-samples: they spread a pixel's light with variance
+  // (1 - 1/kSub^2) / 12 instead of the box's 1/12, so the fitted covariance carries the missing
+  // 1 / (12 kSub^2) px^2 (variances of convolved profiles add), removed from the output below.
+  constexpr int kSub = 4;
+  constexpr double kSubVar = 1.0 / (12.0 * kSub * kSub);
   if (fixed_c) {
-    const double det = fixed_c[0] * fixed_c[1] - fixed_c[2] * fixed_c[2];
+    const double cxx = fixed_c[0] + kSubVar, cyy = fixed_c[1] + kSubVar, cxy = fixed_c[2];
+    const double det = cxx * cyy - cxy * cxy;
     if (!(det > 0)) return out;
-    p[4] = fixed_c[1] / det, p[5] = -fixed_c[2] / det, p[6] = fixed_c[0] / det;
+    p[4] = cyy / det, p[5] = -cxy / det, p[6] = cxx / det;
   } else {
     const double s2 = std::max(0.09, sigma_guess_px * sigma_guess_px);
     p[4] = 1 / s2, p[5] = 0, p[6] = 1 / s2;
   }
-  // Pixel integration by 4 x 4 midpoint sub-samples (the second moment is then within 0.2 % of
-  // the exact pixel-integrated Gaussian at sigma >= 0.6 px).
-  constexpr int kSub = 4;
   auto eval = [&](const double* q, VectorXd* r, MatrixXd* jac) {
     const double a = q[4], b = q[5], c = q[6], det = a * c - b * b;
     if (!(det > 0) || !(a > 0)) return false;
@@ -124,10 +127,11 @@ SpotFit FitSpot(const std::vector<float>& stamp, int half, double x_guess, doubl
   const double a = p[4], b = p[5], c = p[6], det = a * c - b * b;
   if (!(det > 0) || !(p[0] > 0)) return out;
   out.x_px = p[1], out.y_px = p[2], out.flux_adu = p[0], out.background_adu = p[3];
-  out.cxx = c / det, out.cyy = a / det, out.cxy = -b / det;
-  out.t_px2 = (a + c) / (2 * det);
-  out.e1 = (c - a) / (a + c);
-  out.e2 = -2 * b / (a + c);
+  out.cxx = c / det - kSubVar, out.cyy = a / det - kSubVar, out.cxy = -b / det;
+  out.t_px2 = (out.cxx + out.cyy) / 2;
+  if (!(out.t_px2 > 1e-4)) return out;  // narrower than the sub-sampling can tell
+  out.e1 = (out.cxx - out.cyy) / (2 * out.t_px2);
+  out.e2 = out.cxy / out.t_px2;
   out.rss_adu2 = rss;
   out.n = nvalid;
   if (!fixed_c) {
@@ -136,8 +140,10 @@ SpotFit FitSpot(const std::vector<float>& stamp, int half, double x_guess, doubl
     // Gradients of T, e1, e2 with respect to (a, b, c).
     const double s = a + c, d2 = det * det;
     const Eigen::Vector3d gt(-(b * b + c * c) / (2 * d2), b * s / d2, -(b * b + a * a) / (2 * d2));
-    const Eigen::Vector3d g1(-2 * c / (s * s), 0, 2 * a / (s * s));
-    const Eigen::Vector3d g2(2 * b / (s * s), -2 / s, 2 * b / (s * s));
+    // e1, e2 of the raw fit, rescaled by T_raw / T for the sub-sample correction (first order).
+    const double k = (a + c) / (2 * det) / out.t_px2;
+    const Eigen::Vector3d g1 = k * Eigen::Vector3d(-2 * c / (s * s), 0, 2 * a / (s * s));
+    const Eigen::Vector3d g2 = k * Eigen::Vector3d(2 * b / (s * s), -2 / s, 2 * b / (s * s));
     const Eigen::Matrix3d cp = cov.bottomRightCorner(3, 3);
     out.t_var = gt.dot(cp * gt), out.e1_var = g1.dot(cp * g1), out.e2_var = g2.dot(cp * g2);
     if (!(out.t_var > 0) || !std::isfinite(out.t_var) || !(out.e1_var > 0) || !(out.e2_var > 0)) return out;

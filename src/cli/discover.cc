@@ -10,6 +10,7 @@
 #include "analysis/discover_allan.h"
 #include "analysis/discover_frames.h"
 #include "analysis/discover_gyro.h"
+#include "analysis/frame_compare.h"
 #include "attitude/star_solver.h"
 #include "core/camera.h"
 #include "core/error.h"
@@ -27,8 +28,9 @@ struct GyroOpts {
 
 struct FrameOpts {
   std::vector<std::string> frames;
-  std::string camera, json, plot, dark, catalog, defects, defects_out;
-  double psf_sigma_px = -1;  // < 0: camera.json "psf_sigma_px" if present, else not tested
+  std::string camera, json, plot, dark, catalog, defects, defects_out, compare_sim, sim_json;
+  double psf_sigma_px = 0;  // when not given: camera.json "psf_sigma_px" if present, else not tested
+  CLI::Option* psf_flag = nullptr;
   double fov_tolerance_pct = 1.0;
   ssiu::FrameDiscoverOptions opt;
 };
@@ -97,18 +99,23 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
   cmd->add_option("--fov-tolerance-pct", o->fov_tolerance_pct, "Focal length known to +/- this percent")
       ->capture_default_str();
   cmd->add_option("--alpha", o->opt.alpha, "Family-wise false-alarm probability")->capture_default_str();
-  cmd->add_option("--psf-sigma-px", o->psf_sigma_px,
+  o->psf_flag = cmd->add_option("--psf-sigma-px", o->psf_sigma_px,
                   "The model's PSF sigma, px (default: camera.json \"psf_sigma_px\"; absent: psf_shape not tested)");
   cmd->add_option("--defects", o->defects, "Known defect map PNG (0 good): repaired before detection, not a cause");
   cmd->add_option("--defects-out", o->defects_out, "Write the persistent hot pixels found as a defect map PNG");
+  cmd->add_option("--compare-sim", o->compare_sim,
+                  "Simulate every solved frame at its attitude, compare star by star with the measured frames, "
+                  "then again with the extended model; JSON here (- for stdout)");
+  cmd->add_option("--sim-json", o->sim_json, "Simulator options of the model under test (default: the simulator's)");
   cmd->callback([o] {
     const ssiu::Camera cam = ssiu::LoadCamera(o->camera);
-    if (o->psf_sigma_px >= 0) {
+    if (o->psf_flag->count() > 0) {
       o->opt.psf_sigma_px = o->psf_sigma_px;
     } else {
       const ssiu::Json cj = ssiu::ReadJsonFile(o->camera);
       if (cj.contains("psf_sigma_px")) o->opt.psf_sigma_px = ssiu::JsonNumber(cj, "psf_sigma_px", o->camera);
     }
+    o->opt.Check();  // before any work
     ssiu::DefectMap known;
     if (!o->defects.empty()) {
       known = ssiu::LoadDefectMap(o->defects);
@@ -142,6 +149,37 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
     for (size_t i = 0; i < set.status.size(); ++i) j["frame_status"][o->frames[i]] = set.status[i];
     if (!o->json.empty()) ssiu::WriteJsonFile(o->json, j);
     if (!o->plot.empty()) ssiu::WriteResidualQuiver(o->plot, d, cam);
+    if (!o->compare_sim.empty()) {
+      // The model under test, then the extended one: the fitted camera (frames re-solved with it)
+      // and the simulator options fitted to the measured figures, at the frames' bit depth.
+      ssiu::FrameCompareOptions co;
+      if (!o->sim_json.empty()) co.sim = ssiu::FrameSimOptionsFromJson(ssiu::ReadJsonFile(o->sim_json), o->sim_json);
+      const ssiu::StarCatalog sky = ssiu::SkyForCamera(cam, o->fov_tolerance_pct, co.sim.mag_max);
+      const ssiu::FrameComparison before = ssiu::CompareWithSimulation(set, views, cam, sky, id, so, co);
+      ssiu::FrameCompareOptions co2 = co;
+      co2.sim = ssiu::FitSimOptions(before.measured, co.sim);
+      co2.sim.bit_depth = frames.front().bit_depth;
+      const ssiu::Camera cam2 = d.fitted_camera;
+      const ssiu::SolvedFrameSet set2 = ssiu::SolveFrameSet(id, views, o->frames, cam2, so, known.empty() ? nullptr : &known);
+      const ssiu::FrameComparison after = ssiu::CompareWithSimulation(set2, views, cam2, sky, id, so, co2);
+      ssiu::Json cj;
+      cj["model"] = {{"camera", ssiu::CameraToJson(cam)}, {"sim_options", ssiu::FrameSimOptionsToJson(co.sim)}};
+      cj["before"] = ssiu::FrameComparisonToJson(before);
+      cj["extended_model"] = {{"camera", ssiu::CameraToJson(cam2)},
+                              {"sim_options_changed", ssiu::FrameSimOptionsDiff(co.sim, co2.sim)}};
+      cj["after"] = ssiu::FrameComparisonToJson(after);
+      std::cerr << "compare-sim: position rms " << before.position_rms_px << " -> " << after.position_rms_px
+                << " px; flux ratio " << before.flux_ratio_median << " -> " << after.flux_ratio_median
+                << "; spot sigma measured " << before.measured.psf_sigma_px << " vs simulated "
+                << before.simulated.psf_sigma_px << " -> " << after.simulated.psf_sigma_px << " px; noise measured "
+                << before.measured.noise_adu << " vs simulated " << before.simulated.noise_adu << " -> "
+                << after.simulated.noise_adu << " ADU\n";
+      ssiu::WriteJsonFile(o->compare_sim, cj);
+      if (!o->plot.empty()) {
+        ssiu::WriteComparePlots(o->plot, "compare_before", before, cam, "simulator defaults");
+        ssiu::WriteComparePlots(o->plot, "compare_after", after, cam2, "extended model");
+      }
+    }
     if (!o->defects_out.empty()) {
       ssiu::DefectMap map = known;
       if (map.empty()) {

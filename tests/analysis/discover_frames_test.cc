@@ -1,7 +1,9 @@
+#include <algorithm>
 #include <cmath>
 
 #include "analysis/discover_frames.h"
 #include "core/error.h"
+#include "core/json.h"
 #include "core/rng.h"
 #include "discover_frames_mc.h"
 #include "testing/testing.h"
@@ -86,6 +88,24 @@ TEST(FitSpot, RecoversAnEllipticalSpotWithHonestSigmas) {
   EXPECT_NEAR(sum_e2 / n, e2_true, 4 * std::sqrt(e_var / n) + 0.005);
 }
 
+// An undersampled round spot (sigma 0.7 px, as on the real frames) comes out round and at its width.
+TEST(FitSpot, UndersampledRoundSpotIsRound) {
+  Rng rng(9);
+  const double c[3] = {0.49, 0.49, 0};
+  double se1 = 0, se2 = 0, st = 0, var = 0;
+  const int n = 80;
+  for (int i = 0; i < n; ++i) {
+    const double x0 = 5 + rng.Uniform(-0.5, 0.5), y0 = 5 + rng.Uniform(-0.5, 0.5);
+    const SpotFit f = FitSpot(DrawSpot(5, x0, y0, 3000, c, 100, 2, &rng), 5, 5, 5, 0.7);
+    ASSERT_TRUE(f.ok);
+    se1 += f.e1, se2 += f.e2, st += std::sqrt(f.t_px2), var += f.e1_var;
+  }
+  const double tol = 4 * std::sqrt(var / n) + 0.01;
+  EXPECT_NEAR(se1 / n, 0, tol);
+  EXPECT_NEAR(se2 / n, 0, tol);
+  EXPECT_NEAR(st / n, 0.7, 0.01);
+}
+
 // psf_shape end to end in the library: a frame set whose stamps carry an elliptical PSF
 // (ellipticity 0.3 at 30 deg, drawn by DrawSpot) against the circular 1.2 px model.
 TEST(DiscoverFrames, EllipticalPsfNamedWithItsEllipticity) {
@@ -149,6 +169,56 @@ TEST(DiscoverFramesCli, BadInputExitsOne) {
             1)
       << out;
   EXPECT_THAT(out, ::testing::HasSubstr("missing_camera.json"));
+}
+
+TEST(DiscoverFramesCli, BadPsfSigmaAndFrameSizeExitOne) {
+  const std::string dir = testing::TempDir("discover_frames_bad2");
+  Image16 small(64, 64, 100);
+  small.at(10, 10) = 5000;
+  WritePng16(dir + "/small.png", small);
+  WriteJsonFile(dir + "/psf.json", Json{{"width", 1024}, {"height", 1024}, {"focal_length_px", 3510}, {"psf_sigma_px", "wide"}});
+  auto r = testing::RunSsiu("discover frames " + dir + "/small.png --camera " + dir + "/psf.json");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_THAT(r.output, ::testing::HasSubstr("psf.json"));
+  WriteJsonFile(dir + "/cam.json", Json{{"width", 1024}, {"height", 1024}, {"focal_length_px", 3510}});
+  r = testing::RunSsiu("discover frames " + dir + "/small.png --camera " + dir + "/cam.json");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_THAT(r.output, ::testing::HasSubstr("frame size differs"));
+  r = testing::RunSsiu("discover frames " + dir + "/small.png --camera " + dir + "/cam.json --psf-sigma-px -1");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_THAT(r.output, ::testing::HasSubstr("psf_sigma_px"));
+}
+
+// End to end: three frames from the simulator with its defaults, whose 40 hot pixels keep one
+// defect seed (persistent): `hot_pixels` named, the defect map written, the simulation comparison
+// made before and after the extended model.
+TEST(DiscoverFramesCli, HotPixelsDefectMapAndCompareSim) {
+  const std::string dir = testing::TempDir("discover_frames_cli");
+  const Camera cam = MakeCamera(1024, 1024, 16.6);
+  std::string files;
+  for (int f = 0; f < 3; ++f) {
+    const auto sf = SimulateFrame(cam, testing::FrameSky(), RandomAttitude(40 + f), FrameSimOptions{}, 70 + f);
+    WritePng16(dir + "/f" + std::to_string(f) + ".png", sf.image);
+    files += " " + dir + "/f" + std::to_string(f) + ".png";
+  }
+  WriteJsonFile(dir + "/cam.json", Json{{"width", 1024}, {"height", 1024}, {"focal_length_px", cam.focal_length_px},
+                                        {"psf_sigma_px", 1.2}});
+  const auto r = testing::RunSsiu("discover frames" + files + " --camera " + dir + "/cam.json --json " + dir +
+                                  "/d.json --compare-sim " + dir + "/c.json --defects-out " + dir + "/defects.png");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const Json d = ReadJsonFile(dir + "/d.json");
+  EXPECT_EQ(d["cause"], "hot_pixels");
+  EXPECT_GE(d["hot_pixels"].size(), 25u);
+  EXPECT_GT(d["gain"].get<double>(), 2.0);
+  const DefectMap map = LoadDefectMap(dir + "/defects.png");
+  EXPECT_EQ(static_cast<size_t>(std::count_if(map.mask.begin(), map.mask.end(), [](uint8_t v) { return v != 0; })),
+            d["hot_pixels"].size());
+  const Json c = ReadJsonFile(dir + "/c.json");
+  // Same simulator on both sides: the same PSF, noise and zero point within the scatter.
+  EXPECT_NEAR(c["before"]["measured"]["psf_sigma_px"].get<double>(), c["before"]["simulated"]["psf_sigma_px"].get<double>(), 0.03);
+  EXPECT_NEAR(c["before"]["flux_ratio_median"].get<double>(), 1.0, 0.05);
+  EXPECT_LT(c["before"]["position_rms_px"].get<double>(), 0.2);
+  EXPECT_TRUE(c["after"].contains("simulated"));
 }
 
 }  // namespace

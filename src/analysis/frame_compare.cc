@@ -1,0 +1,285 @@
+#include "analysis/frame_compare.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "analysis/plot.h"
+#include "core/attitude.h"
+#include "core/error.h"
+#include "core/types.h"
+#include "identify/star_catalog.h"
+
+namespace ssiu {
+namespace {
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+// 1.4826 x median absolute deviation: the Gaussian sigma of a sample with outliers.
+double RobustSigma(const std::vector<double>& v) {
+  const double m = Median(v);
+  std::vector<double> a;
+  for (double x : v) a.push_back(std::abs(x - m));
+  return 1.4826 * Median(a);
+}
+
+}  // namespace
+
+void FrameCompareOptions::Check() const {
+  sim.Check();
+  if (tile_px < 8) throw InputError("options", "tile_px must be >= 8");
+  if (!(match_radius_px > 0)) throw InputError("options", "match_radius_px must be > 0");
+}
+
+StarCatalog SkyForCamera(const Camera& camera, double fov_tolerance_pct, double mag_max) {
+  const double fov_deg = camera.FovXRad() * kRadToDeg * (1 + fov_tolerance_pct / 100);
+  const SourceCatalog src = LoadSourceCatalog(DefaultSourceFor(fov_deg));
+  StarCatalog sky;
+  sky.source = src.source;
+  for (const auto& s : src.stars) {
+    if (s.star.mag <= mag_max) sky.stars.push_back(s.star);
+  }
+  std::stable_sort(sky.stars.begin(), sky.stars.end(),
+                   [](const CatalogStar& a, const CatalogStar& b) { return a.mag < b.mag; });
+  return sky;
+}
+
+double BackgroundStructureAdu(const ImageView& image, int tile_px) {
+  std::vector<double> medians;
+  std::vector<double> px;
+  for (int y0 = 0; y0 + tile_px <= image.height; y0 += tile_px) {
+    for (int x0 = 0; x0 + tile_px <= image.width; x0 += tile_px) {
+      px.clear();
+      for (int y = y0; y < y0 + tile_px; ++y) {
+        for (int x = x0; x < x0 + tile_px; ++x) px.push_back(image.at(x, y));
+      }
+      medians.push_back(Median(px));
+    }
+  }
+  if (medians.size() < 2) return 0.0;
+  const double m = Median(medians);
+  double ss = 0;
+  for (double v : medians) ss += (v - m) * (v - m);
+  return std::sqrt(ss / medians.size());
+}
+
+FieldFigures MeasureFieldFigures(const SolvedFrameSet& set, const std::vector<ImageView>& images, const Camera& camera,
+                                 int tile_px) {
+  (void)camera;
+  FieldFigures f;
+  f.frames = static_cast<int>(set.status.size());
+  f.frames_solved = static_cast<int>(set.q.size());
+  f.stars = static_cast<int>(set.stars.size());
+  // ln(flux) = c + b V, one 4-sigma clipping pass.
+  std::vector<double> m, y;
+  for (const auto& s : set.stars) {
+    if (s.flux > 0) m.push_back(s.mag), y.push_back(std::log(s.flux));
+  }
+  std::vector<bool> keep(m.size(), true);
+  const double to_mag = 2.5 / std::log(10.0);
+  for (int pass = 0; pass < 2 && m.size() >= 5; ++pass) {
+    double n = 0, mm = 0, my = 0;
+    for (size_t i = 0; i < m.size(); ++i) {
+      if (keep[i]) n += 1, mm += m[i], my += y[i];
+    }
+    mm /= n, my /= n;
+    double smm = 0, smy = 0;
+    for (size_t i = 0; i < m.size(); ++i) {
+      if (keep[i]) smm += (m[i] - mm) * (m[i] - mm), smy += (m[i] - mm) * (y[i] - my);
+    }
+    if (!(smm > 0)) break;
+    const double b = smy / smm, c = my - b * mm;
+    double ss = 0;
+    for (size_t i = 0; i < m.size(); ++i) {
+      if (keep[i]) ss += std::pow(y[i] - c - b * m[i], 2);
+    }
+    const double s = std::sqrt(ss / std::max(1.0, n - 2));
+    f.zero_point_adu = std::exp(c);
+    f.flux_slope = -b / (0.4 * std::log(10.0));
+    f.flux_scatter_mag = s * to_mag;
+    for (size_t i = 0; i < m.size(); ++i) keep[i] = std::abs(y[i] - c - b * m[i]) <= 4 * s;
+  }
+  {
+    double sum = 0;
+    int n = 0;
+    for (size_t i = 0; i < m.size(); ++i) {
+      if (keep[i]) sum += y[i] + 0.4 * std::log(10.0) * m[i], ++n;
+    }
+    if (n > 0) f.zero_point_slope1_adu = std::exp(sum / n);
+  }
+  // PSF: medians of the stamp fits.
+  std::vector<double> sig, e1, e2;
+  for (const auto& s : set.stars) {
+    if (s.stamp.empty()) continue;
+    const SpotFit fit = FitSpot(s.stamp, s.stamp_half, s.x_px - s.stamp_x0, s.y_px - s.stamp_y0,
+                                s.psf_sigma_px > 0 ? s.psf_sigma_px : 1.0);
+    if (!fit.ok || !(fit.t_px2 > 0.02) || std::sqrt(fit.t_var) > 0.3 * fit.t_px2) continue;
+    sig.push_back(std::sqrt(fit.t_px2)), e1.push_back(fit.e1), e2.push_back(fit.e2);
+  }
+  f.psf_stars = static_cast<int>(sig.size());
+  f.psf_sigma_px = Median(sig), f.psf_e1 = Median(e1), f.psf_e2 = Median(e2);
+  f.background_adu = Median(set.background_adu);
+  f.noise_adu = Median(set.noise_adu);
+  std::vector<double> st;
+  for (int idx : set.solved_index) st.push_back(BackgroundStructureAdu(images[idx], tile_px));
+  f.background_structure_adu = Median(st);
+  return f;
+}
+
+FrameComparison CompareWithSimulation(const SolvedFrameSet& measured, const std::vector<ImageView>& measured_images,
+                                      const Camera& camera, const StarCatalog& sky, const StarIdentifier& id,
+                                      const SolveOptions& solve, const FrameCompareOptions& o) {
+  o.Check();
+  FrameComparison c;
+  c.measured = MeasureFieldFigures(measured, measured_images, camera, o.tile_px);
+  std::vector<Image16> imgs;
+  std::vector<std::string> names;
+  for (size_t k = 0; k < measured.q.size(); ++k) {
+    imgs.push_back(SimulateFrame(camera, sky, measured.q[k], o.sim, o.seed + k).image);
+    names.push_back("sim" + std::to_string(k));
+  }
+  std::vector<ImageView> views;
+  for (const auto& im : imgs) views.push_back(im.view());
+  SolveOptions so = solve;
+  so.detect.saturation_adu = (1 << o.sim.bit_depth) - 1;
+  const SolvedFrameSet sim = SolveFrameSet(id, views, names, camera, so);
+  c.simulated = MeasureFieldFigures(sim, views, camera, o.tile_px);
+  c.simulated_solved = static_cast<int>(sim.q.size());
+  for (size_t j = 0; j < sim.q.size(); ++j) {
+    c.attitude_error_arcsec.push_back(AttitudeErrorRad(sim.q[j], measured.q[sim.solved_index[j]]) * kRadToArcsec);
+  }
+  c.attitude_error_median_arcsec = Median(c.attitude_error_arcsec);
+  // Star pairs: the same catalog direction in the measured frame and its simulation.
+  const double cos_tol = std::cos(o.match_radius_px / camera.focal_length_px);
+  std::vector<double> dpos, dmag;
+  for (const auto& ms : measured.stars) {
+    for (const auto& ss : sim.stars) {
+      if (sim.solved_index[ss.frame] != ms.frame || ms.r_inertial.dot(ss.r_inertial) < cos_tol) continue;
+      if (std::hypot(ms.x_px - ss.x_px, ms.y_px - ss.y_px) > o.match_radius_px) continue;
+      StarPair p;
+      p.frame = ms.frame, p.mag = ms.mag;
+      p.x_measured_px = ms.x_px, p.y_measured_px = ms.y_px, p.x_simulated_px = ss.x_px, p.y_simulated_px = ss.y_px;
+      p.flux_measured_adu = ms.flux, p.flux_simulated_adu = ss.flux;
+      p.sigma_measured_px = ms.psf_sigma_px, p.sigma_simulated_px = ss.psf_sigma_px;
+      c.pairs.push_back(p);
+      dpos.push_back(std::pow(ms.x_px - ss.x_px, 2) + std::pow(ms.y_px - ss.y_px, 2));
+      if (ms.flux > 0 && ss.flux > 0) dmag.push_back(-2.5 * std::log10(ms.flux / ss.flux));
+      break;
+    }
+  }
+  if (!dpos.empty()) {
+    double ss = 0;
+    for (double v : dpos) ss += v;
+    c.position_rms_px = std::sqrt(ss / (2.0 * dpos.size()));
+  }
+  if (!dmag.empty()) {
+    c.flux_ratio_median = std::pow(10, -0.4 * Median(dmag));
+    c.flux_ratio_scatter_mag = RobustSigma(dmag);
+  }
+  return c;
+}
+
+FrameSimOptions FitSimOptions(const FieldFigures& m, const FrameSimOptions& base) {
+  FrameSimOptions f = base;
+  if (m.psf_sigma_px > 0.1) f.psf_sigma_px = m.psf_sigma_px;
+  if (m.zero_point_slope1_adu > 0) f.mag0_flux_e_per_s = m.zero_point_slope1_adu * base.gain_e_per_adu / base.exposure_s;
+  f.bias_adu = m.background_adu;
+  f.background_e_per_s = 0;
+  f.dark_current_e_per_s = 0;
+  if (m.noise_adu > 0) f.read_noise_e = m.noise_adu * base.gain_e_per_adu;
+  return f;
+}
+
+Json FieldFiguresToJson(const FieldFigures& f) {
+  return Json{{"frames", f.frames},
+              {"frames_solved", f.frames_solved},
+              {"stars", f.stars},
+              {"zero_point_adu_v0", f.zero_point_adu},
+              {"flux_slope", f.flux_slope},
+              {"zero_point_slope1_adu_v0", f.zero_point_slope1_adu},
+              {"flux_scatter_mag", f.flux_scatter_mag},
+              {"psf_sigma_px", f.psf_sigma_px},
+              {"psf_e1", f.psf_e1},
+              {"psf_e2", f.psf_e2},
+              {"psf_stars", f.psf_stars},
+              {"background_adu", f.background_adu},
+              {"background_structure_adu", f.background_structure_adu},
+              {"noise_adu", f.noise_adu}};
+}
+
+Json FrameComparisonToJson(const FrameComparison& c) {
+  Json j;
+  j["measured"] = FieldFiguresToJson(c.measured);
+  j["simulated"] = FieldFiguresToJson(c.simulated);
+  j["star_pairs"] = c.pairs.size();
+  j["position_rms_px"] = c.position_rms_px;
+  j["flux_ratio_median"] = c.flux_ratio_median;
+  j["flux_ratio_scatter_mag"] = c.flux_ratio_scatter_mag;
+  j["simulated_solved"] = c.simulated_solved;
+  j["attitude_error_median_arcsec"] = c.attitude_error_median_arcsec;
+  j["pairs"] = Json::array();
+  for (const auto& p : c.pairs) {
+    j["pairs"].push_back({{"frame", p.frame},
+                          {"mag", p.mag},
+                          {"measured_px", {p.x_measured_px, p.y_measured_px}},
+                          {"simulated_px", {p.x_simulated_px, p.y_simulated_px}},
+                          {"flux_measured_adu", p.flux_measured_adu},
+                          {"flux_simulated_adu", p.flux_simulated_adu},
+                          {"sigma_measured_px", p.sigma_measured_px},
+                          {"sigma_simulated_px", p.sigma_simulated_px}});
+  }
+  return j;
+}
+
+Json FrameSimOptionsDiff(const FrameSimOptions& base, const FrameSimOptions& fitted) {
+  const Json a = FrameSimOptionsToJson(base), b = FrameSimOptionsToJson(fitted);
+  Json d = Json::object();
+  for (auto it = b.begin(); it != b.end(); ++it) {
+    if (!a.contains(it.key()) || a[it.key()] != it.value()) d[it.key()] = it.value();
+  }
+  return d;
+}
+
+void WriteComparePlots(const std::string& dir, const std::string& prefix, const FrameComparison& c,
+                       const Camera& camera, const std::string& title) {
+  const PlotColor red{200, 40, 40}, blue{40, 70, 200};
+  {
+    PlotSeries ms, ss;
+    ms.label = "measured", ss.label = "simulated";
+    ms.color = red, ss.color = blue;
+    ms.line = ss.line = false;
+    ms.markers = ss.markers = true;
+    for (const auto& p : c.pairs) {
+      if (p.flux_measured_adu > 0) ms.x.push_back(p.mag), ms.y.push_back(p.flux_measured_adu);
+      if (p.flux_simulated_adu > 0) ss.x.push_back(p.mag), ss.y.push_back(p.flux_simulated_adu);
+    }
+    PlotOptions po;
+    po.log_y = true;
+    po.title = title + ": flux vs catalog V, same stars";
+    po.x_label = "V (mag)";
+    po.y_label = "flux (ADU)";
+    if (!ms.x.empty()) WritePlotPng(dir + "/" + prefix + "_flux.png", {ms, ss}, po);
+  }
+  {
+    PlotSeries ms, ss;
+    ms.label = "measured", ss.label = "simulated";
+    ms.color = red, ss.color = blue;
+    ms.line = ss.line = false;
+    ms.markers = ss.markers = true;
+    for (const auto& p : c.pairs) {
+      const double r = std::hypot(p.x_measured_px - camera.cx_px, p.y_measured_px - camera.cy_px);
+      if (p.sigma_measured_px > 0) ms.x.push_back(r), ms.y.push_back(p.sigma_measured_px);
+      if (p.sigma_simulated_px > 0) ss.x.push_back(r), ss.y.push_back(p.sigma_simulated_px);
+    }
+    PlotOptions po;
+    po.title = title + ": spot sigma (detector fit) vs field radius";
+    po.x_label = "distance from the principal point (px)";
+    po.y_label = "sigma (px)";
+    if (!ms.x.empty()) WritePlotPng(dir + "/" + prefix + "_sigma.png", {ms, ss}, po);
+  }
+}
+
+}  // namespace ssiu
