@@ -6,8 +6,8 @@
 //   if (r.status == "solved") ... r.matches ...
 //
 // Method (docs/identify.md): triangles of the brightest centroids; the side-length ratios (which do
-// not depend on the focal length) are looked up in a FLANN kd-tree of catalog triangles with a
-// tolerance from the centroid noise, the longest side is checked against the focal-length range;
+// not depend on the focal length) and the log of the longest side are looked up in a FLANN kd-tree
+// of catalog triangles with a tolerance from the centroid noise and the focal-length range;
 // each hypothesis (vertex correspondence + handedness) gives an attitude (and focal length) that
 // predicts every catalog star in the field; the matches within the match radius are counted and the
 // chance of as many matches by accident is a binomial tail (after tetra3 / cedar-solve), multiplied
