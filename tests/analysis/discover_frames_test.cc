@@ -2,6 +2,7 @@
 #include <cmath>
 
 #include "analysis/discover_frames.h"
+#include "core/attitude.h"
 #include "core/error.h"
 #include "core/json.h"
 #include "core/rng.h"
@@ -258,6 +259,76 @@ TEST(DiscoverFramesReal, OpenStarTrackerFocalLength) {
   std::printf("openstartracker: %d/%d solved, %d stars, f %+.0f ppm, held-out rms %.2f -> %.2f arcsec\n",
               d.frames_solved, d.frames, d.stars, d.parameters.at("focal_length_ppm"), d.residual_rms_before_arcsec,
               d.residual_rms_after_arcsec);
+}
+
+}  // namespace
+}  // namespace ssiu
+
+namespace ssiu {
+namespace {
+
+// The tetra3 TIFFs (docs/discrepancy.md): focal_length first; with the fitted camera the persistent
+// hot pixels (no dark was taken) and, against the simulator's 1.2 px PSF, a narrow spot elongated
+// along y. The boresights against the two published tetra3 solutions, nominal and fitted camera.
+TEST(DiscoverFramesReal, Tetra3HotPixelsPsfShapeAndBoresight) {
+  SSIU_REQUIRE_SHARED(dir, "tetra3");
+  Camera cam;
+  cam.width = 1024, cam.height = 768;
+  cam.focal_length_px = 5129.58;  // 11.4 deg across
+  cam.cx_px = 511.5, cam.cy_px = 383.5;
+  SolveOptions so;
+  so.identify.fov_tolerance_pct = 3.0;
+  const StarIdentifier id = MakeIdentifierForCamera("", cam, so.identify.fov_tolerance_pct);
+  const char* names[] = {"Alt40_Azi-135", "Alt40_Azi-45", "Alt40_Azi135", "Alt40_Azi45",
+                         "Alt60_Azi-135", "Alt60_Azi-45", "Alt60_Azi135", "Alt60_Azi45"};
+  std::vector<Frame> frames;
+  std::vector<std::string> files;
+  for (const char* n : names) {
+    files.push_back(dir + "/2019-07-29T204726_" + n + "_Try1.tiff");
+    frames.push_back(ReadFrame(files.back()));
+  }
+  std::vector<ImageView> views;
+  for (const auto& f : frames) views.push_back(f.image.view());
+  so.detect.saturation_adu = frames.front().saturation_adu;
+  FrameDiscoverOptions o;
+  const SolvedFrameSet set = SolveFrameSet(id, views, files, cam, so);
+  const FrameDiscovery d1 = DiscoverFrames(set, cam, o);
+  ASSERT_EQ(d1.frames_solved, 8);
+  EXPECT_EQ(d1.cause, "focal_length");
+  const Camera fitted = d1.fitted_camera;
+  const SolvedFrameSet set2 = SolveFrameSet(id, views, files, fitted, so);
+  const FrameDiscovery d2 = DiscoverFrames(set2, fitted, o);
+  EXPECT_EQ(d2.cause, "hot_pixels");
+  EXPECT_GE(d2.hot_pixels.size(), 3u);
+  EXPECT_GT(d2.gain, 1.5);
+  o.psf_sigma_px = 1.2;
+  const FrameDiscovery d3 = DiscoverFrames(set2, fitted, o);
+  EXPECT_EQ(d3.cause, "psf_shape");
+  ASSERT_TRUE(d3.parameters.count("psf_ellipticity"));
+  EXPECT_NEAR(d3.parameters.at("psf_sigma_px"), 0.6, 0.1);
+  EXPECT_GT(d3.parameters.at("psf_ellipticity"), 0.08);
+  EXPECT_GT(std::abs(d3.parameters.at("psf_angle_deg")), 75.0);  // along y
+  EXPECT_GT(d3.gain, 1.5);
+  // Boresight against the published solutions (Alt40_Azi-45, Alt60_Azi-45: frames 1 and 5).
+  const double pub[2][2] = {{172.3689, 57.6493}, {212.2123, 64.2002}};
+  for (int k = 0; k < 2; ++k) {
+    const int f = k == 0 ? 1 : 5;
+    double err[2];
+    for (int which = 0; which < 2; ++which) {
+      const SolvedFrameSet& s = which == 0 ? set : set2;
+      const Vec3 b = s.q[f] * Vec3::UnitZ();
+      const Vec3 p = UnitFromRaDec(pub[k][0] * kDegToRad, pub[k][1] * kDegToRad);
+      err[which] = std::atan2(b.cross(p).norm(), b.dot(p)) * kRadToArcsec;
+    }
+    EXPECT_LT(err[1], 10.0);
+    std::printf("tetra3 %s: boresight %.2f (nominal camera) -> %.2f arcsec (fitted) from the published solution\n",
+                names[f], err[0], err[1]);
+  }
+  std::printf("tetra3: %zu persistent pixels, spikes/frame %.2f -> %.2f; psf sigma %.3f, ellipticity %.3f at %.1f deg, "
+              "stamp rms %.2f -> %.2f\n",
+              d2.hot_pixels.size(), d2.spikes_before, d2.spikes_after, d3.parameters.at("psf_sigma_px"),
+              d3.parameters.at("psf_ellipticity"), d3.parameters.at("psf_angle_deg"), d3.stamp_rms_before,
+              d3.stamp_rms_after);
 }
 
 }  // namespace
