@@ -166,6 +166,16 @@ void FrameDiscoverOptions::Check() const {
 SolvedFrameSet SolveFrameSet(const StarIdentifier& id, const std::vector<ImageView>& images,
                              const std::vector<std::string>& names, const Camera& camera, const SolveOptions& options,
                              const DefectMap* known_defects) {
+  if (known_defects && !known_defects->empty() &&
+      (known_defects->width != camera.width || known_defects->height != camera.height ||
+       known_defects->mask.size() != static_cast<size_t>(camera.width) * camera.height)) {
+    throw InputError("defect map", "size differs from the camera's width/height");
+  }
+  for (size_t i = 0; i < images.size(); ++i) {
+    if (images[i].width != camera.width || images[i].height != camera.height) {
+      throw InputError(i < names.size() ? names[i] : "frame", "frame size differs from the camera's width/height");
+    }
+  }
   SolvedFrameSet set;
   set.names = names;
   set.width = camera.width, set.height = camera.height;
