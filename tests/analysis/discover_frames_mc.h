@@ -5,7 +5,7 @@
 // pixels, but with a new defect seed in every frame (transient single-pixel sources, which are not
 // the hidden effect) except in a hot_pixels set, where 20-50 hot pixels keep one defect seed over
 // the set (persistent, the hidden effect). psf_shape: the true PSF sigma is 1.2 (the model) times
-// 1 +- 0.2-0.35; the simulator has no ellipticity (FitSpot's ellipticity is tested on spots drawn
+// 1 +- 0.2-0.35, or (seed divisible by 3) a defocus disk of 1.0-1.8 px; the simulator has no ellipticity (FitSpot's ellipticity is tested on spots drawn
 // by the test itself, discover_frames_test.cc).
 #pragma once
 
@@ -81,8 +81,12 @@ inline FrameCase MakeFrameCase(const std::string& cause, uint64_t seed, int fram
     c.sim.defect_seed = static_cast<int>(seed % 100000) + 7;
     c.truth_params["hot_pixel_count"] = c.sim.hot_pixels;
   } else if (cause == "psf_shape") {
-    c.sim.psf_sigma_px = 1.2 * (1 + sign() * rng.Uniform(0.2, 0.35));
-    c.truth_params["psf_sigma_px"] = c.sim.psf_sigma_px;
+    if (seed % 3 == 0) {  // a third of the cases: defocus (a 1.0-1.8 px disk convolved with the model PSF)
+      c.sim.defocus_radius_px = rng.Uniform(1.0, 1.8);
+    } else {
+      c.sim.psf_sigma_px = 1.2 * (1 + sign() * rng.Uniform(0.2, 0.35));
+      c.truth_params["psf_sigma_px"] = c.sim.psf_sigma_px;
+    }
   }
   std::vector<Image16> imgs;
   std::vector<ImageView> views;
@@ -122,10 +126,12 @@ inline FrameDiscoverOptions McDiscoverOptions() {
   return o;
 }
 
-inline FrameMcSummary RunFrameMonteCarlo(int n, int frames, uint64_t seed0, bool verbose) {
+// n sets, the causes in turn (default: all of FrameCauses()).
+inline FrameMcSummary RunFrameMonteCarlo(int n, int frames, uint64_t seed0, bool verbose,
+                                         const std::vector<std::string>& causes = FrameCauses()) {
   FrameMcSummary s;
   for (int i = 0; i < n; ++i) {
-    const std::string cause = FrameCauses()[i % FrameCauses().size()];
+    const std::string cause = causes[i % causes.size()];
     const FrameCase c = MakeFrameCase(cause, seed0 + 17 * i, frames);
     const FrameDiscovery d = DiscoverFrames(c.set, c.nominal, McDiscoverOptions());
     ++s.sets;
@@ -161,7 +167,7 @@ inline FrameMcSummary RunFrameMonteCarlo(int n, int frames, uint64_t seed0, bool
       }
     }
     if (verbose) {
-      std::cout << "set " << i << " true " << cause << " found " << d.cause << " solved " << d.frames_solved << "/"
+      std::cout << "set " << i << " true " << cause << (c.sim.defocus_radius_px > 0 ? " (defocus)" : "") << " found " << d.cause << " solved " << d.frames_solved << "/"
                 << d.frames << " stars " << d.stars << " rms " << d.residual_rms_before_arcsec << " -> "
                 << d.residual_rms_after_arcsec << " gain " << d.gain << ps << " | zero point " << d.zero_point_adu
                 << " ADU, scatter " << d.photometric_scatter_mag << " mag, spot sigma " << d.psf_sigma_median_px
