@@ -259,6 +259,24 @@ TEST(DiscoverFramesReal, OpenStarTrackerFocalLength) {
   std::printf("openstartracker: %d/%d solved, %d stars, f %+.0f ppm, held-out rms %.2f -> %.2f arcsec\n",
               d.frames_solved, d.frames, d.stars, d.parameters.at("focal_length_ppm"), d.residual_rms_before_arcsec,
               d.residual_rms_after_arcsec);
+  // Boresights against astrometry.net (img0, 2, 3), nominal and fitted camera.
+  const SolvedFrameSet set2 = SolveFrameSet(id, views, names, d.fitted_camera, so);
+  const double pub[3][3] = {{0, 181.171161, 16.836005}, {2, 154.015478, 19.157137}, {3, 169.985553, 13.750871}};
+  for (const auto& p : pub) {
+    double err[2] = {-1, -1};
+    for (int which = 0; which < 2; ++which) {
+      const SolvedFrameSet& s = which == 0 ? set : set2;
+      for (size_t k = 0; k < s.q.size(); ++k) {
+        if (s.solved_index[k] != static_cast<int>(p[0])) continue;
+        const Vec3 b = s.q[k] * Vec3::UnitZ(), r = UnitFromRaDec(p[1] * kDegToRad, p[2] * kDegToRad);
+        err[which] = std::atan2(b.cross(r).norm(), b.dot(r)) * kRadToArcsec;
+      }
+    }
+    EXPECT_GE(err[1], 0) << "img" << p[0] << " not solved with the fitted camera";
+    EXPECT_LT(err[1], 10.0);
+    std::printf("openstartracker img%d: boresight %.2f (nominal camera) -> %.2f arcsec (fitted) from astrometry.net\n",
+                static_cast<int>(p[0]), err[0], err[1]);
+  }
 }
 
 }  // namespace
