@@ -4,12 +4,15 @@
 //   ReferenceSample r = ReferenceFromStand(mask, p.q_c_from_m, p.q_c_from_m_cov_rad2, az, el, rot, sigma, t);
 //
 // q_ref = q_design * conj(q_C_from_M) * StandRotation(az, el, rot) (stand.h). The plate's pose in the
-// collimator frame comes from the fiducials: libapriltag finds the tag36h11 corners, OpenCV's
-// solvePnP gives the plate pose in the auxiliary camera, the camera's calibrated pose in C gives it
-// in C. Its covariance is sigma^2 (J^T J)^-1 (J: reprojection Jacobian of the 6 pose parameters),
-// with the corner noise sigma estimated from the PnP residuals (RSS / (2N - 6)), propagated to the
-// mask rotation numerically; per axis it is raised to a leave-one-tag-out jackknife variance where
-// that is larger (corners of one tag have correlated errors). Encoder noise adds sigma_enc^2 per axis (small-angle approximation).
+// collimator frame comes from the fiducials: libapriltag finds the tag36h11 tags, a blurred-step
+// model fit of each tag's four sides gives its corners and their covariance from the photo's pixel
+// noise (tag_edges.h), OpenCV's solvePnP gives the plate pose in the auxiliary camera, the camera's
+// calibrated pose in C gives it in C. Its covariance is the least-squares sandwich
+// (J^T J)^-1 J^T Sigma J (J^T J)^-1 (J: reprojection Jacobian of the 6 pose parameters, Sigma: the
+// corners' covariance), propagated to the mask rotation numerically: the accuracy the pixel noise
+// allows. It is scaled by the PnP residuals' chi2/dof when they scatter more, and per axis raised to a
+// leave-one-tag-out jackknife variance where that is larger. Encoder noise adds sigma_enc^2 per axis
+// (small-angle approximation).
 #pragma once
 
 #include <array>
@@ -27,6 +30,8 @@ namespace ssiu {
 struct FiducialOptions {
   double quad_decimate = 1.0;  // libapriltag: 1 = full resolution (best corners)
   int min_tags = 2;            // fewer mask tags found -> bad input
+  bool refine_corners = true;  // edge-model fit of each tag's sides (tag_edges.h) instead of libapriltag's corners
+  double pixel_noise_dn = 0;   // the photo's pixel noise (8-bit counts); 0 = measured from the edge fits
   void Check() const;
 };
 
@@ -47,10 +52,16 @@ struct PlatePoseEstimate {
   Mat3 r_aux_from_p = Mat3::Identity();        // PnP result
   Vec3 t_aux_mm = Vec3::Zero();
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();  // (rvec rad, t mm) in aux
-  double corner_sigma_px = 0;                  // from the residuals
+  int refined_tags = 0;                        // tags whose corners come from the edge-model fit
+  double pixel_noise_dn = 0;                   // used for the prediction (given, or measured)
+  double measured_pixel_noise_dn = 0;          // RMS residual of the edge fits
+  double predicted_corner_sigma_px = 0;        // RMS corner sigma from the pixel noise (per coordinate)
+  double corner_sigma_px = 0;                  // from the PnP residuals
+  double corner_chi2_per_dof = 0;              // PnP residuals against the predicted corner covariance
   double rms_reprojection_px = 0;
   Quat q_c_from_m = Quat::Identity();
-  Mat3 q_c_from_m_cov_rad2 = Mat3::Zero();     // of its rotation vector, C frame (formal, or larger jackknife)
+  Mat3 q_c_from_m_noise_cov_rad2 = Mat3::Zero();  // what the pixel noise alone allows (prediction)
+  Mat3 q_c_from_m_cov_rad2 = Mat3::Zero();     // stated: the prediction x max(1, chi2/dof), or the larger jackknife
   Mat3 jackknife_cov_rad2 = Mat3::Zero();      // leave-one-tag-out estimate (3 or more tags)
 };
 

@@ -17,8 +17,8 @@ void TrackerViewOptions::Check() const {
 }
 
 void PhotoOptions::Check() const {
-  if (!(noise_dn >= 0) || !(blur_px >= 0) || supersample < 1 || supersample > 8)
-    throw InputError("photo options", "noise_dn, blur_px >= 0 and supersample in 1..8");
+  if (!(noise_dn >= 0) || !(blur_px >= 0) || supersample < 1 || supersample > 4)
+    throw InputError("photo options", "noise_dn, blur_px >= 0 and supersample in 1..4");
 }
 
 void StandSimOptions::Check() const {
@@ -186,36 +186,58 @@ std::vector<uint8_t> RenderAuxPhoto(const Mask& m, const PlatePose& pose, const 
   const int w = aux.camera.width, h = aux.camera.height, ss = o.supersample;
   const bool pinhole = aux.camera.distortion.IsZero();
   const double f = aux.camera.focal_length_px;
-  cv::Mat img(h, w, CV_64F);
-  // Stratified jittered samples: a regular sub-grid would quantise the position of the nearly
-  // axis-aligned tag edges to 1/ss pixel, a bias the corner detector would faithfully report.
+  auto reflectance_at = [&](double px_x, double px_y) {
+    // Pinhole fast path (Unproject iterates the distortion inverse).
+    const Vec3 ray = pinhole ? Vec3((px_x - aux.camera.cx_px) / f, (px_y - aux.camera.cy_px) / f, 1.0)
+                             : aux.camera.Unproject(Vec2(px_x, px_y));
+    const Vec3 dir = r_pa * ray;
+    if (dir.z() * -origin_p.z() <= 0) return 0.05;
+    const double s = -origin_p.z() / dir.z();
+    return reflectance(origin_p.x() + s * dir.x(), origin_p.y() + s * dir.y());
+  };
+  // A camera blurs the scene optically and then integrates it over each pixel: the edge profile is
+  // (Gaussian * pixel box), the same at every sub-pixel position of the edge. Blurring an image that
+  // is already integrated over whole pixels would not be (its response to an edge is piecewise linear
+  // in the edge position, with kinks at the pixel borders), and that pixel-phase error would show in
+  // the fiducial corners. So the scene is rendered at ss x the resolution, blurred there, and
+  // box-averaged down. A sub-pixel whose four corners agree lies in one region (tag cells and the plate
+  // are much larger); one crossed by an edge is integrated with 4 x 4 stratified jittered samples
+  // (a regular sub-grid would quantise the edge position to its step).
+  const int W = w * ss, H = h * ss;
+  cv::Mat hi(H, W, CV_32F);
   Rng jitter(seed * 31 + 7);
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) {
-      double acc = 0;
-      for (int j = 0; j < ss; ++j)
-        for (int i = 0; i < ss; ++i) {
-          const Vec2 px(x - 0.5 + (i + jitter.Uniform()) / ss, y - 0.5 + (j + jitter.Uniform()) / ss);
-          // Pinhole fast path (Unproject iterates the distortion inverse).
-          const Vec3 ray = pinhole ? Vec3((px.x() - aux.camera.cx_px) / f, (px.y() - aux.camera.cy_px) / f, 1.0)
-                                   : aux.camera.Unproject(px);
-          const Vec3 dir = r_pa * ray;
-          if (dir.z() * -origin_p.z() <= 0) {
-            acc += 0.05;
-            continue;
-          }
-          const double s = -origin_p.z() / dir.z();
-          acc += reflectance(origin_p.x() + s * dir.x(), origin_p.y() + s * dir.y());
-        }
-      img.at<double>(y, x) = 15 + 220 * acc / (ss * ss);
+  std::vector<double> row0(static_cast<size_t>(W) + 1), row1(row0.size());
+  auto corner_row = [&](int Y, std::vector<double>* r) {
+    for (int X = 0; X <= W; ++X) (*r)[X] = reflectance_at(-0.5 + static_cast<double>(X) / ss, -0.5 + static_cast<double>(Y) / ss);
+  };
+  corner_row(0, &row0);
+  constexpr int kEdgeSamples = 4;
+  for (int Y = 0; Y < H; ++Y) {
+    corner_row(Y + 1, &row1);
+    float* out = hi.ptr<float>(Y);
+    for (int X = 0; X < W; ++X) {
+      double v = row0[X];
+      if (row0[X + 1] != v || row1[X] != v || row1[X + 1] != v) {
+        double acc = 0;
+        for (int j = 0; j < kEdgeSamples; ++j)
+          for (int i = 0; i < kEdgeSamples; ++i)
+            acc += reflectance_at(-0.5 + (X + (i + jitter.Uniform()) / kEdgeSamples) / ss,
+                                  -0.5 + (Y + (j + jitter.Uniform()) / kEdgeSamples) / ss);
+        v = acc / (kEdgeSamples * kEdgeSamples);
+      }
+      out[X] = static_cast<float>(15 + 220 * v);
     }
-  if (o.blur_px > 0) cv::GaussianBlur(img, img, cv::Size(0, 0), o.blur_px, o.blur_px, cv::BORDER_REPLICATE);
+    std::swap(row0, row1);
+  }
+  if (o.blur_px > 0) cv::GaussianBlur(hi, hi, cv::Size(0, 0), o.blur_px * ss, o.blur_px * ss, cv::BORDER_REPLICATE);
+  cv::Mat img;
+  cv::resize(hi, img, cv::Size(w, h), 0, 0, cv::INTER_AREA);  // exact box average for an integer factor
   Rng rng(seed * 6364136223846793005ULL + 3);
   std::vector<uint8_t> out(static_cast<size_t>(w) * h);
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x)
       out[static_cast<size_t>(y) * w + x] =
-          static_cast<uint8_t>(std::clamp(std::round(img.at<double>(y, x) + o.noise_dn * rng.Normal()), 0.0, 255.0));
+          static_cast<uint8_t>(std::clamp(std::round(img.at<float>(y, x) + o.noise_dn * rng.Normal()), 0.0, 255.0));
   return out;
 }
 

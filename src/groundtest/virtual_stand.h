@@ -64,7 +64,7 @@ struct PhotoOptions {
   // -0.04 at 0.7, < 0.01 at 1.5), which turns into a plate shift of ~10 arcsec. Take the photos
   // slightly defocused; 1.5 px is the default here.
   double blur_px = 1.5;
-  int supersample = 3;         // jittered samples per axis
+  int supersample = 3;         // rendered at this many times the resolution per axis, blurred, box-averaged
   std::string tag_family;      // "" = the mask's; another family draws the wrong tags (tests)
   bool hide_tags = false;      // draw the plate without fiducials (tests)
   void Check() const;
