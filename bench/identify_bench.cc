@@ -1,17 +1,21 @@
-// Lost-in-space solve from centroids (median and 99th percentile over 500 frames), tracking update,
+// Lost-in-space solve from centroids (median and 99th percentile over 500 frames at 16.6 deg, 200 at
+// 8 deg; wrong = boresight more than 1 arcmin from the truth, or roll beyond 1 arcmin and 5 sigma), tracking update,
 // catalog build time and index size. Frames: SimulateFrame + Detect at random attitudes, 16.6 deg,
 // 1024x1024, default simulator noise (the detector's centroids, as a real pipeline would see).
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <ctime>
+#include <fstream>
 #include <memory>
 #include <numeric>
 #include <vector>
 
 #include "attitude/star_solver.h"
+#include "core/attitude.h"
 #include "core/catalog.h"
 #include "sim/frame_sim.h"
 
@@ -26,20 +30,30 @@ double CpuMs() {
 }
 
 struct Fixture {
-  StarCatalog sky = LoadXplanetBsc(DefaultBscPath(), 7.0);
-  Camera cam = MakeCamera(1024, 1024, 16.6);
+  StarCatalog sky;
+  Camera cam;
   std::unique_ptr<StarIdentifier> id;
   std::vector<std::vector<Centroid>> frames;
   std::vector<Quat> truth;
-  Fixture() {
+  // 16.6 deg: BSC sky to V 7 and the BSC solver catalog. Narrow (8 deg): the KStars
+  // Hipparcos/Tycho sky to V 8.5 (J2000) for both the frames and the solver catalog (auto limit).
+  Fixture(double fov_deg, int n) : cam(MakeCamera(1024, 1024, fov_deg)) {
     CatalogBuildOptions co;
-    co.fov_deg = 16.6;
-    id = std::make_unique<StarIdentifier>(BuildSolverCatalog(LoadSourceCatalog(DefaultBscPath()), co));
+    co.fov_deg = fov_deg;
+    if (fov_deg >= 10) {
+      sky = LoadXplanetBsc(DefaultBscPath(), 7.0);
+      id = std::make_unique<StarIdentifier>(BuildSolverCatalog(LoadSourceCatalog(DefaultBscPath()), co));
+    } else {
+      sky.source = "/usr/share/kstars/stars.dat";
+      for (const auto& s : LoadKstarsStars(sky.source).stars)
+        if (s.star.mag <= 8.5) sky.stars.push_back(s.star);
+      id = std::make_unique<StarIdentifier>(BuildSolverCatalog(sky, co));
+    }
     FrameSimOptions fo;
     fo.false_stars = 3;
     DetectOptions d = SolveOptions{}.detect;
     d.gain_e_per_adu = fo.gain_e_per_adu;
-    for (int i = 0; i < 500; ++i) {
+    for (int i = 0; i < n; ++i) {
       const Quat q = RandomAttitude(777 + i);
       frames.push_back(CentroidsFromDetections(Detect(SimulateFrame(cam, sky, q, fo, 777 + i).image.view(), d), 1.25));
       truth.push_back(q);
@@ -48,23 +62,33 @@ struct Fixture {
 };
 
 Fixture& F() {
-  static Fixture f;
+  static Fixture f(16.6, 500);
   return f;
 }
 
-void BM_LostInSpaceFromCentroids(benchmark::State& state) {
-  Fixture& f = F();
+void RunLostInSpace(benchmark::State& state, Fixture& f) {
   SolveOptions so;
   std::vector<double> ms;
   std::vector<int> hyp;
   size_t i = 0;
-  int solved = 0;
+  int solved = 0, wrong = 0;
   for (auto _ : state) {
+    const size_t k = i % f.frames.size();
     const double t0 = CpuMs();
-    const SolveResult r = SolveCentroids(*f.id, f.frames[i % f.frames.size()], f.cam, so);
+    const SolveResult r = SolveCentroids(*f.id, f.frames[k], f.cam, so);
     ms.push_back(CpuMs() - t0);
     hyp.push_back(r.identification.hypotheses);
     solved += r.status == "solved";
+    // Wrong: a boresight more than 1 arcmin off, or a roll off by more than 1 arcmin and 5 of its
+    // reported sigmas (at 8 deg with the default 0.5 px systematic error, sigma_roll is ~1 arcmin).
+    const AttitudeErrorSplit e = SplitAttitudeError(r.attitude.q_inertial_from_sensor, f.truth[k]);
+    const double roll_limit = std::max(60.0, 5 * r.attitude.sigma_roll_rad * kRadToArcsec);
+    if (r.status == "solved" && (e.cross_rad * kRadToArcsec > 60 || std::abs(e.roll_rad) * kRadToArcsec > roll_limit)) {
+      ++wrong;
+      std::fprintf(stderr, "WRONG (%.1f deg): frame %zu (seed %zu) cross %.1f, roll %.1f arcsec, %zu matches, chance %.2g\n",
+                   f.cam.FovXRad() * kRadToDeg, k, 777 + k, e.cross_rad * kRadToArcsec, e.roll_rad * kRadToArcsec,
+                   r.identification.matches.size(), r.identification.false_match_probability);
+    }
     benchmark::DoNotOptimize(r);
     ++i;
   }
@@ -72,10 +96,11 @@ void BM_LostInSpaceFromCentroids(benchmark::State& state) {
   std::vector<size_t> order(ms.size());
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return ms[a] > ms[b]; });
-  for (size_t k = 0; k < std::min<size_t>(12, order.size()); ++k) {
+  for (size_t k = 0; k < std::min<size_t>(8, order.size()); ++k) {
     const size_t j = order[k];
-    std::fprintf(stderr, "slow: frame %zu (seed %zu) %.2f ms, %d hypotheses, %zu centroids\n", j % f.frames.size(),
-                 777 + j % f.frames.size(), ms[j], hyp[j], f.frames[j % f.frames.size()].size());
+    std::fprintf(stderr, "slow (%.1f deg): frame %zu (seed %zu) %.2f ms, %d hypotheses, %zu centroids\n",
+                 f.cam.FovXRad() * kRadToDeg, j % f.frames.size(), 777 + j % f.frames.size(), ms[j], hyp[j],
+                 f.frames[j % f.frames.size()].size());
   }
   std::vector<int> hs = hyp;
   std::sort(hs.begin(), hs.end());
@@ -85,8 +110,23 @@ void BM_LostInSpaceFromCentroids(benchmark::State& state) {
   state.counters["median_cpu_ms"] = ms[ms.size() / 2];
   state.counters["p99_cpu_ms"] = ms[std::min(ms.size() - 1, ms.size() * 99 / 100)];
   state.counters["solved_frac"] = static_cast<double>(solved) / ms.size();
+  state.counters["wrong"] = wrong;
 }
+
+void BM_LostInSpaceFromCentroids(benchmark::State& state) { RunLostInSpace(state, F()); }
 BENCHMARK(BM_LostInSpaceFromCentroids)->Iterations(1000)->Unit(benchmark::kMillisecond);
+
+// The same at 8 deg against the KStars index (narrow fields: more, fainter stars per pattern).
+void BM_LostInSpaceNarrow8Deg(benchmark::State& state) {
+  if (!std::ifstream("/usr/share/kstars/stars.dat")) {
+    state.SkipWithError("KStars stars.dat not installed (apt-get install kstars-data)");
+    return;
+  }
+  static Fixture f(8.0, 200);
+  RunLostInSpace(state, f);
+}
+BENCHMARK(BM_LostInSpaceNarrow8Deg)->Iterations(400)->Unit(benchmark::kMillisecond);
+
 
 void BM_TrackingUpdate(benchmark::State& state) {
   Fixture& f = F();
