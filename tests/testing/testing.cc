@@ -1,5 +1,7 @@
 #include "testing/testing.h"
 
+#include <unistd.h>
+
 #include <array>
 #include <cstdio>
 #include <cstdlib>
@@ -30,7 +32,8 @@ std::string SsiuProgram() {
 
 std::string TempDir(const std::string& name) {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  std::string dir = (fs::temp_directory_path() / "ssiu_tests").string() + "/" +
+  // The process id keeps concurrent runs of the same test (two build trees, ctest -j) apart.
+  std::string dir = (fs::temp_directory_path() / "ssiu_tests").string() + "/" + std::to_string(::getpid()) + "/" +
                     (info ? std::string(info->test_suite_name()) + "." + info->name() : name) + "." + name;
   std::error_code ec;
   fs::remove_all(dir, ec);
