@@ -94,9 +94,41 @@ Frame ReadFits(const std::string& path) {
   return fr;
 }
 
+// Width and height of a non-interlaced 16-bit greyscale PNG from its IHDR chunk, else false.
+bool IsGrey16Png(const std::vector<uchar>& b, int* width, int* height) {
+  static const uchar kSig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  if (b.size() < 33 || !std::equal(kSig, kSig + 8, b.begin()) || std::string(b.begin() + 12, b.begin() + 16) != "IHDR") {
+    return false;
+  }
+  auto be32 = [&](size_t i) { return (uint32_t(b[i]) << 24) | (uint32_t(b[i + 1]) << 16) | (uint32_t(b[i + 2]) << 8) | b[i + 3]; };
+  const uint32_t w = be32(16), h = be32(20);
+  if (w == 0 || h == 0 || w > 65536 || h > 65536 || b[24] != 16 || b[25] != 0 || b[28] != 0) return false;
+  *width = static_cast<int>(w);
+  *height = static_cast<int>(h);
+  return true;
+}
+
 Frame ReadRaster(const std::string& path) {
   cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
   cv::Mat m;
+  // Fast path for the common case, a 16-bit greyscale PNG: decoded straight into the frame's own
+  // buffer (no second image-sized allocation and copy).
+  Frame direct;
+  std::vector<uchar> bytes;
+  int pw = 0, ph = 0;
+  const bool png16 = [&] {
+    std::ifstream in(path, std::ios::binary);
+    char sig[8] = {0};
+    if (!in.read(sig, 8) || static_cast<unsigned char>(sig[0]) != 0x89 || std::string(sig + 1, 3) != "PNG") return false;
+    in.seekg(0, std::ios::end);
+    const std::streamoff n = in.tellg();
+    if (n <= 0) return false;
+    bytes.resize(static_cast<size_t>(n));
+    in.seekg(0);
+    in.read(reinterpret_cast<char*>(bytes.data()), n);
+    return static_cast<bool>(in) && IsGrey16Png(bytes, &pw, &ph);
+  }();
+  if (png16) direct.image = Image16(pw, ph);
   {
     // libpng/libtiff print their own complaints on stderr for corrupt files; keep the one-line
     // error below the only message by muting stderr for the duration of the decode.
@@ -105,7 +137,12 @@ Frame ReadRaster(const std::string& path) {
     const int devnull = open("/dev/null", O_WRONLY);
     if (saved >= 0 && devnull >= 0) dup2(devnull, 2);
     try {
-      m = cv::imread(path, cv::IMREAD_UNCHANGED);
+      if (png16) {
+        m = cv::Mat(ph, pw, CV_16UC1, direct.image.pixels.data());
+        cv::imdecode(bytes, cv::IMREAD_UNCHANGED, &m);
+      } else {
+        m = cv::imread(path, cv::IMREAD_UNCHANGED);
+      }
     } catch (const cv::Exception&) {
       m.release();
     }
@@ -115,6 +152,13 @@ Frame ReadRaster(const std::string& path) {
       close(saved);
     }
     if (devnull >= 0) close(devnull);
+  }
+  if (png16 && !m.empty() && m.data == reinterpret_cast<uchar*>(direct.image.pixels.data()) && m.type() == CV_16UC1 &&
+      m.cols == pw && m.rows == ph) {
+    direct.file = path;
+    direct.bit_depth = 16;
+    direct.saturation_adu = 65535;
+    return direct;
   }
   if (m.empty()) throw InputError(path, "cannot decode image (corrupt, truncated or not PNG/TIFF/FITS)");
   if (m.dims != 2 || m.rows <= 0 || m.cols <= 0) throw InputError(path, "image has zero size");
@@ -167,12 +211,20 @@ Frame ReadRaster(const std::string& path) {
 void CheckFrameContent(const Frame& fr) {
   const auto& px = fr.image.pixels;
   if (px.empty()) throw InputError(fr.file, "image has zero size");
-  const auto [lo, hi] = std::minmax_element(px.begin(), px.end());
-  if (*lo == *hi) {
-    throw InputError(fr.file, "image is constant (every pixel = " + std::to_string(*hi) + "): no signal");
-  }
+  // One pass with plain min/max/count accumulators (vectorises; minmax_element and count do not).
   const uint16_t sat = static_cast<uint16_t>(fr.saturation_adu);
-  const size_t n_sat = static_cast<size_t>(std::count(px.begin(), px.end(), sat));
+  const uint16_t* p = px.data();
+  const size_t n = px.size();
+  uint16_t lo = 65535, hi = 0;
+  size_t n_sat = 0;
+  for (size_t i = 0; i < n; ++i) {
+    lo = p[i] < lo ? p[i] : lo;
+    hi = p[i] > hi ? p[i] : hi;
+    n_sat += p[i] == sat;
+  }
+  if (lo == hi) {
+    throw InputError(fr.file, "image is constant (every pixel = " + std::to_string(hi) + "): no signal");
+  }
   if (n_sat * 2 > px.size()) {
     throw InputError(fr.file, "image is saturated (" + std::to_string(100 * n_sat / px.size()) +
                                   "% of pixels at full scale)");

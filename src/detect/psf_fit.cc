@@ -56,7 +56,7 @@ PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double 
   const double var_n = sigma_n * sigma_n;
 
   // Start: weighted moments of the positive part above the local background.
-  double sw = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0, peak = 0;
+  double sw = 0, sx = 0, sy = 0, peak = 0;
   for (int y = y0; y <= y1; ++y) {
     for (int x = x0; x <= x1; ++x) {
       const size_t i = static_cast<size_t>(y - y0) * nx + (x - x0);
@@ -71,25 +71,31 @@ PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double 
   }
   if (sw <= 0) return out;
   double cx = sx / sw, cy = sy / sw;
-  for (int y = y0; y <= y1; ++y) {
-    for (int x = x0; x <= x1; ++x) {
-      const size_t i = static_cast<size_t>(y - y0) * nx + (x - x0);
-      const double a = v[i] - level;
-      if (!use[i] || a <= 2 * sigma_n) continue;
-      sxx += a * (x - cx) * (x - cx);
-      syy += a * (y - cy) * (y - cy);
-      sxy += a * (x - cx) * (y - cy);
+  // Elongation and major-axis sigma from the second moments of the pixels above 2 sigma_n within
+  // `radius` of (mx, my): the eigenvalues of the 2x2 moment matrix in closed form.
+  auto shape_from_moments = [&](double mx, double my, double radius) {
+    double w = 0, mxx = 0, myy = 0, mxy = 0;
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        const size_t i = static_cast<size_t>(y - y0) * nx + (x - x0);
+        const double a = v[i] - level, dx = x - mx, dy = y - my;
+        if (!use[i] || a <= 2 * sigma_n || dx * dx + dy * dy > radius * radius) continue;
+        w += a;
+        mxx += a * dx * dx;
+        myy += a * dy * dy;
+        mxy += a * dx * dy;
+      }
     }
-  }
-  {
-    Eigen::Matrix2d m;
-    m << sxx / sw, sxy / sw, sxy / sw, syy / sw;
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(m);
-    const double l0 = std::max(es.eigenvalues()(0), 1e-3), l1 = std::max(es.eigenvalues()(1), 1e-3);
+    if (w <= 0) return;
+    mxx /= w;
+    myy /= w;
+    mxy /= w;
+    const double tr = 0.5 * (mxx + myy), disc = std::sqrt(std::max(0.25 * (mxx - myy) * (mxx - myy) + mxy * mxy, 0.0));
+    const double l0 = std::max(tr - disc, 1e-3), l1 = std::max(tr + disc, 1e-3);
     out.elongation = std::sqrt(l1 / l0);
     out.major_sigma_px = std::sqrt(l1);
-  }
-
+  };
+  shape_from_moments(cx, cy, 1e9);
   double s = std::clamp(o.sigma_guess_px, 0.4, 10.0);
   double amp = sw, bkg = level;
   const double gain = o.gain_e_per_adu;
@@ -224,6 +230,11 @@ PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double 
     residual_chi2(cx, cy, amp, bkg, s, &info, nullptr);
   }
   out.ok = amp > 0 && std::isfinite(cx) && std::isfinite(cy);
+  // With the fitted centre and width known, the shape is measured again within 2.5 fitted sigma:
+  // for a sharp PSF (sigma ~0.5 px) the whole window's moments are dominated by noise pixels a few
+  // pixels out and make a round star look elongated. A cosmic-ray track or a blend keeps its
+  // elongation, being elongated on the scale of its own fitted width.
+  if (out.ok && o.fit) shape_from_moments(cx, cy, std::max(1.5, 2.5 * s));
   out.x_px = cx;
   out.y_px = cy;
   out.flux_adu = amp;

@@ -55,9 +55,12 @@ TEST(RealFrames, AstrometryNetStarsAreFoundWithinOnePixel) {
   }
   const double recall = double(found) / total;
   RecordProperty("recall", std::to_string(found) + "/" + std::to_string(total));
-  // Measured 38 of 44 (docs/results.md); the misses are faint stars astrometry.net found after
-  // subtracting the median frame.
-  EXPECT_GE(recall, 0.85) << found << " of " << total;
+  // Measured 39 of 44 (docs/results.md). The five misses, all in img2, are at the noise floor:
+  // 2.9-4.3 sigma of the frame's 3x3 box-sum noise, among ~1000 noise peaks of the structured
+  // background (lowering the threshold only lets noise peaks crowd them out); astrometry.net found
+  // them after subtracting the median frame.
+  EXPECT_GE(found, 39) << found << " of " << total;
+  EXPECT_GE(recall, 0.88);
 }
 
 }  // namespace
