@@ -173,7 +173,7 @@ MissionConfig MissionConfigFromJson(const Json& j, const std::string& file) {
     const std::string what = file + ": processor";
     if (!p.is_object()) throw InputError(what, "must be an object");
     CheckKeys(p, {"threshold_sigma", "systematic_px", "track_search_radius_px", "nis_gate", "init_bias_sigma_dph",
-                  "fdi", "solution_sigma_scale", "solution_sigma_floor_arcsec"},
+                  "bias_drift_floor_dph_per_sqrt_h", "fdi", "solution_sigma_scale", "solution_sigma_floor_arcsec"},
               what);
     UnitProcessorOptions& o = c.processor;
     o.solve.identify.systematic_px = JsonNumberOr(p, "systematic_px", o.solve.identify.systematic_px, what);
@@ -181,6 +181,8 @@ MissionConfig MissionConfigFromJson(const Json& j, const std::string& file) {
     o.solve.track_search_radius_px = JsonNumberOr(p, "track_search_radius_px", o.solve.track_search_radius_px, what);
     o.fuse.nis_gate = JsonNumberOr(p, "nis_gate", o.fuse.nis_gate, what);
     o.fuse.init_bias_sigma_dph = JsonNumberOr(p, "init_bias_sigma_dph", o.fuse.init_bias_sigma_dph, what);
+    o.fuse.bias_drift_floor_dph_per_sqrt_h =
+        JsonNumberOr(p, "bias_drift_floor_dph_per_sqrt_h", o.fuse.bias_drift_floor_dph_per_sqrt_h, what);
     o.solution_sigma_scale = JsonNumberOr(p, "solution_sigma_scale", o.solution_sigma_scale, what);
     o.solution_sigma_floor_arcsec = JsonNumberOr(p, "solution_sigma_floor_arcsec", o.solution_sigma_floor_arcsec, what);
     if (p.contains("fdi")) {
@@ -229,6 +231,7 @@ Json MissionConfigToJson(const MissionConfig& c) {
             {"track_search_radius_px", o.solve.track_search_radius_px},
             {"nis_gate", o.fuse.nis_gate},
             {"init_bias_sigma_dph", o.fuse.init_bias_sigma_dph},
+            {"bias_drift_floor_dph_per_sqrt_h", o.fuse.bias_drift_floor_dph_per_sqrt_h},
             {"fdi", o.fuse.fdi},
             {"solution_sigma_scale", o.solution_sigma_scale},
             {"solution_sigma_floor_arcsec", o.solution_sigma_floor_arcsec}}}};

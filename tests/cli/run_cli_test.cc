@@ -1,6 +1,7 @@
 // `ssiu run` end to end: a tiny mission config writes the JSON figures and the side outputs; a bad
 // config exits 1 with one line naming the file and the field.
 #include <algorithm>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 
@@ -68,6 +69,17 @@ TEST_F(RunCli, PrintConfigWritesTheBuiltInDefault) {
   const auto again = testing::RunSsiu("run --config " + Path("default.json") + " --print-config");
   ASSERT_EQ(again.status, 0) << again.output;
   EXPECT_EQ(Json::parse(again.output), j);
+}
+
+// examples/ssiu_mission.json is the built-in default written out (kept in step with the code).
+TEST_F(RunCli, ExampleConfigIsTheBuiltInDefault) {
+  const char* src = std::getenv("SSIU_SOURCE_DIR");
+  if (!src || !*src) GTEST_SKIP() << "SSIU_SOURCE_DIR not set (run through ctest)";
+  const auto ex = testing::RunSsiu("run --print-config --config " + std::string(src) + "/examples/ssiu_mission.json");
+  ASSERT_EQ(ex.status, 0) << ex.output;
+  const auto def = testing::RunSsiu("run --print-config");
+  ASSERT_EQ(def.status, 0) << def.output;
+  EXPECT_EQ(Json::parse(ex.output), Json::parse(def.output));
 }
 
 TEST_F(RunCli, BadConfigExitsOneWithOneLineNamingFileAndField) {
