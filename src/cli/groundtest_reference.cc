@@ -27,7 +27,15 @@ Json PoseJson(const std::string& photo, const PlatePoseEstimate& e) {
           {"mask_rotation_sigma_arcsec",
            {std::sqrt(e.q_c_from_m_cov_rad2(0, 0)) * kRadToArcsec, std::sqrt(e.q_c_from_m_cov_rad2(1, 1)) * kRadToArcsec,
             std::sqrt(e.q_c_from_m_cov_rad2(2, 2)) * kRadToArcsec}},
+          {"mask_rotation_noise_sigma_arcsec",
+           {std::sqrt(e.q_c_from_m_noise_cov_rad2(0, 0)) * kRadToArcsec, std::sqrt(e.q_c_from_m_noise_cov_rad2(1, 1)) * kRadToArcsec,
+            std::sqrt(e.q_c_from_m_noise_cov_rad2(2, 2)) * kRadToArcsec}},
+          {"refined_tags", e.refined_tags},
+          {"pixel_noise_dn", e.pixel_noise_dn},
+          {"measured_pixel_noise_dn", e.measured_pixel_noise_dn},
+          {"predicted_corner_sigma_px", e.predicted_corner_sigma_px},
           {"corner_sigma_px", e.corner_sigma_px},
+          {"corner_chi2_per_dof", e.corner_chi2_per_dof},
           {"rms_reprojection_px", e.rms_reprojection_px}};
 }
 
@@ -42,6 +50,8 @@ SSIU_REGISTER_COMMAND(groundtest_reference, [](CLI::App& root) {
   cmd->add_option("--aux-camera", o->aux, "Aux camera JSON (camera + pose in the collimator frame)");
   cmd->add_option("--camera", o->camera, "Tracker camera.json: checked against the mask's");
   cmd->add_option("--min-tags", o->fid.min_tags, "Fewest fiducials for a pose")->capture_default_str();
+  cmd->add_option("--pixel-noise-dn", o->fid.pixel_noise_dn, "Photo pixel noise (8-bit counts); 0 = measured from the tag edge fits")
+      ->capture_default_str();
   cmd->add_option("--out", o->out, "Reference CSV t_s,qw,qx,qy,qz,sigma_cross_arcsec,sigma_roll_arcsec")->required();
   cmd->add_option("--json", o->json, "Per-photo plate poses (JSON, - for stdout)");
   cmd->callback([o] {

@@ -298,8 +298,28 @@ void WriteMaskPng(const Mask& m, const std::string& path, double dpi) {
         cv::rectangle(img, cv::Rect(xa, ya, xb - xa, yb - ya), cv::Scalar(p[static_cast<size_t>(r) * cells + k]), cv::FILLED);
       }
   }
-  std::vector<int> params = {cv::IMWRITE_PNG_COMPRESSION, 9};
-  if (!cv::imwrite(path, img, params)) throw InputError(path, "cannot be written");
+  std::vector<uchar> png;
+  if (!cv::imencode(".png", img, png, {cv::IMWRITE_PNG_COMPRESSION, 9}) || png.size() < 33)
+    throw InputError(path, "PNG encoding failed");
+  // The print scale as a pHYs chunk (PNG 1.2 spec, section 4.2.4.2: pixels per metre, unit 1), right
+  // after IHDR (8-byte signature + 25-byte IHDR chunk), so that a print shop or a viewer reproduces the
+  // plate at 1:1.
+  const uint32_t ppm = static_cast<uint32_t>(std::lround(dpi / 0.0254));
+  std::vector<uchar> chunk = {0, 0, 0, 9, 'p', 'H', 'Y', 's'};
+  for (int k = 0; k < 2; ++k)
+    for (int b = 3; b >= 0; --b) chunk.push_back(static_cast<uchar>(ppm >> (8 * b)));
+  chunk.push_back(1);
+  uint32_t crc = 0xffffffffu;  // CRC-32 (ISO 3309) over type and data
+  for (size_t i = 4; i < chunk.size(); ++i) {
+    crc ^= chunk[i];
+    for (int b = 0; b < 8; ++b) crc = (crc >> 1) ^ (0xedb88320u & (0u - (crc & 1u)));
+  }
+  crc ^= 0xffffffffu;
+  for (int b = 3; b >= 0; --b) chunk.push_back(static_cast<uchar>(crc >> (8 * b)));
+  png.insert(png.begin() + 33, chunk.begin(), chunk.end());
+  std::ofstream f(path, std::ios::binary);
+  f.write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
+  if (!f) throw InputError(path, "cannot be written");
 }
 
 }  // namespace ssiu

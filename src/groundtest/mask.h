@@ -90,7 +90,8 @@ void SaveMask(const Mask& m, const std::string& path);
 void CheckMaskCamera(const Mask& m, const Camera& camera, const std::string& mask_file);
 
 // Plate drawing as seen from the collimator lens: opaque plate black, holes white, fiducials black
-// on white. SVG in mm (exact hole diameters); PNG at `dpi` dots per inch (8-bit grey).
+// on white. SVG in mm (exact hole diameters); PNG at `dpi` dots per inch (8-bit grey, the DPI also in
+// the PNG's pHYs chunk, so that it prints at 1:1).
 void WriteMaskSvg(const Mask& m, const std::string& path);
 void WriteMaskPng(const Mask& m, const std::string& path, double dpi);
 

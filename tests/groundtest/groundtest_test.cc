@@ -1,11 +1,14 @@
 // Ground test: mask geometry, fiducial pose, comparison statistics and the virtual stand end to end.
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <iterator>
 #include <memory>
 
 #include "attitude/star_solver.h"
 #include "core/attitude.h"
 #include "core/error.h"
+#include "core/image.h"
 #include "core/rng.h"
 #include "groundtest/compare.h"
 #include "groundtest/mask.h"
@@ -84,6 +87,48 @@ TEST(GroundtestMask, HolesAreTheSkyOfTheDesignAttitude) {
   EXPECT_EQ(back.holes[3].star_id, m.holes[3].star_id);
   EXPECT_DOUBLE_EQ(back.holes[3].x_mm, m.holes[3].x_mm);
   EXPECT_THAT(back.q_design, QuaternionNear(m.q_design, 1e-6));
+}
+
+TEST(GroundtestMask, PrintedPlateCarriesItsScaleAndFiducialsWhereMaskJsonSaysTheyAre) {
+  const Mask& m = OrionMask();
+  const std::string dir = testing::TempDir("mask_png");
+  const double dpi = 40;
+  WriteMaskPng(m, dir + "/mask.png", dpi);
+  // The scale in the PNG's pHYs chunk: pixels per metre, unit metre.
+  std::ifstream f(dir + "/mask.png", std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  const size_t at = bytes.find("pHYs");
+  ASSERT_NE(at, std::string::npos);
+  auto be32 = [&](size_t i) {
+    uint32_t v = 0;
+    for (int k = 0; k < 4; ++k) v = v << 8 | static_cast<uint8_t>(bytes[i + k]);
+    return v;
+  };
+  EXPECT_EQ(be32(at + 4), static_cast<uint32_t>(std::lround(dpi / 0.0254)));
+  EXPECT_EQ(be32(at + 8), be32(at + 4));
+  EXPECT_EQ(bytes[at + 12], 1);
+  const Frame png = ReadFrame(dir + "/mask.png");
+  const int n = static_cast<int>(std::ceil(2 * m.plate_half_mm * dpi / 25.4));
+  ASSERT_EQ(png.image.width, n);
+  // libapriltag finds the eight tag36h11 fiducials on the printed plate, at the corners mask.json lists.
+  std::vector<uint8_t> px(png.image.pixels.begin(), png.image.pixels.end());
+  const auto dets = DetectFiducials(px.data(), png.image.width, png.image.height, "tag36h11", FiducialOptions{});
+  ASSERT_EQ(dets.size(), 8u);
+  for (const auto& d : dets) {
+    ASSERT_GE(d.id, 0);
+    ASSERT_LT(d.id, 8);
+    const auto corners = m.tags[d.id].Corners();
+    for (int k = 0; k < 4; ++k) {
+      const Vec2 expected = (corners[k] + Vec2::Constant(m.plate_half_mm)) * (dpi / 25.4) - Vec2::Constant(0.5);
+      EXPECT_LT((d.corners_px[k] - expected).norm(), 1.0) << "tag " << d.id << " corner " << k;
+    }
+  }
+  // Every hole is white at its place, the plate black between.
+  for (const auto& h : m.holes) {
+    const int x = static_cast<int>(std::lround((h.x_mm + m.plate_half_mm) * dpi / 25.4 - 0.5));
+    const int y = static_cast<int>(std::lround((h.y_mm + m.plate_half_mm) * dpi / 25.4 - 0.5));
+    EXPECT_GT(png.image.at(x, y), 0) << "hole HR " << h.star_id;
+  }
 }
 
 TEST(GroundtestMask, ResolvingASimulatedPictureGivesTheDesignAttitude) {
