@@ -159,6 +159,8 @@ void FrameDiscoverOptions::Check() const {
   if (iterations < 1) Fail("iterations must be >= 1");
   if (!(min_sigma_px > 0)) Fail("min_sigma_px must be > 0");
   if (!(psf_sigma_px >= 0 && psf_sigma_px < 50)) Fail("psf_sigma_px must be in [0, 50) (0 = not tested)");
+  if (!(psf_ellipticity >= 0 && psf_ellipticity < 1)) Fail("psf_ellipticity must be in [0, 1)");
+  if (!std::isfinite(psf_angle_deg)) Fail("psf_angle_deg must be finite");
   if (!(psf_width_floor_pct >= 0 && psf_width_floor_pct < 100)) Fail("psf_width_floor_pct must be in [0, 100)");
   if (!(psf_ellipticity_floor >= 0 && psf_ellipticity_floor < 1)) Fail("psf_ellipticity_floor must be in [0, 1)");
 }

@@ -97,6 +97,9 @@ struct FrameDiscoverOptions {
   double min_sigma_px = 0.05;  // floor of the centroid sigma used as weight
   // The model's PSF sigma (px; camera.json "psf_sigma_px" or --psf-sigma-px); 0 = psf_shape not tested.
   double psf_sigma_px = 0;
+  // The model's PSF ellipticity (1 - minor/major) and major-axis angle from +x towards +y (deg);
+  // camera.json "psf_ellipticity" / "psf_angle_deg", as written into fitted_camera by psf_shape.
+  double psf_ellipticity = 0, psf_angle_deg = 0;
   // Model tolerance added in quadrature to the sigma of the mean width and ellipticity (the stamp
   // fit's own systematic floor), so that thousands of stars do not call a 1 % departure a cause.
   double psf_width_floor_pct = 1.0;

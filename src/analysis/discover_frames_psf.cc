@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "analysis/discover_frames_internal.h"
+#include "core/types.h"
 
 namespace ssiu {
 
@@ -255,14 +256,22 @@ void ShapeCov(const ShapeModel& m, double s0, double u, double* c) {
   c[0] = t * (1 + m.e1), c[1] = t * (1 - m.e1), c[2] = t * m.e2;
 }
 
-// Chi^2 (4 dof, survival exp(-w/2)(1 + w/2)) of the shape model against the circular s0.
+// The model's (e1, e2) from its ellipticity 1 - b/a and angle: |e| = (a^2 - b^2) / (a^2 + b^2).
+void ModelE(const FrameDiscoverOptions& o, double* e1, double* e2) {
+  const double r2 = std::pow(1 - o.psf_ellipticity, 2), e = (1 - r2) / (1 + r2), th = 2 * o.psf_angle_deg * kDegToRad;
+  *e1 = e * std::cos(th), *e2 = e * std::sin(th);
+}
+
+// Chi^2 (4 dof, survival exp(-w/2)(1 + w/2)) of the shape model against the model PSF.
 double ShapeChi2(const ShapeModel& m, const FrameDiscoverOptions& o, double s0) {
+  double e1m, e2m;
+  ModelE(o, &e1m, &e2m);
   Matrix2d cab = m.cov_ab;
   const double ft = 2 * s0 * s0 * o.psf_width_floor_pct / 100;  // T = sigma^2: dT = 2 sigma^2 (dsigma / sigma)
   cab(0, 0) += ft * ft, cab(1, 1) += ft * ft;
   const Vector2d ab(m.alpha, m.beta);
   const double fe = o.psf_ellipticity_floor * o.psf_ellipticity_floor;
-  return ab.dot(cab.ldlt().solve(ab)) + m.e1 * m.e1 / (m.e1_var + fe) + m.e2 * m.e2 / (m.e2_var + fe);
+  return ab.dot(cab.ldlt().solve(ab)) + std::pow(m.e1 - e1m, 2) / (m.e1_var + fe) + std::pow(m.e2 - e2m, 2) / (m.e2_var + fe);
 }
 
 }  // namespace
@@ -327,6 +336,9 @@ CauseResult AnalysePsfShape(const SolvedFrameSet& set, const Camera& camera, con
   res.parameters["psf_angle_deg"] = 0.5 * std::atan2(m.e2, m.e1) * kRadToDeg;
   res.sigmas["psf_angle_deg"] = e > 0 ? 0.5 * se / e * kRadToDeg : 90.0;
   // Held-out gain: shape from the even frames scored on the odd ones and vice versa.
+  double e1m, e2m;
+  ModelE(o, &e1m, &e2m);
+  const double nominal[3] = {s0 * s0 * (1 + e1m), s0 * s0 * (1 - e1m), s0 * s0 * e2m};
   double ss_before = 0, ss_after = 0;
   long n = 0;
   for (int fold = 0; fold < 2; ++fold) {
@@ -337,7 +349,6 @@ CauseResult AnalysePsfShape(const SolvedFrameSet& set, const Camera& camera, con
     for (const auto& st : stars) {
       if (!test[st.frame]) continue;
       const FrameStar& s = set.stars[st.index];
-      const double nominal[3] = {s0 * s0, s0 * s0, 0};
       double fitted[3];
       ShapeCov(mt, s0, st.u, fitted);
       const double xg = s.x_px - s.stamp_x0, yg = s.y_px - s.stamp_y0;

@@ -109,11 +109,15 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
   cmd->add_option("--sim-json", o->sim_json, "Simulator options of the model under test (default: the simulator's)");
   cmd->callback([o] {
     const ssiu::Camera cam = ssiu::LoadCamera(o->camera);
-    if (o->psf_flag->count() > 0) {
-      o->opt.psf_sigma_px = o->psf_sigma_px;
-    } else {
+    {  // the model PSF: --psf-sigma-px, else camera.json's optional psf_* fields
       const ssiu::Json cj = ssiu::ReadJsonFile(o->camera);
-      if (cj.contains("psf_sigma_px")) o->opt.psf_sigma_px = ssiu::JsonNumber(cj, "psf_sigma_px", o->camera);
+      if (o->psf_flag->count() > 0) {
+        o->opt.psf_sigma_px = o->psf_sigma_px;
+      } else if (cj.contains("psf_sigma_px")) {
+        o->opt.psf_sigma_px = ssiu::JsonNumber(cj, "psf_sigma_px", o->camera);
+      }
+      o->opt.psf_ellipticity = ssiu::JsonNumberOr(cj, "psf_ellipticity", 0, o->camera);
+      o->opt.psf_angle_deg = ssiu::JsonNumberOr(cj, "psf_angle_deg", 0, o->camera);
     }
     o->opt.Check();  // before any work
     ssiu::DefectMap known;

@@ -150,6 +150,12 @@ TEST(DiscoverFrames, EllipticalPsfNamedWithItsEllipticity) {
   EXPECT_NEAR(d.parameters.at("psf_sigma_px"), std::sqrt(t), 3 * d.sigmas.at("psf_sigma_px") + 0.01);
   EXPECT_GT(d.gain, 1.0);
   EXPECT_GT(d.stamp_rms_before, d.stamp_rms_after);
+  // The extended model (the fitted PSF as the model) leaves nothing to name.
+  FrameDiscoverOptions o2 = o;
+  o2.psf_sigma_px = d.parameters.at("psf_sigma_px");
+  o2.psf_ellipticity = d.parameters.at("psf_ellipticity");
+  o2.psf_angle_deg = d.parameters.at("psf_angle_deg");
+  EXPECT_EQ(DiscoverFrames(set, cam, o2).cause, "none");
   std::printf("elliptical PSF: sigma %.3f +- %.3f px (true %.3f), ellipticity %.3f +- %.3f at %.1f deg, stamp rms %.2f -> %.2f\n",
               d.parameters.at("psf_sigma_px"), d.sigmas.at("psf_sigma_px"), std::sqrt(t), d.parameters.at("psf_ellipticity"),
               d.sigmas.at("psf_ellipticity"), d.parameters.at("psf_angle_deg"), d.stamp_rms_before, d.stamp_rms_after);
