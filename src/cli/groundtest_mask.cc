@@ -33,6 +33,8 @@ SSIU_REGISTER_COMMAND(groundtest_mask, [](CLI::App& root) {
   cmd->add_option("--hole-max-mm", o->mask.hole_max_diameter_mm, "Largest hole (0 = 2 pixel footprints)");
   cmd->add_option("--tag-size-mm", o->mask.tag_size_mm, "Fiducial black-square side (0 = 12% of the field)");
   cmd->add_option("--first-tag-id", o->mask.first_tag_id, "tag36h11 ids first..first+7")->capture_default_str();
+  cmd->add_flag("--predistort", o->mask.compensate_distortion,
+               "Pre-distort the holes for a tracker that does not model its lens distortion (camera.json's)");
   cmd->add_option("--dpi", o->dpi, "Resolution of mask.png")->capture_default_str();
   cmd->add_option("--catalog", o->catalog, "Solver catalog directory (default: cache)");
   cmd->add_option("--source", o->source, "Source catalog when it is built (default: by FOV)");

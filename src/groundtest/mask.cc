@@ -43,6 +43,7 @@ Mask DesignMask(const Camera& camera, const std::vector<CatalogStar>& stars, con
   m.camera = camera;
   m.collimator_focal_mm = o.collimator_focal_mm;
   m.q_design = q_design.normalized();
+  m.distortion_compensated = o.compensate_distortion;
   const RaDecRoll a = RaDecRollFromQuat(m.q_design);
   m.ra_deg = a.ra_rad * kRadToDeg, m.dec_deg = a.dec_rad * kRadToDeg, m.roll_deg = a.roll_rad * kRadToDeg;
   const double F = o.collimator_focal_mm;
@@ -68,8 +69,16 @@ Mask DesignMask(const Camera& camera, const std::vector<CatalogStar>& stars, con
   const Quat q_m_from_i = m.q_design.conjugate();
   for (const auto& s : stars) {
     if (o.mag_max > 0 && s.mag > o.mag_max) continue;
-    const Vec3 d = q_m_from_i * s.unit;
+    Vec3 d = q_m_from_i * s.unit;
     if (d.z() <= 0) continue;
+    if (o.compensate_distortion) {
+      // The direction whose distorted image is the star's pinhole image.
+      const Vec2 pin(camera.cx_px + camera.focal_length_px * d.x() / d.z(), camera.cy_px + camera.focal_length_px * d.y() / d.z());
+      d = camera.Unproject(pin);
+      // Far outside the image the lens model has no inverse: leave out what it cannot show.
+      const auto back = camera.Project(d);
+      if (!back || (*back - pin).norm() > 1e-3) continue;
+    }
     const double x = F * d.x() / d.z(), y = F * d.y() / d.z();
     if (std::abs(x) > m.field_half_x_mm || std::abs(y) > m.field_half_y_mm) continue;
     MaskHole h;
@@ -121,6 +130,7 @@ Json MaskToJson(const Mask& m) {
                      {"y_mm", h.y_mm}, {"diameter_mm", h.diameter_mm}});
   j["holes"] = holes;
   j["tag_family"] = m.tag_family;
+  j["distortion_compensated"] = m.distortion_compensated;
   Json tags = Json::array();
   for (const auto& t : m.tags) {
     Json c = Json::array();
@@ -170,6 +180,10 @@ Mask MaskFromJson(const Json& j, const std::string& src) {
     m.holes.push_back(mh);
   }
   m.tag_family = j.value("tag_family", std::string("tag36h11"));
+  if (j.contains("distortion_compensated")) {
+    if (!j["distortion_compensated"].is_boolean()) throw InputError(src, "distortion_compensated: must be true or false");
+    m.distortion_compensated = j["distortion_compensated"].get<bool>();
+  }
   if (!groundtest_internal::CreateFamily(m.tag_family)) throw InputError(src, "tag_family: unknown '" + m.tag_family + "'");
   if (!j.contains("tags") || !j["tags"].is_array()) throw InputError(src, "tags: missing");
   for (size_t i = 0; i < j["tags"].size(); ++i) {

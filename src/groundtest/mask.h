@@ -38,6 +38,11 @@ struct MaskOptions {
   double hole_max_diameter_mm = 0.0;
   double tag_size_mm = 0.0;            // black square side of a fiducial; 0 = 12% of the field width
   int first_tag_id = 0;                // tags first_tag_id .. first_tag_id + 7
+  // Pre-distort the holes for a tracker that does not model its lens distortion (--predistort): each
+  // star goes where a distortion-free camera of the same focal length would image it. Off by
+  // default: the holes are true directions, and a tracker with a calibrated distortion model sees
+  // the real sky's picture (its model removes the lens distortion when it solves).
+  bool compensate_distortion = false;
   void Check() const;                  // throws InputError naming the field
 };
 
@@ -68,6 +73,7 @@ struct Mask {
   double mag_faint = 0;                // magnitude of a d_min hole
   double hole_min_diameter_mm = 0, hole_max_diameter_mm = 0;
   std::string tag_family = "tag36h11";
+  bool distortion_compensated = false; // MaskOptions::compensate_distortion
   std::vector<MaskHole> holes;         // brightest first
   std::vector<MaskTag> tags;
   int clamped_holes = 0;               // holes held at d_max

@@ -163,6 +163,42 @@ TEST(GroundtestMask, DistortedTrackerNeedsNoCompensationOnThePlate) {
   EXPECT_LT(std::abs(e.roll_rad), 3 * p.sample.sigma_roll_rad);
 }
 
+TEST(GroundtestMask, PredistortedPlateShowsAPinholeSkyThroughTheDistortedLens) {
+  // Asked for (--predistort), the holes compensate the tracker's lens: through the distorted lens
+  // each star lands where a pinhole camera would put it, so a tracker that ignores its distortion
+  // solves to the design attitude.
+  Camera cam = TrackerCamera();
+  cam.distortion.k1 = -0.2;
+  Camera pinhole = cam;
+  pinhole.distortion = Distortion{};
+  MaskOptions mo;
+  mo.compensate_distortion = true;
+  const Mask m = DesignMask(cam, Identifier().catalog().stars, kDesign, mo);
+  EXPECT_TRUE(MaskFromJson(MaskToJson(m), "mask").distortion_compensated);
+  const Mask plain = DesignMask(cam, Identifier().catalog().stars, kDesign, MaskOptions{});
+  TrackerViewOptions vo;
+  std::vector<ViewStar> seen, seen_plain;
+  const Image16 img = RenderTrackerView(m, PlatePose{}, Quat::Identity(), vo, 8, &seen);
+  RenderTrackerView(plain, PlatePose{}, Quat::Identity(), vo, 8, &seen_plain);
+  ASSERT_GT(seen.size(), 20u);
+  double worst = 0, worst_plain = 0;
+  auto pinhole_px = [&](StarId id) {
+    for (const auto& s : Identifier().catalog().stars)
+      if (s.id == id) return *pinhole.Project(kDesign.conjugate() * s.unit);
+    return Vec2(-1e9, -1e9);
+  };
+  for (const auto& v : seen) worst = std::max(worst, (Vec2(v.x_px, v.y_px) - pinhole_px(v.star_id)).norm());
+  for (const auto& v : seen_plain) worst_plain = std::max(worst_plain, (Vec2(v.x_px, v.y_px) - pinhole_px(v.star_id)).norm());
+  std::printf("star image vs pinhole image: predistorted %.4f px, plain %.2f px (worst star)\n", worst, worst_plain);
+  EXPECT_LT(worst, 1e-3);
+  EXPECT_GT(worst_plain, 1.0);  // without it the lens moves the stars by pixels
+  const PictureSolve p = SolveStandPicture(Identifier(), img.view(), pinhole, vo.detector.gain_e_per_adu, 0);
+  ASSERT_EQ(p.status, "solved");
+  const AttitudeErrorSplit e = SplitAttitudeError(p.sample.q, kDesign);
+  EXPECT_LT(e.cross_rad, 3 * std::sqrt(2.0) * p.sample.sigma_cross_rad);
+  EXPECT_LT(std::abs(e.roll_rad), 3 * p.sample.sigma_roll_rad);
+}
+
 TEST(GroundtestStand, PlateShiftIsARotationOfTheSky) {
   // A lateral shift t moves every star by t/F (small angle); an in-plane turn is a roll.
   const Mask& m = OrionMask();
