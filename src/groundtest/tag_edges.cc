@@ -147,7 +147,7 @@ TagCornerFit FitTagCorners(const uint8_t* img, int w, int h, const Camera& cam, 
     for (int k = 0; k < 4; ++k) {
       const EdgeFit &A = edges[(k + 3) % 4], &B = edges[k];
       c2[k] = Intersect(A, B, Eigen::Vector4d(A.theta, A.delta, B.theta, B.delta));
-      if ((c2[k] - c[k]).norm() > 3) return out;
+      if (!c2[k].allFinite() || (c2[k] - c[k]).norm() > 3) return out;  // parallel sides, or not this corner
     }
     for (int k = 0; k < 4; ++k)
       if (!FitEdge(img, w, h, cam, c2[k], c2[(k + 1) % 4], centre, border_cells, &edges[k])) return out;
@@ -180,7 +180,7 @@ TagCornerFit FitTagCorners(const uint8_t* img, int w, int h, const Camera& cam, 
   out.covariance = J * Cl * J.transpose();
   for (int k = 0; k < 4; ++k) {
     out.corners_px[k] = Vec2(c0(2 * k), c0(2 * k + 1));
-    if ((out.corners_px[k] - c[k]).norm() > 3) return out;  // not the same corner: keep libapriltag's
+    if (!out.corners_px[k].allFinite() || (out.corners_px[k] - c[k]).norm() > 3) return out;  // keep libapriltag's
   }
   out.ok = out.covariance.allFinite();
   return out;
