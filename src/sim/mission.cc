@@ -424,6 +424,11 @@ MissionResult RunMission(const MissionConfig& config_in, const StarCatalog& cata
   res.within_3sigma_fraction = axis_samples > 0 ? static_cast<double>(within) / axis_samples : 0.0;
   res.nees_mean = nees_n > 0 ? nees_sum / nees_n : 0.0;
   res.final_state = proc.Attitude();
+  if (!g.t_s.empty()) {
+    const auto it = std::lower_bound(g.t_s.begin(), g.t_s.end(), res.final_state.t_s);
+    const size_t k = std::min(static_cast<size_t>(it - g.t_s.begin()), g.t_s.size() - 1);
+    res.q_truth_final = g.q_true[k];
+  }
   res.bias_dph = res.final_state.bias_dph;
   res.bias_sigma_dph = res.final_state.bias_sigma_dph;
   res.bias_truth_dph = g.body_bias_dph.empty() ? Vec3::Zero() : g.body_bias_dph.back();
@@ -490,6 +495,15 @@ std::string MissionResult::Text() const {
                 fused.cross_rms_arcsec, fused.cross_max_arcsec, fused.roll_rms_arcsec, fused.roll_max_arcsec,
                 100 * within_3sigma_fraction, nees_mean);
   s += b;
+  if (final_state.valid) {
+    const auto q = ToWxyz(final_state.q_inertial_from_body), qt = ToWxyz(q_truth_final);
+    std::snprintf(b, sizeof b,
+                  "  body attitude at t = %.2f s: q = [%.7f, %.7f, %.7f, %.7f], truth [%.7f, %.7f, %.7f, %.7f], "
+                  "error %.2f arcsec\n",
+                  final_state.t_s, q[0], q[1], q[2], q[3], qt[0], qt[1], qt[2], qt[3],
+                  AttitudeErrorRad(final_state.q_inertial_from_body, q_truth_final) * kRadToArcsec);
+    s += b;
+  }
   std::snprintf(b, sizeof b,
                 "  gyro bias (body x, y, z): estimate %.3f %.3f %.3f, truth %.3f %.3f %.3f deg/h; error %.3f deg/h "
                 "(1-sigma %.3f %.3f %.3f), %.2f at the first fix\n",
@@ -537,6 +551,7 @@ Json MissionResult::ToJson() const {
   fused_json["within_3sigma_fraction"] = within_3sigma_fraction;
   fused_json["nees_mean"] = nees_mean;
   const auto q = ToWxyz(final_state.q_inertial_from_body);
+  const auto qt = ToWxyz(q_truth_final);
   Vec3 sigma;
   for (int i = 0; i < 3; ++i) sigma[i] = std::sqrt(final_state.covariance_rad2(i, i)) * kRadToArcsec;
   return {{"status", frames_solved > 0 ? "ok" : "no_star_solution"},
@@ -545,7 +560,9 @@ Json MissionResult::ToJson() const {
           {"heads", hs},
           {"star_solution_error", StatsJson(star_only)},
           {"fused_error", fused_json},
-          {"final", {{"t_s", final_state.t_s}, {"q", {q[0], q[1], q[2], q[3]}}, {"sigma_body_arcsec", V3(sigma)}}},
+          {"final", {{"t_s", final_state.t_s}, {"q", {q[0], q[1], q[2], q[3]}}, {"sigma_body_arcsec", V3(sigma)},
+                     {"q_truth", {qt[0], qt[1], qt[2], qt[3]}},
+                     {"error_arcsec", AttitudeErrorRad(final_state.q_inertial_from_body, q_truth_final) * kRadToArcsec}}},
           {"bias",
            {{"estimate_dph", V3(bias_dph)},
             {"truth_dph", V3(bias_truth_dph)},

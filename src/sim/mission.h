@@ -77,6 +77,7 @@ struct MissionResult {
   double bias_error_start_dph = 0;     // |estimate - truth| just after the first fix (estimate 0 then)
   double bias_error_end_dph = 0;       // at the end
   UnitAttitude final_state;
+  Quat q_truth_final = Quat::Identity();  // true body attitude at the gyro sample nearest final_state.t_s
   long updates = 0, rejected = 0;
   double frame_ms_mean = 0, frame_ms_max = 0;  // processor time per frame set (all heads + update)
   double gyro_us_mean = 0;                     // processor time per gyro sample

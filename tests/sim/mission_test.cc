@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "core/attitude.h"
 #include "core/error.h"
 #include "inertial/online_fusion.h"
 #include "sim/gyro_fusion_scenario.h"
@@ -142,6 +143,10 @@ TEST(Mission, OneHeadWithinThreeSigmaBelowFrameNoiseAndBiasConverges) {
   EXPECT_LT(r.bias_error_end_dph, 0.1 * r.bias_error_start_dph);
   for (int a = 0; a < 3; ++a) EXPECT_LT(std::abs(r.bias_dph[a] - r.bias_truth_dph[a]), 3 * r.bias_sigma_dph[a]) << a;
   EXPECT_TRUE(r.final_state.faults.empty());
+  // The final attitude the processor reports: within 4 sigma (largest axis) of the truth.
+  ASSERT_TRUE(r.final_state.valid);
+  const double sigma_max_rad = std::sqrt(r.final_state.covariance_rad2.diagonal().maxCoeff());
+  EXPECT_LT(AttitudeErrorRad(r.final_state.q_inertial_from_body, r.q_truth_final), 4 * std::sqrt(3.0) * sigma_max_rad);
 }
 
 // Two heads 90 deg apart: each head's roll is the other's cross-boresight, so the fused roll error is
