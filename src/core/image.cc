@@ -14,6 +14,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/error.h"
+#include "core/png_decode.h"
 
 namespace ssiu {
 namespace {
@@ -111,29 +112,11 @@ Frame ReadFits(const std::string& path) {
   return fr;
 }
 
-// Width and height of a non-interlaced 16-bit greyscale PNG from its IHDR chunk, else false.
-bool IsGrey16Png(const std::vector<uchar>& b, int* width, int* height) {
-  static const uchar kSig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
-  if (b.size() < 33 || !std::equal(kSig, kSig + 8, b.begin()) || std::string(b.begin() + 12, b.begin() + 16) != "IHDR") {
-    return false;
-  }
-  auto be32 = [&](size_t i) { return (uint32_t(b[i]) << 24) | (uint32_t(b[i + 1]) << 16) | (uint32_t(b[i + 2]) << 8) | b[i + 3]; };
-  const uint32_t w = be32(16), h = be32(20);
-  if (w == 0 || h == 0 || w > 65536 || h > 65536 || b[24] != 16 || b[25] != 0 || b[28] != 0) return false;
-  *width = static_cast<int>(w);
-  *height = static_cast<int>(h);
-  return true;
-}
-
 Frame ReadRaster(const std::string& path) {
   cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
   cv::Mat m;
-  // Fast path for the common case, a 16-bit greyscale PNG: decoded straight into the frame's own
-  // buffer (no second image-sized allocation and copy).
-  Frame direct;
-  std::vector<uchar> bytes;
-  int pw = 0, ph = 0;
-  const bool png16 = [&] {
+  std::vector<uint8_t> bytes;
+  const bool png = [&] {
     std::ifstream in(path, std::ios::binary);
     char sig[8] = {0};
     if (!in.read(sig, 8) || static_cast<unsigned char>(sig[0]) != 0x89 || std::string(sig + 1, 3) != "PNG") return false;
@@ -143,9 +126,13 @@ Frame ReadRaster(const std::string& path) {
     bytes.resize(static_cast<size_t>(n));
     in.seekg(0);
     in.read(reinterpret_cast<char*>(bytes.data()), n);
-    return static_cast<bool>(in) && IsGrey16Png(bytes, &pw, &ph);
+    return static_cast<bool>(in);
   }();
-  if (png16) direct.image = Image16(pw, ph);
+  // The common case, non-interlaced 8/16-bit grey PNG, has its own fast decoder (png_decode.h).
+  if (png) {
+    Frame fast;
+    if (DecodeGreyPng(bytes, path, &fast)) return fast;
+  }
   {
     // libpng/libtiff print their own complaints on stderr for corrupt files; keep the one-line
     // error below the only message by muting stderr for the duration of the decode.
@@ -154,12 +141,7 @@ Frame ReadRaster(const std::string& path) {
     const int devnull = open("/dev/null", O_WRONLY);
     if (saved >= 0 && devnull >= 0) dup2(devnull, 2);
     try {
-      if (png16) {
-        m = cv::Mat(ph, pw, CV_16UC1, direct.image.pixels.data());
-        cv::imdecode(bytes, cv::IMREAD_UNCHANGED, &m);
-      } else {
-        m = cv::imread(path, cv::IMREAD_UNCHANGED);
-      }
+      m = png ? cv::imdecode(bytes, cv::IMREAD_UNCHANGED) : cv::imread(path, cv::IMREAD_UNCHANGED);
     } catch (const cv::Exception&) {
       m.release();
     }
@@ -169,13 +151,6 @@ Frame ReadRaster(const std::string& path) {
       close(saved);
     }
     if (devnull >= 0) close(devnull);
-  }
-  if (png16 && !m.empty() && m.data == reinterpret_cast<uchar*>(direct.image.pixels.data()) && m.type() == CV_16UC1 &&
-      m.cols == pw && m.rows == ph) {
-    direct.file = path;
-    direct.bit_depth = 16;
-    direct.saturation_adu = 65535;
-    return direct;
   }
   if (m.empty()) throw InputError(path, "cannot decode image (corrupt, truncated or not PNG/TIFF/FITS)");
   if (m.dims != 2 || m.rows <= 0 || m.cols <= 0) throw InputError(path, "image has zero size");

@@ -1,6 +1,11 @@
 #include "core/image.h"
 
+#include <libdeflate.h>
+
+#include <algorithm>
 #include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <random>
 
 #include "core/error.h"
 #include "testing/testing.h"
@@ -68,6 +73,170 @@ TEST(Image, BadFilesGiveOneLineErrorsNamingTheFile) {
   mostly.at(3, 3) = 100;
   WritePng16(dir + "/mostly.png", mostly);
   EXPECT_THAT(ErrorOf(dir + "/mostly.png"), ::testing::HasSubstr("saturated"));
+}
+
+
+// The fast grey-PNG decoder behind ReadFrame, checked against images whose pixels are known: the
+// files are written by a small encoder here that picks each row's filter and splits the data
+// into IDAT chunks of chosen sizes (OpenCV's writer always uses one filter), and OpenCV's own
+// libpng reader must agree on every file.
+
+
+void PutBe32(std::string* s, uint32_t v) {
+  for (int k = 3; k >= 0; --k) s->push_back(static_cast<char>((v >> (8 * k)) & 0xff));
+}
+
+void PutChunk(std::string* s, const std::string& type, const std::string& data) {
+  PutBe32(s, static_cast<uint32_t>(data.size()));
+  const std::string td = type + data;
+  s->append(td);
+  PutBe32(s, libdeflate_crc32(0, td.data(), td.size()));
+}
+
+int Paeth(int a, int b, int c) {
+  const int p = a + b - c, pa = std::abs(p - a), pb = std::abs(p - b), pc = std::abs(p - c);
+  return (pa <= pb && pa <= pc) ? a : (pb <= pc ? b : c);
+}
+
+// PNG (ISO/IEC 15948) of `im` at 8 or 16 bits; row y uses filter filters[y % size]; the zlib
+// stream is cut into IDAT chunks of `idat_bytes`; a text chunk sits between IHDR and IDAT.
+std::string EncodeGreyPng(const Image16& im, int depth, const std::vector<int>& filters, size_t idat_bytes) {
+  const int bpp = depth / 8;
+  const size_t rb = static_cast<size_t>(im.width) * bpp;
+  std::vector<uint8_t> raw, prev(rb, 0), cur(rb);
+  for (int y = 0; y < im.height; ++y) {
+    for (int x = 0; x < im.width; ++x) {
+      const uint16_t v = im.at(x, y);
+      if (depth == 16) {
+        cur[2 * x] = static_cast<uint8_t>(v >> 8);
+        cur[2 * x + 1] = static_cast<uint8_t>(v & 0xff);
+      } else {
+        cur[x] = static_cast<uint8_t>(v);
+      }
+    }
+    const int f = filters[y % filters.size()];
+    raw.push_back(static_cast<uint8_t>(f));
+    for (size_t i = 0; i < rb; ++i) {
+      const int a = i >= static_cast<size_t>(bpp) ? cur[i - bpp] : 0;
+      const int b = prev[i];
+      const int c = i >= static_cast<size_t>(bpp) ? prev[i - bpp] : 0;
+      const int pred = f == 0 ? 0 : f == 1 ? a : f == 2 ? b : f == 3 ? (a + b) / 2 : Paeth(a, b, c);
+      raw.push_back(static_cast<uint8_t>(cur[i] - pred));
+    }
+    prev = cur;
+  }
+  libdeflate_compressor* comp = libdeflate_alloc_compressor(6);
+  std::string z(libdeflate_zlib_compress_bound(comp, raw.size()), '\0');
+  z.resize(libdeflate_zlib_compress(comp, raw.data(), raw.size(), z.data(), z.size()));
+  libdeflate_free_compressor(comp);
+  std::string png("\x89PNG\r\n\x1a\n", 8), ihdr;
+  PutBe32(&ihdr, static_cast<uint32_t>(im.width));
+  PutBe32(&ihdr, static_cast<uint32_t>(im.height));
+  ihdr += std::string{static_cast<char>(depth), 0, 0, 0, 0};
+  PutChunk(&png, "IHDR", ihdr);
+  PutChunk(&png, "tEXt", std::string("Comment\0ssiu test", 17));
+  for (size_t i = 0; i < z.size(); i += idat_bytes) PutChunk(&png, "IDAT", z.substr(i, idat_bytes));
+  PutChunk(&png, "IEND", "");
+  return png;
+}
+
+Image16 Noisy(int w, int h, int depth, unsigned seed) {
+  std::mt19937 rng(seed);
+  const int top = depth == 16 ? 65535 : 255;
+  std::uniform_int_distribution<int> step(-top / 20, top / 20);
+  Image16 im(w, h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const int base = x > 0 ? im.at(x - 1, y) : (y > 0 ? im.at(0, y - 1) : top / 2);
+      im.at(x, y) = static_cast<uint16_t>(std::clamp(base + step(rng), 0, top));
+    }
+  im.at(0, 0) = 0;  // full range, so no byte is constant
+  im.at(w - 1, h - 1) = static_cast<uint16_t>(top);
+  return im;
+}
+
+std::string WriteFile(const std::string& path, const std::string& bytes) {
+  std::ofstream(path, std::ios::binary) << bytes;
+  return path;
+}
+
+TEST(PngDecode, EveryFilterDepthAndOddWidthDecodesToTheEncodedPixels) {
+  const std::string dir = testing::TempDir("pngdec");
+  const std::vector<std::vector<int>> filter_sets = {{0}, {1}, {2}, {3}, {4}, {4, 1, 0, 3, 2}};
+  int n = 0;
+  for (int depth : {8, 16}) {
+    for (int w : {1, 7, 16, 17, 33, 100}) {
+      for (const auto& filters : filter_sets) {
+        const Image16 im = Noisy(w, 9, depth, static_cast<unsigned>(100 * depth + w));
+        const std::string path = WriteFile(dir + "/f" + std::to_string(n++) + ".png",
+                                           EncodeGreyPng(im, depth, filters, 1 + (w * 5) % 37));
+        const Frame fr = ReadFrame(path);
+        ASSERT_EQ(fr.image.width, w);
+        ASSERT_EQ(fr.image.height, 9);
+        EXPECT_EQ(fr.bit_depth, depth);
+        EXPECT_EQ(fr.saturation_adu, depth == 8 ? 255 : 65535);
+        EXPECT_EQ(fr.image.pixels, im.pixels) << "depth " << depth << " width " << w << " filters " << filters[0];
+        // The reference decoder (libpng through OpenCV) reads the same pixels from the file.
+        const cv::Mat m = cv::imread(path, cv::IMREAD_UNCHANGED);
+        ASSERT_EQ(m.depth(), depth == 8 ? CV_8U : CV_16U);
+        for (int y = 0; y < m.rows; ++y)
+          for (int x = 0; x < m.cols; ++x) {
+            const int v = depth == 8 ? m.at<uint8_t>(y, x) : m.at<uint16_t>(y, x);
+            ASSERT_EQ(v, im.at(x, y)) << path << " (" << x << "," << y << ")";
+          }
+      }
+    }
+  }
+}
+
+TEST(PngDecode, LargeFrameWrittenByOpenCvMatches) {
+  const std::string dir = testing::TempDir("pngdec");
+  const Image16 im = Noisy(1024, 64, 16, 7);
+  WritePng16(dir + "/big.png", im);
+  EXPECT_EQ(ReadFrame(dir + "/big.png").image.pixels, im.pixels);
+}
+
+TEST(PngDecode, CorruptFilesGiveAnErrorNamingFileAndField) {
+  const std::string dir = testing::TempDir("pngdec");
+  const Image16 im = Noisy(40, 20, 16, 3);
+  const std::string good = EncodeGreyPng(im, 16, {1}, 200);
+  const size_t first_idat = good.find("IDAT");
+  ASSERT_NE(first_idat, std::string::npos);
+
+  std::string bad_crc = good;
+  bad_crc[first_idat + 10] ^= 0x40;  // a payload byte: the chunk's CRC no longer matches
+  EXPECT_THAT(ErrorOf(WriteFile(dir + "/crc.png", bad_crc)), ::testing::AllOf(::testing::HasSubstr("crc.png"), ::testing::HasSubstr("'IDAT' fails its CRC")));
+
+  EXPECT_THAT(ErrorOf(WriteFile(dir + "/cut.png", good.substr(0, first_idat + 100))),
+              ::testing::AllOf(::testing::HasSubstr("cut.png"), ::testing::HasSubstr("truncated")));
+
+  // Valid chunks whose zlib data describe fewer rows than IHDR declares.
+  Image16 shorter(40, 19);
+  std::copy(im.pixels.begin(), im.pixels.begin() + 40 * 19, shorter.pixels.begin());
+  std::string short_data = EncodeGreyPng(shorter, 16, {1}, 200);
+  const std::string tall = EncodeGreyPng(im, 16, {1}, 200);
+  short_data.replace(8, 25, tall.substr(8, 25));  // IHDR (with CRC) of the 20-row image
+  EXPECT_THAT(ErrorOf(WriteFile(dir + "/short.png", short_data)), ::testing::HasSubstr("fewer bytes than IHDR"));
+
+  // A filter type outside 0..4.
+  EXPECT_THAT(ErrorOf(WriteFile(dir + "/filt.png", EncodeGreyPng(im, 16, {1, 7}, 200))),
+              ::testing::HasSubstr("row 1 has unknown filter type 7"));
+
+  std::string no_idat("\x89PNG\r\n\x1a\n", 8);
+  no_idat += good.substr(8, 25);
+  PutChunk(&no_idat, "IEND", "");
+  EXPECT_THAT(ErrorOf(WriteFile(dir + "/empty_idat.png", no_idat)), ::testing::HasSubstr("no IDAT"));
+}
+
+TEST(PngDecode, ColourPngStillGoesThroughOpenCv) {
+  const std::string dir = testing::TempDir("pngdec");
+  cv::Mat rgb(8, 8, CV_8UC3, cv::Scalar(30, 60, 90));
+  rgb.at<cv::Vec3b>(2, 3) = cv::Vec3b(3, 6, 9);
+  ASSERT_TRUE(cv::imwrite(dir + "/rgb.png", rgb));
+  const Frame fr = ReadFrame(dir + "/rgb.png");
+  EXPECT_EQ(fr.grey_conversion, "mean_rgb");
+  EXPECT_EQ(fr.image.at(0, 0), 60);
+  EXPECT_EQ(fr.image.at(3, 2), 6);
 }
 
 }  // namespace
