@@ -1,6 +1,7 @@
 #include "inertial/fdi.h"
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 
 #include "core/error.h"
@@ -80,6 +81,23 @@ bool ParityMonitor::Feed(double t_s, const GyroVec& g_dph) {
   return false;
 }
 
+GyroVec ParityMonitor::StepEstimate(double* age_s) const {
+  GyroVec best = jump_, acc = GyroVec::Zero(baseline_.size());
+  double best_score = -1;
+  int best_k = ring_count_;
+  for (int k = 1; k <= ring_count_; ++k) {
+    acc += ring_[(ring_pos_ - k + 2 * window_n_) % window_n_] - baseline_;
+    const double score = acc.squaredNorm() / k;
+    if (score > best_score) {
+      best_score = score;
+      best = acc / static_cast<double>(k);
+      best_k = k;
+    }
+  }
+  if (age_s) *age_s = best_k * dt_;
+  return best;
+}
+
 StarRateIsolator::StarRateIsolator(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& correction_dph)
     : axes_(axes), use_(use), correction_dph_(correction_dph) {
   pending_rad_ = GyroVec::Zero(axes.rows());
@@ -119,6 +137,15 @@ GyroVec StarRateIsolator::ResidualDph() const {
     if (use_[i]) r[i] = residual_rad_[i] / covered_s_ * kRadToDeg * 3600.0;
   }
   return r;
+}
+
+double LargestImpliedRateDph(const GyroParity& v, const RateSolver& solver, const std::vector<bool>& use, double jump_dph) {
+  double worst = 0;
+  for (int i = 0; i < static_cast<int>(v.cols()); ++i) {
+    const double vi = v.col(i).norm();
+    if (use[i] && vi > 1e-9) worst = std::max(worst, solver.Pinv().col(i).norm() * jump_dph / vi);
+  }
+  return worst;
 }
 
 int IsolateFromResiduals(const GyroVec& r, const std::vector<bool>& use, const FdiOptions& options) {

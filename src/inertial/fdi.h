@@ -58,6 +58,11 @@ class ParityMonitor {
   // Baseline parity (deg/h) and the latest window mean minus it.
   const GyroVec& baseline() const { return baseline_; }
   const GyroVec& jump() const { return jump_; }
+  // At an alarm the window mean understates a step that began inside the window. The step as a
+  // change-point fit over the window: the onset maximising |sum since onset - baseline|^2 / count
+  // (the likelihood ratio of a mean shift in white noise, Basseville & Nikiforov 1993, sec. 2.2),
+  // returning the mean parity since that onset minus the baseline and the onset's age (s).
+  GyroVec StepEstimate(double* age_s) const;
   bool ready() const { return ready_; }
 
  private:
@@ -102,6 +107,10 @@ class StarRateIsolator {
   Quat q_prev_ = Quat::Identity();
   double t_prev_ = 0, covered_s_ = 0;
 };
+
+// The largest body rate error (deg/h) a parity jump of jump_dph can imply if any one gyro in use
+// is at fault: |Pinv column i| * jump / |V column i|, maximised over i.
+double LargestImpliedRateDph(const GyroParity& v, const RateSolver& solver, const std::vector<bool>& use, double jump_dph);
 
 // Picks the isolated gyro from star residuals (deg/h): the largest |r| if it exceeds min_jump_dph and
 // isolation_ratio times the next; -1 otherwise (0-based).

@@ -207,8 +207,12 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
     ev.residual_dph.assign(resid.data(), resid.data() + resid.size());
     correction = GyroVec::Zero(n);
     if (monitor.active() && monitor.ready()) correction = monitor.V().transpose() * monitor.baseline();
-    // The fault leaked into the bias estimate between onset and isolation.
-    const double leak = solver.Pinv().col(gi).norm() * std::abs(fault_dph) * kDphToRadS;
+    // Between onset and isolation the filter took the fault's share of the rate solution for bias;
+    // the new solution no longer carries it, so the estimate drops it and the covariance opens by
+    // the same amount (the fault's size is only estimated).
+    const Vec3 leak_rad_s = solver.Pinv().col(gi) * fault_dph * kDphToRadS;
+    const double leak = leak_rad_s.norm();
+    filter.ShiftBias(-leak_rad_s);
     use[gi] = false;
     solver = RateSolver(axes, arw, use);
     noise = FuseNoiseModel(unit, solver, options.bias_drift_floor_dph_per_sqrt_h);
@@ -273,9 +277,16 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
       ev.parity_jump_dph = monitor.jump().norm();
       ev.status = "detected";
       res.faults.push_back(ev);
+      // The size of the step, not the window mean that crossed the threshold.
+      const GyroVec step = monitor.StepEstimate(nullptr);
+      const double worst_dph = LargestImpliedRateDph(monitor.V(), solver, use, step.norm());
+      // The fault began at most one parity window ago and has turned the attitude since, unknown to
+      // the filter: open the attitude covariance by that angle, or the NIS gate refuses the very
+      // star fixes that would correct it.
+      filter.InflateAttitude(worst_dph * kDphToRadS * options.fdi_options.window_s);
       const int gi = IsolateFromParity(monitor.V(), monitor.jump(), use, options.fdi_options);
       if (gi >= 0) {
-        const double f = monitor.jump().dot(monitor.V().col(gi)) / monitor.V().col(gi).squaredNorm();
+        const double f = step.dot(monitor.V().col(gi)) / monitor.V().col(gi).squaredNorm();
         isolate(gi, t_k, "parity", GyroVec::Zero(n), f);
       } else {
         // Gyro-level biases before the fault: body bias from before the window plus the parity part.
@@ -283,14 +294,9 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
         const GyroVec c = axes * (b_before * kRadSToDph) + monitor.V().transpose() * monitor.baseline();
         isolator = StarRateIsolator(axes, use, c);
         isolating = true;
-        // Until isolation the fault feeds the bias: open the bias covariance by the largest body
-        // bias the parity jump can imply, so that the filter follows instead of diverging.
-        double worst = 0;
-        for (int i = 0; i < n; ++i) {
-          const double vi = monitor.V().col(i).norm();
-          if (use[i] && vi > 1e-9) worst = std::max(worst, solver.Pinv().col(i).norm() * ev.parity_jump_dph / vi);
-        }
-        filter.InflateBias(worst * kDphToRadS);
+        // Until isolation the fault feeds the bias: open its covariance by the largest body bias the
+        // parity jump can imply, so that the filter follows instead of diverging.
+        filter.InflateBias(worst_dph * kDphToRadS);
       }
     }
 

@@ -87,4 +87,8 @@ void Mekf::InflateBias(double sigma) {
   p_.block<3, 3>(MekfIndex::kBias, MekfIndex::kBias) += Mat3::Identity() * sigma * sigma;
 }
 
+void Mekf::InflateAttitude(double sigma) {
+  p_.block<3, 3>(MekfIndex::kAttitude, MekfIndex::kAttitude) += Mat3::Identity() * sigma * sigma;
+}
+
 }  // namespace ssiu

@@ -52,6 +52,10 @@ class Mekf {
 
   // Adds to the bias covariance (after a gyro is dropped, the bias may have jumped).
   void InflateBias(double sigma_rad_s);
+  // Moves the bias estimate (rad/s, body axes): the rate solution changed under it (a gyro dropped).
+  void ShiftBias(const Vec3& delta_rad_s) { bias_ += delta_rad_s; }
+  // Adds to the attitude covariance (a fault has turned the attitude by an unknown angle).
+  void InflateAttitude(double sigma_rad);
 
   const Quat& q() const { return q_; }
   const Vec3& bias() const { return bias_; }

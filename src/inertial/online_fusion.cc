@@ -51,7 +51,7 @@ void OnlineFusion::PropagateTo(double t_s, const Vec3& w, const GyroVec& g, bool
 }
 
 // As Fuse(): the isolated gyro leaves the rate solution, the parity baseline becomes a per-gyro
-// correction, and the bias covariance opens by what the fault leaked into it.
+// correction, and the bias estimate drops what the fault leaked into it (its covariance opens by as much).
 void OnlineFusion::Isolate(int gi, double t, const char* method, const GyroVec& resid, double fault_dph) {
   const int n = unit_.size();
   FaultEvent& ev = faults_.back();
@@ -63,7 +63,9 @@ void OnlineFusion::Isolate(int gi, double t, const char* method, const GyroVec& 
   ev.residual_dph.assign(resid.data(), resid.data() + resid.size());
   correction_ = GyroVec::Zero(n);
   if (monitor_.active() && monitor_.ready()) correction_ = monitor_.V().transpose() * monitor_.baseline();
-  const double leak = solver_.Pinv().col(gi).norm() * std::abs(fault_dph) * kDphToRadS;
+  const Vec3 leak_rad_s = solver_.Pinv().col(gi) * fault_dph * kDphToRadS;
+  const double leak = leak_rad_s.norm();
+  filter_.ShiftBias(-leak_rad_s);
   use_[gi] = false;
   SetSolver();
   monitor_ = ParityMonitor(axes_, use_, sample_sigma_dph_, dt_nominal_, opt_.fdi_options);
@@ -93,9 +95,16 @@ void OnlineFusion::AddGyro(double t_k, const GyroVec& g) {
     ev.parity_jump_dph = monitor_.jump().norm();
     ev.status = "detected";
     faults_.push_back(ev);
+    // The size of the step, not the window mean that crossed the threshold.
+    const GyroVec step = monitor_.StepEstimate(nullptr);
+    const double worst_dph = LargestImpliedRateDph(monitor_.V(), solver_, use_, step.norm());
+    // The fault began at most one parity window ago and has turned the attitude since, unknown to
+    // the filter: open the attitude covariance by that angle, or the NIS gate refuses the very
+    // star fixes that would correct it.
+    filter_.InflateAttitude(worst_dph * kDphToRadS * opt_.fdi_options.window_s);
     const int gi = IsolateFromParity(monitor_.V(), monitor_.jump(), use_, opt_.fdi_options);
     if (gi >= 0) {
-      const double f = monitor_.jump().dot(monitor_.V().col(gi)) / monitor_.V().col(gi).squaredNorm();
+      const double f = step.dot(monitor_.V().col(gi)) / monitor_.V().col(gi).squaredNorm();
       Isolate(gi, t_k, "parity", GyroVec::Zero(n), f);
       w_last_ = solver_.Solve(g - correction_) * kDphToRadS;
     } else {
@@ -106,12 +115,7 @@ void OnlineFusion::AddGyro(double t_k, const GyroVec& g) {
       isolating_ = true;
       // Until isolation the fault feeds the bias: open its covariance by the largest body bias the
       // parity jump can imply, so that the filter follows instead of diverging.
-      double worst = 0;
-      for (int i = 0; i < n; ++i) {
-        const double vi = monitor_.V().col(i).norm();
-        if (use_[i] && vi > 1e-9) worst = std::max(worst, solver_.Pinv().col(i).norm() * ev.parity_jump_dph / vi);
-      }
-      filter_.InflateBias(worst * kDphToRadS);
+      filter_.InflateBias(worst_dph * kDphToRadS);
     }
   }
   const double d = t_k - t_cur_;

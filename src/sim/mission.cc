@@ -510,6 +510,12 @@ std::string MissionResult::Text() const {
                 bias_dph.x(), bias_dph.y(), bias_dph.z(), bias_truth_dph.x(), bias_truth_dph.y(), bias_truth_dph.z(),
                 bias_error_end_dph, bias_sigma_dph.x(), bias_sigma_dph.y(), bias_sigma_dph.z(), bias_error_start_dph);
   s += b;
+  if (std::any_of(final_state.faults.begin(), final_state.faults.end(),
+                  [](const FaultEvent& f) { return f.status == "isolated"; })) {
+    // The truth is the image of all gyros' slow errors (the failed one's step included); the
+    // estimate is that of the gyros still in use, so their difference is not an error.
+    s += "  (bias truth covers every gyro, the failed one included; after an isolation it is not the estimate's truth)\n";
+  }
   std::string in_use;
   for (int g : final_state.gyros_in_use) in_use += (in_use.empty() ? "" : ",") + std::to_string(g);
   if (final_state.faults.empty()) {
