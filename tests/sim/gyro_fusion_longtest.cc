@@ -1,6 +1,7 @@
 // 50-run Monte Carlo of the one-hour slew (issue 5 acceptance; label `long`, not in CI):
 // bias error after 30 min, attitude RMS against the star-tracker noise, and NEES within its 95%
 // bounds over the runs.
+#include <Eigen/Dense>
 #include <cmath>
 #include <cstdio>
 
@@ -68,9 +69,28 @@ void ExpectConsistentAndBelowStarNoise(const McSummary& m) {
 }
 
 // Turn-on biases + angle random walk: the issue's 0.02 deg/h after 30 min, as an RMS over 50 runs.
+// No estimator can do better than the Cramer-Rao bound of a constant rate in white rate noise seen
+// for T with the attitude known exactly at every instant: sigma_b = ARW_body / sqrt(T), where
+// ARW_body^2 = ARW^2 diag((H'H)^-1) for the unit's axes H (least squares over the four gyros). At
+// ARW 0.01 deg/sqrt(h) and T = 0.5 h that is 0.0129 deg/h per axis, so a single run has all three axes
+// within 0.02 deg/h only about 68% of the time (|z| < 1.55 per axis) whatever the filter; the test
+// checks that the MEKF reaches the bound (efficiency) and the RMS meets 0.02.
 TEST(GyroFusionMonteCarlo, FiftyOneHourSlewsTurnOnBiasAndArw) {
   const McSummary m = RunMonteCarlo(0.0);
-  for (int a = 0; a < 3; ++a) EXPECT_LT(m.bias_rms[a], 0.02) << "axis " << a;
+  const GyroUnit u = testing::ScenarioUnit(100, 0.0);
+  Eigen::MatrixXd h(u.size(), 3);
+  for (int i = 0; i < u.size(); ++i) h.row(i) = u.axes_body[i].transpose();
+  const Eigen::Matrix3d hth_inv = (h.transpose() * h).inverse();
+  const double t_h = 0.5;
+  for (int a = 0; a < 3; ++a) {
+    const double crb_dph = u.gyros[0].arw_deg_per_sqrt_h * std::sqrt(hth_inv(a, a) / t_h);
+    std::printf("axis %d: bias RMS %.4f deg/h, Cramer-Rao bound %.4f deg/h, ratio %.2f\n", a, m.bias_rms[a], crb_dph,
+                m.bias_rms[a] / crb_dph);
+    EXPECT_LT(m.bias_rms[a], 0.02) << "axis " << a;
+    // 50 runs: the RMS itself scatters by about 1 / sqrt(2 * 50) = 10%.
+    EXPECT_GT(m.bias_rms[a], 0.75 * crb_dph) << "axis " << a;
+    EXPECT_LT(m.bias_rms[a], 1.3 * crb_dph) << "axis " << a;
+  }
   ExpectConsistentAndBelowStarNoise(m);
 }
 
