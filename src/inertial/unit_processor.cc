@@ -1,5 +1,6 @@
 #include "inertial/unit_processor.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -10,6 +11,19 @@
 
 namespace ssiu {
 namespace {
+
+// The smallest covariance >= p (in the PSD order along the floor's principal axes) that is at least
+// `floor` along each of them: p + sum_i max(0, l_i - v_i' p v_i) v_i v_i' over floor's eigenpairs.
+Mat3 FloorCovariance(const Mat3& p, const Mat3& floor) {
+  const Eigen::SelfAdjointEigenSolver<Mat3> es(floor);
+  Mat3 out = p;
+  for (int i = 0; i < 3; ++i) {
+    const Vec3 v = es.eigenvectors().col(i);
+    const double short_by = es.eigenvalues()[i] - v.dot(p * v);
+    if (short_by > 0) out += short_by * v * v.transpose();
+  }
+  return out;
+}
 
 using Clock = std::chrono::steady_clock;
 double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
@@ -26,6 +40,9 @@ void UnitProcessorOptions::Check() const {
   }
   if (!(solution_sigma_floor_arcsec >= 0 && solution_sigma_floor_arcsec < 3600)) {
     throw InputError("processor options", "solution_sigma_floor_arcsec must be in [0, 3600)");
+  }
+  if (!(correlated_fraction >= 0 && correlated_fraction <= 1)) {
+    throw InputError("processor options", "correlated_fraction must be in [0, 1]");
   }
 }
 
@@ -135,6 +152,7 @@ FrameReport UnitProcessor::OnFrames(double t_s, const std::vector<ImageView>& im
   f.covariance_rad2 = body.covariance_rad2 * (s * s) + Mat3::Identity() * (floor_rad * floor_rad);
   f.initialised_filter = !fusion_.initialised();
   f.update = fusion_.AddAttitude(t_s, f.q_inertial_from_body, f.covariance_rad2);
+  if (f.initialised_filter || f.update.accepted) last_fix_covariance_ = f.covariance_rad2;
   f.total_ms = MsSince(t0);
   return f;
 }
@@ -145,7 +163,8 @@ UnitAttitude UnitProcessor::Attitude() const {
   a.t_s = fusion_.t_s();
   a.q_inertial_from_body = fusion_.q();
   const Mat6& p = fusion_.P();
-  a.covariance_rad2 = p.block<3, 3>(MekfIndex::kAttitude, MekfIndex::kAttitude);
+  a.covariance_rad2 = FloorCovariance(p.block<3, 3>(MekfIndex::kAttitude, MekfIndex::kAttitude),
+                                      options_.correlated_fraction * last_fix_covariance_);
   a.bias_dph = fusion_.bias_rad_s() * kRadSToDph;
   for (int i = 0; i < 3; ++i) a.bias_sigma_dph[i] = std::sqrt(p(MekfIndex::kBias + i, MekfIndex::kBias + i)) * kRadSToDph;
   a.faults = fusion_.faults();

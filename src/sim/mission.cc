@@ -173,7 +173,7 @@ MissionConfig MissionConfigFromJson(const Json& j, const std::string& file) {
     const std::string what = file + ": processor";
     if (!p.is_object()) throw InputError(what, "must be an object");
     CheckKeys(p, {"threshold_sigma", "systematic_px", "track_search_radius_px", "nis_gate", "init_bias_sigma_dph",
-                  "bias_drift_floor_dph_per_sqrt_h", "fdi", "solution_sigma_scale", "solution_sigma_floor_arcsec"},
+                  "bias_drift_floor_dph_per_sqrt_h", "fdi", "solution_sigma_scale", "solution_sigma_floor_arcsec", "correlated_fraction"},
               what);
     UnitProcessorOptions& o = c.processor;
     o.solve.identify.systematic_px = JsonNumberOr(p, "systematic_px", o.solve.identify.systematic_px, what);
@@ -185,6 +185,7 @@ MissionConfig MissionConfigFromJson(const Json& j, const std::string& file) {
         JsonNumberOr(p, "bias_drift_floor_dph_per_sqrt_h", o.fuse.bias_drift_floor_dph_per_sqrt_h, what);
     o.solution_sigma_scale = JsonNumberOr(p, "solution_sigma_scale", o.solution_sigma_scale, what);
     o.solution_sigma_floor_arcsec = JsonNumberOr(p, "solution_sigma_floor_arcsec", o.solution_sigma_floor_arcsec, what);
+    o.correlated_fraction = JsonNumberOr(p, "correlated_fraction", o.correlated_fraction, what);
     if (p.contains("fdi")) {
       if (!p.at("fdi").is_boolean()) throw InputError(what, "field 'fdi' must be true or false");
       o.fuse.fdi = p.at("fdi").get<bool>();
@@ -234,7 +235,8 @@ Json MissionConfigToJson(const MissionConfig& c) {
             {"bias_drift_floor_dph_per_sqrt_h", o.fuse.bias_drift_floor_dph_per_sqrt_h},
             {"fdi", o.fuse.fdi},
             {"solution_sigma_scale", o.solution_sigma_scale},
-            {"solution_sigma_floor_arcsec", o.solution_sigma_floor_arcsec}}}};
+            {"solution_sigma_floor_arcsec", o.solution_sigma_floor_arcsec},
+            {"correlated_fraction", o.correlated_fraction}}}};
 }
 
 MissionData SimulateMission(const MissionConfig& config) {

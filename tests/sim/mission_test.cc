@@ -114,6 +114,28 @@ const MissionRuns& Runs() {
   return r;
 }
 
+// A head tracking the same stars makes errors fixed to the star field (one head's roll most of all),
+// which the filter, taking frames as independent, would average down on paper but not in fact: the
+// reported covariance is floored at a fraction (default 0.6) of the last accepted solution's, and the
+// estimate itself does not change.
+TEST(Mission, OneHeadCovarianceAllowsForErrorsFixedToTheStarField) {
+  MissionConfig c = SmallMission(1);
+  c.duration_s = 150;
+  const MissionResult floored = RunMission(c, Bsc());
+  c.processor.correlated_fraction = 0;
+  const MissionResult white = RunMission(c, Bsc());
+  std::printf("150 s, one head: correlated_fraction 0.6: %.1f%% within 3 sigma, NEES %.2f; 0: %.1f%%, NEES %.2f\n",
+              100 * floored.within_3sigma_fraction, floored.nees_mean, 100 * white.within_3sigma_fraction,
+              white.nees_mean);
+  EXPECT_EQ(floored.fused.roll_rms_arcsec, white.fused.roll_rms_arcsec);
+  EXPECT_EQ(floored.fused.cross_rms_arcsec, white.fused.cross_rms_arcsec);
+  EXPECT_GT(floored.within_3sigma_fraction, 0.97);
+  EXPECT_GT(floored.nees_mean, 1.0);
+  EXPECT_LT(floored.nees_mean, 4.5);
+  EXPECT_GT(white.nees_mean, floored.nees_mean);
+  EXPECT_LT(white.within_3sigma_fraction, 0.95);  // the overconfidence the floor removes
+}
+
 // One head: every frame solved (lost in space once, then tracking), the fused attitude within its
 // reported 3 sigma and better than a single frame, the gyro bias converging on the truth.
 TEST(Mission, OneHeadWithinThreeSigmaBelowFrameNoiseAndBiasConverges) {
@@ -209,6 +231,9 @@ TEST(MissionConfig, BadConfigNamesTheFileAndField) {
               HasSubstr("cfg.json: heads[0].camera: missing field 'focal_length_px'"));
   EXPECT_THAT(ConfigError(R"({"duration_s": 30, "frame_rate_hz": 1, "seed": 1, "heads": [)" + head + R"(], "durations": 3})"),
               HasSubstr("cfg.json: unknown field 'durations'"));
+  EXPECT_THAT(ConfigError(R"({"duration_s": 30, "frame_rate_hz": 1, "seed": 1, "heads": [)" + head +
+                          R"(], "processor": {"correlated_fraction": 1.5}})"),
+              HasSubstr("correlated_fraction must be in [0, 1]"));
 }
 
 }  // namespace
