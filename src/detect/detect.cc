@@ -102,6 +102,7 @@ void DetectOptions::Check() const {
   need(std::isfinite(saturation_adu) && saturation_adu > 0, "saturation_adu must be > 0");
   need(std::isfinite(dead_sigma) && dead_sigma > 2, "dead_sigma must be > 2");
   need(max_stars > 0, "max_stars must be > 0");
+  smear.Check();
 }
 
 Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectMap* defects) {
@@ -391,6 +392,7 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
     PsfFit fit;
     double peak_above = 0, min_dir_ratio = 1;
     int nsat = 0;
+    double smear_px = 0;  // predicted smear length at this peak (0 without a motion model)
   };
   std::vector<Candidate> cands;
   cands.reserve(peaks.size());
@@ -501,6 +503,14 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
     fo.gain_e_per_adu = opt.gain_e_per_adu;
     fo.saturation_adu = sat;
     fo.fit = opt.fit_gaussian;
+    if (opt.smear.active()) {
+      const Vec2 d = opt.smear.DisplacementPx(Vec2(pk.x, pk.y));
+      if (d.norm() >= opt.smear.min_px) {
+        fo.smear_dx_px = d.x();
+        fo.smear_dy_px = d.y();
+        c.smear_px = d.norm();
+      }
+    }
     // Pixels nearer another peak of the same blob belong to that source (Voronoi split).
     auto excluded = [&](int x, int y) {
       if (is_bad(x, y)) return true;
@@ -565,11 +575,11 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
       // imaged through the optics.
       rej.reason = b.npix <= 2 && length < 3 ? RejectReason::kHotPixel : RejectReason::kCosmicRay;
       reject = true;
-    } else if (c.nsat == 0 && length > 10 * psf + 6 && BlobElongation(b, runs) > 3.0) {
+    } else if (c.nsat == 0 && length > 10 * psf + 6 + c.smear_px && BlobElongation(b, runs) > 3.0) {
       // Long thin blob imaged through the optics: a satellite or aircraft streak.
       rej.reason = RejectReason::kStreak;
       reject = true;
-    } else if (c.nsat == 0 && b.npix > 400 * psf * psf) {
+    } else if (c.nsat == 0 && b.npix > 400 * psf * psf + 20 * psf * c.smear_px) {
       rej.reason = RejectReason::kExtended;
       reject = true;
     } else if (c.nsat > 400) {

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "core/image.h"
+#include "detect/smear.h"
 
 namespace ssiu {
 
@@ -29,6 +30,10 @@ struct DetectOptions {
   int max_stars = 1000;           // keep at most this many (brightest first)
   bool reject_hot_pixels = true;  // on-the-fly single-pixel spike rejection
   bool fit_gaussian = true;       // refine centroids by a Gaussian fit (else: weighted moments)
+  // Motion during the exposure, from the gyros (inactive by default: the static detector). When
+  // active, each star is fitted as the PSF smeared along its predicted path (detect/smear.h) and the
+  // shape tests allow that smear, not more: cosmic rays and streaks that do not match stay rejected.
+  ExpectedSmear smear;
   void Check() const;             // throws std::invalid_argument naming the field
 };
 

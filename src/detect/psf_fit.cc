@@ -6,6 +6,8 @@
 
 #include <Eigen/Dense>
 
+#include "detect/smear.h"
+
 namespace ssiu {
 namespace {
 
@@ -36,13 +38,51 @@ struct Profile {
   }
 };
 
+// The Gaussian averaged along a straight segment (motion smear) for every window pixel: unit-flux model
+// f and its derivatives with respect to the centre (dx, dy) and sigma (ds), as the mean over n
+// sub-positions spaced at most sigma / 2 apart (by Poisson summation the sampled line integral differs
+// from the continuous one by ~exp(-2 pi^2 sigma^2 / h^2), here < 1e-30).
+struct SmearModel {
+  std::vector<double> f, dx, dy, ds;
+  Profile px, py;
+  void Compute(int x0, int nx, int y0, int ny, double cx, double cy, double s, double sdx, double sdy) {
+    const size_t npix = static_cast<size_t>(nx) * ny;
+    f.assign(npix, 0.0);
+    dx.assign(npix, 0.0);
+    dy.assign(npix, 0.0);
+    ds.assign(npix, 0.0);
+    const int n = std::max(2, static_cast<int>(std::ceil(std::hypot(sdx, sdy) / (0.5 * std::max(s, 0.5)))));
+    const double wk = 1.0 / n;
+    for (int k = 0; k < n; ++k) {
+      const double t = (k + 0.5) / n - 0.5;
+      px.Compute(x0, nx, cx + t * sdx, s);
+      py.Compute(y0, ny, cy + t * sdy, s);
+      for (int b = 0; b < ny; ++b) {
+        const double fyb = wk * py.f[b], dyb = wk * py.dc[b], syb = wk * py.ds[b];
+        const size_t row = static_cast<size_t>(b) * nx;
+        for (int a = 0; a < nx; ++a) {
+          f[row + a] += px.f[a] * fyb;
+          dx[row + a] += px.dc[a] * fyb;
+          dy[row + a] += px.f[a] * dyb;
+          ds[row + a] += px.ds[a] * fyb + px.f[a] * syb;
+        }
+      }
+    }
+  }
+};
+
 }  // namespace
 
 PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double sigma_n, const PsfFitOptions& o,
               const std::function<bool(int, int)>& is_bad) {
   PsfFit out;
-  const int x0 = std::max(0, px - r), x1 = std::min(img.width - 1, px + r);
-  const int y0 = std::max(0, py - r), y1 = std::min(img.height - 1, py + r);
+  // A smeared star's window grows by its smear on both sides: the brightest pixel may sit at either end.
+  const bool smeared = o.smear_dx_px != 0 || o.smear_dy_px != 0;
+  const double smear_len = std::hypot(o.smear_dx_px, o.smear_dy_px);
+  const int rx = r + (smeared ? static_cast<int>(std::ceil(std::abs(o.smear_dx_px))) : 0);
+  const int ry = r + (smeared ? static_cast<int>(std::ceil(std::abs(o.smear_dy_px))) : 0);
+  const int x0 = std::max(0, px - rx), x1 = std::min(img.width - 1, px + rx);
+  const int y0 = std::max(0, py - ry), y1 = std::min(img.height - 1, py + ry);
   const int nx = x1 - x0 + 1, ny = y1 - y0 + 1;
   std::vector<double> v(static_cast<size_t>(nx) * ny);
   std::vector<uint8_t> use(v.size(), 1);
@@ -71,6 +111,35 @@ PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double 
   }
   if (sw <= 0) return out;
   double cx = sx / sw, cy = sy / sw;
+  if (smeared) {
+    // The smeared window is large and its noise pixels pull the whole-window moments off the star:
+    // start from the moments within reach of the smear segment around the brightest pixel, recentred
+    // a few times (the segment's centre is the star's).
+    const double hx = 0.5 * o.smear_dx_px, hy = 0.5 * o.smear_dy_px, len2 = hx * hx + hy * hy;
+    const double reach = std::max(2.0, 2.5 * o.sigma_guess_px);
+    cx = px;
+    cy = py;
+    for (int pass = 0; pass < 4; ++pass) {
+      double w = 0, mx = 0, my = 0;
+      for (int y = y0; y <= y1; ++y) {
+        for (int x = x0; x <= x1; ++x) {
+          const size_t i = static_cast<size_t>(y - y0) * nx + (x - x0);
+          const double a = v[i] - level, dx = x - cx, dy = y - cy;
+          if (!use[i] || a <= 2 * sigma_n) continue;
+          const double t = std::clamp((dx * hx + dy * hy) / len2, -1.0, 1.0);
+          if (std::hypot(dx - t * hx, dy - t * hy) > reach) continue;
+          w += a;
+          mx += a * x;
+          my += a * y;
+        }
+      }
+      if (w <= 0) break;
+      cx = mx / w;
+      cy = my / w;
+    }
+    sx = cx * sw;  // the fallback below starts from here too
+    sy = cy * sw;
+  }
   // Elongation and major-axis sigma from the second moments of the pixels above 2 sigma_n within
   // `radius` of (mx, my): the eigenvalues of the 2x2 moment matrix in closed form.
   auto shape_from_moments = [&](double mx, double my, double radius) {
@@ -166,13 +235,45 @@ PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double 
     return chi2;
   };
 
+  // The same sums for the smeared model (SmearModel), kept apart so that the static path is untouched.
+  SmearModel sm;
+  auto residual_chi2_smeared = [&](double xc, double yc, double A, double B, double ss,
+                                   Eigen::Matrix<double, 5, 5>* jtj, Eigen::Matrix<double, 5, 1>* jtr,
+                                   double* chi2_frozen) {
+    sm.Compute(x0, nx, y0, ny, xc, yc, ss, o.smear_dx_px, o.smear_dy_px);
+    double chi2 = 0;
+    Eigen::Matrix<double, 5, 5> h = Eigen::Matrix<double, 5, 5>::Zero();
+    Eigen::Matrix<double, 5, 1> g = Eigen::Matrix<double, 5, 1>::Zero();
+    for (size_t i = 0; i < v.size(); ++i) {
+      if (!use[i]) continue;
+      const double m = A * sm.f[i];
+      const double wgt = 1.0 / (var_n + std::max(m, 0.0) * inv_gain), res = v[i] - (B + m);
+      chi2 += wgt * res * res;
+      w_new[i] = wgt;
+      if (chi2_frozen) *chi2_frozen += w_cur[i] * res * res;
+      if (!jtj) continue;
+      Eigen::Matrix<double, 5, 1> j;
+      j << A * sm.dx[i], A * sm.dy[i], sm.f[i], 1.0, A * sm.ds[i];
+      h.selfadjointView<Eigen::Lower>().rankUpdate(j, wgt);
+      g += (wgt * res) * j;
+    }
+    if (jtj) *jtj = h.selfadjointView<Eigen::Lower>();
+    if (jtr) *jtr = g;
+    return chi2;
+  };
+  auto residual = [&](double xc, double yc, double A, double B, double ss, Eigen::Matrix<double, 5, 5>* jtj,
+                      Eigen::Matrix<double, 5, 1>* jtr, double* chi2_frozen = nullptr) {
+    return smeared ? residual_chi2_smeared(xc, yc, A, B, ss, jtj, jtr, chi2_frozen)
+                   : residual_chi2(xc, yc, A, B, ss, jtj, jtr, chi2_frozen);
+  };
+
   double fit_chi2 = -1;  // chi2 at the solution; < 0 when there is none (moments only)
   if (o.fit) {
     // Levenberg-Marquardt on (x, y, flux, background, sigma).
     double lambda = 1e-4;
     Eigen::Matrix<double, 5, 5> jtj;
     Eigen::Matrix<double, 5, 1> jtr;
-    double chi2 = residual_chi2(cx, cy, amp, bkg, s, &jtj, &jtr);
+    double chi2 = residual(cx, cy, amp, bkg, s, &jtj, &jtr);
     std::swap(w_cur, w_new);
     for (int it = 0; it < o.max_iterations; ++it) {
       out.iterations = it + 1;
@@ -199,7 +300,7 @@ PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double 
       // least squares): with shot-noise weights, the chi2 under the trial's own weights is not
       // what the Gauss-Newton step lowers, and near the solution it would refuse good steps.
       double chi2_frozen = 0;
-      const double chi2n = residual_chi2(nxc, nyc, na, nb, ns, &jtj2, &jtr2, &chi2_frozen);
+      const double chi2n = residual(nxc, nyc, na, nb, ns, &jtj2, &jtr2, &chi2_frozen);
       if (chi2_frozen <= chi2) {
         cx = nxc;
         cy = nyc;
@@ -220,24 +321,59 @@ PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double 
     info = jtj;
     fit_chi2 = chi2;
     // A fit that ran off the window or lost its signal falls back to the moments.
-    if (!(amp > 0) || std::abs(cx - px) > r || std::abs(cy - py) > r || !std::isfinite(cx + cy)) {
+    if (!(amp > 0) || std::abs(cx - px) > rx || std::abs(cy - py) > ry || !std::isfinite(cx + cy)) {
       cx = sx / sw;
       cy = sy / sw;
       amp = sw;
       bkg = level;
       s = o.sigma_guess_px;
-      residual_chi2(cx, cy, amp, bkg, s, &info, nullptr);
+      residual(cx, cy, amp, bkg, s, &info, nullptr);
       fit_chi2 = -1;
     }
   } else {
-    residual_chi2(cx, cy, amp, bkg, s, &info, nullptr);
+    residual(cx, cy, amp, bkg, s, &info, nullptr);
   }
   out.ok = amp > 0 && std::isfinite(cx) && std::isfinite(cy);
   // With the fitted centre and width known, the shape is measured again within 2.5 fitted sigma:
   // for a sharp PSF (sigma ~0.5 px) the whole window's moments are dominated by noise pixels a few
   // pixels out and make a round star look elongated. A cosmic-ray track or a blend keeps its
   // elongation, being elongated on the scale of its own fitted width.
-  if (out.ok && o.fit) shape_from_moments(cx, cy, std::max(1.5, 2.5 * s));
+  if (out.ok && o.fit && !smeared) shape_from_moments(cx, cy, std::max(1.5, 2.5 * s));
+  if (out.ok && o.fit && smeared) {
+    // Smeared: the second moments of the data (less the fitted background) against those of the
+    // fitted smeared model, over the same pixels: where the model is above 2 sigma_n, within 2.5 sigma
+    // of the smear segment. E = M_data - M_model + s^2 I is round (elongation 1) when the image is the
+    // predicted smear; a track of another direction or length keeps its elongation.
+    sm.Compute(x0, nx, y0, ny, cx, cy, s, o.smear_dx_px, o.smear_dy_px);
+    const double hx = 0.5 * o.smear_dx_px, hy = 0.5 * o.smear_dy_px, len2 = hx * hx + hy * hy;
+    const double reach = std::max(1.5, 2.5 * s);
+    Eigen::Matrix2d md = Eigen::Matrix2d::Zero(), mm = Eigen::Matrix2d::Zero();
+    double wd = 0, wm = 0;
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        const size_t i = static_cast<size_t>(y - y0) * nx + (x - x0);
+        if (!use[i]) continue;
+        const double dx = x - cx, dy = y - cy;
+        const double t = std::clamp((dx * hx + dy * hy) / len2, -1.0, 1.0);  // nearest point of the segment
+        if (std::hypot(dx - t * hx, dy - t * hy) > reach) continue;
+        const Eigen::Vector2d d(dx, dy);
+        const double a = v[i] - bkg, m = amp * sm.f[i];
+        if (m > 2 * sigma_n) {
+          md += a * d * d.transpose();
+          wd += a;
+          mm += m * d * d.transpose();
+          wm += m;
+        }
+      }
+    }
+    if (wd > 0 && wm > 0) {
+      const Eigen::Matrix2d e = md / wd - mm / wm + s * s * Eigen::Matrix2d::Identity();
+      const double tr = 0.5 * e.trace(), disc = std::sqrt(std::max(0.25 * std::pow(e(0, 0) - e(1, 1), 2) + e(0, 1) * e(0, 1), 0.0));
+      const double l0 = std::max(tr - disc, 1e-3), l1 = std::max(tr + disc, 1e-3);
+      out.elongation = std::sqrt(l1 / l0);
+      out.major_sigma_px = std::sqrt(l1);
+    }
+  }
   out.x_px = cx;
   out.y_px = cy;
   out.flux_adu = amp;
@@ -256,7 +392,35 @@ PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double 
   // Only the x and y variances are needed: two solves instead of a general 5x5 inverse.
   cov.col(0) = ldlt.solve(Eigen::Matrix<double, 5, 1>::Unit(0));
   cov.col(1) = ldlt.solve(Eigen::Matrix<double, 5, 1>::Unit(1));
-  if (gain <= 0 && fit_chi2 > 0) {
+  if (gain <= 0 && fit_chi2 > 0 && smeared) {
+    // As below, for the smeared model.
+    sm.Compute(x0, nx, y0, ny, cx, cy, s, o.smear_dx_px, o.smear_dy_px);
+    double excess = 0, model = 0;
+    int n_used = 0;
+    for (size_t i = 0; i < v.size(); ++i) {
+      if (!use[i]) continue;
+      const double m = amp * sm.f[i], res = v[i] - (bkg + m);
+      excess += res * res - var_n;
+      model += std::max(m, 0.0);
+      ++n_used;
+    }
+    if (n_used > 10 && model > 0 && excess > 0) {
+      const double inv_g = excess * n_used / (n_used - 5.0) / model;
+      Eigen::Matrix<double, 5, 5> meat = Eigen::Matrix<double, 5, 5>::Zero();
+      for (size_t i = 0; i < v.size(); ++i) {
+        if (!use[i]) continue;
+        const double var_i = var_n + std::max(amp * sm.f[i], 0.0) * inv_g;
+        Eigen::Matrix<double, 5, 1> j;
+        j << amp * sm.dx[i], amp * sm.dy[i], sm.f[i], 1.0, amp * sm.ds[i];
+        meat.noalias() += (var_i / (var_n * var_n)) * j * j.transpose();
+      }
+      const Eigen::Matrix<double, 5, 2> hx = cov;
+      cov.col(0) = meat * hx.col(0);
+      cov.col(1) = meat * hx.col(1);
+      cov(0, 0) = hx.col(0).dot(cov.col(0));
+      cov(1, 1) = hx.col(1).dot(cov.col(1));
+    }
+  } else if (gain <= 0 && fit_chi2 > 0) {
     fx.Compute(x0, nx, cx, s);
     fy.Compute(y0, ny, cy, s);
     double excess = 0, model = 0;
@@ -295,7 +459,7 @@ PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double 
   out.x_sigma_px = std::sqrt(std::max(cov(0, 0), 0.0));
   out.y_sigma_px = std::sqrt(std::max(cov(1, 1), 0.0));
   // SNR of the flux in a PSF-matched aperture (noise-equivalent area 4 pi s^2).
-  const double nea = 4 * 3.14159265358979 * s * s;
+  const double nea = 4 * 3.14159265358979 * s * s * (smeared ? SmearNeaFactor(smear_len, s) : 1.0);
   out.snr = amp / std::sqrt((gain > 0 ? std::max(amp, 0.0) / gain : 0.0) + nea * var_n);
   return out;
 }

@@ -14,6 +14,10 @@ struct PsfFitOptions {
   double saturation_adu = 65535;
   bool fit = true;             // false: weighted moments only
   int max_iterations = 12;  // converged fits take 3-6; noise blobs would wander on
+  // Expected motion smear (end minus start of the star's image over the exposure, px). Nonzero: the
+  // model is the Gaussian averaged along that segment centred on (x, y), the window grows by the
+  // smear, and elongation is measured against the smeared model's own shape (1 = as predicted).
+  double smear_dx_px = 0, smear_dy_px = 0;
 };
 
 struct PsfFit {

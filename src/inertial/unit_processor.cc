@@ -60,9 +60,15 @@ UnitProcessor::UnitProcessor(std::vector<OpticalHead> heads,
     heads_[h].camera.Check("head " + std::to_string(h + 1) + " camera");
     heads_[h].q_body_from_sensor.normalize();
   }
+  gyro_axes_ = unit.Axes();
+  gyro_sigma_ = unit.NoiseArw();
 }
 
-void UnitProcessor::OnGyroSample(double t_s, const GyroVec& g_dph) { fusion_.AddGyro(t_s, g_dph); }
+void UnitProcessor::OnGyroSample(double t_s, const GyroVec& g_dph) {
+  fusion_.AddGyro(t_s, g_dph);
+  g_last_dph_ = g_dph;
+  have_gyro_ = true;
+}
 
 HeadResult UnitProcessor::SolveHead(int h, const ImageView& image, Identification* id) {
   const auto t0 = Clock::now();
@@ -79,6 +85,16 @@ HeadResult UnitProcessor::SolveHead(int h, const ImageView& image, Identificatio
   }
   DetectOptions dopt = so.detect;
   if (dopt.gain_e_per_adu == 0) dopt.gain_e_per_adu = head.camera.gain_e_per_adu;
+  if (dopt.smear.exposure_s > 0 && have_gyro_) {
+    // Motion during the exposure: the body rate of the last gyro sample (gyros in use, less the
+    // estimated bias) in this head's sensor axes. Its error (deg/h) is far below what smears.
+    std::vector<bool> use(static_cast<size_t>(gyro_axes_.rows()), false);
+    for (int g : fusion_.GyrosInUse()) use[static_cast<size_t>(g - 1)] = true;
+    const Vec3 w_body = RateSolver(gyro_axes_, gyro_sigma_, use).Solve(g_last_dph_) / kRadSToDph -
+                        (fusion_.initialised() ? fusion_.bias_rad_s() : Vec3::Zero());
+    dopt.smear.rate_rad_s = head.q_body_from_sensor.conjugate() * w_body;
+    dopt.smear.camera = head.camera;
+  }
   const Detections det = Detect(image, dopt);
   r.timing_ms["detect"] = MsSince(t0);
   r.detections = static_cast<int>(det.stars.size());

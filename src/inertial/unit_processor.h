@@ -111,6 +111,11 @@ class UnitProcessor {
 
   std::vector<OpticalHead> heads_;
   std::vector<std::shared_ptr<const StarIdentifier>> ids_;
+  // The last gyro sample, for the body rate handed to the detector (expected smear,
+  // SolveOptions::detect.smear: active when its exposure_s > 0).
+  GyroAxes gyro_axes_;
+  GyroVec gyro_sigma_, g_last_dph_;
+  bool have_gyro_ = false;
   UnitProcessorOptions options_;
   OnlineFusion fusion_;
   Mat3 last_fix_covariance_ = Mat3::Zero();  // of the last accepted solution (body axes, rad^2)

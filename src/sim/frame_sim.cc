@@ -7,6 +7,7 @@
 #include "core/attitude.h"
 #include "core/error.h"
 #include "core/rng.h"
+#include "detect/smear.h"
 
 namespace ssiu {
 namespace {
@@ -25,6 +26,9 @@ const DoubleField kDoubleFields[] = {
     {"psf_sigma_px", &FrameSimOptions::psf_sigma_px},
     {"defocus_radius_px", &FrameSimOptions::defocus_radius_px},
     {"exposure_s", &FrameSimOptions::exposure_s},
+    {"rate_x_dps", &FrameSimOptions::rate_x_dps},
+    {"rate_y_dps", &FrameSimOptions::rate_y_dps},
+    {"rate_z_dps", &FrameSimOptions::rate_z_dps},
     {"mag0_flux_e_per_s", &FrameSimOptions::mag0_flux_e_per_s},
     {"mag_max", &FrameSimOptions::mag_max},
     {"vignetting", &FrameSimOptions::vignetting},
@@ -112,6 +116,9 @@ void FrameSimOptions::Check() const {
   need(psf_sigma_px > 0.1 && psf_sigma_px < 50, "psf_sigma_px", "must be in (0.1, 50)");
   need(defocus_radius_px >= 0 && defocus_radius_px < 100, "defocus_radius_px", "must be in [0, 100)");
   need(exposure_s > 0, "exposure_s", "must be > 0");
+  need(std::abs(rate_x_dps) <= 90, "rate_x_dps", "must be in [-90, 90]");
+  need(std::abs(rate_y_dps) <= 90, "rate_y_dps", "must be in [-90, 90]");
+  need(std::abs(rate_z_dps) <= 90, "rate_z_dps", "must be in [-90, 90]");
   need(mag0_flux_e_per_s >= 0, "mag0_flux_e_per_s", "must be >= 0");
   need(vignetting >= 0 && vignetting <= 1, "vignetting", "must be in [0, 1]");
   need(background_e_per_s >= 0, "background_e_per_s", "must be >= 0");
@@ -216,11 +223,27 @@ SimulatedFrame SimulateFrame(const Camera& cam, const StarCatalog& catalog, cons
                            o.gain_e_per_adu * o.gain_e_per_adu / 12.0;
   const double nea_px = 4 * kPi * o.psf_sigma_px * o.psf_sigma_px + kPi * o.defocus_radius_px * o.defocus_radius_px;
   const double peak_fraction = 1.0 / (2 * kPi * o.psf_sigma_px * o.psf_sigma_px + kPi * o.defocus_radius_px * o.defocus_radius_px);
+  // Motion during the exposure (detect/smear.h for the kinematics): a direction fixed in inertial space
+  // is exp(-[w]x t) v in sensor axes, t from mid-exposure. Its image is integrated along the projected
+  // path (camera model, distortion included) at sub-steps of at most kSmearStepPx.
+  constexpr double kSmearStepPx = 0.1;
+  const Vec3 rate_rad_s = Vec3(o.rate_x_dps, o.rate_y_dps, o.rate_z_dps) * kDegToRad;
+  const bool moving = rate_rad_s.squaredNorm() > 0;
+  auto path_at = [&](const Vec3& v_mid, double t) {
+    return cam.Project(Eigen::AngleAxisd(-rate_rad_s.norm() * t, rate_rad_s.normalized()) * v_mid);
+  };
+  // The PSF-equivalent Gaussian sigma for the smear's peak / NEA factors (a defocused PSF: the
+  // Gaussian of the same noise-equivalent area).
+  const double sigma_equiv = std::sqrt(nea_px / (4 * kPi));
+  // Stars up to half a smear outside the frame at mid-exposure run into it (half a smear is at most
+  // |w| T / 2 times the focal length plus the half diagonal, pinhole; 1.5x for distortion).
+  const double smear_margin_px =
+      1.5 * 0.5 * rate_rad_s.norm() * o.exposure_s * (cam.focal_length_px + 0.5 * std::hypot(double(w), double(h)));
 
   // Stars: every catalog star whose PSF reaches the frame.
   const double cos_limit = std::cos(0.5 * cam.FovDiagRad() + 0.01);
   const Vec3 boresight = out.q_inertial_from_sensor * Vec3::UnitZ();
-  auto add_star = [&](StarId id, double mag, const Vec2& p) {
+  auto add_star = [&](StarId id, double mag, const Vec2& p, const Vec3& v_mid) {
     SimStar s;
     s.star_id = id;
     s.mag = mag;
@@ -228,22 +251,49 @@ SimulatedFrame SimulateFrame(const Camera& cam, const StarCatalog& catalog, cons
     s.y_px = p.y();
     s.flux_e = o.mag0_flux_e_per_s * std::pow(10.0, -0.4 * mag) * o.exposure_s * std::max(0.0, vignette(p.x(), p.y()));
     s.flux_adu = s.flux_e / o.gain_e_per_adu;
-    s.snr = s.flux_e / std::sqrt((o.shot_noise ? s.flux_e : 0.0) + nea_px * var_bg_e2);
-    s.saturated = s.flux_e * peak_fraction + bg_e > o.full_well_e ||
-                  (s.flux_e * peak_fraction + bg_e) / o.gain_e_per_adu + o.bias_adu >= (1 << o.bit_depth) - 1;
-    AddPsf(signal, w, h, p.x(), p.y(), o, s.flux_e);
+    std::vector<Vec2> path;  // image positions at n sub-steps (centres of n equal time slices)
+    if (moving) {
+      const auto a = path_at(v_mid, -0.5 * o.exposure_s), b = path_at(v_mid, 0.5 * o.exposure_s);
+      if (a && b) {
+        const int n = std::max(1, static_cast<int>(std::ceil(((*a - p).norm() + (*b - p).norm()) / kSmearStepPx)));
+        Vec2 prev = *a;
+        for (int k = 0; k <= n; ++k) {
+          if (k < n) {
+            const auto c = path_at(v_mid, o.exposure_s * ((k + 0.5) / n - 0.5));
+            path.push_back(c ? *c : p);
+          }
+          const auto e = path_at(v_mid, o.exposure_s * (double(k) / n - 0.5));  // slice edges: path length
+          if (e) {
+            s.smear_px += (*e - prev).norm();
+            prev = *e;
+          }
+        }
+      }
+    }
+    const double nea_e = s.smear_px > 0 ? nea_px * SmearNeaFactor(s.smear_px, sigma_equiv) : nea_px;
+    const double peak_e = s.smear_px > 0 ? peak_fraction * SmearPeakFactor(s.smear_px, sigma_equiv) : peak_fraction;
+    s.snr = s.flux_e / std::sqrt((o.shot_noise ? s.flux_e : 0.0) + nea_e * var_bg_e2);
+    s.saturated = s.flux_e * peak_e + bg_e > o.full_well_e ||
+                  (s.flux_e * peak_e + bg_e) / o.gain_e_per_adu + o.bias_adu >= (1 << o.bit_depth) - 1;
+    if (path.empty()) {
+      AddPsf(signal, w, h, p.x(), p.y(), o, s.flux_e);
+    } else {
+      for (const Vec2& q : path) AddPsf(signal, w, h, q.x(), q.y(), o, s.flux_e / path.size());
+    }
     out.stars.push_back(s);
   };
   for (const CatalogStar& cs : catalog.stars) {
     if (cs.mag > o.mag_max) continue;
     if (cs.unit.dot(boresight) < cos_limit) continue;
-    const auto p = cam.Project(r_sensor_from_inertial * cs.unit);
-    if (!p || !cam.InImage(*p, -3 * o.psf_sigma_px)) continue;
-    add_star(cs.id, cs.mag, *p);
+    const Vec3 v = r_sensor_from_inertial * cs.unit;
+    const auto p = cam.Project(v);
+    if (!p || !cam.InImage(*p, moving ? -3 * o.psf_sigma_px - smear_margin_px : -3 * o.psf_sigma_px)) continue;
+    add_star(cs.id, cs.mag, *p, v);
   }
   for (int k = 0; k < o.false_stars; ++k) {
     const double mag = rng.Uniform(2.0, std::max(2.5, o.mag_max - 0.5));
-    add_star(kInvalidStarId, mag, Vec2(rng.Uniform(5, w - 6), rng.Uniform(5, h - 6)));
+    const Vec2 p(rng.Uniform(5, w - 6), rng.Uniform(5, h - 6));
+    add_star(kInvalidStarId, mag, p, moving ? cam.Unproject(p) : Vec3::UnitZ());
   }
 
   // Satellite streaks: PSF-blurred lines crossing a good part of the frame.
@@ -342,6 +392,7 @@ Json TruthToJson(const SimulatedFrame& f, const Camera& cam, const FrameSimOptio
                      {"mag", s.mag},
                      {"x_px", s.x_px},
                      {"y_px", s.y_px},
+                     {"smear_px", s.smear_px},
                      {"flux_e", s.flux_e},
                      {"flux_adu", s.flux_adu},
                      {"snr", s.snr},

@@ -20,6 +20,10 @@ struct FrameSimOptions {
   double psf_sigma_px = 1.2;          // Gaussian PSF sigma (pixel-integrated)
   double defocus_radius_px = 0.0;     // > 0: PSF = uniform disk of this radius convolved with the Gaussian
   double exposure_s = 0.1;
+  // Motion during the exposure: the sensor's angular rate relative to inertial space, in sensor axes
+  // (deg/s). Each star (and false star) is smeared along the path it projects to over
+  // [-exposure/2, +exposure/2] around the attitude given (mid-exposure); 0 = a still frame.
+  double rate_x_dps = 0.0, rate_y_dps = 0.0, rate_z_dps = 0.0;
   double mag0_flux_e_per_s = 5.0e6;   // photo-electrons per second from a V = 0 star (aperture, QE)
   double mag_max = 7.5;               // faintest catalog star drawn (SNR about 10 there)
   double vignetting = 0.0;            // flux factor 1 - vignetting * (r / r_corner)^2
@@ -60,7 +64,8 @@ void SetFrameSimOption(FrameSimOptions* o, const std::string& name, double value
 struct SimStar {
   StarId star_id = kInvalidStarId;  // kInvalidStarId for an injected false star
   double mag = 0;
-  double x_px = 0, y_px = 0;        // true (distorted) position
+  double x_px = 0, y_px = 0;        // true (distorted) position at mid-exposure
+  double smear_px = 0;              // length of the image's path during the exposure (0 when still)
   double flux_e = 0, flux_adu = 0;  // total signal in the exposure
   double snr = 0;                   // ideal SNR of the flux in a PSF-matched aperture
   bool saturated = false;

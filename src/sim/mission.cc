@@ -271,7 +271,14 @@ SimulatedFrame SimulateMissionFrame(const MissionConfig& config, const MissionDa
   const OpticalHead& h = config.heads.at(head);
   FrameSimOptions so = config.frame_sim;
   so.defect_seed = config.frame_sim.defect_seed + head;  // each head its own sensor defects
-  const Quat q_sensor = TrueAttitudeAt(data, data.frame_t_s.at(frame)) * h.q_body_from_sensor;
+  const double t_s = data.frame_t_s.at(frame);
+  const Quat q_sensor = TrueAttitudeAt(data, t_s) * h.q_body_from_sensor;
+  // Motion during the exposure: the true body rate at mid-exposure in this head's sensor axes (it
+  // replaces any rate given in frame_sim).
+  const Vec3 w_sensor_dps = h.q_body_from_sensor.conjugate() * config.motion.RateBodyRadS(t_s) * kRadToDeg;
+  so.rate_x_dps = w_sensor_dps.x();
+  so.rate_y_dps = w_sensor_dps.y();
+  so.rate_z_dps = w_sensor_dps.z();
   const uint64_t seed = Mix(Mix(config.seed) ^ (static_cast<uint64_t>(frame) * kMaxHeads + head));
   return SimulateFrame(h.camera, catalog, q_sensor, so, seed);
 }
@@ -282,6 +289,10 @@ MissionResult RunMission(const MissionConfig& config_in, const StarCatalog& cata
   // The processor knows its cameras' gain (a property of the unit); the simulator's is the truth.
   for (auto& h : config.heads) {
     if (h.camera.gain_e_per_adu == 0) h.camera.gain_e_per_adu = config.frame_sim.gain_e_per_adu;
+  }
+  // ... and its exposure, so that the detector expects the smear of the rate the gyros measure.
+  if (config.processor.solve.detect.smear.exposure_s == 0) {
+    config.processor.solve.detect.smear.exposure_s = config.frame_sim.exposure_s;
   }
   const MissionData data = SimulateMission(config);
   const int nh = static_cast<int>(config.heads.size());
