@@ -7,6 +7,7 @@
 #include "core/attitude.h"
 #include "core/catalog.h"
 #include "core/error.h"
+#include "core/json.h"
 #include "detect/detect.h"
 #include "sim/detection_score.h"
 #include "sim/frame_sim.h"
@@ -168,6 +169,27 @@ TEST(Smear, RatesAreOptionsOfTheJsonAndFlagTable) {
   d.smear.exposure_s = 0.1;
   d.smear.rate_rad_s = Vec3(std::nan(""), 0, 0);
   EXPECT_THROW(d.Check(), std::invalid_argument);
+}
+
+// `ssiu simulate frame` takes the rates as flags (the option table) and writes each star's smear.
+TEST(Smear, SimulateFrameCliTakesTheRateAndWritesTheSmear) {
+  const std::string dir = testing::TempDir("smear_cli");
+  const auto ok = testing::RunSsiu("simulate frame --ra-deg 84 --dec-deg -1 --rate-x-dps 1 --out " + dir);
+  ASSERT_EQ(ok.status, 0) << ok.output;
+  const Json truth = ReadJsonFile(dir + "/frame_0000.json");
+  EXPECT_EQ(truth["options"]["rate_x_dps"].get<double>(), 1.0);
+  const Camera cam;
+  int checked = 0;
+  for (const Json& s : truth["stars"]) {
+    const double r = std::hypot(s["x_px"].get<double>() - cam.cx_px, s["y_px"].get<double>() - cam.cy_px);
+    if (r > 100) continue;  // near the centre: f w T
+    EXPECT_NEAR(s["smear_px"].get<double>(), cam.focal_length_px * kDegToRad * 0.1, 0.05);
+    ++checked;
+  }
+  EXPECT_GT(checked, 0);
+  const auto bad = testing::RunSsiu("simulate frame --ra-deg 84 --dec-deg -1 --rate-z-dps 500 --out " + dir);
+  EXPECT_EQ(bad.status, 1) << bad.output;
+  EXPECT_THAT(bad.output, HasSubstr("rate_z_dps"));
 }
 
 // Default frames (1024 px, 16.6 deg, 40 hot pixels, cosmic rays) turning at 1 deg/s about the sensor's
