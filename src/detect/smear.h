@@ -1,6 +1,7 @@
 // Motion blur (smear) of star images: while the sensor turns at a rate w during the exposure, a star's
 // image runs along the path its direction projects to. The on-board processor knows w from the gyros,
-// so the detector can expect each star's smear instead of calling it elongated (docs/detection.md).
+// so the detector can expect each star's smear instead of calling it elongated (docs/simulator.md,
+// "Motion during the exposure").
 //
 // Kinematics (conventions.md, dq/dt = 1/2 q * [0, w]): a direction fixed in inertial space is, in
 // sensor axes, v(t) = exp(-[w]x t) v(0), t from mid-exposure; the path is that direction projected
