@@ -113,6 +113,9 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
   if (defects && !defects->empty() && (defects->width != w || defects->height != h)) {
     throw std::invalid_argument("Detect: defect map size differs from the image");
   }
+  if (opt.smear.active() && (opt.smear.camera.width != w || opt.smear.camera.height != h)) {
+    throw std::invalid_argument("Detect: smear.camera size differs from the image");
+  }
   Detections out;
   out.width = w;
   out.height = h;

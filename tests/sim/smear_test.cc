@@ -169,6 +169,11 @@ TEST(Smear, RatesAreOptionsOfTheJsonAndFlagTable) {
   d.smear.exposure_s = 0.1;
   d.smear.rate_rad_s = Vec3(std::nan(""), 0, 0);
   EXPECT_THROW(d.Check(), std::invalid_argument);
+  // ... and a camera that is not the frame's.
+  d.smear.rate_rad_s = Vec3(0.01, 0, 0);
+  d.smear.camera = MakeCamera(512, 512, 16.6);
+  const Image16 frame(1024, 1024, 200);
+  EXPECT_THROW(Detect(frame.view(), d), std::invalid_argument);
 }
 
 // `ssiu simulate frame` takes the rates as flags (the option table) and writes each star's smear.
