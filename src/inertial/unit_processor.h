@@ -36,7 +36,9 @@ struct OpticalHead {
 constexpr int kMaxHeads = 3;
 
 struct UnitProcessorOptions {
-  SolveOptions solve;  // detection threshold, identification, tracking search radius
+  SolveOptions solve;  // detection threshold, identification, tracking search radius; with
+                       // solve.detect.smear.exposure_s > 0 the detector is told the smear the gyro
+                       // rate predicts (motion during the exposure, docs/inertial.md)
   FuseOptions fuse;    // MEKF prior, NIS gate, FDI (the star noise comes from each solution's covariance)
   // The QUEST covariance is multiplied by this squared before it enters the filter (1 = trusted as is).
   double solution_sigma_scale = 1.0;
