@@ -1,4 +1,5 @@
 // `ssiu detect`: star centroids, background/noise and rejected interferers of one frame, as JSON.
+#include <cmath>
 #include <iostream>
 #include <memory>
 
@@ -20,6 +21,14 @@ struct Opts {
 
 void Run(const Opts& o) {
   const Frame fr = o.dark.empty() ? ReadFrame(o.frame) : SubtractDark(ReadFrame(o.frame), ReadFrame(o.dark));
+  // Detect() needs 16x16 pixels for its background tiles (the smallest camera.json allows).
+  if (fr.image.width < 16 || fr.image.height < 16) {
+    throw InputError(o.frame, "image is " + std::to_string(fr.image.width) + "x" + std::to_string(fr.image.height) +
+                                  ": too small for star detection (at least 16x16)");
+  }
+  if (!std::isfinite(o.gain_e_per_adu) || o.gain_e_per_adu < 0) {
+    throw InputError("--gain-e-per-adu", "must be a finite number >= 0");
+  }
   DetectOptions opt;
   opt.threshold_sigma = o.threshold_sigma;
   opt.psf_sigma_px = o.psf_sigma_px;

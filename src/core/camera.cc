@@ -6,9 +6,10 @@
 
 namespace ssiu {
 
+// The smallest sensor is the detector's smallest image (Detect() needs 16x16 for its background tiles).
 void Camera::Check(const std::string& source) const {
-  if (width < 8 || width > 65536) throw InputError(source, "width must be 8..65536 pixels");
-  if (height < 8 || height > 65536) throw InputError(source, "height must be 8..65536 pixels");
+  if (width < 16 || width > 65536) throw InputError(source, "width must be 16..65536 pixels");
+  if (height < 16 || height > 65536) throw InputError(source, "height must be 16..65536 pixels");
   if (!std::isfinite(focal_length_px) || focal_length_px < 10 || focal_length_px > 1e6) {
     throw InputError(source, "focal_length_px must be 10..1e6 pixels");
   }
@@ -84,8 +85,8 @@ Camera CameraFromJson(const Json& j, const std::string& source) {
   if (!j.is_object()) throw InputError(source, "camera must be a JSON object");
   Camera c;
   const double w = JsonNumber(j, "width", source), h = JsonNumber(j, "height", source);
-  if (w != std::floor(w) || h != std::floor(h) || w < 8 || h < 8 || w > 65536 || h > 65536) {
-    throw InputError(source, "width and height must be whole numbers of pixels, 8..65536");
+  if (w != std::floor(w) || h != std::floor(h) || w < 16 || h < 16 || w > 65536 || h > 65536) {
+    throw InputError(source, "width and height must be whole numbers of pixels, 16..65536");
   }
   c.width = static_cast<int>(w);
   c.height = static_cast<int>(h);

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -60,6 +61,17 @@ Frame ReadFits(const std::string& path) {
   const long w = naxes[0], h = naxes[1];
   if (w <= 0 || h <= 0) throw fail("FITS image has zero size");
   if (w > 65536 || h > 65536) throw fail("FITS image is too large");
+  {
+    // A header that declares more pixels than the file holds would allocate gigabytes before the
+    // read fails: compare with the data the file actually has after its header.
+    LONGLONG header_start = 0, data_start = 0, data_end = 0;
+    std::error_code ec;
+    const auto file_bytes = std::filesystem::file_size(path, ec);
+    if (!fits_get_hduaddrll(f, &header_start, &data_start, &data_end, &status) && !ec &&
+        static_cast<LONGLONG>(file_bytes) < data_start + static_cast<LONGLONG>(w) * h * (std::abs(bitpix) / 8)) {
+      throw fail("FITS data is shorter than its header's NAXIS1 x NAXIS2 x BITPIX (truncated)");
+    }
+  }
   long first[3] = {1, 1, 1};
   int anynul = 0;
   int equivtype = 0;

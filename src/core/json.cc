@@ -1,6 +1,7 @@
 #include "core/json.h"
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 
@@ -9,12 +10,17 @@
 namespace ssiu {
 
 Json ReadJsonFile(const std::string& path) {
+  // A directory opens as a stream on Linux and then fails inside the parser with an I/O exception.
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) throw InputError(path, "is a directory, not a JSON file");
   std::ifstream in(path);
   if (!in) throw InputError(path, "cannot open file");
   try {
     return Json::parse(in, nullptr, true, /*ignore_comments=*/true);
   } catch (const Json::exception& e) {  // parse_error, and out_of_range for a number overflow (1e999)
     throw InputError(path, std::string("not valid JSON (") + e.what() + ")");
+  } catch (const std::ios_base::failure&) {
+    throw InputError(path, "read error");
   }
 }
 

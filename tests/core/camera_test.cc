@@ -65,6 +65,15 @@ TEST(Camera, BadFieldsNameTheFileAndField) {
 TEST(Camera, LoadCameraReportsUnreadableFiles) {
   const std::string dir = testing::TempDir("cam");
   EXPECT_THROW(LoadCamera(dir + "/missing.json"), InputError);
+  // A directory opens as a stream and used to fail inside the parser with an I/O exception (exit 2).
+  try {
+    LoadCamera(dir);
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("is a directory"));
+  }
+  // Smaller than the detector's 16x16 minimum.
+  EXPECT_THROW(CameraFromJson({{"width", 8}, {"height", 8}, {"focal_length_px", 100}}, "cam.json"), InputError);
   std::ofstream(dir + "/bad.json") << "{ not json";
   try {
     LoadCamera(dir + "/bad.json");
