@@ -176,6 +176,19 @@ void CheckThermalRun(const ThermalRun& run) {
       throw InputError(run.file, "column 't_s' is not strictly increasing at row " + std::to_string(i + 1));
     }
   }
+  // The bins span the run's time range: a gap of 1e12 s between two rows allocated terabytes. A gap
+  // of more than 1000 median steps is two runs in one file.
+  std::vector<double> dt(n - 1);
+  for (size_t i = 1; i < n; ++i) dt[i - 1] = run.t_s[i] - run.t_s[i - 1];
+  std::nth_element(dt.begin(), dt.begin() + dt.size() / 2, dt.end());
+  const double median = dt[dt.size() / 2];
+  for (size_t i = 1; i < n; ++i) {
+    if (run.t_s[i] - run.t_s[i - 1] > 1000 * median) {
+      throw InputError(run.file, "column 't_s': gap of " + std::to_string(run.t_s[i] - run.t_s[i - 1]) + " s at row " +
+                                     std::to_string(i + 1) + " (median step " + std::to_string(median) +
+                                     " s): give the parts as separate runs");
+    }
+  }
 }
 
 ThermalRun ReadThermalRun(const std::string& path, double latitude_deg, const std::string& axis) {

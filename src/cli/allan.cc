@@ -1,6 +1,7 @@
 // `ssiu allan LOG.csv --column NAME --json OUT [--plot OUT.png]`: overlapping Allan deviation of one
 // rate column with confidence intervals and the fitted IEEE 952 noise terms; or, with --curve, the
 // same fit on an Allan curve computed elsewhere (e.g. ../shared/data/gyro/).
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -34,8 +35,19 @@ void PrintTerm(const char* name, const ssiu::NoiseTerm& t, const char* unit) {
   std::fprintf(stderr, "%s\n", t.significant ? "" : "  [not significant]");
 }
 
+// A flag that is given must make sense: a negative or non-finite value used to be ignored (a log's
+// t_s used instead of --sample-rate-hz) or to stop the fit with an internal error.
+void CheckNonNegative(double v, const char* flag) {
+  if (!std::isfinite(v) || v < 0) throw ssiu::InputError(flag, "must be a finite number >= 0");
+}
+
 void Run(const Opts& o) {
   if (o.log.empty() == o.curve.empty()) throw ssiu::InputError("", "give either a LOG.csv with --column, or --curve FILE");
+  CheckNonNegative(o.sample_rate_hz, "--sample-rate-hz");
+  CheckNonNegative(o.duration_s, "--duration-s");
+  CheckNonNegative(o.n, "--n");
+  CheckNonNegative(o.tau_min_s, "--tau-min-s");
+  CheckNonNegative(o.tau_max_s, "--tau-max-s");
   if (!(o.confidence > 0 && o.confidence < 1)) throw ssiu::InputError("--confidence", "must be in (0, 1)");
   ssiu::AllanCurve curve;
   ssiu::Json provenance;

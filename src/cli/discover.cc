@@ -62,6 +62,14 @@ SSIU_REGISTER_COMMAND(discover_allan, [](CLI::App& root) {
     co.duration_s = o->duration_s;
     co.sample_rate_hz = o->sample_rate_hz;
     const ssiu::CurveFile cf = ssiu::ReadAllanCurveFile(o->curve, co);
+    // Each point is weighted by its own ADEV: a zero one made every figure NaN (written as null).
+    if (cf.curve.tau_s.size() < 4) throw ssiu::InputError(o->curve, "fewer than 4 Allan points");
+    for (size_t i = 0; i < cf.curve.adev.size(); ++i) {
+      if (!(cf.curve.adev[i] > 0)) {
+        throw ssiu::InputError(o->curve, "ADEV is zero at tau " + std::to_string(cf.curve.tau_s[i]) +
+                                             " s: the base model cannot be weighted there");
+      }
+    }
     const ssiu::AllanDiscrepancy d = ssiu::CompareAllanToDefaultModel(cf.curve, o->opt);
     const double dph = 180 / M_PI * 3600;  // rad/s -> deg/h
     ssiu::Json j;
@@ -212,10 +220,11 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
     std::vector<ssiu::GyroBenchLog> logs;
     for (const auto& f : o->logs) logs.push_back(ssiu::ReadGyroBenchLog(f));
     const ssiu::GyroDiscovery d = ssiu::DiscoverGyro(logs, o->opt);
+    // Output first: a path that cannot be written is then the only line printed.
+    if (!o->json.empty()) ssiu::WriteJsonFile(o->json, ssiu::GyroDiscoveryToJson(d));
     std::cerr << "discover gyro: cause " << d.cause;
     for (const auto& [k, v] : d.parameters) std::cerr << " " << k << "=" << v << "+-" << d.sigmas.at(k);
     std::cerr << "; held-out rms " << d.rms_before_dph << " -> " << d.rms_after_dph << " deg/h (gain " << d.gain
               << ")\n";
-    if (!o->json.empty()) ssiu::WriteJsonFile(o->json, ssiu::GyroDiscoveryToJson(d));
   });
 });

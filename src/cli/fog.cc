@@ -4,6 +4,7 @@
 #include <iostream>
 #include <limits>
 #include <memory>
+#include <sstream>
 
 #include "analysis/fog_magnetic.h"
 #include "analysis/fog_plot.h"
@@ -84,22 +85,26 @@ SSIU_REGISTER_COMMAND(fog_thermal, [](CLI::App& root) {
     for (const auto& p : o->holdout) held.push_back(ssiu::ReadThermalRun(p, o->latitude_deg, o->axis));
     const ssiu::ThermalFitResult fit = ssiu::FitThermalDrift(runs, o->fit);
     ssiu::Json j = ssiu::ThermalFitToJson(fit, o->fit);
-    std::cerr << "fog thermal: kept";
+    // The summary is printed after the outputs are written, so that an output path that cannot be
+    // written gives the one error line only.
+    std::ostringstream summary;
+    summary << "fog thermal: kept";
     for (const auto& t : fit.tested) {
-      if (t.kept) std::cerr << " " << t.name << "=" << t.estimate_dph << "+-" << t.sigma_dph;
+      if (t.kept) summary << " " << t.name << "=" << t.estimate_dph << "+-" << t.sigma_dph;
     }
-    std::cerr << "; fitted runs: band " << fit.evaluation.before.peak_dph << " -> " << fit.evaluation.after.peak_dph
+    summary << "; fitted runs: band " << fit.evaluation.before.peak_dph << " -> " << fit.evaluation.after.peak_dph
               << " deg/h (gain " << fit.evaluation.gain << ")\n";
     if (!held.empty()) {
       const ssiu::ThermalEvaluation hev = ssiu::EvaluateThermalModel(held, fit.model, o->fit);
       j["holdout"] = ssiu::ThermalEvaluationToJson(hev);
-      std::cerr << "fog thermal: held-out runs: band " << hev.before.peak_dph << " -> " << hev.after.peak_dph
+      summary << "fog thermal: held-out runs: band " << hev.before.peak_dph << " -> " << hev.after.peak_dph
                 << " deg/h (gain " << hev.gain << "), angle " << hev.angle_error_before_deg << " -> "
                 << hev.angle_error_after_deg << " deg\n";
       if (!o->plot.empty()) PlotThermal(o->plot, hev, "holdout");
     }
     if (!o->plot.empty()) PlotThermal(o->plot, fit.evaluation, "fitted");
     if (!o->json.empty()) ssiu::WriteJsonFile(o->json, j);
+    std::cerr << summary.str();
   });
 });
 
@@ -153,8 +158,9 @@ SSIU_REGISTER_COMMAND(fog_magnetic, [](CLI::App& root) {
     std::vector<ssiu::MagneticResult> fits;
     for (const auto& p : o->logs) fits.push_back(ssiu::FitMagneticSensitivity(ssiu::ReadTurntableLog(p), o->fit));
     ssiu::Json j = ssiu::MagneticResultToJson(fits[0]);
+    std::ostringstream summary;  // printed after the outputs, as in `fog thermal`
     for (const auto& f : fits) {
-      std::cerr << "fog magnetic: " << f.file << ": dpsi0 " << f.dpsi0_deg << "+-" << f.dpsi0_sigma_deg
+      summary << "fog magnetic: " << f.file << ": dpsi0 " << f.dpsi0_deg << "+-" << f.dpsi0_sigma_deg
                 << " deg, magnetic amplitude " << f.magnetic_amplitude_dph << "+-" << f.magnetic_amplitude_sigma_dph
                 << " deg/h, chi2 " << f.magnetic_chi2 << (f.consistent_with_zero ? " (consistent with zero)" : "")
                 << "\n";
@@ -205,5 +211,6 @@ SSIU_REGISTER_COMMAND(fog_magnetic, [](CLI::App& root) {
       ssiu::WriteFogPlotPng(o->plot + "/magnetic_error.png", mp);
     }
     if (!o->json.empty()) ssiu::WriteJsonFile(o->json, j);
+    std::cerr << summary.str();
   });
 });

@@ -1,4 +1,5 @@
 // `ssiu groundtest mask`: the star-sky mask for a collimator ground test (groundtest/mask.h).
+#include <cmath>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -40,6 +41,8 @@ SSIU_REGISTER_COMMAND(groundtest_mask, [](CLI::App& root) {
   cmd->add_option("--source", o->source, "Source catalog when it is built (default: by FOV)");
   cmd->add_option("--out", o->out, "Output directory")->required();
   cmd->callback([o] {
+    if (!std::isfinite(o->ra_deg) || !std::isfinite(o->roll_deg) || !(std::abs(o->dec_deg) <= 90))
+      throw InputError("groundtest mask", "--ra-deg and --roll-deg must be finite, --dec-deg in [-90, 90]");
     const Camera cam = LoadCamera(o->camera);
     const StarIdentifier id = MakeIdentifierForCamera(o->catalog, cam, 0.0, 0.0, o->source);
     const Quat q = QuatFromRaDecRoll(o->ra_deg * kDegToRad, o->dec_deg * kDegToRad, o->roll_deg * kDegToRad);

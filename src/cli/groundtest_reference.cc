@@ -1,5 +1,6 @@
 // `ssiu groundtest reference`: reference quaternions per picture from fiducial photos (AprilTag + PnP)
 // and/or stand encoder angles (groundtest/reference.h).
+#include <cmath>
 #include <iostream>
 #include <memory>
 
@@ -58,13 +59,19 @@ SSIU_REGISTER_COMMAND(groundtest_reference, [](CLI::App& root) {
     const Mask m = LoadMask(o->mask);
     if (!o->camera.empty()) CheckMaskCamera(m, LoadCamera(o->camera), o->mask);
     if (o->encoders.empty() && o->photos.empty()) throw InputError("groundtest reference", "give --encoders and/or --photos");
-    if (!(o->encoder_sigma_arcsec >= 0)) throw InputError("--encoder-sigma-arcsec", "must be >= 0");
+    if (!(o->encoder_sigma_arcsec >= 0) || !std::isfinite(o->encoder_sigma_arcsec))
+      throw InputError("--encoder-sigma-arcsec", "must be a finite number >= 0");
     std::vector<double> t, az, el, rot;
     if (!o->encoders.empty()) {
       const CsvTable c = ReadCsv(o->encoders);
       if (c.rows() < 1) throw InputError(o->encoders, "no data rows");
       c.CheckIncreasing("t_s");
       t = c.Column("t_s"), az = c.Column("az_deg"), el = c.Column("el_deg"), rot = c.Column("rot_deg");
+      // A stand turns within a turn either way; 1e300 deg gave finite but meaningless references.
+      for (const auto* col : {&az, &el, &rot})
+        for (size_t i = 0; i < col->size(); ++i)
+          if (std::abs((*col)[i]) > 360)
+            throw InputError(o->encoders, "row " + std::to_string(i + 1) + ": encoder angle beyond +-360 deg");
     } else {
       for (size_t i = 0; i < o->photos.size(); ++i) t.push_back(static_cast<double>(i)), az.push_back(0), el.push_back(0), rot.push_back(0);
     }

@@ -2,11 +2,13 @@
 // (sim/mission.h): frames of 1-3 heads and four-FOG logs -> detect -> solve -> fuse, scored against
 // the truth. Without --config the built-in default (a 120 s slew, two heads).
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <string>
 
 #include "cli/command.h"
 #include "core/catalog.h"
+#include "core/error.h"
 #include "core/json.h"
 #include "sim/mission.h"
 
@@ -31,6 +33,11 @@ SSIU_REGISTER_COMMAND(run, [](CLI::App& root) {
     if (opts->print_config) {
       ssiu::WriteJsonFile("-", ssiu::MissionConfigToJson(config));
       return;
+    }
+    if (!opts->out.empty()) {  // before the mission runs, and as bad input (not a filesystem exception)
+      std::error_code ec;
+      std::filesystem::create_directories(opts->out, ec);
+      if (!std::filesystem::is_directory(opts->out, ec)) throw ssiu::InputError(opts->out, "cannot create output directory");
     }
     std::printf("ssiu run: %s, %.0f s, %zu head(s), frames at %.3g Hz, %d gyros at %.0f Hz, seed %llu\n",
                 opts->config.empty() ? "built-in default mission" : opts->config.c_str(), config.duration_s,

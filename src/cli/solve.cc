@@ -75,7 +75,8 @@ void RunSingle(const Opts& o) {
   if (!o.wcs.empty() && r.status == "solved") {
     Camera c = cam;
     c.focal_length_px = r.identification.focal_length_px;
-    std::ofstream(o.wcs) << TanWcsHeader(r.attitude.q_inertial_from_sensor, c);
+    std::ofstream wcs(o.wcs);
+    if (!(wcs << TanWcsHeader(r.attitude.q_inertial_from_sensor, c))) throw InputError(o.wcs, "cannot write file");
   }
 }
 

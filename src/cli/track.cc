@@ -1,5 +1,6 @@
 // `ssiu track`: a sequence of frames; lost in space on the first, then tracking from the previous
 // attitude and rate, falling back to lost in space when the lock is lost.
+#include <cmath>
 #include <iostream>
 #include <memory>
 
@@ -30,7 +31,7 @@ SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
   cmd->add_option("--search-radius-px", o->solve.track_search_radius_px, "Tracking search radius")->capture_default_str();
   cmd->add_option("--systematic-px", o->solve.identify.systematic_px, "Unmodelled position error")->capture_default_str();
   cmd->callback([o] {
-    if (!(o->dt_s > 0)) throw InputError("--dt-s", "must be > 0");
+    if (!(o->dt_s > 0) || !std::isfinite(o->dt_s)) throw InputError("--dt-s", "must be a finite number > 0");
     const Camera cam = LoadCamera(o->camera);
     const StarIdentifier id = MakeIdentifierForCamera(o->catalog, cam, o->solve.identify.fov_tolerance_pct);
     Tracker tracker(id, cam, o->solve);

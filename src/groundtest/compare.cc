@@ -28,7 +28,9 @@ std::vector<AttitudeSample> ReadAttitudeSeries(const std::string& path) {
     if (sig) {
       s.sigma_cross_rad = t.Column("sigma_cross_arcsec")[i] * kArcsecToRad;
       s.sigma_roll_rad = t.Column("sigma_roll_arcsec")[i] * kArcsecToRad;
-      if (s.sigma_cross_rad < 0 || s.sigma_roll_rad < 0) throw InputError(path, "sigma columns: negative at row " + std::to_string(i + 1));
+      // Above half a turn a 1-sigma is meaningless, and 1e300 arcsec turned the weights into 0/0.
+      if (!(s.sigma_cross_rad >= 0 && s.sigma_cross_rad <= kPi) || !(s.sigma_roll_rad >= 0 && s.sigma_roll_rad <= kPi))
+        throw InputError(path, "sigma columns: negative or above 648000 arcsec (180 deg) at row " + std::to_string(i + 1));
     }
     if (t.Has("common_sigma_cross_arcsec") && t.Has("common_sigma_roll_arcsec")) {
       s.common_sigma_cross_rad = t.Column("common_sigma_cross_arcsec")[i] * kArcsecToRad;

@@ -73,7 +73,9 @@ void CatalogBuildOptions::Check() const {
   if (!(fov_deg > 0.5 && fov_deg < 90)) throw InputError("catalog options", "fov_deg must be in (0.5, 90)");
   if (!(mag_max >= 0 && mag_max < 20)) throw InputError("catalog options", "mag_max must be in [0, 20) (0 = auto)");
   if (!(epoch_year > 1800 && epoch_year < 2300)) throw InputError("catalog options", "epoch_year must be in (1800, 2300)");
-  if (!(double_star_arcsec >= 0)) throw InputError("catalog options", "double_star_arcsec must be >= 0");
+  // Infinite merged every star into a sky grid cell index that overflowed int.
+  if (!(double_star_arcsec >= 0 && double_star_arcsec <= 3600))
+    throw InputError("catalog options", "double_star_arcsec must be in [0, 3600]");
   if (pattern_stars_per_fov < 4 || pattern_stars_per_fov > 60)
     throw InputError("catalog options", "pattern_stars_per_fov must be in [4, 60]");
   if (!(stars_per_fov >= 5)) throw InputError("catalog options", "stars_per_fov must be >= 5");

@@ -47,6 +47,8 @@ double EarthRateOnAxisDph(double latitude_deg, const std::string& axis) {
 
 void ThermalBenchOptions::Check() const {
   Require(duration_s > 0 && dt_s > 0 && duration_s >= 10 * dt_s, "duration_s and dt_s must be positive");
+  // A bound on the log's length, as for `simulate gyro`: 1e12 s ran (and wrote) for hours.
+  Require(duration_s / dt_s <= 5e7, "duration_s / dt_s must be at most 5e7 samples");
   Require(temp_max_c > temp_min_c, "temp_max_c must exceed temp_min_c");
   Require(min_rate_c_per_min > 0 && max_rate_c_per_min >= min_rate_c_per_min, "bad ramp rates");
   Require(dwell_min_s >= 0 && dwell_max_s >= dwell_min_s, "bad dwell durations");
@@ -127,6 +129,10 @@ ThermalDriftModel CampaignDriftModel() {
 
 void TurntableOptions::Check() const {
   Require(positions >= 1 && dwell_s > 0 && turn_s >= 0 && dt_s > 0, "bad turntable timing");
+  Require(positions <= 3600 && positions * (dwell_s + turn_s) / dt_s <= 5e7,
+          "positions must be at most 3600 and the log at most 5e7 samples");
+  Require(std::abs(latitude_deg) < 90, "latitude_deg must be within (-90, 90)");
+  Require(std::isfinite(dpsi0_deg), "dpsi0_deg must be finite");
   Require(white_noise_dph >= 0 && wander_sigma_dph >= 0 && wander_tau_s > 0, "bad noise levels");
 }
 

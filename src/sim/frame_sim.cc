@@ -130,6 +130,10 @@ void FrameSimOptions::Check() const {
   need(bit_depth == 8 || bit_depth == 16, "bit_depth", "must be 8 or 16");
   need(hot_pixels >= 0 && dead_pixels >= 0 && cosmic_rays >= 0 && streaks >= 0 && false_stars >= 0, "hot_pixels",
        "(and other counts) must be >= 0");
+  // 1e8 of any of them ran for hours (2e9 hot pixels ran out of memory).
+  need(hot_pixels <= 1000000 && dead_pixels <= 1000000, "hot_pixels", "(and dead_pixels) must be at most 1e6");
+  need(cosmic_rays <= 100000 && streaks <= 10000 && false_stars <= 100000, "cosmic_rays",
+       "must be at most 1e5 (streaks 1e4, false_stars 1e5)");
   need(hot_pixel_min_e_per_s > 0 && hot_pixel_max_e_per_s >= hot_pixel_min_e_per_s, "hot_pixel_min_e_per_s",
        "must be > 0 and <= hot_pixel_max_e_per_s");
   need(cosmic_ray_e_per_px >= 0 && cosmic_ray_max_length_px >= 0, "cosmic_ray_e_per_px", "must be >= 0");

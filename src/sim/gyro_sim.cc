@@ -114,7 +114,8 @@ void MotionProfile::Check(const std::string& file, int n_gyros) const {
   if (type == "slew" && !(axis_body.norm() > 0)) throw InputError(file, "axis must be nonzero");
   if (!std::isfinite(rate_dps) || !amplitude_dps.allFinite()) throw InputError(file, "rates must be finite");
   if (!(period_s > 0)) throw InputError(file, "period_s must be positive");
-  if (!(st_rate_hz > 0)) throw InputError(file, "star_tracker.rate_hz must be positive");
+  // Above the gyro rates a star tracker is absurd, and 1e9 Hz ran for hours.
+  if (!(st_rate_hz > 0 && st_rate_hz <= 1000)) throw InputError(file, "star_tracker.rate_hz must be in (0, 1000]");
   if (!(st_sigma_cross_arcsec >= 0) || !(st_sigma_roll_arcsec >= 0)) {
     throw InputError(file, "star tracker sigmas must be >= 0");
   }

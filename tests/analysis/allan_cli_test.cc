@@ -80,6 +80,13 @@ TEST_F(AllanCli, BadInputExitsOneWithOneLine) {
   EXPECT_THAT(out, ::testing::HasSubstr("give either a LOG.csv"));
   EXPECT_EQ(Ssiu(dir_ + "/few.csv", &out), 1);
   EXPECT_THAT(out, ::testing::HasSubstr("--column NAME is required"));
+  // Bad flag values: exit 1 naming the flag (a NaN or negative rate used to be ignored in favour of
+  // t_s, an infinite one or a negative tau limit stopped the fit with an internal error, exit 2).
+  for (const std::string flag : {"--sample-rate-hz nan", "--sample-rate-hz -5", "--sample-rate-hz inf", "--tau-min-s nan",
+                                 "--tau-min-s -5", "--tau-max-s nan"}) {
+    EXPECT_EQ(Ssiu(dir_ + "/few.csv --column g1_dph " + flag + " --json -", &out), 1) << flag << "\n" << out;
+    EXPECT_THAT(out, ::testing::HasSubstr(flag.substr(0, flag.find(' ')) + ": must be a finite number >= 0")) << flag;
+  }
 }
 
 TEST_F(AllanCli, RealCurveFileWithUnitAndChannel) {

@@ -1,3 +1,6 @@
+#include <algorithm>
+#include <fstream>
+
 #include "analysis/allan.h"
 #include "analysis/allan_io.h"
 #include "analysis/discover_allan.h"
@@ -40,6 +43,23 @@ TEST(DiscoverAllan, Kvh1750MissesRateRandomWalk) {
   const auto d = CompareAllanToDefaultModel(ReadAllanCurveFile(path, co).curve, {});
   EXPECT_EQ(d.missing_terms, std::vector<std::string>{"rate_random_walk"});
   EXPECT_GT(d.chi2_per_dof_before, 4 * d.chi2_per_dof_after);
+}
+
+}  // namespace
+}  // namespace ssiu
+
+namespace ssiu {
+namespace {
+
+// A curve that is zero at some tau cannot weight the base model there: exit 1 naming the file
+// (was exit 0 with every figure null).
+TEST(DiscoverAllan, ZeroAdevIsBadInput) {
+  const std::string dir = testing::TempDir("zero_adev");
+  std::ofstream(dir + "/zero.csv") << "tau_s,adev_dph\n1,0.1\n2,0\n4,0.05\n8,0.035\n16,0.025\n";
+  std::string out;
+  EXPECT_EQ(testing::Run(testing::SsiuProgram() + " discover allan --curve " + dir + "/zero.csv --json -", &out), 1) << out;
+  EXPECT_THAT(out, ::testing::HasSubstr("zero.csv: ADEV is zero at tau 2"));
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
 }
 
 }  // namespace

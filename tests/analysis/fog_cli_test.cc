@@ -94,6 +94,10 @@ TEST_F(FogCli, MagneticTwoLogsAndBadInput) {
   Write("nanaz.csv", "t_s,wx_dph,wy_dph,azimuth_deg\n0,1,1,0\n1,1,1,NaN\n");
   EXPECT_EQ(Ssiu("fog magnetic " + dir_ + "/nanaz.csv", &out), 1);
   EXPECT_EQ(Lines(out), 1) << out;
+  // A plot directory that cannot be made: the error is the only line (the summary used to come first).
+  EXPECT_EQ(Ssiu("fog magnetic " + dir_ + "/before.csv --plot /proc/ssiu_no_dir", &out), 1);
+  EXPECT_EQ(Lines(out), 1) << out;
+  EXPECT_NE(out.find("/proc/ssiu_no_dir: cannot create plot directory"), std::string::npos) << out;
 }
 
 }  // namespace

@@ -118,6 +118,16 @@ TEST(FogThermal, BadInputIsInputError) {
   ThermalRun short_run = run;
   for (auto* v : {&short_run.t_s, &short_run.w_dph, &short_run.ref_dph, &short_run.temp_c}) v->resize(1200);
   EXPECT_THROW(FitThermalDrift({short_run}, ThermalFitOptions{}), InputError);  // 20 bins < 40
+  // A 1e12 s gap between two rows: refused by name, not bins allocated over the whole span (ASan:
+  // out of memory, 133 GB).
+  ThermalRun gap = run;
+  for (size_t i = gap.t_s.size() / 2; i < gap.t_s.size(); ++i) gap.t_s[i] += 1e12;
+  try {
+    FitThermalDrift({gap}, ThermalFitOptions{});
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("bad.csv: column 't_s': gap of"));
+  }
 }
 
 }  // namespace

@@ -118,6 +118,11 @@ TEST_F(CliTest, BadImagesExitOneWithOneLineNamingTheFile) {
   ExpectBadInput("detect " + Path("allzero.png") + " --json -", "allzero.png", "constant");
   WritePng16(Path("allsat.png"), Image16(64, 64, 65535));
   ExpectBadInput("detect " + Path("allsat.png") + " --json -", "allsat.png", "constant");
+  // Smaller than Detect()'s 16x16 minimum: a bad-input error, not an internal one (exit 2).
+  Image16 tiny(8, 500, 100);
+  tiny.at(3, 3) = 900;
+  WritePng16(Path("tiny.png"), tiny);
+  ExpectBadInput("detect " + Path("tiny.png") + " --json -", "tiny.png", "too small");
   Image16 mostly(64, 64, 65535);
   for (int x = 0; x < 64; ++x) mostly.at(x, 0) = 100;
   WritePng16(Path("mostlysat.png"), mostly);
@@ -140,6 +145,12 @@ TEST_F(CliTest, BadCameraFilesExitOneNamingTheField) {
   ExpectBadInput("simulate frame --camera " + Path("absurd.json") + " --random --out " + Path("o"), "absurd.json",
                  "focal_length_px");
   ExpectBadInput("simulate frame --random --psf-sigma-px -1 --out " + Path("o"), "psf_sigma_px", "");
+  ExpectBadInput("simulate frame --random --hot-pixels 1e8 --out " + Path("o"), "hot_pixels", "at most 1e6");
+  ExpectBadInput("simulate frame --random --streaks 1e7 --out " + Path("o"), "cosmic_rays", "streaks 1e4");
+  // A directory given as camera.json; a NaN or negative gain is refused, not silently ignored.
+  ExpectBadInput("detect " + frame + " --camera " + dir_, dir_, "is a directory");
+  ExpectBadInput("detect " + frame + " --gain-e-per-adu nan --json -", "--gain-e-per-adu", "finite");
+  ExpectBadInput("detect " + frame + " --gain-e-per-adu -2 --json -", "--gain-e-per-adu", ">= 0");
 }
 
 TEST_F(CliTest, DemoSolvesItsFrameAgainstTheTruth) {
@@ -158,6 +169,10 @@ TEST_F(CliTest, UsageErrorsExitOne) {
   EXPECT_EQ(Ssiu("no-such-command").status, 1);
   EXPECT_EQ(Ssiu("simulate frame --out " + Path("o")).status, 1);  // no attitude
   EXPECT_EQ(Ssiu("detect --help").status, 0);
+  // An infinite frame interval used to be accepted (times of inf in the output).
+  const Result r = Ssiu("track x.png --camera x.json --dt-s inf");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("--dt-s: must be a finite number > 0"));
 }
 
 TEST_F(CliTest, DefectMapFromTheRealMedianFrame) {

@@ -114,6 +114,12 @@ TEST_F(RunCli, BadConfigExitsOneWithOneLineNamingFileAndField) {
   const auto r = testing::RunSsiu("run --config " + Path("absent.json"));
   EXPECT_EQ(r.status, 1);
   EXPECT_THAT(r.output, HasSubstr("absent.json"));
+  // An output directory that cannot be made: one line before the mission runs (was a filesystem
+  // exception, exit 2, after the header line).
+  const auto o = testing::RunSsiu("run --out /proc/ssiu_no_such_dir");
+  EXPECT_EQ(o.status, 1) << o.output;
+  EXPECT_EQ(std::count(o.output.begin(), o.output.end(), '\n'), 1) << o.output;
+  EXPECT_THAT(o.output, HasSubstr("/proc/ssiu_no_such_dir: cannot create output directory"));
 }
 
 }  // namespace

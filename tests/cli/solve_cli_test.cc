@@ -71,6 +71,11 @@ TEST_F(SolveCli, SolveFrameMatchesTruthAndWritesOverlayAndWcs) {
   const std::string header((std::istreambuf_iterator<char>(wcs)), std::istreambuf_iterator<char>());
   EXPECT_NE(header.find("CTYPE1"), std::string::npos);
   EXPECT_NE(header.find("RA---TAN"), std::string::npos);
+  // A WCS file that cannot be written is an error naming it (was exit 0 with no file).
+  const Result w = Ssiu("solve " + Path("f/frame_0000.png") + " --camera " + Path("f/camera.json") + " --catalog " +
+                        Path("cat") + " --json " + Path("s2.json") + " --wcs /nonexistent_dir/s.wcs");
+  EXPECT_EQ(w.status, 1) << w.output;
+  EXPECT_THAT(w.output, ::testing::HasSubstr("/nonexistent_dir/s.wcs: cannot write file"));
 }
 
 TEST_F(SolveCli, SolveFromCentroidsCsvAndNoiseGivesNoSolution) {

@@ -92,6 +92,14 @@ TEST_F(GroundtestCli, BadInputExitsOneWithAReason) {
                  "/fam/aux_camera.json --out " + dir_ + "/r.csv"),
             1);
   EXPECT_THAT(out_, ::testing::HasSubstr("wrong tag family"));
+  // A design attitude off the sky: used to give a mask of every catalog star (NaN RA) or of a
+  // declination past the pole, with exit 0.
+  for (const std::string att : {"--ra-deg nan --dec-deg 0", "--ra-deg 10 --dec-deg 100", "--ra-deg 10 --dec-deg 0 --roll-deg inf"}) {
+    EXPECT_EQ(Ssiu("groundtest mask --camera " + dir_ + "/other.json --collimator-focal-mm 500 " + att + " --out " + dir_ + "/m2"), 1)
+        << att << "\n" << out_;
+    EXPECT_THAT(out_, ::testing::HasSubstr("--dec-deg in [-90, 90]")) << att;
+    EXPECT_EQ(std::count(out_.begin(), out_.end(), '\n'), 1) << out_;
+  }
   // Compare: a tracker log without a quaternion column.
   std::ofstream(dir_ + "/bad.csv") << "t_s,qw,qx,qy\n0,1,0,0\n1,1,0,0\n";
   std::ofstream(dir_ + "/ok.csv") << "t_s,qw,qx,qy,qz\n0,1,0,0,0\n1,1,0,0,0\n";
@@ -112,6 +120,12 @@ TEST_F(GroundtestCli, BadInputExitsOneWithAReason) {
   EXPECT_EQ(reference_with("enc_time.csv", "t_s,az_deg,el_deg,rot_deg\n0,0,0,0\n60,0.1,0,0\n30,0.2,0,0\n"), 1);
   EXPECT_THAT(out_, ::testing::HasSubstr("t_s"));
   EXPECT_EQ(reference_with("enc_empty.csv", "t_s,az_deg,el_deg,rot_deg\n"), 1);
+  EXPECT_EQ(reference_with("enc_turns.csv", "t_s,az_deg,el_deg,rot_deg\n0,0,0,0\n1,1e300,0,0\n"), 1);
+  EXPECT_THAT(out_, ::testing::HasSubstr("row 2: encoder angle beyond +-360 deg"));
+  // A 1-sigma of 1e300 arcsec made the fit's weights 0/0 (NaN misalignment, exit 0).
+  std::ofstream(dir_ + "/huge_sigma.csv") << "t_s,qw,qx,qy,qz,sigma_cross_arcsec,sigma_roll_arcsec\n0,1,0,0,0,1e300,5\n1,1,0,0,0,1e300,5\n";
+  EXPECT_EQ(Ssiu("groundtest compare --reference " + dir_ + "/ok.csv --computed " + dir_ + "/huge_sigma.csv"), 1) << out_;
+  EXPECT_THAT(out_, ::testing::HasSubstr("huge_sigma.csv: sigma columns"));
   // The mask checked against another tracker camera by `reference` too.
   EXPECT_EQ(Ssiu("groundtest reference --mask " + m + " --camera " + dir_ + "/other.json --encoders " + dir_ +
                  "/enc_time.csv --out " + dir_ + "/r.csv"),

@@ -174,6 +174,9 @@ TEST(Catalog, BadOptionsAreRejected) {
   o = {};
   o.epoch_year = 1000;
   EXPECT_THROW(o.Check(), InputError);
+  o = {};
+  o.double_star_arcsec = INFINITY;  // overflowed the sky grid's int cell index (UBSan)
+  EXPECT_THROW(o.Check(), InputError);
   EXPECT_THROW(LoadSourceCatalog("/nonexistent/catalog"), InputError);
 }
 

@@ -3,6 +3,7 @@
 
 #include <cmath>
 
+#include "core/error.h"
 #include "core/types.h"
 #include "testing/testing.h"
 
@@ -54,6 +55,33 @@ TEST(FogBenchSim, TurntableNoiseFreeOutputIsTheEarthRateProjection) {
     EXPECT_NEAR(log.wx_dph[i], w * std::cos(psi), 1e-9);
     EXPECT_NEAR(log.wy_dph[i], w * std::sin(psi), 1e-9);
   }
+}
+
+}  // namespace
+}  // namespace ssiu
+
+namespace ssiu {
+namespace {
+
+// Absurd sizes are bad input, not hours of simulation (1e12 s, 1e8 azimuths); a latitude past the
+// pole or a NaN trim error is refused rather than written out as NaN rates.
+TEST(FogBenchSim, AbsurdOptionsAreInputErrors) {
+  ThermalBenchOptions t;
+  t.duration_s = 1e12;
+  EXPECT_THROW(t.Check(), InputError);
+  TurntableOptions o;
+  o.positions = 100000000;
+  EXPECT_THROW(o.Check(), InputError);
+  o = TurntableOptions{};
+  o.latitude_deg = 95;
+  EXPECT_THROW(o.Check(), InputError);
+  o.latitude_deg = std::nan("");
+  EXPECT_THROW(o.Check(), InputError);
+  o = TurntableOptions{};
+  o.dpsi0_deg = std::nan("");
+  EXPECT_THROW(o.Check(), InputError);
+  EXPECT_NO_THROW(TurntableOptions{}.Check());
+  EXPECT_NO_THROW(ThermalBenchOptions{}.Check());
 }
 
 }  // namespace

@@ -79,6 +79,11 @@ TEST_F(GyroCli, BadInputExitsOneWithALineNamingFileAndField) {
   std::string out;
   EXPECT_EQ(testing::Run(ssiu + " simulate gyro --profile " + d + "/nope.json --out " + d + "/x", &out), 1) << out;
   EXPECT_THAT(out, HasSubstr("nope.json"));
+  // A star tracker at 1e9 Hz used to run for hours.
+  std::ofstream(d + "/fast_st.json") << R"({"type": "slew", "star_tracker": {"rate_hz": 1e9}})";
+  EXPECT_EQ(testing::Run(ssiu + " simulate gyro --profile " + d + "/fast_st.json --duration-s 10 --out " + d + "/x", &out), 1)
+      << out;
+  EXPECT_THAT(out, HasSubstr("star_tracker.rate_hz must be in (0, 1000]"));
 }
 
 }  // namespace
