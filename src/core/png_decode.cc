@@ -155,6 +155,8 @@ bool DecodeGreyPng(std::vector<uint8_t>& bytes, const std::string& path, Frame* 
   const int bpp = depth / 8;
   const size_t row_bytes = static_cast<size_t>(w) * bpp;
   const size_t raw_bytes = (row_bytes + 1) * h;
+  // Deflate expands at most ~1032:1: refuse before allocating what a short file cannot fill.
+  if (raw_bytes / 1032 > idat_end - idat_begin + 64) Corrupt(path, "IDAT holds fewer bytes than IHDR's size needs (truncated)");
   Frame fr;
   fr.file = path;
   fr.bit_depth = depth;
