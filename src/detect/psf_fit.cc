@@ -11,6 +11,48 @@
 namespace ssiu {
 namespace {
 
+// Normal equations J'WJ and J'Wr of the five-parameter fit (x, y, A, B, sigma) from 15 + 5 scalar
+// sums, shared by the still and the smeared model (scalars rather than an Eigen matrix: they vectorise).
+struct NormalSums {
+  double h00 = 0, h01 = 0, h02 = 0, h03 = 0, h04 = 0, h11 = 0, h12 = 0, h13 = 0, h14 = 0, h22 = 0, h23 = 0,
+         h24 = 0, h33 = 0, h34 = 0, h44 = 0;
+  double g0 = 0, g1 = 0, g2 = 0, g3 = 0, g4 = 0;
+  // One pixel: weight, weighted residual and the Jacobian (x, y, A, sigma; B's column is 1).
+  void Add(double wgt, double wr, double j0, double j1, double j2, double j4) {
+    const double w0 = wgt * j0, w1 = wgt * j1, w2 = wgt * j2, w4 = wgt * j4;
+    h00 += w0 * j0;
+    h01 += w0 * j1;
+    h02 += w0 * j2;
+    h03 += w0;
+    h04 += w0 * j4;
+    h11 += w1 * j1;
+    h12 += w1 * j2;
+    h13 += w1;
+    h14 += w1 * j4;
+    h22 += w2 * j2;
+    h23 += w2;
+    h24 += w2 * j4;
+    h33 += wgt;
+    h34 += w4;
+    h44 += w4 * j4;
+    g0 += wr * j0;
+    g1 += wr * j1;
+    g2 += wr * j2;
+    g3 += wr;
+    g4 += wr * j4;
+  }
+  void Fill(Eigen::Matrix<double, 5, 5>* jtj, Eigen::Matrix<double, 5, 1>* jtr) const {
+      if (jtj) {
+        *jtj << h00, h01, h02, h03, h04,  //
+            h01, h11, h12, h13, h14,      //
+            h02, h12, h22, h23, h24,      //
+            h03, h13, h23, h33, h34,      //
+            h04, h14, h24, h34, h44;
+      }
+      if (jtr) *jtr << g0, g1, g2, g3, g4;
+  }
+};
+
 constexpr double kSqrt2 = 1.41421356237309504880;
 constexpr double kInvSqrtPi = 0.56418958354775628695;
 
@@ -187,9 +229,7 @@ PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double 
     fx.Compute(x0, nx, xc, ss);
     fy.Compute(y0, ny, yc, ss);
     double chi2 = 0;
-    double h00 = 0, h01 = 0, h02 = 0, h03 = 0, h04 = 0, h11 = 0, h12 = 0, h13 = 0, h14 = 0, h22 = 0, h23 = 0,
-           h24 = 0, h33 = 0, h34 = 0, h44 = 0;
-    double g0 = 0, g1 = 0, g2 = 0, g3 = 0, g4 = 0;
+    NormalSums ns;
     for (int b = 0; b < ny; ++b) {
       const double fyb = fy.f[b], dyb = A * fy.dc[b], syb = A * fy.ds[b];
       const size_t row = static_cast<size_t>(b) * nx;
@@ -205,37 +245,10 @@ PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double 
         if (chi2_frozen) *chi2_frozen += w_cur[row + a] * res * res;
         if (!jtj) continue;
         const double j0 = A * fx.dc[a] * fyb, j1 = fxa * dyb, j4 = A * fx.ds[a] * fyb + fxa * syb;
-        const double w0 = wgt * j0, w1 = wgt * j1, w2 = wgt * j2, w4 = wgt * j4;
-        h00 += w0 * j0;
-        h01 += w0 * j1;
-        h02 += w0 * j2;
-        h03 += w0;
-        h04 += w0 * j4;
-        h11 += w1 * j1;
-        h12 += w1 * j2;
-        h13 += w1;
-        h14 += w1 * j4;
-        h22 += w2 * j2;
-        h23 += w2;
-        h24 += w2 * j4;
-        h33 += wgt;
-        h34 += w4;
-        h44 += w4 * j4;
-        g0 += wr * j0;
-        g1 += wr * j1;
-        g2 += wr * j2;
-        g3 += wr;
-        g4 += wr * j4;
+        ns.Add(wgt, wr, j0, j1, j2, j4);
       }
     }
-    if (jtj) {
-      *jtj << h00, h01, h02, h03, h04,  //
-          h01, h11, h12, h13, h14,      //
-          h02, h12, h22, h23, h24,      //
-          h03, h13, h23, h33, h34,      //
-          h04, h14, h24, h34, h44;
-    }
-    if (jtr) *jtr << g0, g1, g2, g3, g4;
+    ns.Fill(jtj, jtr);
     return chi2;
   };
 
@@ -246,9 +259,7 @@ PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double 
                                    double* chi2_frozen) {
     sm.Compute(x0, nx, y0, ny, xc, yc, ss, o.smear_dx_px, o.smear_dy_px);
     double chi2 = 0;
-    double h00 = 0, h01 = 0, h02 = 0, h03 = 0, h04 = 0, h11 = 0, h12 = 0, h13 = 0, h14 = 0, h22 = 0, h23 = 0,
-           h24 = 0, h33 = 0, h34 = 0, h44 = 0;
-    double g0 = 0, g1 = 0, g2 = 0, g3 = 0, g4 = 0;
+    NormalSums ns;
     for (size_t i = 0; i < v.size(); ++i) {
       if (!use[i]) continue;
       const double j2 = sm.f[i], m = A * j2;
@@ -259,36 +270,9 @@ PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double 
       if (chi2_frozen) *chi2_frozen += w_cur[i] * res * res;
       if (!jtj) continue;
       const double j0 = A * sm.dx[i], j1 = A * sm.dy[i], j4 = A * sm.ds[i];
-      const double w0 = wgt * j0, w1 = wgt * j1, w2 = wgt * j2, w4 = wgt * j4;
-      h00 += w0 * j0;
-      h01 += w0 * j1;
-      h02 += w0 * j2;
-      h03 += w0;
-      h04 += w0 * j4;
-      h11 += w1 * j1;
-      h12 += w1 * j2;
-      h13 += w1;
-      h14 += w1 * j4;
-      h22 += w2 * j2;
-      h23 += w2;
-      h24 += w2 * j4;
-      h33 += wgt;
-      h34 += w4;
-      h44 += w4 * j4;
-      g0 += wr * j0;
-      g1 += wr * j1;
-      g2 += wr * j2;
-      g3 += wr;
-      g4 += wr * j4;
+      ns.Add(wgt, wr, j0, j1, j2, j4);
     }
-    if (jtj) {
-      *jtj << h00, h01, h02, h03, h04,  //
-          h01, h11, h12, h13, h14,      //
-          h02, h12, h22, h23, h24,      //
-          h03, h13, h23, h33, h34,      //
-          h04, h14, h24, h34, h44;
-    }
-    if (jtr) *jtr << g0, g1, g2, g3, g4;
+    ns.Fill(jtj, jtr);
     return chi2;
   };
   auto residual = [&](double xc, double yc, double A, double B, double ss, Eigen::Matrix<double, 5, 5>* jtj,
