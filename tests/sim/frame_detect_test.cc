@@ -13,15 +13,8 @@
 namespace ssiu {
 namespace {
 
-const StarCatalog& Bsc() {
-  static const StarCatalog cat = LoadXplanetBsc(DefaultBscPath());
-  return cat;
-}
-
 Detections DetectSim(const SimulatedFrame& f, const FrameSimOptions& so, const DefectMap* map = nullptr) {
-  DetectOptions o;
-  o.gain_e_per_adu = so.gain_e_per_adu;
-  return Detect(f.image.view(), o, map);
+  return Detect(f.image.view(), DetectOptionsForSimulation(Camera{}, so, /*give_rate=*/false), map);
 }
 
 // Cramer-Rao bound of the x and y centroid of a pixel-integrated Gaussian star (flux F electrons,
@@ -68,7 +61,7 @@ TEST(FrameDetect, DefaultFramesMeetRecallFalseAlarmAndCramerRao) {
   int n_crb = 0;
   for (int k = 0; k < frames; ++k) {
     const uint64_t seed = 100 + k;
-    const SimulatedFrame f = SimulateFrame(cam, Bsc(), RandomAttitude(seed), so, seed);
+    const SimulatedFrame f = SimulateFrame(cam, testing::Bsc(), RandomAttitude(seed), so, seed);
     const Detections d = DetectSim(f, so);
     const DetectionScore sc = ScoreDetections(f, d);
     true10 += sc.true_stars_snr10;
@@ -104,7 +97,7 @@ TEST(FrameDetect, NoiseEstimateIgnoresManyHotPixels) {
   const Camera cam;
   FrameSimOptions so;
   so.hot_pixels = 5000;
-  const SimulatedFrame f = SimulateFrame(cam, Bsc(), RandomAttitude(7), so, 7);
+  const SimulatedFrame f = SimulateFrame(cam, testing::Bsc(), RandomAttitude(7), so, 7);
   const Detections d = DetectSim(f, so);
   EXPECT_NEAR(d.noise_adu, f.noise_adu, 0.1 * f.noise_adu);
   const DetectionScore sc = ScoreDetections(f, d);
@@ -124,7 +117,7 @@ TEST(FrameDetect, CosmicRaysAndStreaksAreNeverStars) {
   so.streaks = 2;
   int artefacts_as_stars = 0, rays = 0, streaks = 0;
   for (int k = 0; k < 4; ++k) {
-    const SimulatedFrame f = SimulateFrame(cam, Bsc(), RandomAttitude(300 + k), so, 300 + k);
+    const SimulatedFrame f = SimulateFrame(cam, testing::Bsc(), RandomAttitude(300 + k), so, 300 + k);
     const Detections d = DetectSim(f, so);
     artefacts_as_stars += ScoreDetections(f, d).artefacts_as_stars;
     for (const auto& r : d.rejected) {
@@ -142,7 +135,7 @@ TEST(FrameDetect, SaturatedStarIsCentroidedAndFlagged) {
   const Camera cam;
   const FrameSimOptions so;
   const Quat q = QuatFromRaDecRoll(279.2347 * kDegToRad, 38.7837 * kDegToRad, 0.3);
-  const SimulatedFrame f = SimulateFrame(cam, Bsc(), q, so, 11);
+  const SimulatedFrame f = SimulateFrame(cam, testing::Bsc(), q, so, 11);
   const SimStar* vega = nullptr;
   for (const auto& s : f.stars) {
     if (s.star_id == 7001) vega = &s;
@@ -163,7 +156,7 @@ TEST(FrameDetect, DefectMapFromDarksRemovesPersistentHotPixels) {
   dark.mag0_flux_e_per_s = 0;  // shutter closed: no stars
   dark.background_e_per_s = 0;
   std::vector<SimulatedFrame> darks;
-  for (int k = 0; k < 3; ++k) darks.push_back(SimulateFrame(cam, Bsc(), RandomAttitude(k), dark, 500 + k));
+  for (int k = 0; k < 3; ++k) darks.push_back(SimulateFrame(cam, testing::Bsc(), RandomAttitude(k), dark, 500 + k));
   std::vector<ImageView> views;
   for (const auto& f : darks) views.push_back(f.image.view());
   const DefectMap map = BuildDefectMap(views);
@@ -189,7 +182,7 @@ TEST(FrameDetect, DefectMapFromDarksRemovesPersistentHotPixels) {
 
   // A sky frame of the same sensor, detected with the map: hot pixels become defect_map rejections.
   const FrameSimOptions so;
-  const SimulatedFrame f = SimulateFrame(cam, Bsc(), RandomAttitude(42), so, 42);
+  const SimulatedFrame f = SimulateFrame(cam, testing::Bsc(), RandomAttitude(42), so, 42);
   const Detections d = DetectSim(f, so, &map);
   const DetectionScore sc = ScoreDetections(f, d);
   EXPECT_EQ(sc.hot_pixels_as_stars, 0);
@@ -202,13 +195,13 @@ TEST(FrameDetect, DefectMapFromDarksRemovesPersistentHotPixels) {
 TEST(FrameDetect, SimulatorIsDeterministicAndSwitchesEffectsOff) {
   const Camera cam;
   FrameSimOptions so;
-  const SimulatedFrame a = SimulateFrame(cam, Bsc(), RandomAttitude(3), so, 3);
-  const SimulatedFrame b = SimulateFrame(cam, Bsc(), RandomAttitude(3), so, 3);
+  const SimulatedFrame a = SimulateFrame(cam, testing::Bsc(), RandomAttitude(3), so, 3);
+  const SimulatedFrame b = SimulateFrame(cam, testing::Bsc(), RandomAttitude(3), so, 3);
   EXPECT_EQ(a.image.pixels, b.image.pixels);
   so.hot_pixels = so.dead_pixels = so.cosmic_rays = 0;
   so.shot_noise = false;
   so.read_noise_e = 0;
-  const SimulatedFrame c = SimulateFrame(cam, Bsc(), RandomAttitude(3), so, 3);
+  const SimulatedFrame c = SimulateFrame(cam, testing::Bsc(), RandomAttitude(3), so, 3);
   EXPECT_TRUE(c.artefacts.empty());
   // Noise-free: a pixel far from every star is exactly bias + (background + dark) / gain.
   const double expect = so.bias_adu + (so.background_e_per_s + so.dark_current_e_per_s) * so.exposure_s / so.gain_e_per_adu;
@@ -235,7 +228,7 @@ TEST(FrameDetect, ExtendedObjectIsRejectedNotAStar) {
   // A galaxy- or planet-sized blob (Gaussian, sigma 5 px) added to a default frame.
   const Camera cam;
   const FrameSimOptions so;
-  SimulatedFrame f = SimulateFrame(cam, Bsc(), RandomAttitude(21), so, 21);
+  SimulatedFrame f = SimulateFrame(cam, testing::Bsc(), RandomAttitude(21), so, 21);
   double bx = 300, by = 300;
   for (int tries = 0; tries < 50; ++tries) {  // a spot with no star within 40 px
     bool clear = true;
@@ -267,7 +260,7 @@ TEST(FrameDetect, DefocusedStarsAreStillFoundAndCentred) {
   FrameSimOptions so;
   so.defocus_radius_px = 2.0;
   so.mag_max = 6.5;
-  const SimulatedFrame f = SimulateFrame(cam, Bsc(), RandomAttitude(33), so, 33);
+  const SimulatedFrame f = SimulateFrame(cam, testing::Bsc(), RandomAttitude(33), so, 33);
   const Detections d = DetectSim(f, so);
   const DetectionScore sc = ScoreDetections(f, d, 1.0);
   ASSERT_GT(sc.true_stars_snr10, 10);

@@ -16,11 +16,6 @@ namespace {
 
 using ::testing::HasSubstr;
 
-const StarCatalog& Bsc() {
-  static const StarCatalog cat = LoadXplanetBsc(DefaultBscPath());
-  return cat;
-}
-
 // Replays a simulated log through OnlineFusion sample by sample: gyro sample k, then the star samples
 // at or before t_k (they fall on gyro sample times here).
 struct Replay {
@@ -106,8 +101,8 @@ struct MissionRuns {
 const MissionRuns& Runs() {
   static const MissionRuns r = [] {
     MissionRuns m;
-    m.one = RunMission(SmallMission(1), Bsc());
-    m.two = RunMission(SmallMission(2), Bsc());
+    m.one = RunMission(SmallMission(1), testing::Bsc());
+    m.two = RunMission(SmallMission(2), testing::Bsc());
     std::printf("one head:\n%stwo heads:\n%s", m.one.Text().c_str(), m.two.Text().c_str());
     return m;
   }();
@@ -121,9 +116,9 @@ const MissionRuns& Runs() {
 TEST(Mission, OneHeadCovarianceAllowsForErrorsFixedToTheStarField) {
   MissionConfig c = SmallMission(1);
   c.duration_s = 150;
-  const MissionResult floored = RunMission(c, Bsc());
+  const MissionResult floored = RunMission(c, testing::Bsc());
   c.processor.correlated_fraction = 0;
-  const MissionResult white = RunMission(c, Bsc());
+  const MissionResult white = RunMission(c, testing::Bsc());
   std::printf("150 s, one head: correlated_fraction 0.6: %.1f%% within 3 sigma, NEES %.2f; 0: %.1f%%, NEES %.2f\n",
               100 * floored.within_3sigma_fraction, floored.nees_mean, 100 * white.within_3sigma_fraction,
               white.nees_mean);
@@ -182,7 +177,7 @@ TEST(Mission, OneHeadSlewingAtOneDegreePerSecondSolvesEveryFrame) {
   c.motion.axis_body = Vec3(1.0, 0.3, 0.1).normalized();
   // The frames are smeared as predicted: the star nearest the centre by f |w_xy| T.
   const MissionData data = SimulateMission(c);
-  const SimulatedFrame f = SimulateMissionFrame(c, data, Bsc(), 3, 0);
+  const SimulatedFrame f = SimulateMissionFrame(c, data, testing::Bsc(), 3, 0);
   const Camera& cam = c.heads[0].camera;
   const SimStar* centre = nullptr;
   for (const SimStar& s : f.stars) {
@@ -194,7 +189,7 @@ TEST(Mission, OneHeadSlewingAtOneDegreePerSecondSolvesEveryFrame) {
   EXPECT_NEAR(centre->smear_px, expected_px, 0.05 * expected_px);
   EXPECT_GT(expected_px, 3.0);
 
-  const MissionResult r = RunMission(c, Bsc());
+  const MissionResult r = RunMission(c, testing::Bsc());
   std::printf("1 deg/s slew, one head:\n%s", r.Text().c_str());
   ASSERT_EQ(r.frames, 16);
   EXPECT_EQ(r.frames_solved, r.frames);
@@ -219,9 +214,9 @@ TEST(Mission, DetectorGetsTheGyroRateWhileSlewing) {
   c.score_after_s = 2;
   c.motion.rate_dps = 2.0;
   c.motion.axis_body = Vec3::UnitX();
-  const MissionResult on = RunMission(c, Bsc());
+  const MissionResult on = RunMission(c, testing::Bsc());
   c.processor.solve.detect.smear.min_px = 1e9;
-  const MissionResult off = RunMission(c, Bsc());
+  const MissionResult off = RunMission(c, testing::Bsc());
   std::printf("2 deg/s, 1024 px head: rate handed over: %.1f stars matched, star-only cross %.2f arcsec; not: %.1f, %.2f\n",
               on.heads[0].mean_matches, on.star_only.cross_rms_arcsec, off.heads[0].mean_matches,
               off.star_only.cross_rms_arcsec);

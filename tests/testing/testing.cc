@@ -60,4 +60,9 @@ SsiuResult RunSsiu(const std::string& args) {
   return r;
 }
 
+const StarCatalog& Bsc() {
+  static const StarCatalog cat = LoadXplanetBsc(DefaultBscPath());
+  return cat;
+}
+
 }  // namespace ssiu::testing

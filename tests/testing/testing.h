@@ -8,6 +8,7 @@
 #include <string>
 
 #include "core/attitude.h"
+#include "core/catalog.h"
 
 namespace ssiu::testing {
 
@@ -28,6 +29,9 @@ struct SsiuResult {
   std::string output;
 };
 SsiuResult RunSsiu(const std::string& args);
+
+// The bundled Bright Star Catalogue (LoadXplanetBsc(DefaultBscPath())), loaded once per test program.
+const StarCatalog& Bsc();
 
 }  // namespace ssiu::testing
 
