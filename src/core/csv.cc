@@ -29,6 +29,15 @@ std::vector<std::string> SplitComma(const std::string& line) {
 
 }  // namespace
 
+bool ParseDecimal(const std::string& text, double* value) {
+  if (text.empty() || text.find_first_not_of("0123456789+-.eE") != std::string::npos) return false;
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (end != text.c_str() + text.size() || !std::isfinite(v)) return false;
+  *value = v;
+  return true;
+}
+
 bool CsvTable::Has(const std::string& name) const {
   for (const auto& h : header) {
     if (h == name) return true;
@@ -41,7 +50,7 @@ const std::vector<double>& CsvTable::Column(const std::string& name) const {
     if (header[i] != name) continue;
     if (first_bad_row_[i] >= 0) {
       throw InputError(file, "row " + std::to_string(first_bad_row_[i]) + ", column '" + name +
-                                 "': not a finite number");
+                                 "': not a finite decimal number");
     }
     return columns_[i];
   }
@@ -69,7 +78,8 @@ CsvTable ReadCsv(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw InputError(path, "cannot open file");
   std::string line;
-  if (!std::getline(in, line) || Trim(line).empty()) throw InputError(path, "empty file (no header line)");
+  if (std::getline(in, line) && line.compare(0, 3, "\xEF\xBB\xBF") == 0) line.erase(0, 3);  // UTF-8 BOM
+  if (!in || Trim(line).empty()) throw InputError(path, "empty file (no header line)");
   const std::vector<std::string> names = SplitComma(line);
   for (const auto& n : names) {
     if (n.empty()) throw InputError(path, "header has an empty column name");
@@ -86,9 +96,8 @@ CsvTable ReadCsv(const std::string& path) {
                                  " fields, header has " + std::to_string(names.size()));
     }
     for (size_t i = 0; i < cells.size(); ++i) {
-      char* end = nullptr;
-      const double v = std::strtod(cells[i].c_str(), &end);
-      const bool ok = !cells[i].empty() && end && *end == '\0' && std::isfinite(v);
+      double v = 0;
+      const bool ok = ParseDecimal(cells[i], &v);
       if (!ok && bad[i] < 0) bad[i] = row;
       cols[i].push_back(ok ? v : std::nan(""));
     }

@@ -15,7 +15,7 @@ class CsvTable {
 
   size_t rows() const { return rows_; }
   bool Has(const std::string& name) const;
-  // Column by name; InputError if missing or if any cell is not a finite number.
+  // Column by name; InputError if missing or if any cell is not a finite decimal number.
   const std::vector<double>& Column(const std::string& name) const;
   // Throws InputError unless the column strictly increases.
   void CheckIncreasing(const std::string& name) const;
@@ -29,7 +29,12 @@ class CsvTable {
   std::vector<long> first_bad_row_;  // 1-based data row of the first non-number, -1 if none
 };
 
-// Reads a CSV file; InputError for a missing/empty file, no header or ragged rows.
+// A CSV number: decimal, as in "-1.5e-3" (strtod alone also takes "0x10", "inf" and "nan"); false
+// for anything else or a value that is not finite.
+bool ParseDecimal(const std::string& text, double* value);
+
+// Reads a CSV file; InputError for a missing/empty file, no header or ragged rows. A UTF-8 byte-order
+// mark before the header (spreadsheet exports) is skipped.
 CsvTable ReadCsv(const std::string& path);
 
 // Writes columns of equal length with a header; `precision` significant digits.
