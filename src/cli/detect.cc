@@ -4,6 +4,7 @@
 #include <memory>
 
 #include "cli/command.h"
+#include "cli/smear_flags.h"
 #include "core/camera.h"
 #include "core/error.h"
 #include "detect/detect.h"
@@ -17,6 +18,7 @@ struct Opts {
   double threshold_sigma = DetectOptions{}.threshold_sigma;
   double psf_sigma_px = 0;
   double gain_e_per_adu = 0;
+  SmearFlags smear;
 };
 
 void Run(const Opts& o) {
@@ -33,8 +35,9 @@ void Run(const Opts& o) {
   opt.threshold_sigma = o.threshold_sigma;
   opt.psf_sigma_px = o.psf_sigma_px;
   opt.saturation_adu = fr.saturation_adu;
+  Camera cam;
   if (!o.camera.empty()) {
-    const Camera cam = LoadCamera(o.camera);
+    cam = LoadCamera(o.camera);
     if (cam.width != fr.image.width || cam.height != fr.image.height) {
       throw InputError(o.frame, "image is " + std::to_string(fr.image.width) + "x" + std::to_string(fr.image.height) +
                                     " but " + o.camera + " says " + std::to_string(cam.width) + "x" +
@@ -43,6 +46,7 @@ void Run(const Opts& o) {
     opt.gain_e_per_adu = cam.gain_e_per_adu;
   }
   if (o.gain_e_per_adu > 0) opt.gain_e_per_adu = o.gain_e_per_adu;
+  opt.smear = SmearFromFlags(o.smear, o.camera.empty() ? nullptr : &cam);
   try {
     opt.Check();
   } catch (const std::invalid_argument& e) {
@@ -61,6 +65,10 @@ void Run(const Opts& o) {
   Json j = DetectionsToJson(d, o.frame, fr.value_scale, fr.value_offset);
   j["grey_conversion"] = fr.grey_conversion;
   j["bit_depth"] = fr.bit_depth;
+  if (opt.smear.active()) {
+    const Vec3 w_dps = opt.smear.rate_rad_s * kRadToDeg;
+    j["smear_model"] = {{"rate_dps", {w_dps.x(), w_dps.y(), w_dps.z()}}, {"exposure_s", opt.smear.exposure_s}};
+  }
   if (!o.json.empty()) WriteJsonFile(o.json, j);
   if (o.json != "-") {
     std::cerr << o.frame << ": " << d.stars.size() << " stars, " << d.rejected.size() << " rejected, background "
@@ -84,5 +92,6 @@ SSIU_REGISTER_COMMAND(detect, [](CLI::App& root) {
   cmd->add_option("--threshold-sigma", o->threshold_sigma, "Detection threshold (matched-filter sigmas)");
   cmd->add_option("--psf-sigma-px", o->psf_sigma_px, "Expected PSF sigma (0 = estimate)");
   cmd->add_option("--gain-e-per-adu", o->gain_e_per_adu, "Detector gain for shot-noise weights");
+  AddSmearFlags(cmd, &o->smear);
   cmd->callback([o] { Run(*o); });
 });

@@ -9,6 +9,7 @@
 #include "attitude/overlay.h"
 #include "attitude/star_solver.h"
 #include "cli/command.h"
+#include "cli/smear_flags.h"
 #include "core/attitude.h"
 #include "core/error.h"
 
@@ -21,6 +22,7 @@ struct Opts {
   SolveOptions solve;
   double mag_max = 0;
   std::string source;
+  SmearFlags smear;  // sensor axes; body axes with --heads
 };
 
 void AddSolverFlags(CLI::App* cmd, Opts* o) {
@@ -58,16 +60,18 @@ void RunSingle(const Opts& o) {
   SolveResult r;
   Frame fr;
   if (!o.centroids.empty()) {
+    RefuseSmearFlags(o.smear, "needs a frame, not --centroids");
     r = SolveCentroids(id, ReadCentroidsCsv(o.centroids), cam, o.solve);
   } else {
     if (o.frames.empty()) throw InputError("ssiu solve", "give a FRAME or --centroids FILE.csv");
     fr = o.dark.empty() ? ReadFrame(o.frames[0]) : SubtractDark(ReadFrame(o.frames[0]), ReadFrame(o.dark));
     SolveOptions so = o.solve;
     so.detect.saturation_adu = fr.saturation_adu;
+    so.detect.smear = SmearFromFlags(o.smear, &cam);
     r = SolveFrame(id, fr.image.view(), cam, so);
   }
+  // Every output is written before the summary line, so that an unwritable one is the only message.
   WriteJsonFile(o.json, SolveResultToJson(r));
-  PrintSummary(o.centroids.empty() ? o.frames[0] : o.centroids, r);
   if (!o.overlay.empty()) {
     if (fr.image.pixels.empty()) throw InputError(o.overlay, "--overlay needs a frame, not --centroids");
     WriteSolveOverlay(o.overlay, fr.image.view(), cam, id, r);
@@ -78,6 +82,7 @@ void RunSingle(const Opts& o) {
     std::ofstream wcs(o.wcs);
     if (!(wcs << TanWcsHeader(r.attitude.q_inertial_from_sensor, c))) throw InputError(o.wcs, "cannot write file");
   }
+  PrintSummary(o.centroids.empty() ? o.frames[0] : o.centroids, r);
 }
 
 void RunHeads(const Opts& o) {
@@ -85,7 +90,12 @@ void RunHeads(const Opts& o) {
   if (!hj.is_array() || hj.empty() || hj.size() > 3) throw InputError(o.heads, "must be a list of 1 to 3 heads");
   if (o.frames.size() != hj.size())
     throw InputError(o.heads, "lists " + std::to_string(hj.size()) + " heads but " + std::to_string(o.frames.size()) + " frames were given");
+  // --rate-dps is the body's rate here: each head sees it in its own axes (as the unit's processor
+  // hands the gyro rate to each head).
+  const Vec3 w_body_rad_s = o.smear.given() ? SmearRateRadS(o.smear, true) : Vec3::Zero();
+  if (!o.smear.given()) RefuseSmearFlags(o.smear, "given without --rate-dps");
   std::vector<Identification> ids;
+  std::vector<SolveResult> results;  // summaries printed after the output is written
   std::vector<Quat> mounts;
   Json heads = Json::array();
   double heads_ms = 0;  // read excluded: detect + identify + attitude of every head
@@ -103,8 +113,11 @@ void RunHeads(const Opts& o) {
     const Frame fr = ReadFrame(o.frames[h]);
     SolveOptions so = o.solve;
     so.detect.saturation_adu = fr.saturation_adu;
+    if (o.smear.given()) {
+      so.detect.smear = SmearModel(mounts.back().normalized().conjugate() * w_body_rad_s, o.smear.exposure_s, cam);
+    }
     const SolveResult r = SolveFrame(id, fr.image.view(), cam, so);
-    PrintSummary(o.frames[h], r);
+    results.push_back(r);
     heads.push_back(SolveResultToJson(r));
     for (const auto& [k, v] : r.timing_ms) heads_ms += v;
     ids.push_back(r.identification);
@@ -154,6 +167,7 @@ void RunHeads(const Opts& o) {
   j["timing_ms"] = {{"heads", heads_ms}, {"fuse", fuse_ms}};
   j["heads"] = heads;
   WriteJsonFile(o.json, j);
+  for (size_t h = 0; h < results.size(); ++h) PrintSummary(o.frames[h], results[h]);
 }
 
 SSIU_REGISTER_COMMAND(solve, [](CLI::App& root) {
@@ -169,6 +183,7 @@ SSIU_REGISTER_COMMAND(solve, [](CLI::App& root) {
   cmd->add_option("--heads", o->heads, "heads.json: up to three heads, fused into one body attitude");
   cmd->add_option("--dark", o->dark, "Dark/median frame subtracted before detection");
   AddSolverFlags(cmd, o.get());
+  AddSmearFlags(cmd, &o->smear, "sensor axes (with --heads: body axes)");
   cmd->callback([o] {
     if (o->heads.empty()) {
       RunSingle(*o);

@@ -6,6 +6,7 @@
 
 #include "attitude/star_solver.h"
 #include "cli/command.h"
+#include "cli/smear_flags.h"
 #include "core/error.h"
 
 namespace ssiu::cli {
@@ -16,6 +17,7 @@ struct Opts {
   std::string camera, catalog, json = "-", dark;
   double dt_s = 1.0;
   SolveOptions solve;
+  SmearFlags smear;  // one rate for the whole sequence
 };
 
 SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
@@ -30,9 +32,11 @@ SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
   cmd->add_option("--fov-tolerance-pct", o->solve.identify.fov_tolerance_pct, "Focal length uncertainty (%), first frame");
   cmd->add_option("--search-radius-px", o->solve.track_search_radius_px, "Tracking search radius")->capture_default_str();
   cmd->add_option("--systematic-px", o->solve.identify.systematic_px, "Unmodelled position error")->capture_default_str();
+  AddSmearFlags(cmd, &o->smear, "sensor axes, the same for every frame");
   cmd->callback([o] {
     if (!(o->dt_s > 0) || !std::isfinite(o->dt_s)) throw InputError("--dt-s", "must be a finite number > 0");
     const Camera cam = LoadCamera(o->camera);
+    const ExpectedSmear smear = SmearFromFlags(o->smear, &cam);
     const StarIdentifier id = MakeIdentifierForCamera(o->catalog, cam, o->solve.identify.fov_tolerance_pct);
     Tracker tracker(id, cam, o->solve);
     Frame dark;
@@ -45,6 +49,7 @@ SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
         throw InputError(o->frames[k], "image size differs from " + o->camera);
       DetectOptions dopt = o->solve.detect;
       dopt.saturation_adu = fr.saturation_adu;
+      dopt.smear = smear;
       if (dopt.gain_e_per_adu == 0) dopt.gain_e_per_adu = cam.gain_e_per_adu;
       const Detections det = Detect(fr.image.view(), dopt);
       SolveResult r = tracker.Update(CentroidsFromDetections(det, o->solve.detector_sigma_scale), k * o->dt_s);
