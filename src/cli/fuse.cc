@@ -20,7 +20,14 @@ void Run(Opts o) {
   GyroLog log;
   if (!o.unit.empty()) {
     unit = LoadGyroUnit(o.unit);
-    log = ReadGyroLog(o.gyro, unit.size());
+    // Read every g*_dph column and compare the count: reading only the unit's first N ignored a
+    // log's extra gyros (a 3-gyro unit on a four-FOG log dropped g4 without a word).
+    log = ReadGyroLog(o.gyro, 0);
+    const int n_log = static_cast<int>(log.rates_dph.front().size());
+    if (!log.body_rates && n_log != unit.size()) {
+      throw InputError(o.gyro, "has g1_dph..g" + std::to_string(n_log) + "_dph columns for " + std::to_string(n_log) +
+                                   " gyros but " + o.unit + " describes " + std::to_string(unit.size()));
+    }
   } else {
     log = ReadGyroLog(o.gyro, 0);
     unit = DefaultFourFogUnit();
