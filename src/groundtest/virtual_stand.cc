@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
 
 #include "core/attitude.h"
 #include "core/error.h"
@@ -28,11 +29,17 @@ void StandSimOptions::Check() const {
   if (!misalignment_arcmin.allFinite() || misalignment_arcmin.norm() > 600)
     throw InputError("stand options", "misalignment_arcmin must be finite and below 10 deg");
   if (!(encoder_sigma_arcsec >= 0)) throw InputError("stand options", "encoder_sigma_arcsec must be >= 0");
+  // The plate sits in a holder: a shift of 10 mm or a turn of 10 deg is a setup error (and NaN gave
+  // a NaN plate pose and pictures of nothing, exit 0).
+  if (!(std::abs(plate_shift_mm) <= 10)) throw InputError("stand options", "plate_shift_mm must be within +-10 mm");
+  if (!(std::abs(plate_turn_deg) <= 10)) throw InputError("stand options", "plate_turn_deg must be within +-10 deg");
   view.Check();
   photo.Check();
 }
 
 namespace {
+
+constexpr double kMaxHoleRadiusPx = 100;  // image of one mask hole at the tracker
 
 // Area of the intersection of two disks of radii a, b with centres d apart.
 double DiskOverlap(double d, double a, double b) {
@@ -99,6 +106,14 @@ Image16 RenderTrackerView(const Mask& m, const PlatePose& pose, const Quat& q_c_
     vs.star_id = hole.star_id;
     vs.x_px = px->x(), vs.y_px = px->y();
     vs.radius_px = cam.focal_length_px * hole.diameter_mm / 2 / m.collimator_focal_mm;
+    // Holes are graded over a few pixel footprints; an absurd diameter (1e9 mm overflowed AddHole's
+    // int window size) is refused. At 100 px the supersampled window is already ~100 MB.
+    if (!(vs.radius_px <= kMaxHoleRadiusPx)) {
+      std::ostringstream msg;
+      msg << "hole of HR " << hole.star_id << ": diameter_mm " << hole.diameter_mm << " images to a radius of "
+          << vs.radius_px << " px at the tracker (at most " << kMaxHoleRadiusPx << " px)";
+      throw InputError("mask", msg.str());
+    }
     vs.flux_e = d.mag0_flux_e_per_s * d.exposure_s * std::pow(10.0, -0.4 * hole.mag_effective);
     AddHole(&e, w, h, vs.x_px, vs.y_px, vs.radius_px, d.defocus_radius_px, d.psf_sigma_px, vs.flux_e);
     if (stars_in_view && cam.InImage(*px)) stars_in_view->push_back(vs);

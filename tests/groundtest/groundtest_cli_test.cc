@@ -1,6 +1,8 @@
 // `ssiu groundtest mask | simulate | reference | compare` end to end, and bad input -> exit 1.
 #include <algorithm>
 #include <fstream>
+#include <utility>
+#include <vector>
 
 #include "core/csv.h"
 #include "core/json.h"
@@ -140,6 +142,21 @@ TEST_F(GroundtestCli, BadInputExitsOneWithAReason) {
   std::ofstream(dir_ + "/back.csv") << "t_s,qw,qx,qy,qz\n1,1,0,0,0\n0,1,0,0,0\n";
   EXPECT_EQ(Ssiu("groundtest compare --reference " + dir_ + "/ok.csv --computed " + dir_ + "/back.csv"), 1);
   EXPECT_THAT(out_, ::testing::HasSubstr("back.csv"));
+  // A NaN plate shift gave a NaN plate pose and frames of nothing (exit 0).
+  for (const auto& [flag, field] : std::vector<std::pair<std::string, std::string>>{
+           {"--plate-shift-mm nan", "plate_shift_mm"}, {"--plate-shift-mm 1e9", "plate_shift_mm"},
+           {"--plate-turn-deg inf", "plate_turn_deg"}}) {
+    EXPECT_EQ(Ssiu("groundtest simulate --mask " + m + " --positions 1 " + flag + " --out " + dir_ + "/p"), 1) << flag;
+    EXPECT_THAT(out_, ::testing::HasSubstr("stand options: " + field + " must be within")) << flag;
+    EXPECT_EQ(std::count(out_.begin(), out_.end(), '\n'), 1) << out_;
+  }
+  // A 1e9 mm hole overflowed the renderer's int window size (UBSan); now refused with its size.
+  Json big = ReadJsonFile(m);
+  big["holes"][0]["diameter_mm"] = 1e9;
+  WriteJsonFile(dir_ + "/big_hole.json", big);
+  EXPECT_EQ(Ssiu("groundtest simulate --mask " + dir_ + "/big_hole.json --positions 1 --out " + dir_ + "/p"), 1) << out_;
+  EXPECT_THAT(out_, ::testing::HasSubstr("diameter_mm 1e+09 images to a radius of 3.51e+09 px at the tracker"));
+  EXPECT_EQ(std::count(out_.begin(), out_.end(), '\n'), 1) << out_;
 }
 
 }  // namespace
