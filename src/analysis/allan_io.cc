@@ -53,7 +53,9 @@ std::vector<std::string> SplitCells(const std::string& line) {
 }
 
 bool ParseNumber(const std::string& s, double* v) {
-  if (s.empty()) return false;
+  // Decimal only, as in core/csv.h (strtod would read "0x10" as 16); "nan" passes here and is
+  // refused where a value must be finite.
+  if (s.empty() || s.find_first_of("xX") != std::string::npos) return false;
   char* end = nullptr;
   *v = std::strtod(s.c_str(), &end);
   return end && *end == '\0';
@@ -233,6 +235,14 @@ RateLog ReadRateLog(const std::string& path, const std::string& column, const st
 
 CurveFile ReadAllanCurveFile(const std::string& path, const CurveFileOptions& o) {
   if (!(o.confidence > 0 && o.confidence < 1)) throw InputError(path, "confidence must be in (0, 1)");
+  // A negative or non-finite length/rate behind the curve was silently ignored (the file's own
+  // values or none used instead), whichever command passed it.
+  auto non_negative = [&](double v, const char* field) {
+    if (!(std::isfinite(v) && v >= 0)) throw InputError(path, std::string(field) + " must be a finite number >= 0");
+  };
+  non_negative(o.sample_rate_hz, "sample rate (--sample-rate-hz)");
+  non_negative(o.n, "sample count (--n)");
+  non_negative(o.duration_s, "duration (--duration-s)");
   const TextTable t = ReadTextTable(path);
   CurveFile out;
   out.file = path;

@@ -3,6 +3,7 @@
 // (analysis/discover_gyro.h, analysis/discover_frames.h); this file parses flags and writes JSON.
 #include <iostream>
 #include <memory>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -87,9 +88,10 @@ SSIU_REGISTER_COMMAND(discover_allan, [](CLI::App& root) {
                      {"rrw_deg_per_h_per_sqrt_h", g.rrw_deg_per_h_per_sqrt_h.value},
                      {"quantization_arcsec", g.quantization_arcsec.value},
                      {"rate_ramp_deg_per_h2", g.rate_ramp_deg_per_h2.value}};
+    // Output first: a path that cannot be written is then the only line printed.
+    if (!o->json.empty()) ssiu::WriteJsonFile(o->json, j);
     std::cerr << "discover allan: " << o->curve << " " << cf.channel << ": chi2/dof " << d.chi2_per_dof_before << " -> "
               << d.chi2_per_dof_after << ", departs in " << d.departures_s.size() << " tau range(s)\n";
-    if (!o->json.empty()) ssiu::WriteJsonFile(o->json, j);
   });
 });
 
@@ -151,11 +153,13 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
     const ssiu::SolvedFrameSet set =
         ssiu::SolveFrameSet(id, views, o->frames, cam, so, known.empty() ? nullptr : &known);
     const ssiu::FrameDiscovery d = ssiu::DiscoverFrames(set, cam, o->opt);
-    std::cerr << "discover frames: " << d.frames_solved << "/" << d.frames << " solved, " << d.stars << " stars; cause "
-              << d.cause;
-    for (const auto& [k, v] : d.parameters) std::cerr << " " << k << "=" << v << "+-" << d.sigmas.at(k);
-    std::cerr << "; residual rms " << d.residual_rms_before_arcsec << " -> " << d.residual_rms_after_arcsec
-              << " arcsec (gain " << d.gain << ")\n";
+    // The summary is printed after every output is written: an unwritable path is then the only line.
+    std::ostringstream summary;
+    summary << "discover frames: " << d.frames_solved << "/" << d.frames << " solved, " << d.stars << " stars; cause "
+            << d.cause;
+    for (const auto& [k, v] : d.parameters) summary << " " << k << "=" << v << "+-" << d.sigmas.at(k);
+    summary << "; residual rms " << d.residual_rms_before_arcsec << " -> " << d.residual_rms_after_arcsec
+            << " arcsec (gain " << d.gain << ")\n";
     ssiu::Json j = ssiu::FrameDiscoveryToJson(d);
     j["frame_status"] = ssiu::Json::object();
     for (size_t i = 0; i < set.status.size(); ++i) j["frame_status"][o->frames[i]] = set.status[i];
@@ -180,12 +184,12 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
       cj["extended_model"] = {{"camera", ssiu::CameraToJson(cam2)},
                               {"sim_options_changed", ssiu::FrameSimOptionsDiff(co.sim, co2.sim)}};
       cj["after"] = ssiu::FrameComparisonToJson(after);
-      std::cerr << "compare-sim: position rms " << before.position_rms_px << " -> " << after.position_rms_px
-                << " px; flux ratio " << before.flux_ratio_median << " -> " << after.flux_ratio_median
-                << "; spot sigma measured " << before.measured.psf_sigma_px << " vs simulated "
-                << before.simulated.psf_sigma_px << " -> " << after.simulated.psf_sigma_px << " px; noise measured "
-                << before.measured.noise_adu << " vs simulated " << before.simulated.noise_adu << " -> "
-                << after.simulated.noise_adu << " ADU\n";
+      summary << "compare-sim: position rms " << before.position_rms_px << " -> " << after.position_rms_px
+              << " px; flux ratio " << before.flux_ratio_median << " -> " << after.flux_ratio_median
+              << "; spot sigma measured " << before.measured.psf_sigma_px << " vs simulated "
+              << before.simulated.psf_sigma_px << " -> " << after.simulated.psf_sigma_px << " px; noise measured "
+              << before.measured.noise_adu << " vs simulated " << before.simulated.noise_adu << " -> "
+              << after.simulated.noise_adu << " ADU\n";
       ssiu::WriteJsonFile(o->compare_sim, cj);
       if (!o->plot.empty()) {
         ssiu::WriteComparePlots(o->plot, "compare_before", before, cam, "simulator defaults");
@@ -201,6 +205,7 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
       for (const auto& h : d.hot_pixels) map.mask[static_cast<size_t>(h.y) * map.width + h.x] = 1;
       ssiu::SaveDefectMap(o->defects_out, map);
     }
+    std::cerr << summary.str();
   });
 });
 

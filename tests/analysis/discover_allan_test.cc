@@ -62,5 +62,29 @@ TEST(DiscoverAllan, ZeroAdevIsBadInput) {
   EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
 }
 
+// A negative or NaN length/rate behind the curve was silently ignored; a hex number was read as one;
+// an unwritable --json came after the summary line (two lines). Each is now one line, exit 1.
+TEST(DiscoverAllan, BadFlagsHexAndUnwritableOutputAreOneLine) {
+  const std::string dir = testing::TempDir("allan_flags");
+  std::ofstream(dir + "/c.csv") << "tau_s,adev_dph\n1,0.1\n2,0.07\n4,0.05\n8,0.035\n16,0.025\n";
+  std::ofstream(dir + "/hex.csv") << "tau_s,adev_dph\n1,0.1\n0x2,0.07\n4,0.05\n8,0.035\n16,0.025\n";
+  const std::string run = testing::SsiuProgram() + " discover allan --curve ";
+  struct Case {
+    std::string args, needle;
+  } cases[] = {{dir + "/c.csv --duration-s -5", "c.csv: duration (--duration-s) must be a finite number >= 0"},
+               {dir + "/c.csv --duration-s inf", "duration (--duration-s) must be"},
+               {dir + "/c.csv --sample-rate-hz nan", "sample rate (--sample-rate-hz) must be"},
+               {dir + "/hex.csv", "hex.csv"},
+               {dir + "/c.csv --json /nonexistent_dir/out.json", "/nonexistent_dir/out.json"}};
+  for (const auto& c : cases) {
+    std::string out;
+    EXPECT_EQ(testing::Run(run + c.args, &out), 1) << c.args << "\n" << out;
+    EXPECT_THAT(out, ::testing::HasSubstr(c.needle)) << c.args;
+    EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+  }
+  std::string out;  // the same curve with sane flags runs
+  EXPECT_EQ(testing::Run(run + dir + "/c.csv --duration-s 3600 --json " + dir + "/ok.json", &out), 0) << out;
+}
+
 }  // namespace
 }  // namespace ssiu

@@ -226,6 +226,12 @@ TEST(DiscoverFramesCli, HotPixelsDefectMapAndCompareSim) {
   EXPECT_NEAR(c["before"]["flux_ratio_median"].get<double>(), 1.0, 0.05);
   EXPECT_LT(c["before"]["position_rms_px"].get<double>(), 0.2);
   EXPECT_TRUE(c["after"].contains("simulated"));
+  // An output that cannot be written: its error is the only line (the summary used to come first).
+  const auto w = testing::RunSsiu("discover frames " + dir + "/f0.png --camera " + dir +
+                                  "/cam.json --json /nonexistent_dir/d.json");
+  EXPECT_EQ(w.status, 1) << w.output;
+  EXPECT_THAT(w.output, ::testing::HasSubstr("/nonexistent_dir/d.json: cannot write file"));
+  EXPECT_EQ(std::count(w.output.begin(), w.output.end(), '\n'), 1) << w.output;
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 // `ssiu catalog build`, `ssiu solve` and `ssiu track` end to end on simulated frames: the JSON
 // contract, the attitude against the simulator's truth, side outputs, and bad input.
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -76,6 +77,13 @@ TEST_F(SolveCli, SolveFrameMatchesTruthAndWritesOverlayAndWcs) {
                         Path("cat") + " --json " + Path("s2.json") + " --wcs /nonexistent_dir/s.wcs");
   EXPECT_EQ(w.status, 1) << w.output;
   EXPECT_THAT(w.output, ::testing::HasSubstr("/nonexistent_dir/s.wcs: cannot write file"));
+  // ... and the only line: the summary is printed after every output (it used to come first).
+  EXPECT_EQ(std::count(w.output.begin(), w.output.end(), '\n'), 1) << w.output;
+  const Result o = Ssiu("solve " + Path("f/frame_0000.png") + " --camera " + Path("f/camera.json") + " --catalog " +
+                        Path("cat") + " --json " + Path("s3.json") + " --overlay /nonexistent_dir/o.png");
+  EXPECT_EQ(o.status, 1) << o.output;
+  EXPECT_THAT(o.output, ::testing::HasSubstr("/nonexistent_dir/o.png"));
+  EXPECT_EQ(std::count(o.output.begin(), o.output.end(), '\n'), 1) << o.output;
 }
 
 TEST_F(SolveCli, SolveFromCentroidsCsvAndNoiseGivesNoSolution) {
