@@ -4,6 +4,7 @@
 // and bad flags exit 1 with one line.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 
 #include "core/attitude.h"
@@ -145,6 +146,43 @@ TEST_F(SmearCli, TrackWithTheRateFollowsASmearedSequence) {
     const Quat q_true = QuatOf(ReadJsonFile(truth)["q"]);
     EXPECT_LT(AttitudeErrorRad(QuatOf(t[k]["q"]), q_true) * kRadToArcsec, 25.0) << k;
     EXPECT_LT(SplitAttitudeError(QuatOf(t[k]["q"]), q_true).cross_rad * kRadToArcsec, 10.0) << k;
+  }
+}
+
+TEST_F(SmearCli, SolveHeadsTurnsTheBodyRateIntoEachHeadsAxes) {
+  // Head 0 along the body, head 1 turned 90 deg about body X: a body rate (2, 0.5, 0) deg/s is
+  // (2, 0, -0.5) deg/s in head 1's axes. Each head is simulated with its own rate; --rate-dps gives
+  // the body rate once.
+  const Quat q_body = QuatFromRaDecRoll(200 * kDegToRad, -35 * kDegToRad, 75 * kDegToRad);
+  const Quat mounts[2] = {Quat::Identity(), Quat(Eigen::AngleAxisd(kPi / 2, Vec3::UnitX()))};
+  const Vec3 w_body_dps(2, 0.5, 0);
+  Json heads = Json::array();
+  std::string frames;
+  for (int h = 0; h < 2; ++h) {
+    const Vec3 w = mounts[h].conjugate() * w_body_dps;
+    const RaDecRoll a = RaDecRollFromQuat(q_body * mounts[h]);
+    char args[512];
+    std::snprintf(args, sizeof args,
+                  "simulate frame --ra-deg %.10f --dec-deg %.10f --roll-deg %.10f --seed %d --rate-x-dps %.12f "
+                  "--rate-y-dps %.12f --rate-z-dps %.12f --out %s",
+                  a.ra_rad * kRadToDeg, a.dec_rad * kRadToDeg, a.roll_rad * kRadToDeg, 11 + h, w.x(), w.y(), w.z(),
+                  Path("h" + std::to_string(h)).c_str());
+    ASSERT_EQ(Ssiu(args).status, 0);
+    const auto q = ToWxyz(mounts[h]);
+    heads.push_back({{"camera", ReadJsonFile(Path("h0/camera.json"))}, {"q_body_sensor", {q[0], q[1], q[2], q[3]}}});
+    frames += " " + Path("h" + std::to_string(h) + "/frame_0000.png");
+  }
+  WriteJsonFile(Path("heads.json"), heads);
+  const std::string base = "solve --heads " + Path("heads.json") + frames + " --catalog " + Path("cat");
+  ASSERT_EQ(Ssiu(base + " --json " + Path("hs.json")).status, 0);
+  const Result r = Ssiu(base + kRateFlags + " --json " + Path("hm.json"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  const Json still = ReadJsonFile(Path("hs.json")), moving = ReadJsonFile(Path("hm.json"));
+  ASSERT_EQ(moving["status"], "solved");
+  EXPECT_THAT(QuatOf(moving["q"]), QuaternionNear(q_body, 15.0));
+  // Head 1 matches clearly more stars only if its smear was predicted in its own axes.
+  for (int h = 0; h < 2; ++h) {
+    EXPECT_GT(moving["heads"][h]["matches"].size(), still["heads"][h]["matches"].size() + 5) << "head " << h;
   }
 }
 
