@@ -15,7 +15,8 @@ void AddSmearFlags(CLI::App* cmd, SmearFlags* f, const std::string& axes) {
   f->rate = cmd->add_option("--rate-dps", f->rate_text,
                             "Angular rate relative to inertial space during the exposure, X,Y,Z deg/s in " + axes +
                                 ": the detector fits stars smeared along the path it predicts (needs --camera "
-                                "and --exposure-s)");
+                                "and --exposure-s)")
+                ->type_name("X,Y,Z");
   f->exposure = cmd->add_option("--exposure-s", f->exposure_s,
                                 "Exposure time (s) for --rate-dps (camera.json carries none, so it is required)");
 }
