@@ -25,6 +25,9 @@ struct IntField {
 const DoubleField kDoubleFields[] = {
     {"psf_sigma_px", &FrameSimOptions::psf_sigma_px},
     {"defocus_radius_px", &FrameSimOptions::defocus_radius_px},
+    {"psf_ellipticity", &FrameSimOptions::psf_ellipticity},
+    {"psf_angle_deg", &FrameSimOptions::psf_angle_deg},
+    {"psf_sigma_corner_px", &FrameSimOptions::psf_sigma_corner_px},
     {"exposure_s", &FrameSimOptions::exposure_s},
     {"rate_x_dps", &FrameSimOptions::rate_x_dps},
     {"rate_y_dps", &FrameSimOptions::rate_y_dps},
@@ -33,6 +36,8 @@ const DoubleField kDoubleFields[] = {
     {"mag_max", &FrameSimOptions::mag_max},
     {"vignetting", &FrameSimOptions::vignetting},
     {"background_e_per_s", &FrameSimOptions::background_e_per_s},
+    {"background_gradient_e_per_s", &FrameSimOptions::background_gradient_e_per_s},
+    {"background_gradient_angle_deg", &FrameSimOptions::background_gradient_angle_deg},
     {"dark_current_e_per_s", &FrameSimOptions::dark_current_e_per_s},
     {"read_noise_e", &FrameSimOptions::read_noise_e},
     {"gain_e_per_adu", &FrameSimOptions::gain_e_per_adu},
@@ -73,18 +78,46 @@ void AddGaussian(std::vector<double>& img, int w, int h, double x, double y, dou
   }
 }
 
+// The local PSF: Gaussian core sigma (mean, sqrt of (a^2 + b^2) / 2), its ellipticity as
+// e = (a^2 - b^2) / (a^2 + b^2) (FitSpot's |e1 + i e2|), and the major axis' direction.
+struct PsfShape {
+  double sigma = 1, e = 0, cos_th = 1, sin_th = 0;
+};
+
+// Adds a pixel-integrated elliptical Gaussian: the round Gaussian of the minor sigma b (exact erf
+// integrals) convolved with a 1-D Gaussian of sigma s = sqrt(a^2 - b^2) along the major axis, the
+// latter by the trapezoid rule at steps of half min(s, b) over +-5 s (for a Gaussian integrand the
+// rule's error falls as exp(-2 pi^2 (width / step)^2): negligible at width / step = 2).
+void AddEllipticalGaussian(std::vector<double>& img, int w, int h, double x, double y, const PsfShape& p, double flux) {
+  if (p.e <= 0) {
+    AddGaussian(img, w, h, x, y, p.sigma, flux);
+    return;
+  }
+  const double b = p.sigma * std::sqrt(1 - p.e), s = p.sigma * std::sqrt(2 * p.e);
+  const double step = 0.5 * std::min(s, b);
+  const int k = static_cast<int>(std::ceil(5 * s / step));
+  std::vector<double> wt(2 * k + 1);
+  double sum = 0;
+  for (int j = -k; j <= k; ++j) sum += wt[j + k] = std::exp(-0.5 * std::pow(j * step / s, 2));
+  for (int j = -k; j <= k; ++j) {
+    const double t = j * step;
+    AddGaussian(img, w, h, x + t * p.cos_th, y + t * p.sin_th, b, flux * wt[j + k] / sum);
+  }
+}
+
 // A star image: Gaussian, or for a defocused system a uniform disk (sampled on a sunflower
 // pattern of sub-sources) blurred by the Gaussian.
-void AddPsf(std::vector<double>& img, int w, int h, double x, double y, const FrameSimOptions& o, double flux) {
+void AddPsf(std::vector<double>& img, int w, int h, double x, double y, const FrameSimOptions& o, const PsfShape& p,
+            double flux) {
   if (o.defocus_radius_px <= 0) {
-    AddGaussian(img, w, h, x, y, o.psf_sigma_px, flux);
+    AddEllipticalGaussian(img, w, h, x, y, p, flux);
     return;
   }
   const int n = std::max(16, static_cast<int>(8 * o.defocus_radius_px * o.defocus_radius_px));
   const double golden = kPi * (3.0 - std::sqrt(5.0));
   for (int k = 0; k < n; ++k) {
     const double r = o.defocus_radius_px * std::sqrt((k + 0.5) / n), th = k * golden;
-    AddGaussian(img, w, h, x + r * std::cos(th), y + r * std::sin(th), o.psf_sigma_px, flux / n);
+    AddEllipticalGaussian(img, w, h, x + r * std::cos(th), y + r * std::sin(th), p, flux / n);
   }
 }
 
@@ -115,6 +148,14 @@ void FrameSimOptions::Check() const {
   for (const auto& f : kDoubleFields) need(std::isfinite(this->*f.ptr), f.name, "must be finite");
   need(psf_sigma_px > 0.1 && psf_sigma_px < 50, "psf_sigma_px", "must be in (0.1, 50)");
   need(defocus_radius_px >= 0 && defocus_radius_px < 100, "defocus_radius_px", "must be in [0, 100)");
+  // 0.95 (axis ratio 1:20) already costs ~200 Gaussians per star.
+  need(psf_ellipticity >= 0 && psf_ellipticity <= 0.95, "psf_ellipticity", "must be in [0, 0.95]");
+  need(std::abs(psf_angle_deg) <= 360, "psf_angle_deg", "must be in [-360, 360]");
+  need(psf_sigma_corner_px == 0 || (psf_sigma_corner_px > 0.1 && psf_sigma_corner_px < 50), "psf_sigma_corner_px",
+       "must be 0 (= psf_sigma_px) or in (0.1, 50)");
+  need(background_gradient_e_per_s >= 0 && background_gradient_e_per_s <= 1e9, "background_gradient_e_per_s",
+       "must be in [0, 1e9]");
+  need(std::abs(background_gradient_angle_deg) <= 360, "background_gradient_angle_deg", "must be in [-360, 360]");
   need(exposure_s > 0, "exposure_s", "must be > 0");
   need(std::abs(rate_x_dps) <= 90, "rate_x_dps", "must be in [-90, 90]");
   need(std::abs(rate_y_dps) <= 90, "rate_y_dps", "must be in [-90, 90]");
@@ -225,8 +266,33 @@ SimulatedFrame SimulateFrame(const Camera& cam, const StarCatalog& catalog, cons
   const double bg_e = (o.background_e_per_s + o.dark_current_e_per_s) * o.exposure_s;
   const double var_bg_e2 = (o.shot_noise ? bg_e : 0.0) + o.read_noise_e * o.read_noise_e +
                            o.gain_e_per_adu * o.gain_e_per_adu / 12.0;
-  const double nea_px = 4 * kPi * o.psf_sigma_px * o.psf_sigma_px + kPi * o.defocus_radius_px * o.defocus_radius_px;
-  const double peak_fraction = 1.0 / (2 * kPi * o.psf_sigma_px * o.psf_sigma_px + kPi * o.defocus_radius_px * o.defocus_radius_px);
+  // The PSF at an image position: sigma(r) and the fixed ellipse (axes in pixel coordinates).
+  const double axis_ratio2 = (1 - o.psf_ellipticity) * (1 - o.psf_ellipticity);
+  PsfShape shape0;
+  shape0.sigma = o.psf_sigma_px;
+  shape0.e = (1 - axis_ratio2) / (1 + axis_ratio2);
+  shape0.cos_th = std::cos(o.psf_angle_deg * kDegToRad), shape0.sin_th = std::sin(o.psf_angle_deg * kDegToRad);
+  const bool varying_sigma = o.psf_sigma_corner_px > 0 && o.psf_sigma_corner_px != o.psf_sigma_px;
+  auto shape_at = [&](double x, double y) {
+    PsfShape p = shape0;
+    if (varying_sigma) {
+      const double u = (std::pow(x - cam.cx_px, 2) + std::pow(y - cam.cy_px, 2)) / r_corner2;
+      p.sigma = std::max(0.5 * std::min(o.psf_sigma_px, o.psf_sigma_corner_px),
+                         o.psf_sigma_px + (o.psf_sigma_corner_px - o.psf_sigma_px) * u);
+    }
+    return p;
+  };
+  // Noise-equivalent area and peak fraction of the local PSF (an elliptical Gaussian's area scales
+  // with a b = sigma^2 sqrt(1 - e^2)).
+  const double area_factor = std::sqrt(1 - shape0.e * shape0.e);
+  auto nea_of = [&](const PsfShape& p) {
+    return 4 * kPi * p.sigma * p.sigma * area_factor + kPi * o.defocus_radius_px * o.defocus_radius_px;
+  };
+  auto peak_fraction_of = [&](const PsfShape& p) {
+    return 1.0 / (2 * kPi * p.sigma * p.sigma * area_factor + kPi * o.defocus_radius_px * o.defocus_radius_px);
+  };
+  // The widest PSF anywhere (major-axis sigma) for the margin of stars drawn outside the frame.
+  const double sigma_max_px = std::max(o.psf_sigma_px, o.psf_sigma_corner_px) * std::sqrt(1 + shape0.e);
   // Motion during the exposure (detect/smear.h for the kinematics): a direction fixed in inertial space
   // is exp(-[w]x t) v in sensor axes, t from mid-exposure. Its image is integrated along the projected
   // path (camera model, distortion included) at sub-steps of at most kSmearStepPx.
@@ -236,9 +302,6 @@ SimulatedFrame SimulateFrame(const Camera& cam, const StarCatalog& catalog, cons
   auto path_at = [&](const Vec3& v_mid, double t) {
     return cam.Project(Eigen::AngleAxisd(-rate_rad_s.norm() * t, rate_rad_s.normalized()) * v_mid);
   };
-  // The PSF-equivalent Gaussian sigma for the smear's peak / NEA factors (a defocused PSF: the
-  // Gaussian of the same noise-equivalent area).
-  const double sigma_equiv = std::sqrt(nea_px / (4 * kPi));
   // Stars up to half a smear outside the frame at mid-exposure run into it (half a smear is at most
   // |w| T / 2 times the focal length plus the half diagonal, pinhole; 1.5x for distortion).
   const double smear_margin_px =
@@ -274,15 +337,20 @@ SimulatedFrame SimulateFrame(const Camera& cam, const StarCatalog& catalog, cons
         }
       }
     }
+    const PsfShape psf = shape_at(p.x(), p.y());
+    const double nea_px = nea_of(psf), peak_fraction = peak_fraction_of(psf);
+    // The PSF-equivalent Gaussian sigma for the smear's peak / NEA factors (a defocused or elliptical
+    // PSF: the Gaussian of the same noise-equivalent area).
+    const double sigma_equiv = std::sqrt(nea_px / (4 * kPi));
     const double nea_e = s.smear_px > 0 ? nea_px * SmearNeaFactor(s.smear_px, sigma_equiv) : nea_px;
     const double peak_e = s.smear_px > 0 ? peak_fraction * SmearPeakFactor(s.smear_px, sigma_equiv) : peak_fraction;
     s.snr = s.flux_e / std::sqrt((o.shot_noise ? s.flux_e : 0.0) + nea_e * var_bg_e2);
     s.saturated = s.flux_e * peak_e + bg_e > o.full_well_e ||
                   (s.flux_e * peak_e + bg_e) / o.gain_e_per_adu + o.bias_adu >= (1 << o.bit_depth) - 1;
     if (path.empty()) {
-      AddPsf(signal, w, h, p.x(), p.y(), o, s.flux_e);
+      AddPsf(signal, w, h, p.x(), p.y(), o, psf, s.flux_e);
     } else {
-      for (const Vec2& q : path) AddPsf(signal, w, h, q.x(), q.y(), o, s.flux_e / path.size());
+      for (const Vec2& q : path) AddPsf(signal, w, h, q.x(), q.y(), o, shape_at(q.x(), q.y()), s.flux_e / path.size());
     }
     out.stars.push_back(s);
   };
@@ -291,7 +359,7 @@ SimulatedFrame SimulateFrame(const Camera& cam, const StarCatalog& catalog, cons
     if (cs.unit.dot(boresight) < cos_limit) continue;
     const Vec3 v = r_sensor_from_inertial * cs.unit;
     const auto p = cam.Project(v);
-    if (!p || !cam.InImage(*p, moving ? -3 * o.psf_sigma_px - smear_margin_px : -3 * o.psf_sigma_px)) continue;
+    if (!p || !cam.InImage(*p, moving ? -3 * sigma_max_px - smear_margin_px : -3 * sigma_max_px)) continue;
     add_star(cs.id, cs.mag, *p, v);
   }
   for (int k = 0; k < o.false_stars; ++k) {
@@ -359,12 +427,22 @@ SimulatedFrame SimulateFrame(const Camera& cam, const StarCatalog& catalog, cons
 
   // Detector: background and dark (with vignetting on the sky part), shot noise, full well,
   // read noise, gain, bias, quantisation and ADC saturation.
+  // The sky gradient: +-background_gradient_e_per_s at the extreme corners along its direction.
+  const double gc = std::cos(o.background_gradient_angle_deg * kDegToRad),
+               gs = std::sin(o.background_gradient_angle_deg * kDegToRad);
+  const double g_half_extent = std::abs(gc) * 0.5 * (w - 1) + std::abs(gs) * 0.5 * (h - 1);
+  const bool gradient = o.background_gradient_e_per_s > 0 && g_half_extent > 0;
+  auto sky_at = [&](int x, int y) {
+    if (!gradient) return o.background_e_per_s;
+    const double d = ((x - 0.5 * (w - 1)) * gc + (y - 0.5 * (h - 1)) * gs) / g_half_extent;
+    return std::max(0.0, o.background_e_per_s + o.background_gradient_e_per_s * d);
+  };
   const double adc_max = (1 << o.bit_depth) - 1;
   out.image = Image16(w, h);
   for (int y = 0; y < h; ++y) {
     for (int x = 0; x < w; ++x) {
       const size_t i = static_cast<size_t>(y) * w + x;
-      double e = signal[i] + o.exposure_s * (o.background_e_per_s * vignette(x, y) + o.dark_current_e_per_s);
+      double e = signal[i] + o.exposure_s * (sky_at(x, y) * vignette(x, y) + o.dark_current_e_per_s);
       if (dead[i]) e = 0;
       if (o.shot_noise) e = rng.Poisson(e);
       e = std::min(e, o.full_well_e);

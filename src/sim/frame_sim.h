@@ -19,6 +19,14 @@ struct FrameSimOptions {
   // Optics and photometry
   double psf_sigma_px = 1.2;          // Gaussian PSF sigma (pixel-integrated)
   double defocus_radius_px = 0.0;     // > 0: PSF = uniform disk of this radius convolved with the Gaussian
+  // Elliptical PSF: 1 - minor/major axis (of the Gaussian's sigmas; camera.json "psf_ellipticity" as
+  // `ssiu discover frames` psf_shape writes it), major axis at psf_angle_deg from +x towards +y. The
+  // mean variance (a^2 + b^2) / 2 stays sigma^2 (FitSpot's T). 0 = round.
+  double psf_ellipticity = 0.0;
+  double psf_angle_deg = 0.0;
+  // Field-dependent width: sigma(r) = psf_sigma_px + (corner - psf_sigma_px) (r / r_corner)^2, r from
+  // the principal point, r_corner = half the frame diagonal; 0 = psf_sigma_px everywhere.
+  double psf_sigma_corner_px = 0.0;
   double exposure_s = 0.1;
   // Motion during the exposure: the sensor's angular rate relative to inertial space, in sensor axes
   // (deg/s). Each star (and false star) is smeared along the path it projects to over
@@ -29,6 +37,11 @@ struct FrameSimOptions {
   double vignetting = 0.0;            // flux factor 1 - vignetting * (r / r_corner)^2
   // Detector
   double background_e_per_s = 1000.0; // sky + stray light, per pixel
+  // Linear sky gradient: the sky at the frame's corners differs from the centre's by up to +-this
+  // (the corner furthest along background_gradient_angle_deg, from +x towards +y, gets +this); the
+  // sky is clipped at 0 where the gradient would make it negative.
+  double background_gradient_e_per_s = 0.0;
+  double background_gradient_angle_deg = 0.0;
   double dark_current_e_per_s = 50.0; // per pixel
   double read_noise_e = 10.0;
   double gain_e_per_adu = 0.5;
