@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Dense>
+
 #include "analysis/plot.h"
 #include "core/attitude.h"
 #include "core/error.h"
@@ -66,9 +68,37 @@ double BackgroundStructureAdu(const ImageView& image, int tile_px) {
   return std::sqrt(ss / medians.size());
 }
 
+BackgroundPlane FitBackgroundPlane(const ImageView& image, int tile_px) {
+  BackgroundPlane p;
+  std::vector<double> px, med, dx, dy;
+  const double xc = 0.5 * (image.width - 1), yc = 0.5 * (image.height - 1);
+  for (int y0 = 0; y0 + tile_px <= image.height; y0 += tile_px) {
+    for (int x0 = 0; x0 + tile_px <= image.width; x0 += tile_px) {
+      px.clear();
+      for (int y = y0; y < y0 + tile_px; ++y) {
+        for (int x = x0; x < x0 + tile_px; ++x) px.push_back(image.at(x, y));
+      }
+      med.push_back(Median(px));
+      dx.push_back(x0 + 0.5 * (tile_px - 1) - xc), dy.push_back(y0 + 0.5 * (tile_px - 1) - yc);
+    }
+  }
+  const int n = static_cast<int>(med.size());
+  if (n < 3) return p;
+  Eigen::MatrixXd a(n, 3);
+  Eigen::VectorXd b(n);
+  for (int i = 0; i < n; ++i) a(i, 0) = 1, a(i, 1) = dx[i], a(i, 2) = dy[i], b(i) = med[i];
+  const Eigen::Vector3d c = a.colPivHouseholderQr().solve(b);
+  if (!c.allFinite()) return p;
+  p.ok = true;
+  p.level_adu = c(0), p.gx_adu_per_px = c(1), p.gy_adu_per_px = c(2);
+  p.amplitude_adu = std::abs(c(1)) * xc + std::abs(c(2)) * yc;
+  p.angle_deg = std::atan2(c(2), c(1)) * kRadToDeg;
+  p.residual_rms_adu = std::sqrt((a * c - b).squaredNorm() / n);
+  return p;
+}
+
 FieldFigures MeasureFieldFigures(const SolvedFrameSet& set, const std::vector<ImageView>& images, const Camera& camera,
                                  int tile_px) {
-  (void)camera;
   FieldFigures f;
   f.frames = static_cast<int>(set.status.size());
   f.frames_solved = static_cast<int>(set.q.size());
@@ -111,21 +141,66 @@ FieldFigures MeasureFieldFigures(const SolvedFrameSet& set, const std::vector<Im
     if (n > 0) f.zero_point_slope1_adu = std::exp(sum / n);
   }
   // PSF: medians of the stamp fits.
-  std::vector<double> sig, e1, e2;
+  std::vector<double> sig, e1, e2, u;
+  const double r_corner2 = 0.25 * (double(camera.width) * camera.width + double(camera.height) * camera.height);
   for (const auto& s : set.stars) {
     if (s.stamp.empty()) continue;
     const SpotFit fit = FitSpot(s.stamp, s.stamp_half, s.x_px - s.stamp_x0, s.y_px - s.stamp_y0,
                                 s.psf_sigma_px > 0 ? s.psf_sigma_px : 1.0);
     if (!fit.ok || !(fit.t_px2 > 0.02) || std::sqrt(fit.t_var) > 0.3 * fit.t_px2) continue;
     sig.push_back(std::sqrt(fit.t_px2)), e1.push_back(fit.e1), e2.push_back(fit.e2);
+    u.push_back((std::pow(s.x_px - camera.cx_px, 2) + std::pow(s.y_px - camera.cy_px, 2)) / r_corner2);
   }
   f.psf_stars = static_cast<int>(sig.size());
   f.psf_sigma_px = Median(sig), f.psf_e1 = Median(e1), f.psf_e2 = Median(e2);
+  {  // ellipticity 1 - b/a from |e| = (a^2 - b^2) / (a^2 + b^2): b/a = sqrt((1 - |e|) / (1 + |e|))
+    const double e = std::min(0.99, std::hypot(f.psf_e1, f.psf_e2));
+    f.psf_ellipticity = 1 - std::sqrt((1 - e) / (1 + e));
+    f.psf_angle_deg = 0.5 * std::atan2(f.psf_e2, f.psf_e1) * kRadToDeg;
+  }
+  if (sig.size() >= 8 && *std::max_element(u.begin(), u.end()) - *std::min_element(u.begin(), u.end()) > 0.2) {
+    // sigma = c0 + c1 u, least squares, then once more without the points beyond 3.5 robust sigmas.
+    std::vector<bool> keep(sig.size(), true);
+    double c0 = 0, c1 = 0, se1 = 0;
+    for (int pass = 0; pass < 2; ++pass) {
+      double n = 0, su = 0, ss = 0, suu = 0, sus = 0;
+      for (size_t i = 0; i < sig.size(); ++i) {
+        if (keep[i]) n += 1, su += u[i], ss += sig[i], suu += u[i] * u[i], sus += u[i] * sig[i];
+      }
+      const double det = n * suu - su * su;
+      if (!(det > 0)) break;
+      c1 = (n * sus - su * ss) / det, c0 = (ss - c1 * su) / n;
+      std::vector<double> res;
+      for (size_t i = 0; i < sig.size(); ++i) res.push_back(sig[i] - c0 - c1 * u[i]);
+      // Slope's standard error (OLS, residual RMS of the points fitted / sqrt(sum (u - mean u)^2)).
+      double rss = 0;
+      for (size_t i = 0; i < sig.size(); ++i) rss += keep[i] ? res[i] * res[i] : 0.0;
+      se1 = std::sqrt(rss / std::max(1.0, n - 2) * n / det);
+      const double rs = RobustSigma(res);
+      for (size_t i = 0; i < sig.size(); ++i) keep[i] = std::abs(res[i]) <= 3.5 * rs;
+    }
+    f.psf_sigma_centre_px = c0, f.psf_sigma_corner_px = c0 + c1, f.psf_sigma_change_se_px = se1;
+  }
   f.background_adu = Median(set.background_adu);
   f.noise_adu = Median(set.noise_adu);
-  std::vector<double> st;
-  for (int idx : set.solved_index) st.push_back(BackgroundStructureAdu(images[idx], tile_px));
+  std::vector<double> st, amp, resid;
+  double ux = 0, uy = 0;
+  int planes = 0;
+  for (int idx : set.solved_index) {
+    st.push_back(BackgroundStructureAdu(images[idx], tile_px));
+    const BackgroundPlane p = FitBackgroundPlane(images[idx], tile_px);
+    if (!p.ok) continue;
+    amp.push_back(p.amplitude_adu), resid.push_back(p.residual_rms_adu);
+    ux += std::cos(p.angle_deg * kDegToRad), uy += std::sin(p.angle_deg * kDegToRad);
+    ++planes;
+  }
   f.background_structure_adu = Median(st);
+  if (planes > 0) {
+    f.background_gradient_adu = Median(amp);
+    f.background_gradient_angle_deg = std::atan2(uy, ux) * kRadToDeg;
+    f.background_gradient_coherence = std::hypot(ux, uy) / planes;
+    f.background_plane_residual_adu = Median(resid);
+  }
   return f;
 }
 
@@ -184,12 +259,32 @@ FrameComparison CompareWithSimulation(const SolvedFrameSet& measured, const std:
 
 FrameSimOptions FitSimOptions(const FieldFigures& m, const FrameSimOptions& base) {
   FrameSimOptions f = base;
-  if (m.psf_sigma_px > 0.1) f.psf_sigma_px = m.psf_sigma_px;
+  // The field law only when the change is significant (3 standard errors); else the median width.
+  if (m.psf_sigma_centre_px > 0.1 && m.psf_sigma_corner_px > 0.1 && m.psf_sigma_centre_px < 50 &&
+      m.psf_sigma_corner_px < 50 &&
+      std::abs(m.psf_sigma_corner_px - m.psf_sigma_centre_px) > 3 * m.psf_sigma_change_se_px) {
+    f.psf_sigma_px = m.psf_sigma_centre_px;
+    f.psf_sigma_corner_px = m.psf_sigma_corner_px;
+  } else if (m.psf_sigma_px > 0.1) {
+    f.psf_sigma_px = m.psf_sigma_px;
+    f.psf_sigma_corner_px = 0;
+  }
+  if (m.psf_stars > 0) {
+    f.psf_ellipticity = std::clamp(m.psf_ellipticity, 0.0, 0.95);
+    f.psf_angle_deg = m.psf_angle_deg;
+  }
   if (m.zero_point_slope1_adu > 0) f.mag0_flux_e_per_s = m.zero_point_slope1_adu * base.gain_e_per_adu / base.exposure_s;
-  f.bias_adu = m.background_adu;
-  f.background_e_per_s = 0;
+  // Level = bias + sky; the sky is the gradient's amplitude (the least that keeps it >= 0 everywhere).
+  const double g_adu = std::clamp(m.background_gradient_adu, 0.0, std::max(0.0, m.background_adu));
+  f.bias_adu = std::max(0.0, m.background_adu - g_adu);
+  f.background_e_per_s = g_adu * base.gain_e_per_adu / base.exposure_s;
+  f.background_gradient_e_per_s = f.background_e_per_s;
+  f.background_gradient_angle_deg = m.background_gradient_angle_deg;
   f.dark_current_e_per_s = 0;
-  if (m.noise_adu > 0) f.read_noise_e = m.noise_adu * base.gain_e_per_adu;
+  if (m.noise_adu > 0) {
+    const double sky_shot_e2 = base.shot_noise ? g_adu * base.gain_e_per_adu : 0.0;
+    f.read_noise_e = std::sqrt(std::max(0.0, std::pow(m.noise_adu * base.gain_e_per_adu, 2) - sky_shot_e2));
+  }
   return f;
 }
 
@@ -205,8 +300,17 @@ Json FieldFiguresToJson(const FieldFigures& f) {
               {"psf_e1", f.psf_e1},
               {"psf_e2", f.psf_e2},
               {"psf_stars", f.psf_stars},
+              {"psf_ellipticity", f.psf_ellipticity},
+              {"psf_angle_deg", f.psf_angle_deg},
+              {"psf_sigma_centre_px", f.psf_sigma_centre_px},
+              {"psf_sigma_corner_px", f.psf_sigma_corner_px},
+              {"psf_sigma_change_se_px", f.psf_sigma_change_se_px},
               {"background_adu", f.background_adu},
               {"background_structure_adu", f.background_structure_adu},
+              {"background_gradient_adu", f.background_gradient_adu},
+              {"background_gradient_angle_deg", f.background_gradient_angle_deg},
+              {"background_gradient_coherence", f.background_gradient_coherence},
+              {"background_plane_residual_adu", f.background_plane_residual_adu},
               {"noise_adu", f.noise_adu}};
 }
 

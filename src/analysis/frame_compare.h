@@ -4,8 +4,9 @@
 // same catalog star, flux against catalog magnitude (zero point, slope, scatter), PSF width and
 // shape (FitSpot), background level and structure, noise, solve rate and attitude error.
 //
-// FitSimOptions gives the extended simulator model: the measured PSF sigma, zero point, background
-// level and noise put into FrameSimOptions, so that a second comparison shows the gain.
+// FitSimOptions gives the extended simulator model: the measured PSF sigma (at the centre and the
+// corners), ellipticity and angle, zero point, background level, gradient and noise put into
+// FrameSimOptions, so that a second comparison shows the gain.
 #pragma once
 
 #include <cstdint>
@@ -37,10 +38,24 @@ struct FieldFigures {
   // for a linear sensor in the catalog's band; scatter about the line (mag).
   double zero_point_adu = 0, flux_slope = 0, flux_scatter_mag = 0;
   double zero_point_slope1_adu = 0;  // the same with the slope held at 1 (the simulator's law)
-  double psf_sigma_px = 0, psf_e1 = 0, psf_e2 = 0;  // stamp fits (FitSpot), mean
+  double psf_sigma_px = 0, psf_e1 = 0, psf_e2 = 0;  // stamp fits (FitSpot), medians
   int psf_stars = 0;
+  // The same as ellipticity 1 - minor/major and major-axis angle (from +x towards +y, deg) of the
+  // median (e1, e2): |e| = (a^2 - b^2) / (a^2 + b^2) (FrameSimOptions::psf_ellipticity's definition).
+  double psf_ellipticity = 0, psf_angle_deg = 0;
+  // Stamp-fit sigma against u = (r / r_corner)^2 (r from the principal point, r_corner half the frame
+  // diagonal; the simulator's law, straight line, one 3.5-sigma clip): values at u = 0 and u = 1.
+  // 0 when the stars do not span the field (u range < 0.2) or fewer than 8. change_se: the standard
+  // error of corner - centre (robust residual scale).
+  double psf_sigma_centre_px = 0, psf_sigma_corner_px = 0, psf_sigma_change_se_px = 0;
   double background_adu = 0;            // median over frames of the detector's background
   double background_structure_adu = 0;  // RMS of the tile medians about their frame's median
+  // A plane fitted to each frame's tile medians: the corner amplitude (median over frames, ADU; the
+  // simulator's background_gradient_e_per_s in ADU) and direction (deg, from +x towards +y, of the
+  // summed unit vectors); coherence = length of the mean unit vector (1: every frame the same
+  // direction); the RMS of the tile medians about the plane (median over frames).
+  double background_gradient_adu = 0, background_gradient_angle_deg = 0, background_gradient_coherence = 0;
+  double background_plane_residual_adu = 0;
   double noise_adu = 0;                 // median over frames of the detector's noise sigma
 };
 
@@ -70,6 +85,16 @@ StarCatalog SkyForCamera(const Camera& camera, double fov_tolerance_pct, double 
 // Background structure of one frame: RMS of its tile medians about their median (ADU).
 double BackgroundStructureAdu(const ImageView& image, int tile_px);
 
+// A plane fitted (least squares) to one frame's tile medians, level + gx dx + gy dy with (dx, dy) from
+// the frame centre to the tile centre (px): corner amplitude |gx| (w-1)/2 + |gy| (h-1)/2 (ADU), the
+// direction of (gx, gy) and the RMS of the medians about the plane. ok = false below 3 tiles.
+struct BackgroundPlane {
+  bool ok = false;
+  double level_adu = 0, gx_adu_per_px = 0, gy_adu_per_px = 0;
+  double amplitude_adu = 0, angle_deg = 0, residual_rms_adu = 0;
+};
+BackgroundPlane FitBackgroundPlane(const ImageView& image, int tile_px);
+
 // The measured side from a solved set and its images (SolveFrameSet output).
 FieldFigures MeasureFieldFigures(const SolvedFrameSet& set, const std::vector<ImageView>& images, const Camera& camera,
                                  int tile_px);
@@ -79,9 +104,12 @@ FrameComparison CompareWithSimulation(const SolvedFrameSet& measured, const std:
                                       const Camera& camera, const StarCatalog& sky, const StarIdentifier& id,
                                       const SolveOptions& solve, const FrameCompareOptions& options);
 
-// The simulator options that reproduce the measured figures (the extended model): PSF sigma, V = 0
-// flux (slope held at 1), and the background level and noise (the level as bias, the noise as read noise: a frame
-// alone cannot separate sky shot noise from read noise without the gain).
+// The simulator options that reproduce the measured figures (the extended model): PSF sigma (centre
+// and corner when their difference is over 3 standard errors, else the median), ellipticity and angle, V = 0 flux (slope held
+// at 1), the background level, gradient and noise. The level goes into the bias except the gradient's
+// amplitude, which is sky (background_e_per_s, so that the sky stays >= 0 across the frame); the noise
+// into the read noise less that sky's shot noise (a frame alone cannot separate sky shot noise from
+// read noise without the gain; base's gain and exposure are taken as the camera's).
 FrameSimOptions FitSimOptions(const FieldFigures& measured, const FrameSimOptions& base);
 
 Json FrameComparisonToJson(const FrameComparison& c);

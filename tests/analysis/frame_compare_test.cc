@@ -48,12 +48,75 @@ TEST(FrameCompare, KnownSimulatorDifferencesFoundAndFitted) {
   FrameCompareOptions co2 = co;
   co2.sim = FitSimOptions(before.measured, co.sim);
   EXPECT_NEAR(co2.sim.psf_sigma_px, 0.9, 0.03);
+  // One width everywhere: the field fit's centre - corner change stays under 3 standard errors, so the
+  // median width is used (corner 0 = psf_sigma_px everywhere).
+  EXPECT_EQ(co2.sim.psf_sigma_corner_px, 0.0);
   EXPECT_NEAR(co2.sim.mag0_flux_e_per_s, truth.mag0_flux_e_per_s, 0.05 * truth.mag0_flux_e_per_s);
   const FrameComparison after = CompareWithSimulation(set, views, cam, testing::FrameSky(), testing::FrameIdentifier(), so, co2);
   EXPECT_NEAR(after.simulated.psf_sigma_px, after.measured.psf_sigma_px, 0.03);
   EXPECT_NEAR(after.flux_ratio_median, 1.0, 0.05);
   EXPECT_NEAR(after.simulated.noise_adu, after.measured.noise_adu, 0.05 * after.measured.noise_adu);
   EXPECT_NEAR(after.simulated.background_adu, after.measured.background_adu, 3);
+}
+
+// The PSF-shape and sky knobs: "measured" frames with an elliptical PSF that widens towards the
+// corners and a sky gradient. The comparison against the defaults shows each; FitSimOptions recovers
+// them and the re-comparison agrees.
+TEST(FrameCompare, EllipticityCornerSigmaAndGradientFoundAndFitted) {
+  const Camera cam = MakeCamera(1024, 1024, 16.6);
+  FrameSimOptions truth;
+  truth.psf_sigma_px = 0.9, truth.psf_sigma_corner_px = 1.5;
+  truth.psf_ellipticity = 0.2, truth.psf_angle_deg = 60;
+  truth.background_e_per_s = 3000, truth.background_gradient_e_per_s = 1500, truth.background_gradient_angle_deg = 30;
+  truth.hot_pixels = 0;
+  std::vector<Image16> imgs;
+  std::vector<std::string> names;
+  for (int f = 0; f < 3; ++f) {
+    imgs.push_back(SimulateFrame(cam, testing::FrameSky(), RandomAttitude(510 + f), truth, 910 + f).image);
+    names.push_back("real" + std::to_string(f));
+  }
+  std::vector<ImageView> views;
+  for (const auto& im : imgs) views.push_back(im.view());
+  SolveOptions so;
+  const SolvedFrameSet set = SolveFrameSet(testing::FrameIdentifier(), views, names, cam, so);
+  ASSERT_EQ(set.q.size(), 3u);
+  FrameCompareOptions co;
+  const FrameComparison before = CompareWithSimulation(set, views, cam, testing::FrameSky(), testing::FrameIdentifier(), so, co);
+  const FieldFigures& m = before.measured;
+  EXPECT_NEAR(m.psf_ellipticity, 0.2, 0.03);
+  EXPECT_NEAR(m.psf_angle_deg, 60, 4);
+  EXPECT_LT(before.simulated.psf_ellipticity, 0.03);
+  EXPECT_NEAR(m.psf_sigma_centre_px, 0.9, 0.06);
+  EXPECT_NEAR(m.psf_sigma_corner_px, 1.5, 0.1);
+  EXPECT_NEAR(before.simulated.psf_sigma_corner_px, 1.2, 0.06);
+  // 1500 e/s x 0.1 s / 0.5 e/ADU = 300 ADU at the corners. Tile values g.d over a square of half-side L:
+  // variance |g|^2 L^2 / 3 with A = (|gx| + |gy|) L, so RMS = A / ((|cos| + |sin|) sqrt(3)).
+  EXPECT_NEAR(m.background_gradient_adu, 300, 15);
+  EXPECT_NEAR(m.background_gradient_angle_deg, 30, 2);
+  EXPECT_GT(m.background_gradient_coherence, 0.99);
+  EXPECT_LT(before.simulated.background_gradient_adu, 5);
+  const double c30 = std::cos(30 * kDegToRad), s30 = std::sin(30 * kDegToRad);
+  EXPECT_NEAR(m.background_structure_adu, 300 / (c30 + s30) / std::sqrt(3.0), 20);
+  EXPECT_LT(m.background_plane_residual_adu, 3);
+
+  FrameCompareOptions co2 = co;
+  co2.sim = FitSimOptions(m, co.sim);
+  EXPECT_NEAR(co2.sim.psf_ellipticity, 0.2, 0.03);
+  EXPECT_NEAR(co2.sim.psf_angle_deg, 60, 4);
+  EXPECT_NEAR(co2.sim.psf_sigma_px, 0.9, 0.06);
+  EXPECT_NEAR(co2.sim.psf_sigma_corner_px, 1.5, 0.1);
+  EXPECT_NEAR(co2.sim.background_gradient_e_per_s, 1500, 75);
+  EXPECT_NEAR(co2.sim.background_gradient_angle_deg, 30, 2);
+  const FrameComparison after = CompareWithSimulation(set, views, cam, testing::FrameSky(), testing::FrameIdentifier(), so, co2);
+  const FieldFigures& a = after.simulated;
+  EXPECT_NEAR(a.psf_ellipticity, m.psf_ellipticity, 0.03);
+  EXPECT_NEAR(a.psf_sigma_px, m.psf_sigma_px, 0.04);
+  EXPECT_NEAR(a.psf_sigma_corner_px, m.psf_sigma_corner_px, 0.1);
+  EXPECT_NEAR(a.background_gradient_adu, m.background_gradient_adu, 0.05 * m.background_gradient_adu);
+  EXPECT_NEAR(a.background_structure_adu, m.background_structure_adu, 0.05 * m.background_structure_adu);
+  EXPECT_NEAR(a.background_adu, m.background_adu, 5);
+  EXPECT_NEAR(a.noise_adu, m.noise_adu, 0.05 * m.noise_adu);
+  EXPECT_EQ(after.simulated_solved, 3);
 }
 
 TEST(FrameCompare, OptionsCheck) {
