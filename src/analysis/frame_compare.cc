@@ -72,6 +72,7 @@ BackgroundPlane FitBackgroundPlane(const ImageView& image, int tile_px) {
   BackgroundPlane p;
   std::vector<double> px, med, dx, dy;
   const double xc = 0.5 * (image.width - 1), yc = 0.5 * (image.height - 1);
+  const double r_corner2 = 0.25 * (double(image.width) * image.width + double(image.height) * image.height);
   for (int y0 = 0; y0 + tile_px <= image.height; y0 += tile_px) {
     for (int x0 = 0; x0 + tile_px <= image.width; x0 += tile_px) {
       px.clear();
@@ -83,14 +84,20 @@ BackgroundPlane FitBackgroundPlane(const ImageView& image, int tile_px) {
     }
   }
   const int n = static_cast<int>(med.size());
-  if (n < 3) return p;
-  Eigen::MatrixXd a(n, 3);
+  // (L + gx dx + gy dy)(1 - v u) = L + gx dx + gy dy + c u + (gx' dx + gy' dy) u: linear in the six
+  // coefficients, the last two absorbing the vignetted gradient's cubic part.
+  if (n < 7) return p;
+  Eigen::MatrixXd a(n, 6);
   Eigen::VectorXd b(n);
-  for (int i = 0; i < n; ++i) a(i, 0) = 1, a(i, 1) = dx[i], a(i, 2) = dy[i], b(i) = med[i];
-  const Eigen::Vector3d c = a.colPivHouseholderQr().solve(b);
+  for (int i = 0; i < n; ++i) {
+    const double u = (dx[i] * dx[i] + dy[i] * dy[i]) / r_corner2;
+    a(i, 0) = 1, a(i, 1) = dx[i], a(i, 2) = dy[i], a(i, 3) = u, a(i, 4) = dx[i] * u, a(i, 5) = dy[i] * u;
+    b(i) = med[i];
+  }
+  const Eigen::VectorXd c = a.colPivHouseholderQr().solve(b);
   if (!c.allFinite()) return p;
   p.ok = true;
-  p.level_adu = c(0), p.gx_adu_per_px = c(1), p.gy_adu_per_px = c(2);
+  p.level_adu = c(0), p.gx_adu_per_px = c(1), p.gy_adu_per_px = c(2), p.radial_adu = c(3);
   p.amplitude_adu = std::abs(c(1)) * xc + std::abs(c(2)) * yc;
   p.angle_deg = std::atan2(c(2), c(1)) * kRadToDeg;
   p.residual_rms_adu = std::sqrt((a * c - b).squaredNorm() / n);
@@ -105,9 +112,15 @@ FieldFigures MeasureFieldFigures(const SolvedFrameSet& set, const std::vector<Im
   f.stars = static_cast<int>(set.stars.size());
   // ln(flux) = c + b V, one 4-sigma clipping pass.
   std::vector<double> m, y;
+  const double rc2 = 0.25 * (double(camera.width) * camera.width + double(camera.height) * camera.height);
+  double usum = 0;
   for (const auto& s : set.stars) {
-    if (s.flux > 0) m.push_back(s.mag), y.push_back(std::log(s.flux));
+    if (s.flux > 0) {
+      m.push_back(s.mag), y.push_back(std::log(s.flux));
+      usum += (std::pow(s.x_px - camera.cx_px, 2) + std::pow(s.y_px - camera.cy_px, 2)) / rc2;
+    }
   }
+  if (!m.empty()) f.star_u_mean = usum / m.size();
   std::vector<bool> keep(m.size(), true);
   const double to_mag = 2.5 / std::log(10.0);
   for (int pass = 0; pass < 2 && m.size() >= 5; ++pass) {
@@ -183,14 +196,16 @@ FieldFigures MeasureFieldFigures(const SolvedFrameSet& set, const std::vector<Im
   }
   f.background_adu = Median(set.background_adu);
   f.noise_adu = Median(set.noise_adu);
-  std::vector<double> st, amp, resid;
+  std::vector<double> st, amp, resid, radial, vig, centre;
   double ux = 0, uy = 0;
   int planes = 0;
   for (int idx : set.solved_index) {
     st.push_back(BackgroundStructureAdu(images[idx], tile_px));
     const BackgroundPlane p = FitBackgroundPlane(images[idx], tile_px);
     if (!p.ok) continue;
-    amp.push_back(p.amplitude_adu), resid.push_back(p.residual_rms_adu);
+    amp.push_back(p.amplitude_adu), resid.push_back(p.residual_rms_adu), radial.push_back(p.radial_adu);
+    centre.push_back(p.level_adu);
+    if (p.level_adu > 0) vig.push_back(-p.radial_adu / p.level_adu);
     ux += std::cos(p.angle_deg * kDegToRad), uy += std::sin(p.angle_deg * kDegToRad);
     ++planes;
   }
@@ -200,6 +215,9 @@ FieldFigures MeasureFieldFigures(const SolvedFrameSet& set, const std::vector<Im
     f.background_gradient_angle_deg = std::atan2(uy, ux) * kRadToDeg;
     f.background_gradient_coherence = std::hypot(ux, uy) / planes;
     f.background_plane_residual_adu = Median(resid);
+    f.background_radial_adu = Median(radial);
+    f.background_vignetting = Median(vig);
+    f.background_centre_adu = Median(centre);
   }
   return f;
 }
@@ -274,15 +292,21 @@ FrameSimOptions FitSimOptions(const FieldFigures& m, const FrameSimOptions& base
     f.psf_angle_deg = m.psf_angle_deg;
   }
   if (m.zero_point_slope1_adu > 0) f.mag0_flux_e_per_s = m.zero_point_slope1_adu * base.gain_e_per_adu / base.exposure_s;
-  // Level = bias + sky; the sky is the gradient's amplitude (the least that keeps it >= 0 everywhere).
-  const double g_adu = std::clamp(m.background_gradient_adu, 0.0, std::max(0.0, m.background_adu));
-  f.bias_adu = std::max(0.0, m.background_adu - g_adu);
-  f.background_e_per_s = g_adu * base.gain_e_per_adu / base.exposure_s;
-  f.background_gradient_e_per_s = f.background_e_per_s;
+  // Level = bias + sky; the sky is the gradient's amplitude (the least that keeps it >= 0 everywhere),
+  // or with a vignetted sky the whole level.
+  const bool vignetted = m.background_vignetting > 0.02 && m.background_vignetting < 1 && m.background_centre_adu > 0;
+  const double level = std::max(0.0, vignetted ? m.background_centre_adu : m.background_adu);
+  const double g_adu = std::clamp(m.background_gradient_adu, 0.0, level);
+  const double sky_adu = vignetted ? level : g_adu;
+  f.bias_adu = level - sky_adu;
+  f.background_e_per_s = sky_adu * base.gain_e_per_adu / base.exposure_s;
+  f.background_gradient_e_per_s = g_adu * base.gain_e_per_adu / base.exposure_s;
   f.background_gradient_angle_deg = m.background_gradient_angle_deg;
   f.dark_current_e_per_s = 0;
+  f.vignetting = vignetted ? m.background_vignetting : 0.0;
+  if (vignetted) f.mag0_flux_e_per_s /= std::max(0.05, 1 - f.vignetting * m.star_u_mean);
   if (m.noise_adu > 0) {
-    const double sky_shot_e2 = base.shot_noise ? g_adu * base.gain_e_per_adu : 0.0;
+    const double sky_shot_e2 = base.shot_noise ? sky_adu * base.gain_e_per_adu : 0.0;
     f.read_noise_e = std::sqrt(std::max(0.0, std::pow(m.noise_adu * base.gain_e_per_adu, 2) - sky_shot_e2));
   }
   return f;
@@ -311,6 +335,10 @@ Json FieldFiguresToJson(const FieldFigures& f) {
               {"background_gradient_angle_deg", f.background_gradient_angle_deg},
               {"background_gradient_coherence", f.background_gradient_coherence},
               {"background_plane_residual_adu", f.background_plane_residual_adu},
+              {"background_radial_adu", f.background_radial_adu},
+              {"background_vignetting", f.background_vignetting},
+              {"background_centre_adu", f.background_centre_adu},
+              {"star_u_mean", f.star_u_mean},
               {"noise_adu", f.noise_adu}};
 }
 

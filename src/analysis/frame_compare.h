@@ -56,6 +56,11 @@ struct FieldFigures {
   // direction); the RMS of the tile medians about the plane (median over frames).
   double background_gradient_adu = 0, background_gradient_angle_deg = 0, background_gradient_coherence = 0;
   double background_plane_residual_adu = 0;
+  // The radial term: median over frames of radial_adu and of -radial_adu / level_adu, the sky's
+  // vignetting 1 - v (r / r_corner)^2 if the whole level is sky (no bias or offset in it).
+  double background_radial_adu = 0, background_vignetting = 0;
+  double background_centre_adu = 0;     // the fit's level at the frame centre (median over frames)
+  double star_u_mean = 0;               // mean (r / r_corner)^2 of the stars in the flux fit
   double noise_adu = 0;                 // median over frames of the detector's noise sigma
 };
 
@@ -85,12 +90,15 @@ StarCatalog SkyForCamera(const Camera& camera, double fov_tolerance_pct, double 
 // Background structure of one frame: RMS of its tile medians about their median (ADU).
 double BackgroundStructureAdu(const ImageView& image, int tile_px);
 
-// A plane fitted (least squares) to one frame's tile medians, level + gx dx + gy dy with (dx, dy) from
-// the frame centre to the tile centre (px): corner amplitude |gx| (w-1)/2 + |gy| (h-1)/2 (ADU), the
-// direction of (gx, gy) and the RMS of the medians about the plane. ok = false below 3 tiles.
+// The simulator's sky law fitted (least squares) to one frame's tile medians,
+// (level + gx dx + gy dy)(1 - v u) = level + gx dx + gy dy + radial u + (gx' dx + gy' dy) u, with (dx, dy)
+// from the frame centre to the tile centre (px) and u = (dx^2 + dy^2) / r_corner^2 (r_corner half the
+// diagonal): the plane's corner amplitude |gx| (w-1)/2 + |gy| (h-1)/2 (ADU) and direction, the radial
+// change centre -> corner (ADU, = -v level) and the RMS of the medians about the fit. ok = false
+// below 7 tiles.
 struct BackgroundPlane {
   bool ok = false;
-  double level_adu = 0, gx_adu_per_px = 0, gy_adu_per_px = 0;
+  double level_adu = 0, gx_adu_per_px = 0, gy_adu_per_px = 0, radial_adu = 0;
   double amplitude_adu = 0, angle_deg = 0, residual_rms_adu = 0;
 };
 BackgroundPlane FitBackgroundPlane(const ImageView& image, int tile_px);
@@ -109,7 +117,9 @@ FrameComparison CompareWithSimulation(const SolvedFrameSet& measured, const std:
 // at 1), the background level, gradient and noise. The level goes into the bias except the gradient's
 // amplitude, which is sky (background_e_per_s, so that the sky stays >= 0 across the frame); the noise
 // into the read noise less that sky's shot noise (a frame alone cannot separate sky shot noise from
-// read noise without the gain; base's gain and exposure are taken as the camera's).
+// read noise without the gain; base's gain and exposure are taken as the camera's). A background
+// vignetting over 0.02 makes the whole centre level sky (bias 0) with that vignetting, which also dims the
+// stars: the V = 0 flux is divided by 1 - v star_u_mean.
 FrameSimOptions FitSimOptions(const FieldFigures& measured, const FrameSimOptions& base);
 
 Json FrameComparisonToJson(const FrameComparison& c);

@@ -119,6 +119,40 @@ TEST(FrameCompare, EllipticityCornerSigmaAndGradientFoundAndFitted) {
   EXPECT_EQ(after.simulated_solved, 3);
 }
 
+// A vignetted sky (no bias, no dark: all of the level is sky): the radial term of the tile-median fit
+// gives -v x level, the plane the gradient; FitSimOptions makes it the simulator's vignetting with the
+// whole level as sky and the V = 0 flux corrected for the stars' mean dimming.
+TEST(FrameCompare, VignettedSkyFoundAndFitted) {
+  const Camera cam = MakeCamera(1024, 768, 11.4);
+  FrameSimOptions truth;
+  truth.mag_max = -5;  // no stars
+  truth.hot_pixels = truth.dead_pixels = truth.cosmic_rays = 0;
+  truth.bias_adu = 0, truth.dark_current_e_per_s = 0;
+  truth.background_e_per_s = 20000, truth.vignetting = 0.35;
+  truth.background_gradient_e_per_s = 3000, truth.background_gradient_angle_deg = 90;
+  const Image16 img = SimulateFrame(cam, StarCatalog{}, Quat::Identity(), truth, 3).image;
+  const BackgroundPlane p = FitBackgroundPlane(img.view(), 64);
+  ASSERT_TRUE(p.ok);
+  const double level = 20000 * 0.1 / 0.5;  // ADU at the centre
+  EXPECT_NEAR(p.level_adu, level, 0.01 * level);
+  EXPECT_NEAR(-p.radial_adu / p.level_adu, 0.35, 0.01);
+  EXPECT_NEAR(p.amplitude_adu, 3000 * 0.1 / 0.5, 0.02 * 600);
+  EXPECT_NEAR(p.angle_deg, 90, 1);
+  EXPECT_LT(p.residual_rms_adu, 3);  // tile-median noise only
+  FieldFigures m;
+  m.background_adu = 0.9 * p.level_adu, m.background_centre_adu = p.level_adu, m.background_vignetting = -p.radial_adu / p.level_adu, m.star_u_mean = 0.3;
+  m.background_gradient_adu = p.amplitude_adu, m.background_gradient_angle_deg = p.angle_deg;
+  m.zero_point_slope1_adu = 1e5, m.noise_adu = 40;
+  const FrameSimOptions f = FitSimOptions(m, FrameSimOptions{});
+  EXPECT_NEAR(f.vignetting, 0.35, 0.01);
+  EXPECT_EQ(f.bias_adu, 0.0);
+  EXPECT_NEAR(f.background_e_per_s, 20000, 200);
+  EXPECT_NEAR(f.mag0_flux_e_per_s, 1e5 * 0.5 / 0.1 / (1 - 0.35 * 0.3), 0.01 * 5e5 / (1 - 0.35 * 0.3));
+  // Read noise: 40 ADU x 0.5 e/ADU = 20 e, less the shot noise of 4000 ADU x 0.5 = 2000 e of sky (var 2000 e^2)...
+  // which exceeds 400 e^2: no read noise left.
+  EXPECT_EQ(f.read_noise_e, 0.0);
+}
+
 TEST(FrameCompare, OptionsCheck) {
   FrameCompareOptions o;
   o.tile_px = 2;
