@@ -1,4 +1,5 @@
 // `ssiu detect`: star centroids, background/noise and rejected interferers of one frame, as JSON.
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <memory>
@@ -18,6 +19,7 @@ struct Opts {
   double threshold_sigma = DetectOptions{}.threshold_sigma;
   double psf_sigma_px = 0;
   double gain_e_per_adu = 0;
+  int max_stars = DetectOptions{}.max_stars;
   SmearFlags smear;
 };
 
@@ -35,6 +37,10 @@ void Run(const Opts& o) {
   opt.threshold_sigma = o.threshold_sigma;
   opt.psf_sigma_px = o.psf_sigma_px;
   opt.saturation_adu = fr.saturation_adu;
+  if (o.max_stars < 0) throw InputError("--max-stars", "must be >= 0 (0: no cap)");
+  // No cap: a frame cannot hold more sources than a quarter of its pixels (each is a local maximum).
+  const long long no_cap = static_cast<long long>(fr.image.width) * fr.image.height / 4 + 1;
+  opt.max_stars = o.max_stars > 0 ? o.max_stars : static_cast<int>(std::min<long long>(no_cap, 100000000));
   Camera cam;
   if (!o.camera.empty()) {
     cam = LoadCamera(o.camera);
@@ -92,6 +98,8 @@ SSIU_REGISTER_COMMAND(detect, [](CLI::App& root) {
   cmd->add_option("--threshold-sigma", o->threshold_sigma, "Detection threshold (matched-filter sigmas)");
   cmd->add_option("--psf-sigma-px", o->psf_sigma_px, "Expected PSF sigma (0 = estimate)");
   cmd->add_option("--gain-e-per-adu", o->gain_e_per_adu, "Detector gain for shot-noise weights");
+  cmd->add_option("--max-stars", o->max_stars,
+                  "Report at most this many stars, brightest first (0: no cap, a deep search)");
   AddSmearFlags(cmd, &o->smear);
   cmd->callback([o] { Run(*o); });
 });

@@ -93,6 +93,26 @@ TEST_F(CliTest, FitsAndEightBitInputGiveTheSameStars) {
   EXPECT_DOUBLE_EQ(a["stars"][0]["x_px"].get<double>(), b["stars"][0]["x_px"].get<double>());
 }
 
+// --max-stars keeps the brightest N of the default list; 0 lifts the cap (a deep search).
+TEST_F(CliTest, MaxStarsKeepsTheBrightestOrLiftsTheCap) {
+  ASSERT_EQ(Ssiu("simulate frame --random --seed 9 --out " + Path("sim")).status, 0);
+  const std::string frame = Path("sim/frame_0000.png");
+  ASSERT_EQ(Ssiu("detect " + frame + " --json " + Path("all.json")).status, 0);
+  ASSERT_EQ(Ssiu("detect " + frame + " --max-stars 5 --json " + Path("five.json")).status, 0);
+  ASSERT_EQ(Ssiu("detect " + frame + " --threshold-sigma 3 --max-stars 20 --json " + Path("t3cap.json")).status, 0);
+  ASSERT_EQ(Ssiu("detect " + frame + " --threshold-sigma 3 --max-stars 0 --json " + Path("t3deep.json")).status, 0);
+  const Json all = ReadJsonFile(Path("all.json")), five = ReadJsonFile(Path("five.json"));
+  ASSERT_GT(all["stars"].size(), 5u);
+  ASSERT_EQ(five["stars"].size(), 5u);
+  for (size_t i = 0; i < 5; ++i) {
+    EXPECT_NEAR(five["stars"][i]["x_px"].get<double>(), all["stars"][i]["x_px"].get<double>(), 1e-9);
+    EXPECT_NEAR(five["stars"][i]["flux_adu"].get<double>(), all["stars"][i]["flux_adu"].get<double>(), 1e-9);
+  }
+  EXPECT_EQ(ReadJsonFile(Path("t3cap.json"))["stars"].size(), 20u);
+  EXPECT_GT(ReadJsonFile(Path("t3deep.json"))["stars"].size(), all["stars"].size());
+  ExpectBadInput("detect " + frame + " --max-stars -1 --json -", "--max-stars", "must be >= 0");
+}
+
 TEST_F(CliTest, BadImagesExitOneWithOneLineNamingTheFile) {
   ExpectBadInput("detect " + Path("missing.png") + " --json -", "missing.png", "no such file");
   Write("empty.png", "");
