@@ -12,60 +12,18 @@
 #include "sim/detection_score.h"
 #include "sim/frame_sim.h"
 #include "testing/testing.h"
+#include "sim_fixtures.h"
 
 namespace ssiu {
 namespace {
 
 using ::testing::HasSubstr;
+using testing::Clean;
+using testing::ImageMoments;
+using testing::Moments;
 
 // A catalog of one star of magnitude `mag` along the inertial direction `unit`.
-StarCatalog OneStar(const Vec3& unit, double mag) {
-  StarCatalog c;
-  CatalogStar s;
-  s.id = 1;
-  s.mag = mag;
-  s.unit = unit.normalized();
-  s.ra_rad = std::atan2(s.unit.y(), s.unit.x());
-  s.dec_rad = std::asin(s.unit.z());
-  c.stars.push_back(s);
-  return c;
-}
-
-// Noise-free, defect-free options: the image is exactly bias + background + the star (rounded to ADU).
-FrameSimOptions Clean() {
-  FrameSimOptions o;
-  o.shot_noise = false;
-  o.read_noise_e = 0;
-  o.hot_pixels = o.dead_pixels = o.cosmic_rays = 0;
-  return o;
-}
-
-// Flux (e-) and second moments (px^2) of the background-subtracted image in a box around (x, y).
-struct Moments {
-  double flux_e = 0, mx = 0, my = 0;
-  Mat2 cov = Mat2::Zero();
-};
-Moments ImageMoments(const SimulatedFrame& f, const FrameSimOptions& o, double x, double y, int half) {
-  const double bg_adu = o.bias_adu + (o.background_e_per_s + o.dark_current_e_per_s) * o.exposure_s / o.gain_e_per_adu;
-  double s = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
-  for (int j = static_cast<int>(y) - half; j <= static_cast<int>(y) + half; ++j) {
-    for (int i = static_cast<int>(x) - half; i <= static_cast<int>(x) + half; ++i) {
-      const double a = f.image.at(i, j) - bg_adu;
-      s += a;
-      sx += a * i;
-      sy += a * j;
-      sxx += a * i * i;
-      syy += a * j * j;
-      sxy += a * i * j;
-    }
-  }
-  Moments m;
-  m.flux_e = s * o.gain_e_per_adu;
-  m.mx = sx / s;
-  m.my = sy / s;
-  m.cov << sxx / s - m.mx * m.mx, sxy / s - m.mx * m.my, sxy / s - m.mx * m.my, syy / s - m.my * m.my;
-  return m;
-}
+StarCatalog OneStar(const Vec3& unit, double mag) { return testing::Stars({unit}, mag); }
 
 // A star on the boresight, the sensor turning at 1 deg/s about its +X: the direction is
 // (0, sin wt, cos wt) in sensor axes, so the image runs along +y from -f tan(wT/2) to +f tan(wT/2).
