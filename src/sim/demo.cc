@@ -16,9 +16,7 @@ DemoReport RunDemo(const StarCatalog& catalog, uint64_t seed) {
   const FrameSimOptions so;
   const Quat q = RandomAttitude(seed);
   const SimulatedFrame f = SimulateFrame(cam, catalog, q, so, seed);
-  DetectOptions dopt;
-  dopt.gain_e_per_adu = so.gain_e_per_adu;
-  const Detections d = Detect(f.image.view(), dopt);
+  const Detections d = Detect(f.image.view(), DetectOptionsForSimulation(cam, so, /*give_rate=*/true));
   const DetectionScore sc = ScoreDetections(f, d);
   const RaDecRoll rdr = RaDecRollFromQuat(q);
   const double fov_deg = cam.FovXRad() * kRadToDeg;
