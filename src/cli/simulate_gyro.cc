@@ -25,6 +25,7 @@ void Run(const Opts& o) {
   } else {
     profile = LoadMotionProfile(o.profile);
   }
+  profile.Check(o.profile, unit.size());  // here, to name the file (SimulateGyro checks it again)
   GyroSimOptions so;
   so.duration_s = o.duration_s;
   so.seed = o.seed;

@@ -171,7 +171,12 @@ Mask MaskFromJson(const Json& j, const std::string& src) {
     const Json& h = j["holes"][i];
     const std::string w = src + ": holes[" + std::to_string(i) + "]";
     MaskHole mh;
-    mh.star_id = static_cast<StarId>(JsonNumber(h, "star_id", w));
+    const double star_id = JsonNumber(h, "star_id", w);
+    // Converting an out-of-range double to an integer is undefined behaviour.
+    if (!(star_id >= -1 && star_id <= 2.0e9) || star_id != std::floor(star_id)) {
+      throw InputError(w, "star_id: must be a whole number in [-1, 2e9]");
+    }
+    mh.star_id = static_cast<StarId>(star_id);
     mh.mag = JsonNumber(h, "mag", w);
     mh.mag_effective = JsonNumberOr(h, "mag_effective", mh.mag, w);
     mh.x_mm = JsonNumber(h, "x_mm", w), mh.y_mm = JsonNumber(h, "y_mm", w);
@@ -190,7 +195,9 @@ Mask MaskFromJson(const Json& j, const std::string& src) {
     const Json& t = j["tags"][i];
     const std::string w = src + ": tags[" + std::to_string(i) + "]";
     MaskTag mt;
-    mt.id = static_cast<int>(JsonNumber(t, "id", w));
+    const double id = JsonNumber(t, "id", w);
+    if (!(id >= 0 && id <= 1.0e6) || id != std::floor(id)) throw InputError(w, "id: must be a whole number in [0, 1e6]");
+    mt.id = static_cast<int>(id);
     mt.x_mm = JsonNumber(t, "x_mm", w), mt.y_mm = JsonNumber(t, "y_mm", w);
     mt.size_mm = JsonNumber(t, "size_mm", w);
     if (!(mt.size_mm > 0)) throw InputError(w, "size_mm: must be > 0");

@@ -124,6 +124,12 @@ void MotionProfile::Check(const std::string& file, int n_gyros) const {
       throw InputError(file, "temperature.segments need [duration_s >= 0, rate_c_per_min]");
     }
   }
+  for (const auto& o : st_outages_s) {
+    // [t0, t1) with t1 < t0 would silently mean no outage at all.
+    if (!std::isfinite(o[0]) || !std::isfinite(o[1]) || !(o[1] >= o[0])) {
+      throw InputError(file, "star_tracker.outages_s need [start_s, end_s] with finite start_s <= end_s");
+    }
+  }
   for (const auto& f : faults) {
     if (f.gyro < 1 || f.gyro > n_gyros) throw InputError(file, "faults: gyro must be 1.." + std::to_string(n_gyros));
   }

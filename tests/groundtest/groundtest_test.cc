@@ -87,6 +87,15 @@ TEST(GroundtestMask, HolesAreTheSkyOfTheDesignAttitude) {
   EXPECT_EQ(back.holes[3].star_id, m.holes[3].star_id);
   EXPECT_DOUBLE_EQ(back.holes[3].x_mm, m.holes[3].x_mm);
   EXPECT_THAT(back.q_design, QuaternionNear(m.q_design, 1e-6));
+  // Ids out of the integer range (undefined behaviour when converted) or not whole are refused.
+  for (const double bad : {1e300, -5.0, 2.5}) {
+    Json j = MaskToJson(m);
+    j["holes"][3]["star_id"] = bad;
+    EXPECT_THROW(MaskFromJson(j, "mask"), InputError) << bad;
+    j = MaskToJson(m);
+    j["tags"][0]["id"] = bad;
+    EXPECT_THROW(MaskFromJson(j, "mask"), InputError) << bad;
+  }
 }
 
 TEST(GroundtestMask, PrintedPlateCarriesItsScaleAndFiducialsWhereMaskJsonSaysTheyAre) {
