@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <map>
 #include <set>
+#include <sstream>
 
 #include "attitude/star_solver.h"
 #include "core/attitude.h"
@@ -98,6 +99,17 @@ void MissionConfig::Check(const std::string& file) const {
     frame_sim.Check();
   } catch (const InputError& e) {
     throw InputError(file + ": frame_sim: " + e.what());
+  }
+  // Each frame is smeared by the true rate, and the frame simulator takes up to 90 deg/s per axis:
+  // refuse the motion here, naming it, rather than fail at the first fast frame.
+  for (long i = 0; i / frame_rate_hz <= duration_s + 1e-9; ++i) {
+    const double t_s = i / frame_rate_hz, w_dps = motion.RateBodyRadS(t_s).norm() * kRadToDeg;
+    if (!(w_dps <= 90)) {
+      std::ostringstream msg;
+      msg << "field 'motion': the body rate reaches " << w_dps << " deg/s at t = " << t_s
+          << " s; frames are simulated up to 90 deg/s";
+      throw InputError(file, msg.str());
+    }
   }
   try {
     processor.Check();

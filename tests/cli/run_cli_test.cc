@@ -102,6 +102,9 @@ TEST_F(RunCli, BadConfigExitsOneWithOneLineNamingFileAndField) {
       {"quat.json", R"({"duration_s": 20, "frame_rate_hz": 1, "seed": 1, "heads": [{"camera": {"width": 384, "height": 384, "focal_length_px": 1316}, "q_body_sensor": [0, 0, 0, 0]}]})",
        "q_body_sensor"},
       {"notjson.json", "{\"duration_s\": 20,", "not valid JSON"},
+      // Used to fail after the header line, naming the frame simulator's rate_x_dps.
+      {"fast.json", Config(R"(, "duration_s": 20, "frame_rate_hz": 1, "motion": {"type": "slew", "rate_dps": 100})"),
+       "field 'motion': the body rate reaches 100"},
   };
   for (const auto& c : cases) {
     Write(c.file, c.text);
