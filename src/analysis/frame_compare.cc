@@ -49,18 +49,31 @@ StarCatalog SkyForCamera(const Camera& camera, double fov_tolerance_pct, double 
   return sky;
 }
 
-double BackgroundStructureAdu(const ImageView& image, int tile_px) {
-  std::vector<double> medians;
+namespace {
+
+// Median of each whole tile_px x tile_px tile, with the tile centre relative to the image centre.
+struct TileMedians {
+  std::vector<double> median_adu, dx_px, dy_px;
+};
+TileMedians MeasureTileMedians(const ImageView& image, int tile_px) {
+  TileMedians t;
   std::vector<double> px;
+  const double xc = 0.5 * (image.width - 1), yc = 0.5 * (image.height - 1);
   for (int y0 = 0; y0 + tile_px <= image.height; y0 += tile_px) {
     for (int x0 = 0; x0 + tile_px <= image.width; x0 += tile_px) {
       px.clear();
       for (int y = y0; y < y0 + tile_px; ++y) {
         for (int x = x0; x < x0 + tile_px; ++x) px.push_back(image.at(x, y));
       }
-      medians.push_back(Median(px));
+      t.median_adu.push_back(Median(px));
+      t.dx_px.push_back(x0 + 0.5 * (tile_px - 1) - xc), t.dy_px.push_back(y0 + 0.5 * (tile_px - 1) - yc);
     }
   }
+  return t;
+}
+
+double StructureOf(const TileMedians& t) {
+  const std::vector<double>& medians = t.median_adu;
   if (medians.size() < 2) return 0.0;
   const double m = Median(medians);
   double ss = 0;
@@ -68,21 +81,11 @@ double BackgroundStructureAdu(const ImageView& image, int tile_px) {
   return std::sqrt(ss / medians.size());
 }
 
-BackgroundPlane FitBackgroundPlane(const ImageView& image, int tile_px) {
+BackgroundPlane PlaneOf(const TileMedians& t, int width, int height) {
   BackgroundPlane p;
-  std::vector<double> px, med, dx, dy;
-  const double xc = 0.5 * (image.width - 1), yc = 0.5 * (image.height - 1);
-  const double r_corner2 = 0.25 * (double(image.width) * image.width + double(image.height) * image.height);
-  for (int y0 = 0; y0 + tile_px <= image.height; y0 += tile_px) {
-    for (int x0 = 0; x0 + tile_px <= image.width; x0 += tile_px) {
-      px.clear();
-      for (int y = y0; y < y0 + tile_px; ++y) {
-        for (int x = x0; x < x0 + tile_px; ++x) px.push_back(image.at(x, y));
-      }
-      med.push_back(Median(px));
-      dx.push_back(x0 + 0.5 * (tile_px - 1) - xc), dy.push_back(y0 + 0.5 * (tile_px - 1) - yc);
-    }
-  }
+  const std::vector<double>&med = t.median_adu, &dx = t.dx_px, &dy = t.dy_px;
+  const double xc = 0.5 * (width - 1), yc = 0.5 * (height - 1);
+  const double r_corner2 = 0.25 * (double(width) * width + double(height) * height);
   const int n = static_cast<int>(med.size());
   // (L + gx dx + gy dy)(1 - v u) = L + gx dx + gy dy + c u + (gx' dx + gy' dy) u: linear in the six
   // coefficients, the last two absorbing the vignetted gradient's cubic part.
@@ -102,6 +105,16 @@ BackgroundPlane FitBackgroundPlane(const ImageView& image, int tile_px) {
   p.angle_deg = std::atan2(c(2), c(1)) * kRadToDeg;
   p.residual_rms_adu = std::sqrt((a * c - b).squaredNorm() / n);
   return p;
+}
+
+}  // namespace
+
+double BackgroundStructureAdu(const ImageView& image, int tile_px) {
+  return StructureOf(MeasureTileMedians(image, tile_px));
+}
+
+BackgroundPlane FitBackgroundPlane(const ImageView& image, int tile_px) {
+  return PlaneOf(MeasureTileMedians(image, tile_px), image.width, image.height);
 }
 
 FieldFigures MeasureFieldFigures(const SolvedFrameSet& set, const std::vector<ImageView>& images, const Camera& camera,
@@ -200,8 +213,9 @@ FieldFigures MeasureFieldFigures(const SolvedFrameSet& set, const std::vector<Im
   double ux = 0, uy = 0;
   int planes = 0;
   for (int idx : set.solved_index) {
-    st.push_back(BackgroundStructureAdu(images[idx], tile_px));
-    const BackgroundPlane p = FitBackgroundPlane(images[idx], tile_px);
+    const TileMedians tiles = MeasureTileMedians(images[idx], tile_px);  // once for both figures
+    st.push_back(StructureOf(tiles));
+    const BackgroundPlane p = PlaneOf(tiles, images[idx].width, images[idx].height);
     if (!p.ok) continue;
     amp.push_back(p.amplitude_adu), resid.push_back(p.residual_rms_adu), radial.push_back(p.radial_adu);
     centre.push_back(p.level_adu);

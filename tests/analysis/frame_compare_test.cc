@@ -12,6 +12,24 @@
 namespace ssiu {
 namespace {
 
+// Three "measured" frames simulated with `truth` (attitude seeds a0.., noise seeds n0..), solved.
+struct MeasuredFrames {
+  std::vector<Image16> images;
+  std::vector<ImageView> views;  // of `images`
+  SolvedFrameSet set;
+};
+MeasuredFrames SimulateAndSolve(const Camera& cam, const FrameSimOptions& truth, int a0, int n0, const SolveOptions& so) {
+  MeasuredFrames m;
+  std::vector<std::string> names;
+  for (int f = 0; f < 3; ++f) {
+    m.images.push_back(SimulateFrame(cam, testing::FrameSky(), RandomAttitude(a0 + f), truth, n0 + f).image);
+    names.push_back("real" + std::to_string(f));
+  }
+  for (const auto& im : m.images) m.views.push_back(im.view());
+  m.set = SolveFrameSet(testing::FrameIdentifier(), m.views, names, cam, so);
+  return m;
+}
+
 TEST(FrameCompare, KnownSimulatorDifferencesFoundAndFitted) {
   const Camera cam = MakeCamera(1024, 1024, 16.6);
   FrameSimOptions truth;  // the "real camera": narrower PSF, 3x fainter, brighter and noisier sky
@@ -19,16 +37,10 @@ TEST(FrameCompare, KnownSimulatorDifferencesFoundAndFitted) {
   truth.mag0_flux_e_per_s = 5.0e6 / 3;
   truth.background_e_per_s = 4000;
   truth.hot_pixels = 0;
-  std::vector<Image16> imgs;
-  std::vector<std::string> names;
-  for (int f = 0; f < 3; ++f) {
-    imgs.push_back(SimulateFrame(cam, testing::FrameSky(), RandomAttitude(500 + f), truth, 900 + f).image);
-    names.push_back("real" + std::to_string(f));
-  }
-  std::vector<ImageView> views;
-  for (const auto& im : imgs) views.push_back(im.view());
-  SolveOptions so;
-  const SolvedFrameSet set = SolveFrameSet(testing::FrameIdentifier(), views, names, cam, so);
+  const SolveOptions so;
+  const MeasuredFrames measured = SimulateAndSolve(cam, truth, 500, 900, so);
+  const std::vector<ImageView>& views = measured.views;
+  const SolvedFrameSet& set = measured.set;
   ASSERT_EQ(set.q.size(), 3u);
   FrameCompareOptions co;  // the model under test: the simulator's defaults
   const FrameComparison before = CompareWithSimulation(set, views, cam, testing::FrameSky(), testing::FrameIdentifier(), so, co);
@@ -69,16 +81,10 @@ TEST(FrameCompare, EllipticityCornerSigmaAndGradientFoundAndFitted) {
   truth.psf_ellipticity = 0.2, truth.psf_angle_deg = 60;
   truth.background_e_per_s = 3000, truth.background_gradient_e_per_s = 1500, truth.background_gradient_angle_deg = 30;
   truth.hot_pixels = 0;
-  std::vector<Image16> imgs;
-  std::vector<std::string> names;
-  for (int f = 0; f < 3; ++f) {
-    imgs.push_back(SimulateFrame(cam, testing::FrameSky(), RandomAttitude(510 + f), truth, 910 + f).image);
-    names.push_back("real" + std::to_string(f));
-  }
-  std::vector<ImageView> views;
-  for (const auto& im : imgs) views.push_back(im.view());
-  SolveOptions so;
-  const SolvedFrameSet set = SolveFrameSet(testing::FrameIdentifier(), views, names, cam, so);
+  const SolveOptions so;
+  const MeasuredFrames measured = SimulateAndSolve(cam, truth, 510, 910, so);
+  const std::vector<ImageView>& views = measured.views;
+  const SolvedFrameSet& set = measured.set;
   ASSERT_EQ(set.q.size(), 3u);
   FrameCompareOptions co;
   const FrameComparison before = CompareWithSimulation(set, views, cam, testing::FrameSky(), testing::FrameIdentifier(), so, co);
