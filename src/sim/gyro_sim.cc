@@ -106,6 +106,13 @@ Vec3 MotionProfile::RateBodyRadS(double t) const {
   return amplitude_dps * (kDegToRad * std::sin(2 * kPi * t / period_s));  // sine
 }
 
+bool MotionProfile::InStarOutage(double t) const {
+  for (const auto& o : st_outages_s) {
+    if (t >= o[0] && t < o[1]) return true;
+  }
+  return false;
+}
+
 void MotionProfile::Check(const std::string& file, int n_gyros) const {
   if (type != "static" && type != "slew" && type != "sine" && type != "temperature") {
     throw InputError(file, "type must be static, slew, sine or temperature (got '" + type + "')");
@@ -132,7 +139,46 @@ void MotionProfile::Check(const std::string& file, int n_gyros) const {
   }
   for (const auto& f : faults) {
     if (f.gyro < 1 || f.gyro > n_gyros) throw InputError(file, "faults: gyro must be 1.." + std::to_string(n_gyros));
+    if (!std::isfinite(f.t_s) || !std::isfinite(f.step_dph) || !std::isfinite(f.ramp_dph_per_h)) {
+      throw InputError(file, "faults: t_s, step_dph and ramp_dph_per_h must be finite");
+    }
+    if (!(f.noise_dph >= 0) || !std::isfinite(f.noise_dph)) throw InputError(file, "faults: noise_dph must be >= 0");
+    if (!(f.end_s > f.t_s)) throw InputError(file, "faults: end_s must be after t_s");
   }
+}
+
+// One entry of `faults`: gyro and t_s required; step_dph, ramp_dph_per_h (or ramp_dph_per_s),
+// noise_dph, stuck and end_s optional.
+GyroFault GyroFaultFromJson(const Json& f, const std::string& file) {
+  if (!f.is_object()) throw InputError(file, "faults: each fault must be an object");
+  GyroFault g;
+  const double gyro = JsonNumber(f, "gyro", file);
+  if (!(gyro >= 1 && gyro <= kMaxGyros) || gyro != std::floor(gyro)) {
+    throw InputError(file, "faults: gyro must be an integer 1..6");
+  }
+  g.gyro = static_cast<int>(gyro);
+  g.t_s = JsonNumber(f, "t_s", file);
+  g.step_dph = JsonNumberOr(f, "step_dph", 0, file);
+  g.ramp_dph_per_h = JsonNumberOr(f, "ramp_dph_per_h", 0, file);
+  if (f.contains("ramp_dph_per_s")) {
+    if (f.contains("ramp_dph_per_h")) throw InputError(file, "faults: give ramp_dph_per_h or ramp_dph_per_s, not both");
+    g.ramp_dph_per_h = 3600.0 * JsonNumber(f, "ramp_dph_per_s", file);
+  }
+  g.noise_dph = JsonNumberOr(f, "noise_dph", 0, file);
+  if (f.contains("stuck")) {
+    if (!f["stuck"].is_boolean()) throw InputError(file, "faults: field 'stuck' must be true or false");
+    g.stuck = f["stuck"].get<bool>();
+  }
+  if (f.contains("end_s")) g.end_s = JsonNumber(f, "end_s", file);
+  return g;
+}
+
+Json GyroFault::ToJson() const {
+  Json j = {{"gyro", gyro}, {"t_s", t_s}, {"step_dph", step_dph}, {"ramp_dph_per_h", ramp_dph_per_h}};
+  if (noise_dph != 0) j["noise_dph"] = noise_dph;
+  if (stuck) j["stuck"] = true;
+  if (std::isfinite(end_s)) j["end_s"] = end_s;
+  return j;
 }
 
 MotionProfile MotionProfileFromJson(const Json& j, const std::string& file) {
@@ -172,18 +218,7 @@ MotionProfile MotionProfileFromJson(const Json& j, const std::string& file) {
   }
   if (j.contains("faults")) {
     if (!j["faults"].is_array()) throw InputError(file, "field 'faults' must be an array");
-    for (const auto& f : j["faults"]) {
-      GyroFault g;
-      const double gyro = JsonNumber(f, "gyro", file);
-      if (!(gyro >= 1 && gyro <= kMaxGyros) || gyro != std::floor(gyro)) {
-        throw InputError(file, "faults: gyro must be an integer 1..6");
-      }
-      g.gyro = static_cast<int>(gyro);
-      g.t_s = JsonNumber(f, "t_s", file);
-      g.step_dph = JsonNumberOr(f, "step_dph", 0, file);
-      g.ramp_dph_per_h = JsonNumberOr(f, "ramp_dph_per_h", 0, file);
-      p.faults.push_back(g);
-    }
+    for (const auto& f : j["faults"]) p.faults.push_back(GyroFaultFromJson(f, file));
   }
   return p;
 }
@@ -204,6 +239,7 @@ GyroSimulation SimulateGyro(const GyroUnit& unit, const MotionProfile& profile, 
   const long k_max = static_cast<long>(std::floor(options.duration_s * unit.rate_hz + 1e-9));
   Rng rng(options.seed);
   Rng rng_st(options.seed * 0x9E3779B97F4A7C15ull + 17);  // own stream: star noise independent of gyros
+  Rng rng_fault(options.seed * 0xD1B54A32D192ED03ull + 29);  // and fault noise: a burst leaves the rest alone
 
   // Per-gyro geometry: misaligned axis and a perpendicular pair (u, v) for the magnetic terms.
   std::vector<Vec3> axis(n), u(n), v(n);
@@ -219,7 +255,7 @@ GyroSimulation SimulateGyro(const GyroUnit& unit, const MotionProfile& profile, 
   }
   // Error-process state; the Gauss-Markov processes start stationary.
   std::vector<std::vector<double>> gm(n);
-  std::vector<double> rrw(n, 0.0), quant_acc(n, 0.0), quant_prev(n, 0.0);
+  std::vector<double> rrw(n, 0.0), quant_acc(n, 0.0), quant_prev(n, 0.0), last_out(n, 0.0);
   for (int i = 0; i < n; ++i) {
     const double s = unit.gyros[i].GaussMarkovSigmaDph();
     for (size_t c = 0; c < unit.gyros[i].bias_instability_tau_s.size(); ++c) gm[i].push_back(s * rng.Normal());
@@ -233,14 +269,8 @@ GyroSimulation SimulateGyro(const GyroUnit& unit, const MotionProfile& profile, 
   sim.t_s.reserve(k_max);
   sim.gyro_dph.reserve(k_max);
 
-  auto in_outage = [&](double t) {
-    for (const auto& o : profile.st_outages_s) {
-      if (t >= o[0] && t < o[1]) return true;
-    }
-    return false;
-  };
   auto star_sample = [&](double t, const Quat& q_true) {
-    if (in_outage(t)) return;
+    if (profile.InStarOutage(t)) return;
     const Vec3 noise(profile.st_sigma_cross_arcsec * rng_st.Normal(), profile.st_sigma_cross_arcsec * rng_st.Normal(),
                      profile.st_sigma_roll_arcsec * rng_st.Normal());
     sim.st_t_s.push_back(t);
@@ -288,8 +318,12 @@ GyroSimulation SimulateGyro(const GyroUnit& unit, const MotionProfile& profile, 
       const Vec3& b = profile.magnetic_field_body_ut;
       err += e.magnetic.along_dph_per_ut * b.dot(unit.axes_body[i]) + e.magnetic.across_dph_per_ut * b.dot(u[i]) +
              e.magnetic.vertical_dph_per_ut * b.dot(v[i]);
+      bool stuck = false;
       for (const auto& f : profile.faults) {
-        if (f.gyro == i + 1 && tb > f.t_s) err += f.step_dph + f.ramp_dph_per_h * (tb - f.t_s) / 3600.0;
+        if (f.gyro != i + 1 || !f.ActiveAt(tb)) continue;
+        err += f.step_dph + f.ramp_dph_per_h * (tb - f.t_s) / 3600.0;
+        if (f.noise_dph > 0) err += f.noise_dph * rng_fault.Normal();
+        stuck |= f.stuck;
       }
       slow[i] = err;
       // White rate noise of density ARW: sigma = ARW[deg/sqrt(h)] * 60 / sqrt(h[s]) in deg/h.
@@ -301,7 +335,9 @@ GyroSimulation SimulateGyro(const GyroUnit& unit, const MotionProfile& profile, 
         g = (counts - quant_prev[i]) * e.quantization_arcsec / h;
         quant_prev[i] = counts;
       }
+      if (stuck) g = last_out[i];  // the output register frozen (the error it carries is in the output)
       out[i] = g;
+      last_out[i] = g;
     }
     sim.t_s.push_back(tb);
     sim.gyro_dph.push_back(out);

@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -23,12 +24,21 @@ struct TemperatureProgramme {
   double RateCPerMin(double t_s) const;
 };
 
-// A fault injected on one gyro from t_s on: step_dph + ramp_dph_per_h * (t - t_s) / 3600.
+// A fault injected on one gyro over [t_s, end_s): its output gains step_dph + ramp_dph_per_h *
+// (t - t_s) / 3600 and white noise of noise_dph (1 sigma per sample: a noise burst), or, when stuck,
+// holds the last output before t_s. Several faults (on one gyro or several) add up, in sequence or
+// together; a stuck gyro ignores the others while stuck.
 struct GyroFault {
   int gyro = 1;  // 1-based
   double t_s = 0;
   double step_dph = 0;
   double ramp_dph_per_h = 0;
+  double noise_dph = 0;
+  bool stuck = false;
+  double end_s = std::numeric_limits<double>::infinity();  // the fault is gone from end_s on
+
+  bool ActiveAt(double t) const { return t > t_s && t <= end_s; }  // sample interval ending at t
+  Json ToJson() const;
 };
 
 struct MotionProfile {
@@ -53,10 +63,12 @@ struct MotionProfile {
   std::vector<GyroFault> faults;
 
   Vec3 RateBodyRadS(double t_s) const;  // true body rate relative to inertial space
+  bool InStarOutage(double t_s) const;  // inside one of st_outages_s: the star tracker gives nothing
   void Check(const std::string& file, int n_gyros) const;
 };
 
 MotionProfile MotionProfileFromJson(const Json& j, const std::string& file);
+GyroFault GyroFaultFromJson(const Json& j, const std::string& file);
 MotionProfile LoadMotionProfile(const std::string& path);
 
 struct GyroSimOptions {

@@ -224,11 +224,10 @@ Json MissionConfigToJson(const MissionConfig& c) {
                  {"period_s", c.motion.period_s}};
   if (!c.motion.faults.empty()) {
     Json f = Json::array();
-    for (const auto& g : c.motion.faults) {
-      f.push_back({{"gyro", g.gyro}, {"t_s", g.t_s}, {"step_dph", g.step_dph}, {"ramp_dph_per_h", g.ramp_dph_per_h}});
-    }
+    for (const auto& g : c.motion.faults) f.push_back(g.ToJson());
     motion["faults"] = f;
   }
+  if (!c.motion.st_outages_s.empty()) motion["star_tracker"] = {{"outages_s", c.motion.st_outages_s}};
   const UnitProcessorOptions& o = c.processor;
   return {{"duration_s", c.duration_s},
           {"frame_rate_hz", c.frame_rate_hz},
@@ -261,7 +260,8 @@ MissionData SimulateMission(const MissionConfig& config) {
   for (long i = 0;; ++i) {
     const double t = i / config.frame_rate_hz;
     if (t > config.duration_s + 1e-9) break;
-    d.frame_t_s.push_back(t);
+    // motion.star_tracker.outages_s: the heads take no frames then (sun or moon in the field, eclipse).
+    if (!config.motion.InStarOutage(t)) d.frame_t_s.push_back(t);
   }
   return d;
 }

@@ -1,11 +1,15 @@
 #include "sim/gyro_sim.h"
 
+#include <cmath>
+
 #include "core/error.h"
 #include "inertial/propagate.h"
 #include "testing/testing.h"
 
 namespace ssiu {
 namespace {
+
+using ::testing::HasSubstr;
 
 GyroUnit IdealUnit(double rate_hz) {
   GyroUnit u = DefaultFourFogUnit();
@@ -82,6 +86,62 @@ TEST(GyroSim, FaultAndOutageAreApplied) {
   EXPECT_NEAR(s.gyro_dph[400][2] - u.axes_body[2].dot(s.w_true_dph[400]), 0.0, 1e-6);
   EXPECT_EQ(s.st_t_s.size(), 101u - 10u);
   EXPECT_THROW(MotionProfileFromJson(Json::parse(R"({"type": "wobble"})"), "p.json").Check("p.json", 4), InputError);
+}
+
+// Every fault shape on its own gyro, in sequence: a step that ends, a ramp given per second, a noise
+// burst and a stuck output; the output error against the true rate shows each one.
+TEST(GyroSim, FaultShapesStepRampNoiseBurstAndStuck) {
+  const GyroUnit u = IdealUnit(10);
+  MotionProfile p = MotionProfileFromJson(Json::parse(R"({"type": "sine", "period_s": 40, "faults": [
+      {"gyro": 1, "t_s": 10, "end_s": 20, "step_dph": 30},
+      {"gyro": 2, "t_s": 20, "ramp_dph_per_s": 5},
+      {"gyro": 3, "t_s": 30, "end_s": 60, "noise_dph": 50},
+      {"gyro": 4, "t_s": 40, "stuck": true}]})"),
+                                          "mem");
+  p.Check("mem", 4);
+  GyroSimOptions o;
+  o.duration_s = 100;
+  const GyroSimulation s = SimulateGyro(u, p, o);
+  MotionProfile clean_profile = p;
+  clean_profile.faults.clear();
+  const GyroSimulation clean = SimulateGyro(u, clean_profile, o);  // ideal gyros: the mean true rate
+  auto err = [&](size_t k, int i) { return s.gyro_dph[k][i] - clean.gyro_dph[k][i]; };
+  auto k_at = [&](double t) { return static_cast<size_t>(std::lround(t * 10)) - 1; };  // sample ending at t
+  // Step on gyro 1 over (10, 20].
+  EXPECT_NEAR(err(k_at(10), 0), 0.0, 1e-6);
+  EXPECT_NEAR(err(k_at(15), 0), 30.0, 1e-6);
+  EXPECT_NEAR(err(k_at(20), 0), 30.0, 1e-6);
+  EXPECT_NEAR(err(k_at(20.1), 0), 0.0, 1e-6);
+  // Ramp of 5 deg/h per second on gyro 2 (the sample's end time sets the ramp).
+  EXPECT_NEAR(err(k_at(30), 1), 50.0, 1e-6);
+  EXPECT_NEAR(err(k_at(90), 1), 350.0, 1e-6);
+  // Noise burst on gyro 3: the ideal gyro's error is the burst, 50 deg/h RMS, and nothing after it.
+  double sum2 = 0;
+  for (double t = 30.1; t <= 60.0 + 1e-9; t += 0.1) sum2 += err(k_at(t), 2) * err(k_at(t), 2);
+  EXPECT_NEAR(std::sqrt(sum2 / 300), 50.0, 6.0);
+  EXPECT_NEAR(err(k_at(70), 2), 0.0, 1e-6);
+  // Stuck gyro 4 keeps its last output while the sine rate moves on.
+  for (double t = 40.1; t <= 100; t += 7.3) EXPECT_EQ(s.gyro_dph[k_at(t)][3], s.gyro_dph[k_at(40)][3]);
+  EXPECT_GT(std::abs(err(k_at(50), 3)), 100.0);
+  // The profile round-trips through JSON and bad faults are refused naming the file.
+  const MotionProfile back = MotionProfileFromJson(Json{{"faults", {p.faults[2].ToJson(), p.faults[3].ToJson()}}}, "m");
+  EXPECT_EQ(back.faults[0].end_s, 60.0);
+  EXPECT_EQ(back.faults[0].noise_dph, 50.0);
+  EXPECT_TRUE(back.faults[1].stuck);
+  EXPECT_TRUE(std::isinf(back.faults[1].end_s));
+  auto bad = [](const char* text) {
+    try {
+      MotionProfileFromJson(Json::parse(text), "p.json").Check("p.json", 4);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_THAT(bad(R"({"faults": [{"gyro": 1, "t_s": 5, "end_s": 4, "step_dph": 1}]})"), HasSubstr("end_s"));
+  EXPECT_THAT(bad(R"({"faults": [{"gyro": 1, "t_s": 5, "noise_dph": -1}]})"), HasSubstr("noise_dph"));
+  EXPECT_THAT(bad(R"({"faults": [{"gyro": 1, "t_s": 5, "stuck": 1}]})"), HasSubstr("stuck"));
+  EXPECT_THAT(bad(R"({"faults": [{"gyro": 1, "t_s": 5, "ramp_dph_per_h": 1, "ramp_dph_per_s": 1}]})"),
+              HasSubstr("not both"));
 }
 
 }  // namespace

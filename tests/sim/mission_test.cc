@@ -166,6 +166,27 @@ TEST(Mission, OneHeadWithinThreeSigmaBelowFrameNoiseAndBiasConverges) {
   EXPECT_LT(AttitudeErrorRad(r.final_state.q_inertial_from_body, r.q_truth_final), 4 * std::sqrt(3.0) * sigma_max_rad);
 }
 
+// motion.star_tracker.outages_s: no frames inside an outage (it was accepted and ignored, issue 16);
+// the gyros carry the attitude across it, the covariance growing to cover the drift, and the first
+// frame after it is taken. The outage round-trips through the config JSON.
+TEST(Mission, StarTrackerOutageGivesNoFrames) {
+  MissionConfig c = SmallMission(1);
+  c.duration_s = 40;
+  c.frame_rate_hz = 1;
+  c.motion.st_outages_s = {{10.0, 30.5}};
+  const MissionConfig back = MissionConfigFromJson(MissionConfigToJson(c), "mem");
+  ASSERT_EQ(back.motion.st_outages_s.size(), 1u);
+  EXPECT_EQ(back.motion.st_outages_s[0][1], 30.5);
+  const MissionData d = SimulateMission(c);
+  ASSERT_EQ(d.frame_t_s.size(), 41u - 21u);
+  for (double t : d.frame_t_s) EXPECT_TRUE(t < 10.0 || t >= 30.5) << t;
+  const MissionResult r = RunMission(c, testing::Bsc());
+  EXPECT_EQ(r.frames, 20);
+  EXPECT_EQ(r.frames_solved, 20);
+  EXPECT_EQ(r.rejected, 0);
+  EXPECT_GT(r.within_3sigma_fraction, 0.97);
+}
+
 // Slewing at 1 deg/s nearly across head 1's boresight: each 0.1 s frame smears its stars by 3 px
 // (rendered along the path, sim/frame_sim.h) and the processor hands the gyro rate to the detector.
 // Every frame is solved and the fused attitude stays within its reported 3 sigma.
