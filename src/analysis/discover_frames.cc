@@ -20,7 +20,7 @@ constexpr int kCam = 4;
 
 Camera Apply(const Camera& c0, const double* cam) {
   Camera c = c0;
-  c.focal_length_px += cam[0];
+  c.ScaleFocal((c0.focal_length_px + cam[0]) / c0.focal_length_px);  // fx and fy, aspect kept
   c.cx_px += cam[1];
   c.cy_px += cam[2];
   c.distortion.k1 += cam[3];
@@ -280,7 +280,7 @@ FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, c
     return d;
   }
   const std::vector<bool> all(nf, true);
-  const double arcsec_per_px = kRadToArcsec / camera.focal_length_px;
+  const double arcsec_per_px = kRadToArcsec / camera.FocalMeanPx();
   struct Spec {
     std::string cause;
     std::array<bool, kCam> mask;

@@ -20,7 +20,7 @@ void WriteResidualQuiver(const std::string& dir, const FrameDiscovery& d, const 
   double max_res = 1e-9;
   for (size_t i = 0; i < d.x_px.size(); ++i) max_res = std::max(max_res, std::hypot(d.dx_before_px[i], d.dy_before_px[i]));
   const double arrow = 40.0 / max_res;
-  const double arcsec_per_px = 206264.8 / camera.focal_length_px;
+  const double arcsec_per_px = 206264.8 / camera.FocalMeanPx();
   for (int which = 0; which < 2; ++which) {
     cv::Mat img(h, w, CV_8UC3, cv::Scalar(255, 255, 255));
     cv::rectangle(img, cv::Point(20, 50), cv::Point(20 + static_cast<int>(camera.width * scale_img), 50 + static_cast<int>(camera.height * scale_img)),

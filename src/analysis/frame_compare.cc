@@ -37,7 +37,7 @@ void FrameCompareOptions::Check() const {
 }
 
 StarCatalog SkyForCamera(const Camera& camera, double fov_tolerance_pct, double mag_max) {
-  const double fov_deg = camera.FovXRad() * kRadToDeg * (1 + fov_tolerance_pct / 100);
+  const double fov_deg = camera.FovMaxRad() * kRadToDeg * (1 + fov_tolerance_pct / 100);
   const SourceCatalog src = LoadSourceCatalog(DefaultSourceFor(fov_deg));
   StarCatalog sky;
   sky.source = src.source;
@@ -260,7 +260,7 @@ FrameComparison CompareWithSimulation(const SolvedFrameSet& measured, const std:
   }
   c.attitude_error_median_arcsec = Median(c.attitude_error_arcsec);
   // Star pairs: the same catalog direction in the measured frame and its simulation.
-  const double cos_tol = std::cos(o.match_radius_px / camera.focal_length_px);
+  const double cos_tol = std::cos(o.match_radius_px / camera.FocalMinPx());
   std::vector<double> dpos, dmag;
   for (const auto& ms : measured.stars) {
     for (const auto& ss : sim.stars) {

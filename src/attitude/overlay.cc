@@ -40,8 +40,7 @@ void WriteSolveOverlay(const std::string& path, const ImageView& image, const Ca
   if (r.status == "solved") {
     std::set<int> matched_stars;
     for (const auto& m : r.identification.matches) matched_stars.insert(m.star);
-    Camera cam = camera;
-    cam.focal_length_px = r.identification.focal_length_px;
+    const Camera cam = FittedCamera(camera, r.identification);
     const Mat3 rot = r.attitude.q_inertial_from_sensor.toRotationMatrix();
     for (int s : id.StarsWithin(rot.col(2), cam.FovDiagRad() / 2)) {
       if (matched_stars.count(s)) continue;

@@ -47,7 +47,7 @@ void SolveOptions::Check() const {
 StarIdentifier MakeIdentifierForCamera(const std::string& dir, const Camera& cam, double fov_tolerance_pct,
                                        double mag_max, const std::string& source) {
   CatalogBuildOptions b;
-  b.fov_deg = std::round(cam.FovXRad() * kRadToDeg * (1 + fov_tolerance_pct / 100.0) * 10) / 10;
+  b.fov_deg = std::round(cam.FovMaxRad() * kRadToDeg * (1 + fov_tolerance_pct / 100.0) * 10) / 10;
   b.mag_max = mag_max;
   const std::string src = source.empty() ? DefaultSourceFor(b.fov_deg) : source;
   if (dir.empty()) return StarIdentifier(LoadOrBuildCatalog(src, b));
@@ -143,6 +143,7 @@ Json SolveResultToJson(const SolveResult& r) {
   j["sigma_cross_arcsec"] = NumOrNull(ok ? r.attitude.sigma_cross_rad * kRadToArcsec : nan);
   j["sigma_roll_arcsec"] = NumOrNull(ok ? r.attitude.sigma_roll_rad * kRadToArcsec : nan);
   j["focal_length_px"] = NumOrNull(r.identification.focal_length_px);
+  j["focal_length_y_px"] = NumOrNull(r.identification.focal_length_y_px);
   j["false_match_probability"] = r.identification.false_match_probability;
   Json m = Json::array();
   if (ok) {
@@ -164,7 +165,7 @@ Json SolveResultToJson(const SolveResult& r) {
 std::string TanWcsHeader(const Quat& q, const Camera& cam) {
   const Mat3 r = q.normalized().toRotationMatrix();
   // Pixel direction at the principal point is the boresight; standard coordinates (xi east, eta north)
-  // of a pixel offset (dx, dy) are (R^T e_east . (dx, dy, 0) / f, R^T e_north . (dx, dy, 0) / f)
+  // of a pixel offset (dx, dy) are (R^T e_east . (dx/fx, dy/fy, 0), R^T e_north . (dx/fx, dy/fy, 0))
   // (Calabretta & Greisen 2002, TAN: x = xi, y = eta in degrees).
   const Vec3 bore = r.col(2);
   double ra, dec;
@@ -172,7 +173,7 @@ std::string TanWcsHeader(const Quat& q, const Camera& cam) {
   const Vec3 east(-std::sin(ra), std::cos(ra), 0);
   const Vec3 north(-std::sin(dec) * std::cos(ra), -std::sin(dec) * std::sin(ra), std::cos(dec));
   const Vec3 e_s = r.transpose() * east, n_s = r.transpose() * north;
-  const double s = kRadToDeg / cam.focal_length_px;
+  const double sx = kRadToDeg / cam.focal_length_px, sy = kRadToDeg / cam.FocalYPx();
   std::vector<std::string> cards;
   auto card = [&](const std::string& key, const std::string& value, const std::string& comment) {
     char buf[81];
@@ -194,10 +195,10 @@ std::string TanWcsHeader(const Quat& q, const Camera& cam) {
   card("CRPIX2", num(cam.cy_px + 1), "principal point y (FITS 1-based)");
   card("CUNIT1", "'deg'", "");
   card("CUNIT2", "'deg'", "");
-  card("CD1_1", num(e_s.x() * s), "deg/px");
-  card("CD1_2", num(e_s.y() * s), "deg/px");
-  card("CD2_1", num(n_s.x() * s), "deg/px");
-  card("CD2_2", num(n_s.y() * s), "deg/px");
+  card("CD1_1", num(e_s.x() * sx), "deg/px");
+  card("CD1_2", num(e_s.y() * sy), "deg/px");
+  card("CD2_1", num(n_s.x() * sx), "deg/px");
+  card("CD2_2", num(n_s.y() * sy), "deg/px");
   card("IMAGEW", std::to_string(cam.width), "image width (px)");
   card("IMAGEH", std::to_string(cam.height), "image height (px)");
   std::string out;
@@ -227,7 +228,7 @@ SolveResult Tracker::Update(const std::vector<Centroid>& centroids, double t_s) 
     r.mode = "lost_in_space";
     have_rate_ = false;
     if (r.identification.status == "solved" && options_.identify.fov_tolerance_pct > 0)
-      camera_.focal_length_px = r.identification.focal_length_px;  // keep the fitted focal length
+      camera_ = FittedCamera(camera_, r.identification);  // keep the fitted focal length
   }
   Finish(&r);
   if (r.status == "solved") {

@@ -52,7 +52,7 @@ struct SolveResult {
 };
 
 // The solver catalog in `dir` (built and saved there when absent), or with an empty dir the cached
-// catalog (identify/star_catalog.h CatalogCacheDir) for the camera's horizontal FOV widened by the
+// catalog (identify/star_catalog.h CatalogCacheDir) for the camera's larger FOV (x or y) widened by the
 // focal-length tolerance. source "" = DefaultSourceFor(FOV); mag_max 0 = from the FOV.
 StarIdentifier MakeIdentifierForCamera(const std::string& dir, const Camera& camera, double fov_tolerance_pct,
                                        double mag_max = 0, const std::string& source = "");

@@ -77,8 +77,7 @@ void RunSingle(const Opts& o) {
     WriteSolveOverlay(o.overlay, fr.image.view(), cam, id, r);
   }
   if (!o.wcs.empty() && r.status == "solved") {
-    Camera c = cam;
-    c.focal_length_px = r.identification.focal_length_px;
+    const Camera c = FittedCamera(cam, r.identification);
     std::ofstream wcs(o.wcs);
     if (!(wcs << TanWcsHeader(r.attitude.q_inertial_from_sensor, c))) throw InputError(o.wcs, "cannot write file");
   }
@@ -148,6 +147,7 @@ void RunHeads(const Opts& o) {
   j["sigma_cross_arcsec"] = num(s.sigma_cross_rad * kRadToArcsec);
   j["sigma_roll_arcsec"] = num(s.sigma_roll_rad * kRadToArcsec);
   j["focal_length_px"] = nullptr;  // one per head, under "heads"
+  j["focal_length_y_px"] = nullptr;
   j["false_match_probability"] = mh.false_match_probability;
   Json matches = Json::array();
   for (size_t h = 0; h < ids.size(); ++h) {

@@ -1,5 +1,6 @@
 #include "core/camera.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/error.h"
@@ -13,6 +14,9 @@ void Camera::Check(const std::string& source) const {
   if (!std::isfinite(focal_length_px) || focal_length_px < 10 || focal_length_px > 1e6) {
     throw InputError(source, "focal_length_px must be 10..1e6 pixels");
   }
+  if (!std::isfinite(focal_length_y_px) || (focal_length_y_px != 0 && (focal_length_y_px < 10 || focal_length_y_px > 1e6))) {
+    throw InputError(source, "focal_length_y_px must be 10..1e6 pixels");
+  }
   if (!std::isfinite(cx_px) || !std::isfinite(cy_px) || cx_px < -0.5 || cy_px < -0.5 ||
       cx_px > width - 0.5 || cy_px > height - 0.5) {
     throw InputError(source, "principal_point must lie inside the image");
@@ -23,11 +27,19 @@ void Camera::Check(const std::string& source) const {
   if (!std::isfinite(gain_e_per_adu) || gain_e_per_adu < 0) throw InputError(source, "gain_e_per_adu must be >= 0");
 }
 
-double Camera::FovXRad() const { return 2 * std::atan(0.5 * width / focal_length_px); }
-double Camera::FovYRad() const { return 2 * std::atan(0.5 * height / focal_length_px); }
-double Camera::FovDiagRad() const {
-  return 2 * std::atan(0.5 * std::hypot(width, height) / focal_length_px);
+double Camera::FocalMeanPx() const { return std::sqrt(focal_length_px * FocalYPx()); }
+double Camera::FocalMinPx() const { return std::min(focal_length_px, FocalYPx()); }
+void Camera::ScaleFocal(double s) {
+  focal_length_px *= s;
+  if (focal_length_y_px > 0) focal_length_y_px *= s;
 }
+
+double Camera::FovXRad() const { return 2 * std::atan(0.5 * width / focal_length_px); }
+double Camera::FovYRad() const { return 2 * std::atan(0.5 * height / FocalYPx()); }
+double Camera::FovDiagRad() const {
+  return 2 * std::atan(std::hypot(0.5 * width / focal_length_px, 0.5 * height / FocalYPx()));
+}
+double Camera::FovMaxRad() const { return std::max(FovXRad(), FovYRad()); }
 
 Vec2 Camera::Distort(const Vec2& u) const {
   // OpenCV's Brown-Conrady model (cv::projectPoints documentation).
@@ -58,11 +70,11 @@ Vec2 Camera::Undistort(const Vec2& dist) const {
 std::optional<Vec2> Camera::Project(const Vec3& v) const {
   if (v.z() <= 1e-9 * v.norm()) return std::nullopt;
   const Vec2 d = Distort(Vec2(v.x() / v.z(), v.y() / v.z()));
-  return Vec2(cx_px + focal_length_px * d.x(), cy_px + focal_length_px * d.y());
+  return Vec2(cx_px + focal_length_px * d.x(), cy_px + FocalYPx() * d.y());
 }
 
 Vec3 Camera::Unproject(const Vec2& p) const {
-  const Vec2 u = Undistort(Vec2((p.x() - cx_px) / focal_length_px, (p.y() - cy_px) / focal_length_px));
+  const Vec2 u = Undistort(Vec2((p.x() - cx_px) / focal_length_px, (p.y() - cy_px) / FocalYPx()));
   return Vec3(u.x(), u.y(), 1.0).normalized();
 }
 
@@ -100,6 +112,7 @@ Camera CameraFromJson(const Json& j, const std::string& source) {
   } else {
     throw InputError(source, "missing field 'focal_length_px' (or 'focal_length_mm' + 'pixel_pitch_um')");
   }
+  if (j.contains("focal_length_y_px")) c.focal_length_y_px = JsonNumber(j, "focal_length_y_px", source);
   c.cx_px = 0.5 * (c.width - 1);
   c.cy_px = 0.5 * (c.height - 1);
   if (j.contains("principal_point")) {
@@ -137,6 +150,7 @@ Json CameraToJson(const Camera& c) {
               {"k3", c.distortion.k3},
               {"p1", c.distortion.p1},
               {"p2", c.distortion.p2}}}};
+  if (c.focal_length_y_px > 0) j["focal_length_y_px"] = c.focal_length_y_px;
   if (c.gain_e_per_adu > 0) j["gain_e_per_adu"] = c.gain_e_per_adu;
   return j;
 }

@@ -18,7 +18,10 @@ struct Distortion {
 struct Camera {
   int width = 1024;
   int height = 1024;
-  double focal_length_px = 3510.0;  // 16.6 deg across 1024 px
+  double focal_length_px = 3510.0;  // fx: 16.6 deg across 1024 px
+  // fy (camera.json `focal_length_y_px`, for non-square pixels); 0 = square pixels, fy = fx. Read it
+  // through FocalYPx() and scale both with ScaleFocal().
+  double focal_length_y_px = 0;
   double cx_px = 511.5;             // principal point; default is the image centre
   double cy_px = 511.5;
   Distortion distortion;
@@ -27,10 +30,20 @@ struct Camera {
   // Throws InputError naming `source` and the field when a value is absurd.
   void Check(const std::string& source = "camera") const;
 
+  double FocalXPx() const { return focal_length_px; }
+  double FocalYPx() const { return focal_length_y_px > 0 ? focal_length_y_px : focal_length_px; }
+  // Angular scale of one pixel: the geometric mean sqrt(fx fy) (a pixel's area in rad^2 is 1 / (fx fy)).
+  double FocalMeanPx() const;
+  // The smaller of fx, fy: the larger angle per pixel, for tolerances that must hold in both axes.
+  double FocalMinPx() const;
+  // Multiplies fx and fy by `s` (a common scale; the aspect fy/fx is kept).
+  void ScaleFocal(double s);
+
   // Horizontal / vertical / diagonal field of view (radians), pinhole.
   double FovXRad() const;
   double FovYRad() const;
   double FovDiagRad() const;
+  double FovMaxRad() const;  // the larger of FovXRad, FovYRad
 
   // Normalised coordinates (X/Z, Y/Z) <-> distorted normalised coordinates.
   Vec2 Distort(const Vec2& undistorted) const;

@@ -58,7 +58,7 @@ Mask DesignMask(const Camera& camera, const std::vector<CatalogStar>& stars, con
     }
   m.field_half_x_mm = F * std::tan(std::atan(tx) + margin);
   m.field_half_y_mm = F * std::tan(std::atan(ty) + margin);
-  const double pixel_mm = F / camera.focal_length_px;
+  const double pixel_mm = F / camera.FocalMinPx();  // the larger pixel side
   m.hole_min_diameter_mm = o.hole_min_diameter_mm > 0 ? o.hole_min_diameter_mm : 0.2 * pixel_mm;
   m.hole_max_diameter_mm = o.hole_max_diameter_mm > 0 ? o.hole_max_diameter_mm : 2.0 * pixel_mm;
   m.hole_max_diameter_mm = std::max(m.hole_max_diameter_mm, m.hole_min_diameter_mm);
@@ -73,7 +73,7 @@ Mask DesignMask(const Camera& camera, const std::vector<CatalogStar>& stars, con
     if (d.z() <= 0) continue;
     if (o.compensate_distortion) {
       // The direction whose distorted image is the star's pinhole image.
-      const Vec2 pin(camera.cx_px + camera.focal_length_px * d.x() / d.z(), camera.cy_px + camera.focal_length_px * d.y() / d.z());
+      const Vec2 pin(camera.cx_px + camera.focal_length_px * d.x() / d.z(), camera.cy_px + camera.FocalYPx() * d.y() / d.z());
       d = camera.Unproject(pin);
       // Far outside the image the lens model has no inverse: leave out what it cannot show.
       const auto back = camera.Project(d);
@@ -213,6 +213,7 @@ void CheckMaskCamera(const Mask& m, const Camera& c, const std::string& mask_fil
   const Camera& d = m.camera;
   if (d.width != c.width || d.height != c.height ||
       std::abs(d.focal_length_px - c.focal_length_px) > 1e-3 * d.focal_length_px ||
+      std::abs(d.FocalYPx() - c.FocalYPx()) > 1e-3 * d.FocalYPx() ||
       std::abs(d.cx_px - c.cx_px) > 0.5 || std::abs(d.cy_px - c.cy_px) > 0.5) {
     char buf[256];
     std::snprintf(buf, sizeof buf, "designed for another camera (%dx%d, f %.1f px), not this one (%dx%d, f %.1f px)",

@@ -136,7 +136,7 @@ PlatePoseEstimate EstimatePlatePose(const Mask& m, const AuxCamera& aux, const u
   for (int t = 0; t < nt; ++t)
     Sigma.block<8, 8>(8 * t, 8 * t) = refined[t] ? Eigen::Matrix<double, 8, 8>(tag_cov[t] * e.pixel_noise_dn * e.pixel_noise_dn) : tag_cov[t];
   e.predicted_corner_sigma_px = std::sqrt(Sigma.diagonal().mean());
-  const cv::Matx33d K(c.focal_length_px, 0, c.cx_px, 0, c.focal_length_px, c.cy_px, 0, 0, 1);
+  const cv::Matx33d K(c.focal_length_px, 0, c.cx_px, 0, c.FocalYPx(), c.cy_px, 0, 0, 1);
   const std::vector<double> dist;  // corners are undistorted already
   // Planar target: IPPE for the start, then Levenberg-Marquardt on all corners.
   cv::Mat rvec, tvec;

@@ -9,7 +9,7 @@ namespace ssiu::groundtest_internal {
 Vec2 UndistortPixel(const Camera& c, const Vec2& px) {
   if (c.distortion.IsZero()) return px;
   const Vec3 d = c.Unproject(px);
-  return Vec2(c.cx_px + c.focal_length_px * d.x() / d.z(), c.cy_px + c.focal_length_px * d.y() / d.z());
+  return Vec2(c.cx_px + c.focal_length_px * d.x() / d.z(), c.cy_px + c.FocalYPx() * d.y() / d.z());
 }
 
 namespace {
@@ -48,7 +48,7 @@ bool FitEdge(const uint8_t* img, int w, int h, const Camera& cam, const Vec2& a,
   const Vec2 corners[4] = {a + n * (R + 3), a - n * (R + 3), b + n * (R + 3), b - n * (R + 3)};
   double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
   for (const Vec2& c : corners) {
-    const auto d = cam.Project(Vec3((c.x() - cam.cx_px) / cam.focal_length_px, (c.y() - cam.cy_px) / cam.focal_length_px, 1));
+    const auto d = cam.Project(Vec3((c.x() - cam.cx_px) / cam.focal_length_px, (c.y() - cam.cy_px) / cam.FocalYPx(), 1));
     const Vec2 p = d ? *d : c;
     x0 = std::min(x0, p.x()), x1 = std::max(x1, p.x()), y0 = std::min(y0, p.y()), y1 = std::max(y1, p.y());
   }

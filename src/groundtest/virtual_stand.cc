@@ -105,7 +105,7 @@ Image16 RenderTrackerView(const Mask& m, const PlatePose& pose, const Quat& q_c_
     ViewStar vs;
     vs.star_id = hole.star_id;
     vs.x_px = px->x(), vs.y_px = px->y();
-    vs.radius_px = cam.focal_length_px * hole.diameter_mm / 2 / m.collimator_focal_mm;
+    vs.radius_px = cam.FocalMeanPx() * hole.diameter_mm / 2 / m.collimator_focal_mm;
     // Holes are graded over a few pixel footprints; an absurd diameter (1e9 mm overflowed AddHole's
     // int window size) is refused. At 100 px the supersampled window is already ~100 MB.
     if (!(vs.radius_px <= kMaxHoleRadiusPx)) {
@@ -200,10 +200,10 @@ std::vector<uint8_t> RenderAuxPhoto(const Mask& m, const PlatePose& pose, const 
   const Vec3 origin_p = -(r_pa * t_ap);
   const int w = aux.camera.width, h = aux.camera.height, ss = o.supersample;
   const bool pinhole = aux.camera.distortion.IsZero();
-  const double f = aux.camera.focal_length_px;
+  const double fx = aux.camera.focal_length_px, fy = aux.camera.FocalYPx();
   auto reflectance_at = [&](double px_x, double px_y) {
     // Pinhole fast path (Unproject iterates the distortion inverse).
-    const Vec3 ray = pinhole ? Vec3((px_x - aux.camera.cx_px) / f, (px_y - aux.camera.cy_px) / f, 1.0)
+    const Vec3 ray = pinhole ? Vec3((px_x - aux.camera.cx_px) / fx, (px_y - aux.camera.cy_px) / fy, 1.0)
                              : aux.camera.Unproject(Vec2(px_x, px_y));
     const Vec3 dir = r_pa * ray;
     if (dir.z() * -origin_p.z() <= 0) return 0.05;

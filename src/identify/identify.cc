@@ -97,7 +97,7 @@ Verification Verify(const Context& ctx, const Camera& cam, const Mat3& r, double
     m.y_px = (*ctx.c)[k.c].y_px;
     m.b_sensor = cam.Unproject(Vec2(m.x_px, m.y_px));
     m.r_inertial = cat.stars[m.star].unit;
-    m.sigma_rad = ctx.sigma_px[k.c] / cam.focal_length_px;
+    m.sigma_rad = ctx.sigma_px[k.c] / cam.FocalMeanPx();
     v.matches.push_back(m);
   }
   return v;
@@ -110,7 +110,8 @@ Mat3 SvdFromMatches(const std::vector<StarMatch>& ms) {
   return SolveWahbaSvd(pairs).toRotationMatrix();
 }
 
-// Gauss-Newton on pixel residuals over a small rotation (sensor frame) and the focal length.
+// Gauss-Newton on pixel residuals over a small rotation (sensor frame) and a common scale of fx and fy
+// (the pixel aspect fy/fx is the camera's).
 void RefineFocal(const Context& ctx, const std::vector<StarMatch>& ms, Camera* cam, Mat3* r) {
   if (ms.size() < 4) return;
   for (int iter = 0; iter < 4; ++iter) {
@@ -118,7 +119,7 @@ void RefineFocal(const Context& ctx, const std::vector<StarMatch>& ms, Camera* c
     Vec4 g = Vec4::Zero();
     auto residual = [&](const StarMatch& m, const Vec4& x, Vec2* out) {
       Camera c2 = *cam;
-      c2.focal_length_px *= (1 + x[3]);
+      c2.ScaleFocal(1 + x[3]);
       const Mat3 rr = *r * ExpSo3(x.head<3>());
       const auto p = c2.Project(rr.transpose() * m.r_inertial);
       if (!p) return false;
@@ -142,7 +143,7 @@ void RefineFocal(const Context& ctx, const std::vector<StarMatch>& ms, Camera* c
     }
     const Vec4 dx = -h.ldlt().solve(g);
     if (!dx.allFinite()) return;
-    cam->focal_length_px *= (1 + dx[3]);
+    cam->ScaleFocal(1 + dx[3]);
     *r = *r * ExpSo3(dx.head<3>());
     if (dx.head<3>().norm() < 1e-10 && std::abs(dx[3]) < 1e-10) break;
   }
@@ -169,7 +170,7 @@ Refined Refine(const Context& ctx, const IdentifyOptions& o, Camera cam, Mat3 r,
   }
   if (o.fov_tolerance_pct == 0) r = SvdFromMatches(v.matches);
   for (auto& m : v.matches) {
-    m.sigma_rad = ctx.sigma_px[m.centroid] / cam.focal_length_px;
+    m.sigma_rad = ctx.sigma_px[m.centroid] / cam.FocalMeanPx();
     m.residual_rad = Angle(r * m.b_sensor, m.r_inertial);
   }
   return {std::move(v), r, cam};
@@ -213,6 +214,11 @@ double ChanceProbability(int n_trials, int n_cat, double radius_px, const Camera
 }
 
 }  // namespace
+
+Camera FittedCamera(Camera camera, const Identification& id) {
+  if (id.focal_length_px > 0 && std::isfinite(id.focal_length_px)) camera.ScaleFocal(id.focal_length_px / camera.focal_length_px);
+  return camera;
+}
 
 void IdentifyOptions::Check() const {
   auto bad = [](const std::string& f, const std::string& w) { throw InputError("identify options", f + " " + w); };
@@ -292,6 +298,7 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
   CheckCentroids(centroids);
   Identification out;
   out.focal_length_px = camera.focal_length_px;
+  out.focal_length_y_px = camera.FocalYPx();
   const int n = static_cast<int>(centroids.size());
   if (n < o.min_matches) {
     out.status = "too_few_stars";
@@ -307,7 +314,7 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
     const auto& c = centroids[ctx.order[i]];
     u[i] = camera.Unproject(Vec2(c.x_px, c.y_px));
   }
-  const double f = camera.focal_length_px;
+  const double f = camera.FocalMinPx();  // side tolerances hold along both axes
   const double ptol = o.fov_tolerance_pct / 100.0;
   const double fov = catalog_.fov_deg * kDegToRad;
   // ln of the focal-length scale range: observed longest side / catalog longest side.
@@ -355,7 +362,7 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
             for (int i = 0; i < 3 && ok; ++i) ok = std::abs(side[i] / scale - cside[pm[i]]) <= 2 * tol_side;
             if (!ok) continue;
             Camera cam = camera;
-            if (ptol > 0) cam.focal_length_px = f * scale;
+            if (ptol > 0) cam.ScaleFocal(scale);
             Vec3 bv[3];
             for (int i = 0; i < 3; ++i) {
               const auto& cc = centroids[ctx.order[vtx[i]]];
@@ -390,6 +397,7 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
               out.q_inertial_from_sensor = Quat(rf.r).normalized();
               if (out.q_inertial_from_sensor.w() < 0) out.q_inertial_from_sensor.coeffs() *= -1;
               out.focal_length_px = rf.cam.focal_length_px;
+              out.focal_length_y_px = rf.cam.FocalYPx();
               out.false_match_probability = prob;
               out.matches = std::move(rf.v.matches);
               out.hypotheses = hyp;
@@ -420,6 +428,7 @@ Identification StarIdentifier::MatchWithAttitude(const std::vector<Centroid>& ce
   CheckCentroids(centroids);
   Identification out;
   out.focal_length_px = camera.focal_length_px;
+  out.focal_length_y_px = camera.FocalYPx();
   const int n = static_cast<int>(centroids.size());
   if (n < o.min_matches) {
     out.status = "too_few_stars";

@@ -61,13 +61,17 @@ struct Identification {
   std::string status = "too_few_stars";  // solved, no_match, too_few_stars
   std::string message;
   Quat q_inertial_from_sensor = Quat::Identity();  // from the matches (SVD); QUEST refines it
-  double focal_length_px = 0;
+  double focal_length_px = 0;       // fx used (fitted when fov_tolerance_pct > 0)
+  double focal_length_y_px = 0;     // fy used (the camera's aspect fy/fx is kept)
   double false_match_probability = 1.0;
   std::vector<StarMatch> matches;
   int hypotheses = 0;               // hypotheses verified
   int catalog_stars_in_field = 0;
   std::map<std::string, double> timing_ms;
 };
+
+// `camera` with the focal lengths that `id` used (fitted when fov_tolerance_pct > 0); the aspect is kept.
+Camera FittedCamera(Camera camera, const Identification& id);
 
 class StarIdentifier {
  public:

@@ -305,7 +305,7 @@ SimulatedFrame SimulateFrame(const Camera& cam, const StarCatalog& catalog, cons
   // Stars up to half a smear outside the frame at mid-exposure run into it (half a smear is at most
   // |w| T / 2 times the focal length plus the half diagonal, pinhole; 1.5x for distortion).
   const double smear_margin_px =
-      1.5 * 0.5 * rate_rad_s.norm() * o.exposure_s * (cam.focal_length_px + 0.5 * std::hypot(double(w), double(h)));
+      1.5 * 0.5 * rate_rad_s.norm() * o.exposure_s * (std::max(cam.focal_length_px, cam.FocalYPx()) + 0.5 * std::hypot(double(w), double(h)));
 
   // Stars: every catalog star whose PSF reaches the frame.
   const double cos_limit = std::cos(0.5 * cam.FovDiagRad() + 0.01);

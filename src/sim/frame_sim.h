@@ -18,6 +18,8 @@ namespace ssiu {
 struct FrameSimOptions {
   // Optics and photometry
   double psf_sigma_px = 1.2;          // Gaussian PSF sigma (pixel-integrated)
+  // PSF options are in pixels of the frame: with non-square pixels (camera focal_length_y_px) a round
+  // optical PSF is an ellipse, psf_ellipticity = 1 - min(fx, fy) / max(fx, fy), psf_angle_deg 0 when fy < fx.
   double defocus_radius_px = 0.0;     // > 0: PSF = uniform disk of this radius convolved with the Gaussian
   // Elliptical PSF: 1 - minor/major axis (of the Gaussian's sigmas; camera.json "psf_ellipticity" as
   // `ssiu discover frames` psf_shape writes it), major axis at psf_angle_deg from +x towards +y. The

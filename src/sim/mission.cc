@@ -313,7 +313,7 @@ MissionResult RunMission(const MissionConfig& config_in, const StarCatalog& cata
   std::map<long, std::shared_ptr<const StarIdentifier>> by_fov;
   std::vector<std::shared_ptr<const StarIdentifier>> ids;
   for (const auto& h : config.heads) {
-    const long key = std::lround(h.camera.FovXRad() * kRadToDeg * 10);
+    const long key = std::lround(h.camera.FovMaxRad() * kRadToDeg * 10);
     if (!by_fov.count(key)) {
       by_fov[key] = std::make_shared<const StarIdentifier>(MakeIdentifierForCamera("", h.camera, 0.0));
     }

@@ -1,5 +1,6 @@
 #include "core/camera.h"
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
@@ -33,6 +34,49 @@ TEST(Camera, UnprojectInvertsProjectWithDistortion) {
       EXPECT_NEAR(p->y(), y, 1e-6);
     }
   }
+}
+
+TEST(Camera, NonSquarePixelsProjectWithFxAndFy) {
+  Camera c;
+  c.focal_length_px = 2300;
+  c.focal_length_y_px = 1150;  // pixels twice as tall as wide
+  c.cx_px = 511.5;
+  c.cy_px = 500.0;
+  const auto p = c.Project(Vec3(0.01, -0.02, 1.0));
+  ASSERT_TRUE(p.has_value());
+  EXPECT_NEAR(p->x(), 511.5 + 23.0, 1e-9);
+  EXPECT_NEAR(p->y(), 500.0 - 23.0, 1e-9);
+  EXPECT_NEAR(c.FovYRad(), 2 * std::atan(512.0 / 1150), 1e-12);
+  EXPECT_NEAR(c.FocalMeanPx(), std::sqrt(2300.0 * 1150), 1e-9);
+  // Round trip through the distortion with fx != fy.
+  c.distortion = {-0.2, 0.05, 0.0, 5e-4, -1e-3};
+  for (double x : {3.0, 400.0, 1000.0}) {
+    for (double y : {10.0, 700.0, 1015.0}) {
+      const auto q = c.Project(c.Unproject(Vec2(x, y)));
+      ASSERT_TRUE(q.has_value());
+      EXPECT_NEAR(q->x(), x, 1e-6);
+      EXPECT_NEAR(q->y(), y, 1e-6);
+    }
+  }
+  // A common scale keeps the aspect.
+  Camera s = c;
+  s.ScaleFocal(1.01);
+  EXPECT_NEAR(s.FocalYPx() / s.focal_length_px, 0.5, 1e-15);
+}
+
+TEST(Camera, FocalLengthYReadAndWrittenExactly) {
+  const Json j = {{"width", 752}, {"height", 290}, {"focal_length_px", 2325.5813953488373}, {"focal_length_y_px", 1163.123456789}};
+  const Camera c = CameraFromJson(j, "cam.json");
+  EXPECT_EQ(c.focal_length_y_px, 1163.123456789);
+  const Camera back = CameraFromJson(CameraToJson(c), "again");
+  EXPECT_EQ(back.focal_length_px, c.focal_length_px);
+  EXPECT_EQ(back.focal_length_y_px, c.focal_length_y_px);
+  // Square pixels: no key written, fy reads as fx.
+  const Camera sq = CameraFromJson({{"width", 100}, {"height", 100}, {"focal_length_px", 300}}, "sq.json");
+  EXPECT_FALSE(CameraToJson(sq).contains("focal_length_y_px"));
+  EXPECT_EQ(sq.FocalYPx(), 300);
+  EXPECT_THROW(CameraFromJson({{"width", 100}, {"height", 100}, {"focal_length_px", 300}, {"focal_length_y_px", -1}}, "c.json"),
+               InputError);
 }
 
 TEST(Camera, FocalLengthFromMillimetres) {
