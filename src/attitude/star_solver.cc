@@ -1,5 +1,7 @@
 #include "attitude/star_solver.h"
 
+#include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -162,6 +164,53 @@ Json SolveResultToJson(const SolveResult& r) {
   return j;
 }
 
+namespace {
+
+// SIP polynomial (Shupe et al. 2005) of a camera's distortion, fitted by least squares on a grid over
+// the image: forward (A, B) maps pixel offsets (u, v) from CRPIX to the pinhole offsets the CD matrix
+// takes, u' = u + A(u, v), with 2 <= p + q <= order; inverse (AP, BP) maps back, u = u' + AP(u', v'),
+// with 1 <= p + q <= order. The lowest order (2..9) whose worst grid error is below 0.002 px is kept.
+struct SipFit {
+  int order = 0;
+  std::vector<std::array<double, 4>> a, b;  // {p, q, coefficient, unused}
+  double max_err_px = 0;
+};
+
+SipFit FitSip(const std::vector<Vec2>& from, const std::vector<Vec2>& to, int min_total, double scale) {
+  SipFit best;
+  for (int order = 2; order <= 9; ++order) {
+    std::vector<std::pair<int, int>> terms;
+    for (int p = 0; p <= order; ++p)
+      for (int q = 0; p + q <= order; ++q)
+        if (p + q >= min_total) terms.push_back({p, q});
+    Eigen::MatrixXd m(from.size(), terms.size());
+    Eigen::VectorXd du(from.size()), dv(from.size());
+    for (size_t i = 0; i < from.size(); ++i) {
+      const double x = from[i].x() / scale, y = from[i].y() / scale;  // normalised for conditioning
+      for (size_t t = 0; t < terms.size(); ++t) m(i, t) = std::pow(x, terms[t].first) * std::pow(y, terms[t].second);
+      du[i] = to[i].x() - from[i].x();
+      dv[i] = to[i].y() - from[i].y();
+    }
+    const auto qr = m.colPivHouseholderQr();
+    const Eigen::VectorXd ca = qr.solve(du), cb = qr.solve(dv);
+    const double err = std::max((m * ca - du).cwiseAbs().maxCoeff(), (m * cb - dv).cwiseAbs().maxCoeff());
+    if (best.order == 0 || err < best.max_err_px) {
+      best.order = order;
+      best.max_err_px = err;
+      best.a.clear(), best.b.clear();
+      for (size_t t = 0; t < terms.size(); ++t) {
+        const double k = std::pow(scale, terms[t].first + terms[t].second);
+        best.a.push_back({double(terms[t].first), double(terms[t].second), ca[t] / k, 0});
+        best.b.push_back({double(terms[t].first), double(terms[t].second), cb[t] / k, 0});
+      }
+    }
+    if (err < 0.002) break;
+  }
+  return best;
+}
+
+}  // namespace
+
 std::string TanWcsHeader(const Quat& q, const Camera& cam) {
   const Mat3 r = q.normalized().toRotationMatrix();
   // Pixel direction at the principal point is the boresight; standard coordinates (xi east, eta north)
@@ -186,8 +235,9 @@ std::string TanWcsHeader(const Quat& q, const Camera& cam) {
     return std::string(b);
   };
   card("WCSAXES", "2", "ssiu solve");
-  card("CTYPE1", "'RA---TAN'", "TAN (gnomonic) projection");
-  card("CTYPE2", "'DEC--TAN'", "TAN (gnomonic) projection");
+  const bool sip = !cam.distortion.IsZero();
+  card("CTYPE1", sip ? "'RA---TAN-SIP'" : "'RA---TAN'", sip ? "TAN with SIP distortion" : "TAN (gnomonic) projection");
+  card("CTYPE2", sip ? "'DEC--TAN-SIP'" : "'DEC--TAN'", sip ? "TAN with SIP distortion" : "TAN (gnomonic) projection");
   card("EQUINOX", "2000.0", "ICRS/J2000");
   card("CRVAL1", num(ra * kRadToDeg), "RA of the reference pixel (deg)");
   card("CRVAL2", num(dec * kRadToDeg), "Dec of the reference pixel (deg)");
@@ -201,6 +251,28 @@ std::string TanWcsHeader(const Quat& q, const Camera& cam) {
   card("CD2_2", num(n_s.y() * sy), "deg/px");
   card("IMAGEW", std::to_string(cam.width), "image width (px)");
   card("IMAGEH", std::to_string(cam.height), "image height (px)");
+  if (sip) {
+    // Grid over the image (and 2 % beyond): distorted pixel offsets (u, v) <-> pinhole offsets (u', v').
+    std::vector<Vec2> dist, pin;
+    const int n = 40;
+    for (int i = 0; i <= n; ++i) {
+      for (int k = 0; k <= n; ++k) {
+        const double x = -0.5 + (cam.width * 1.04) * (i / double(n) - 0.02), y = -0.5 + (cam.height * 1.04) * (k / double(n) - 0.02);
+        const Vec3 d = cam.Unproject(Vec2(x, y));
+        dist.push_back(Vec2(x - cam.cx_px, y - cam.cy_px));
+        pin.push_back(Vec2(cam.focal_length_px * d.x() / d.z(), cam.FocalYPx() * d.y() / d.z()));
+      }
+    }
+    const double scale = 0.5 * std::max(cam.width, cam.height);
+    auto write = [&](const SipFit& f, const std::string& a, const std::string& b, const char* what) {
+      card(a + "_ORDER", std::to_string(f.order), what);
+      for (const auto& t : f.a) card(a + "_" + std::to_string(int(t[0])) + "_" + std::to_string(int(t[1])), num(t[2]), "");
+      card(b + "_ORDER", std::to_string(f.order), what);
+      for (const auto& t : f.b) card(b + "_" + std::to_string(int(t[0])) + "_" + std::to_string(int(t[1])), num(t[2]), "");
+    };
+    write(FitSip(dist, pin, 2, scale), "A", "B", "SIP: distorted -> pinhole pixel offsets");
+    write(FitSip(pin, dist, 1, scale), "AP", "BP", "SIP inverse: pinhole -> distorted");
+  }
   std::string out;
   for (auto& c : cards) out += c.substr(0, 80) + std::string(80 - std::min<size_t>(80, c.size()), ' ');
   out += "END" + std::string(77, ' ');

@@ -72,8 +72,8 @@ SolveResult SolveFrame(const StarIdentifier& id, const ImageView& image, const C
 Json SolveResultToJson(const SolveResult& r);
 
 // FITS TAN WCS header (80-character cards, END-terminated) of a solution: CRPIX at the principal
-// point (FITS 1-based pixels), CRVAL its RA/Dec, CD from the attitude and focal length. Lens
-// distortion is not written (no SIP terms).
+// point (FITS 1-based pixels), CRVAL its RA/Dec, CD from the attitude and fx, fy. A camera with
+// distortion gets TAN-SIP: A/B (and inverse AP/BP) polynomials fitted to the camera model.
 std::string TanWcsHeader(const Quat& q_inertial_from_sensor, const Camera& camera);
 
 // Lost-in-space on the first frame, then prediction from the previous attitude and rate

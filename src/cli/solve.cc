@@ -179,7 +179,7 @@ SSIU_REGISTER_COMMAND(solve, [](CLI::App& root) {
   cmd->add_option("--centroids", o->centroids, "CSV x_px,y_px[,flux][,sigma_px] instead of a frame");
   cmd->add_option("--json", o->json, "Output JSON, - for stdout")->capture_default_str();
   cmd->add_option("--overlay", o->overlay, "Overlay PNG with detected, matched and rejected objects");
-  cmd->add_option("--wcs", o->wcs, "FITS TAN WCS header of the solution");
+  cmd->add_option("--wcs", o->wcs, "FITS TAN WCS header of the solution (TAN-SIP when the camera has distortion)");
   cmd->add_option("--heads", o->heads, "heads.json: up to three heads, fused into one body attitude");
   cmd->add_option("--dark", o->dark, "Dark/median frame subtracted before detection");
   AddSolverFlags(cmd, o.get());
