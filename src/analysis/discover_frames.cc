@@ -15,8 +15,9 @@ namespace {
 using Eigen::MatrixXd;
 using Eigen::VectorXd;
 
-// Camera parameter blocks: 0 focal_length (df), 1-2 principal_point (dcx, dcy), 3 lens_distortion (dk1).
-constexpr int kCam = 4;
+// Camera parameter blocks: 0 focal_length (df), 1-2 principal_point (dcx, dcy), 3 lens_distortion (dk1),
+// 4 pixel_aspect (relative change of fy alone, da: fy -> fy (1 + da)).
+constexpr int kCam = 5;
 
 Camera Apply(const Camera& c0, const double* cam) {
   Camera c = c0;
@@ -24,6 +25,7 @@ Camera Apply(const Camera& c0, const double* cam) {
   c.cx_px += cam[1];
   c.cy_px += cam[2];
   c.distortion.k1 += cam[3];
+  if (cam[4] != 0) c.focal_length_y_px = c.FocalYPx() * (1 + cam[4]);
   return c;
 }
 
@@ -36,7 +38,7 @@ Quat Perturbed(const Quat& q, const double* d) {
 
 struct GeoFit {
   std::vector<double> rot;        // 3 per frame
-  double cam[kCam] = {0, 0, 0, 0};
+  double cam[kCam] = {0, 0, 0, 0, 0};
   double rss = 0;                 // weighted
   MatrixXd cov_cam;               // unscaled covariance of the active camera parameters
   VectorXd res;                   // 2 per star (px)
@@ -90,7 +92,7 @@ GeoFit FitGeometry(const SolvedFrameSet& set, const Camera& cam0, const std::vec
     residuals(g, &r);
     MatrixXd j = MatrixXd::Zero(nr, np);
     const double h_rot = 1e-7;
-    const double h_cam[kCam] = {1e-3, 1e-3, 1e-3, 1e-7};
+    const double h_cam[kCam] = {1e-3, 1e-3, 1e-3, 1e-7, 1e-7};
     for (int f = 0; f < nf; ++f) {
       if (frame_col[f] < 0) continue;
       for (int a = 0; a < 3; ++a) {
@@ -137,7 +139,7 @@ double ChiSq1or2Survival(double w, int dof) {
 // Unweighted pixel residual RMS of the stars of `use_frame` under camera offsets `cam`, rotations refitted.
 double HeldOutRms(const SolvedFrameSet& set, const Camera& cam0, const std::vector<bool>& use_frame, const double* cam,
                   const FrameDiscoverOptions& o) {
-  const GeoFit g = FitGeometry(set, cam0, use_frame, {false, false, false, false}, cam, o);
+  const GeoFit g = FitGeometry(set, cam0, use_frame, {false, false, false, false, false}, cam, o);
   const Camera c = Apply(cam0, cam);
   double ss = 0;
   int n = 0;
@@ -260,8 +262,8 @@ FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, c
   const discover_internal::CauseResult psf = discover_internal::AnalysePsfShape(set, camera, o, &d);
   if (!hot.tested) d.not_tested.push_back("hot_pixels");
   if (!psf.tested) d.not_tested.push_back("psf_shape");
-  // Bonferroni over the candidates actually tested (4 geometric/photometric + these).
-  const double alpha_each = o.alpha / (4 + hot.tested + psf.tested);
+  // Bonferroni over the candidates actually tested (5 geometric/photometric + these).
+  const double alpha_each = o.alpha / (5 + hot.tested + psf.tested);
   // Names a cause found without the geometric fits (hot_pixels, psf_shape).
   auto name_other = [&](const discover_internal::CauseResult& c) {
     d.cause = c.candidate.cause;
@@ -285,11 +287,12 @@ FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, c
     std::string cause;
     std::array<bool, kCam> mask;
   };
-  const std::vector<Spec> specs = {{"focal_length", {true, false, false, false}},
-                                   {"principal_point", {false, true, true, false}},
-                                   {"lens_distortion", {false, false, false, true}}};
-  const GeoFit base = FitGeometry(set, camera, all, {false, false, false, false}, nullptr, o);
-  const GeoFit fullest = FitGeometry(set, camera, all, {true, true, true, true}, nullptr, o);
+  const std::vector<Spec> specs = {{"focal_length", {true, false, false, false, false}},
+                                   {"principal_point", {false, true, true, false, false}},
+                                   {"lens_distortion", {false, false, false, true, false}},
+                                   {"pixel_aspect", {false, false, false, false, true}}};
+  const GeoFit base = FitGeometry(set, camera, all, {false, false, false, false, false}, nullptr, o);
+  const GeoFit fullest = FitGeometry(set, camera, all, {true, true, true, true, true}, nullptr, o);
   const int nobs = 2 * d.stars;
   const int npar = 3 * nf + kCam;
   const double s2 = fullest.rss / std::max(1, nobs - npar);
@@ -464,11 +467,18 @@ FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, c
       if (sp.mask[k]) idx.push_back(k);
     }
   }
-  const char* names[kCam] = {"focal_length_px", "cx_px", "cy_px", "k1"};
-  const double nominal[kCam] = {camera.focal_length_px, camera.cx_px, camera.cy_px, camera.distortion.k1};
+  const char* names[kCam] = {"focal_length_px", "cx_px", "cy_px", "k1", "pixel_aspect"};
+  // pixel_aspect is fy / fx: the nominal aspect times (1 + da).
+  const double aspect0 = camera.FocalYPx() / camera.focal_length_px;
+  const double nominal[kCam] = {camera.focal_length_px, camera.cx_px, camera.cy_px, camera.distortion.k1, aspect0};
+  const double unit[kCam] = {1, 1, 1, 1, aspect0};
   for (size_t k = 0; k < idx.size(); ++k) {
-    d.parameters[names[idx[k]]] = nominal[idx[k]] + g.cam[idx[k]];
-    d.sigmas[names[idx[k]]] = std::sqrt(g.cov_cam(k, k)) * sc;
+    d.parameters[names[idx[k]]] = nominal[idx[k]] + unit[idx[k]] * g.cam[idx[k]];
+    d.sigmas[names[idx[k]]] = unit[idx[k]] * std::sqrt(g.cov_cam(k, k)) * sc;
+  }
+  if (d.cause == "pixel_aspect") {
+    d.parameters["focal_length_y_px"] = d.fitted_camera.FocalYPx();
+    d.sigmas["focal_length_y_px"] = d.sigmas["pixel_aspect"] * camera.focal_length_px;
   }
   if (d.cause == "focal_length") {
     d.parameters["focal_length_ppm"] = g.cam[0] / camera.focal_length_px * 1e6;
@@ -489,7 +499,7 @@ FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, c
         if (s.cause == d.cause) sp = &s;
       }
       const GeoFit gt = FitGeometry(set, camera, train, sp->mask, nullptr, o);
-      const double zero[kCam] = {0, 0, 0, 0};
+      const double zero[kCam] = {0, 0, 0, 0, 0};
       const double b = HeldOutRms(set, camera, test, zero, o), a = HeldOutRms(set, camera, test, gt.cam, o);
       ssb += b * b * ntest, ssa += a * a * ntest, cnt += ntest;
     }

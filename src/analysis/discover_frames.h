@@ -5,11 +5,13 @@
 //
 // Geometry: the matched stars' pixel positions against the catalog directions projected with the
 // nominal camera. The base model has one small rotation per frame (the solved attitude refined
-// with the nominal focal length). Candidates add focal_length (f), principal_point (cx, cy) or
-// lens_distortion (k1), fitted jointly with the rotations by Gauss-Newton, weighted by the
+// with the nominal focal length). Candidates add focal_length (a common scale of fx and fy),
+// principal_point (cx, cy), lens_distortion (k1) or pixel_aspect (fy alone: parameters pixel_aspect =
+// fy/fx and focal_length_y_px), fitted jointly with the rotations by Gauss-Newton, weighted by the
 // centroid sigmas; each is a Wald chi^2 against the base with the variance of the fullest model's
 // residuals. Photometry: vignetting = ln(flux) + 0.4 ln(10) V regressed on (r / r_corner)^2
-// (the simulator's law 1 - v (r/r_corner)^2). A candidate is significant when p < alpha / 4;
+// (the simulator's law 1 - v (r/r_corner)^2). A candidate is significant when p < alpha / 5 (more
+// when hot_pixels / psf_shape are tested too);
 // the largest BIC gain among the significant ones is named.
 // Gain: the camera fitted on the even frames is scored on the odd ones (rotations refitted there
 // with the camera held) and vice versa; residual RMS with the nominal and with the fitted camera.

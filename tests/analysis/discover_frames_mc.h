@@ -68,6 +68,9 @@ inline FrameCase MakeFrameCase(const std::string& cause, uint64_t seed, int fram
   } else if (cause == "focal_length") {
     c.truth.focal_length_px *= 1 + sign() * rng.Uniform(500, 1500) * 1e-6;
     c.truth_params["focal_length_px"] = c.truth.focal_length_px;
+  } else if (cause == "pixel_aspect") {  // fy alone, 0.1-0.25 %: 0.5-1.3 px at the top and bottom edges
+    c.truth.focal_length_y_px = c.truth.focal_length_px * (1 + sign() * rng.Uniform(1000, 2500) * 1e-6);
+    c.truth_params["pixel_aspect"] = c.truth.FocalYPx() / c.truth.focal_length_px;
   } else if (cause == "principal_point") {
     c.truth.cx_px += sign() * rng.Uniform(5, 15);
     c.truth.cy_px += sign() * rng.Uniform(5, 15);
@@ -152,7 +155,8 @@ inline FrameMcSummary RunFrameMonteCarlo(int n, int frames, uint64_t seed0, bool
       for (const auto& h : d.hot_pixels) s.hot_false += !truth.count({h.x, h.y});
     }
     s.with_effect += cause != "none";
-    if (d.cause == "lens_distortion" || d.cause == "focal_length" || d.cause == "principal_point") {
+    if (d.cause == "lens_distortion" || d.cause == "focal_length" || d.cause == "principal_point" ||
+        d.cause == "pixel_aspect") {
       ++s.geometric_named;
       s.geometric_reduced += d.residual_rms_after_arcsec < d.residual_rms_before_arcsec;
     }
