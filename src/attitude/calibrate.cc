@@ -366,10 +366,15 @@ CameraCalibration CalibrateCamera(const StarIdentifier& id, const std::vector<Ca
   if (!fitted) {
     out.message = std::to_string(s.solved) + " of " + std::to_string(nf) +
                   " frames solved with the guess: too few to fit (need 2 with 24 matched stars in all)";
-    for (int i = 0; i < nf; ++i) {
+    for (int i = 0; i < nf; ++i) {  // the guess's solutions (head alignment can still use them)
       CalibratedFrame cf;
       cf.name = frames[i].name;
       cf.status = s.results[i].status;
+      if (cf.status == "solved") {
+        cf.q_inertial_from_sensor = s.results[i].attitude.q_inertial_from_sensor;
+        cf.covariance_rad2 = s.results[i].attitude.covariance_rad2;
+        cf.matches = static_cast<int>(s.results[i].identification.matches.size());
+      }
       out.frames.push_back(cf);
     }
     return out;

@@ -2,11 +2,16 @@
 // as wide) from a nominal guess, then every frame solved by `ssiu solve` with the written camera;
 // bad input.
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 
+#include "attitude/star_solver.h"
+#include "core/attitude.h"
 #include "core/camera.h"
+#include "core/catalog.h"
 #include "core/json.h"
+#include "sim/frame_sim.h"
 #include "testing/testing.h"
 
 namespace ssiu {
@@ -53,6 +58,72 @@ TEST(CalibrateCli, SwarmFramesFromANominalGuessAllSolve) {
     EXPECT_NE(ReadJsonFile(tmp + "/s.json")["status"], "solved") << e.path();
     break;  // one is enough (an unsolvable frame searches its whole hypothesis budget)
   }
+}
+
+// Two heads, six simultaneous epochs as centroid CSVs: the second head's mount, 50 arcsec off its
+// heads.json value, comes back within 3 sigma, and the written heads.json is a valid heads file.
+TEST(CalibrateCli, HeadsWritesAlignedHeadsJson) {
+  const std::string tmp = testing::TempDir("calibrate_cli_heads");
+  const Camera cam = MakeCamera(1024, 1024, 16.6);
+  const Quat nominal1(Eigen::AngleAxisd(kPi / 2, Vec3::UnitX()));
+  const Vec3 off = Vec3(30, -20, 35) * kArcsecToRad;
+  const Quat truth1 = nominal1 * Quat(Eigen::AngleAxisd(off.norm(), off.normalized()));
+  const Quat mounts[2] = {Quat::Identity(), truth1};
+  const StarCatalog sky = LoadXplanetBsc(DefaultBscPath(), 7.0);
+  std::string frames;
+  FrameSimOptions fo;
+  DetectOptions d = SolveOptions{}.detect;
+  d.gain_e_per_adu = fo.gain_e_per_adu;
+  for (int e = 0; e < 6; ++e) {
+    for (int h = 0; h < 2; ++h) {
+      const SimulatedFrame sf = SimulateFrame(cam, sky, RandomAttitude(300 + e) * mounts[h], fo, 300 + 10 * e + h);
+      const std::string path = tmp + "/e" + std::to_string(e) + "h" + std::to_string(h) + ".csv";
+      std::ofstream csv(path);
+      csv << "x_px,y_px,flux,sigma_px\n";
+      for (const auto& c : CentroidsFromDetections(Detect(sf.image.view(), d), SolveOptions{}.detector_sigma_scale))
+        csv << c.x_px << "," << c.y_px << "," << c.flux << "," << c.sigma_px << "\n";
+      frames += " " + path;
+    }
+  }
+  const auto q1 = ToWxyz(nominal1);
+  WriteJsonFile(tmp + "/heads.json", Json::array({{{"camera", CameraToJson(cam)}, {"q_body_sensor", {1, 0, 0, 0}}},
+                                                  {{"camera", CameraToJson(cam)}, {"q_body_sensor", {q1[0], q1[1], q1[2], q1[3]}}}}));
+  const auto r = testing::RunSsiu("calibrate" + frames + " --heads " + tmp + "/heads.json --out " + tmp + "/new.json --json " +
+                                  tmp + "/rep.json --catalog " + tmp + "/cat --systematic-px 0");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const Json out = ReadJsonFile(tmp + "/new.json"), rep = ReadJsonFile(tmp + "/rep.json");
+  ASSERT_EQ(out.size(), 2u);
+  const Camera back = CameraFromJson(out[1]["camera"], "new.json");
+  EXPECT_NEAR(back.focal_length_px, cam.focal_length_px, 0.002 * cam.focal_length_px);
+  // The fitted cameras define slightly rotated sensor frames (a principal point error of 0.2 px turns
+  // the frame by 0.2 / f): v_fit = D_h v_true, from a grid of pixels. The written mount must then be
+  // M = D_0 M_1 D_1^T (head 0's mount is the identity), to within its reported sigma.
+  auto frame_rotation = [&](const Camera& fitted) {
+    Mat3 b = Mat3::Zero();
+    for (double x = 0; x < 1024; x += 128)
+      for (double y = 0; y < 1024; y += 128) b += fitted.Unproject(Vec2(x, y)) * cam.Unproject(Vec2(x, y)).transpose();
+    Eigen::JacobiSVD<Mat3> svd(b, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    Mat3 d = Mat3::Identity();
+    d(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant();
+    return Mat3(svd.matrixU() * d * svd.matrixV().transpose());
+  };
+  const Mat3 d0 = frame_rotation(CameraFromJson(out[0]["camera"], "new.json")), d1 = frame_rotation(back);
+  const Quat expected(Mat3(d0 * truth1.toRotationMatrix() * d1.transpose()));
+  const Json& qj = out[1]["q_body_sensor"];
+  const Quat est = FromWxyz(qj[0], qj[1], qj[2], qj[3]);
+  std::printf("mount error against the truth %.1f arcsec, against the fitted cameras' frames %.2f arcsec\n",
+              AttitudeErrorRad(est, truth1) * kRadToArcsec, AttitudeErrorRad(est, expected) * kRadToArcsec);
+  Quat dq = expected.conjugate() * est;
+  if (dq.w() < 0) dq.coeffs() = -dq.coeffs();
+  const Vec3 err = 2 * dq.vec() * kRadToArcsec;
+  const Json& sig = rep["heads"][1]["q_body_sensor_sigma_arcsec"];
+  for (int a = 0; a < 3; ++a) {
+    EXPECT_LT(std::abs(err[a]), 3 * sig[a].get<double>()) << "axis " << a << ": " << err.transpose();
+    EXPECT_LT(sig[a].get<double>(), 5.0);
+  }
+  EXPECT_GE(rep["heads"][1]["alignment_epochs"].get<int>(), 4);  // epochs both heads solved
+  const Json& q0 = out[0]["q_body_sensor"];
+  EXPECT_EQ(q0[0].get<double>(), 1.0);  // head 0 keeps its mount
 }
 
 TEST(CalibrateCli, BadInputNamesTheFlagOrFile) {
