@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "core/error.h"
 #include "inertial/propagate.h"
@@ -24,6 +25,29 @@ void FdiOptions::Check() const {
   if (!(parity_isolation_cos > 0 && parity_isolation_cos <= 1)) {
     throw InputError("fdi options", "parity_isolation_cos must be in (0, 1]");
   }
+  pos(false_alarm_per_h, "false_alarm_per_h");
+  pos(cusum_fault_dph, "cusum_fault_dph");
+  pos(isolation_min_s, "isolation_min_s");
+  pos(isolation_sigma, "isolation_sigma");
+  if (!(noise_ratio > 1) || !std::isfinite(noise_ratio)) throw InputError("fdi options", "noise_ratio must be > 1");
+}
+
+double CusumThreshold(int n_tests, double rate_hz, double false_alarm_per_h) {
+  // Lorden's bound: each test's mean run length to a false alarm is >= e^h samples; n_tests of them
+  // together alarm falsely at most n_tests e^-h times per sample.
+  return std::log(std::max(1, n_tests) * rate_hz * 3600.0 / false_alarm_per_h);
+}
+
+double CusumThresholdGaussian(double arl_samples, double delta) {
+  // Siegmund's corrected approximation for a Gaussian mean-shift CUSUM on the log-likelihood ratio
+  // (increments delta z - delta^2 / 2): ARL0 = (e^b - b - 1) / (delta^2 / 2), b = h + 1.166 delta
+  // (Siegmund 1985, "Sequential Analysis", eq. 2.56; Basseville & Nikiforov eq. 5.2.44). Lorden's
+  // e^h is the small-delta-loose bound of it.
+  const double target = arl_samples * delta * delta / 2;
+  if (!(target > 1)) return 0;
+  double b = std::log(target) + 1;
+  for (int it = 0; it < 50; ++it) b -= (std::exp(b) - b - 1 - target) / (std::exp(b) - 1);  // Newton
+  return std::max(0.0, b - 1.166 * delta);
 }
 
 Json FaultEvent::ToJson() const {
@@ -31,6 +55,11 @@ Json FaultEvent::ToJson() const {
             {"status", status}, {"method", method},         {"residual_dph", residual_dph},
             {"fault_dph", fault_dph}};
   j["t_isolate_s"] = t_isolate_s >= 0 ? Json(t_isolate_s) : Json(nullptr);
+  j["t_onset_s"] = t_onset_s;
+  j["test"] = test;
+  j["shape"] = shape;
+  j["step_dph"] = step_dph;
+  j["ramp_dph_per_s"] = ramp_dph_per_s;
   return j;
 }
 
@@ -50,6 +79,16 @@ ParityMonitor::ParityMonitor(const GyroAxes& axes, const std::vector<bool>& use,
   baseline_ = GyroVec::Zero(m);
   jump_ = GyroVec::Zero(m);
   warm_sum_ = GyroVec::Zero(m);
+  hist_n_ = std::max(1, static_cast<int>(std::lround(120.0 / dt_s)));
+  short_n_ = std::max(1, static_cast<int>(std::lround(1.0 / dt_s)));
+  short_ring_.assign(short_n_, GyroVec::Zero(m));
+  short_sum_ = GyroVec::Zero(m);
+  short_mean_ = GyroVec::Zero(m);
+  for (int i = 0; i < axes.rows(); ++i) {
+    if (use[i]) hyp_gyro_.push_back(i);
+  }
+  const int n_tests = 2 * static_cast<int>(hyp_gyro_.size()) + 1;
+  h_ = CusumThreshold(n_tests, 1.0 / dt_s, options.false_alarm_per_h);
 }
 
 bool ParityMonitor::Feed(double t_s, const GyroVec& g_dph) {
@@ -66,19 +105,140 @@ bool ParityMonitor::Feed(double t_s, const GyroVec& g_dph) {
   if (!ready_) {
     warm_sum_ += p;
     ++warm_n_;
+    warm_samples_.push_back(p);
     if (t_s - t_first_ >= opt_.warmup_s && ring_count_ == window_n_) {
       baseline_ = warm_sum_ / static_cast<double>(warm_n_);
+      StartCusum(t_s);
       ready_ = true;
     }
     return false;
   }
+  const GyroVec e = p - baseline_;
+  UpdateShort(e);
   const GyroVec mean = sum_ / static_cast<double>(window_n_);
   jump_ = mean - baseline_;
   const double stat = std::sqrt(jump_.dot(cov_window_inv_ * jump_));
-  if (stat > opt_.threshold_sigma && jump_.norm() > opt_.min_jump_dph) return true;
+  const bool cusum = FeedCusum(t_s, e);
+  if (stat > opt_.threshold_sigma && jump_.norm() > opt_.min_jump_dph) {
+    if (!cusum) {  // the window test alone: the onset lies within the window
+      alarm_test_ = "window";
+      double age = 0;
+      StepEstimate(&age);
+      onset_s_ = t_s - age;
+    }
+    return true;
+  }
+  if (cusum) return true;
   // Track slow drift of the gyros' biases (first-order low-pass of the parity).
   baseline_ += (p - baseline_) * (dt_ / opt_.baseline_tau_s);
   return false;
+}
+
+void ParityMonitor::Track(double t_s, const GyroVec& g_dph) {
+  if (!active() || !ready_) return;
+  const GyroVec e = v_ * g_dph - baseline_;
+  UpdateShort(e);
+  hist_[hist_pos_] = {t_s, e};
+  hist_pos_ = (hist_pos_ + 1) % hist_n_;
+}
+
+void ParityMonitor::UpdateShort(const GyroVec& e) {
+  short_sum_ += e - short_ring_[short_pos_];
+  short_ring_[short_pos_] = e;
+  short_pos_ = (short_pos_ + 1) % short_n_;
+  short_count_ = std::min(short_count_ + 1, short_n_);
+  short_mean_ = short_sum_ / static_cast<double>(short_count_);
+}
+
+void ParityMonitor::StartCusum(double t_s) {
+  const int m = static_cast<int>(v_.rows());
+  Eigen::MatrixXd c = Eigen::MatrixXd::Zero(m, m);
+  for (const auto& p : warm_samples_) c += (p - baseline_) * (p - baseline_).transpose();
+  c /= static_cast<double>(std::max<size_t>(2, warm_samples_.size()) - 1);
+  // Never below a tenth of the modelled noise: a quantised or silent log must not make C singular.
+  const Eigen::MatrixXd c_model = Eigen::MatrixXd(cov_window_inv_.inverse()) * window_n_;
+  for (int i = 0; i < m; ++i) c(i, i) = std::max(c(i, i), 0.1 * c_model(i, i));
+  warm_samples_.clear();
+  warm_samples_.shrink_to_fit();
+  if (has_inherited_) baseline_ = v_ * inherited_;
+  c_inv_ = c.inverse();
+  short_sigma_ = std::sqrt(c.diagonal().maxCoeff() / short_n_);
+  const int n_tests = 2 * static_cast<int>(hyp_gyro_.size()) + 1;
+  const double arl = n_tests * 3600.0 / dt_ / opt_.false_alarm_per_h;  // per test, in samples
+  for (int i : hyp_gyro_) {
+    const GyroVec d = v_.col(i);
+    const double dd = d.dot(c_inv_ * d);
+    if (!(dd > 1e-12)) continue;  // a gyro outside every parity relation cannot be watched
+    for (double sign : {1.0, -1.0}) {
+      const double f = sign * opt_.cusum_fault_dph;
+      hyp_w_.push_back(f * (c_inv_ * d));
+      hyp_k_.push_back(0.5 * f * f * dd);
+      hyp_h_.push_back(CusumThresholdGaussian(arl, opt_.cusum_fault_dph * std::sqrt(dd)));
+    }
+  }
+  s_.assign(hyp_w_.size(), 0.0);
+  s_zero_t_.assign(hyp_w_.size(), t_s);
+  s_noise_ = 0;
+  noise_zero_t_ = t_s;
+  hist_.assign(hist_n_, {t_s, GyroVec::Zero(m)});
+}
+
+bool ParityMonitor::FeedCusum(double t_s, const GyroVec& e) {
+  hist_[hist_pos_] = {t_s, e};
+  hist_pos_ = (hist_pos_ + 1) % hist_n_;
+  // Page's recursion S = max(0, S + llr) on each log-likelihood ratio (Basseville & Nikiforov eq. 2.2.11).
+  int fired = -1;
+  for (size_t j = 0; j < s_.size(); ++j) {
+    s_[j] = std::max(0.0, s_[j] + hyp_w_[j].dot(e) - hyp_k_[j]);
+    if (s_[j] == 0) s_zero_t_[j] = t_s;
+    if (s_[j] > hyp_h_[j] && (fired < 0 || s_[j] - hyp_h_[j] > s_[fired] - hyp_h_[fired])) fired = static_cast<int>(j);
+  }
+  // Noise burst: C -> rho C, llr = (1 - 1/rho) e'C^-1 e / 2 - m ln(rho) / 2.
+  const double rho = opt_.noise_ratio, m = static_cast<double>(e.size());
+  s_noise_ = std::max(0.0, s_noise_ + 0.5 * (1 - 1 / rho) * e.dot(c_inv_ * e) - 0.5 * m * std::log(rho));
+  if (s_noise_ == 0) noise_zero_t_ = t_s;
+  if (fired >= 0) {
+    alarm_test_ = "cusum";
+    onset_s_ = s_zero_t_[fired];
+    return true;
+  }
+  if (s_noise_ > h_) {
+    alarm_test_ = "noise";
+    onset_s_ = noise_zero_t_;
+    return true;
+  }
+  return false;
+}
+
+void ParityMonitor::FitSinceOnset(GyroVec* step, GyroVec* ramp_per_s, double* variance_ratio) const {
+  const int m = static_cast<int>(baseline_.size());
+  // Least squares e = a + b (t - onset) over the stored samples since the onset.
+  double s0 = 0, s1 = 0, s2 = 0;
+  GyroVec sy = GyroVec::Zero(m), sty = GyroVec::Zero(m);
+  for (const auto& [t, e] : hist_) {
+    if (t < onset_s_ - 1e-9 || !std::isfinite(t)) continue;
+    const double x = t - onset_s_;
+    s0 += 1;
+    s1 += x;
+    s2 += x * x;
+    sy += e;
+    sty += x * e;
+  }
+  const double det = s0 * s2 - s1 * s1;
+  GyroVec a = s0 > 0 ? GyroVec(sy / s0) : GyroVec::Zero(m), b = GyroVec::Zero(m);
+  if (s0 >= 3 && det > 1e-12 * s0 * s2) {
+    a = (s2 * sy - s1 * sty) / det;
+    b = (s0 * sty - s1 * sy) / det;
+  }
+  double q = 0;
+  for (const auto& [t, e] : hist_) {
+    if (t < onset_s_ - 1e-9) continue;
+    const GyroVec r = e - a - b * (t - onset_s_);
+    q += r.dot(c_inv_ * r);
+  }
+  if (step) *step = a;
+  if (ramp_per_s) *ramp_per_s = b;
+  if (variance_ratio) *variance_ratio = s0 > 3 ? q / ((s0 - 2) * m) : 1.0;
 }
 
 GyroVec ParityMonitor::StepEstimate(double* age_s) const {
@@ -110,13 +270,21 @@ void StarRateIsolator::AddGyro(const GyroVec& g_dph, double dt_s) {
   pending_s_ += dt_s;
 }
 
-void StarRateIsolator::AddStar(double t_s, const Quat& q) {
+void StarRateIsolator::AddStar(double t_s, const Quat& q, const Mat3& r_body) {
   if (has_prev_ && pending_s_ > 0 && std::abs(pending_s_ - (t_s - t_prev_)) < 1e-6 * std::max(1.0, t_s)) {
     // Body rotation between the two star samples, in body axes at the first one.
     const Vec3 rot = RotationVectorFromQuat(q_prev_.conjugate() * q);
     residual_rad_ += pending_rad_ - axes_ * rot;
     covered_s_ += t_s - t_prev_;
+    // Along a chain the star noise of the inner samples cancels (to first order): only its two
+    // ends count.
+    if (!chain_open_) end_cov_ += r_prev_;
+    chain_open_ = true;
+  } else {
+    if (chain_open_) end_cov_ += r_prev_;
+    chain_open_ = false;
   }
+  r_prev_ = r_body;
   has_prev_ = true;
   q_prev_ = q;
   t_prev_ = t_s;
@@ -125,6 +293,8 @@ void StarRateIsolator::AddStar(double t_s, const Quat& q) {
 }
 
 void StarRateIsolator::BreakChain() {
+  if (chain_open_) end_cov_ += r_prev_;
+  chain_open_ = false;
   has_prev_ = false;
   pending_rad_.setZero();
   pending_s_ = 0;
@@ -137,6 +307,17 @@ GyroVec StarRateIsolator::ResidualDph() const {
     if (use_[i]) r[i] = residual_rad_[i] / covered_s_ * kRadToDeg * 3600.0;
   }
   return r;
+}
+
+GyroVec StarRateIsolator::ResidualSigmaDph() const {
+  GyroVec s = GyroVec::Constant(axes_.rows(), std::numeric_limits<double>::infinity());
+  if (covered_s_ <= 0) return s;
+  const Mat3 c = end_cov_ + (chain_open_ ? r_prev_ : Mat3::Zero());
+  for (int i = 0; i < s.size(); ++i) {
+    const Vec3 a = axes_.row(i).transpose();
+    s[i] = std::sqrt(a.dot(c * a)) / covered_s_ * kRadToDeg * 3600.0;
+  }
+  return s;
 }
 
 double LargestImpliedRateDph(const GyroParity& v, const RateSolver& solver, const std::vector<bool>& use, double jump_dph) {
@@ -164,6 +345,15 @@ int IsolateFromResiduals(const GyroVec& r, const std::vector<bool>& use, const F
   }
   if (best < 0 || a1 < options.min_jump_dph || a1 < options.isolation_ratio * a2) return -1;
   return best;
+}
+
+int IsolateSequential(const GyroVec& r, const GyroVec& sigma_dph, double covered_s, const std::vector<bool>& use,
+                      const FdiOptions& options) {
+  if (covered_s < options.isolation_min_s) return -1;
+  const int gi = IsolateFromResiduals(r, use, options);
+  if (gi < 0) return -1;
+  if (covered_s < options.isolation_window_s && !(std::abs(r[gi]) > options.isolation_sigma * sigma_dph[gi])) return -1;
+  return gi;
 }
 
 int IsolateFromParity(const GyroParity& v, const GyroVec& jump, const std::vector<bool>& use, const FdiOptions& options) {

@@ -1,8 +1,18 @@
 // Fault detection and isolation for a redundant gyro unit (docs/inertial.md).
-// Detection: the parity vector p = V g (V H = 0) holds no body rate, only gyro errors; its short-window
-// mean is compared with a slowly tracked baseline (the parity part of the gyros' ordinary biases), a
-// jump beyond threshold_sigma of its noise (and beyond min_jump_dph) is a fault (Potter & Suman 1977;
-// Sturza 1988, "Navigation system integrity monitoring using redundant measurements").
+// Detection: the parity vector p = V g (V H = 0) holds no body rate, only gyro errors (Potter & Suman
+// 1977; Sturza 1988, "Navigation system integrity monitoring using redundant measurements"). Its
+// residual e = p - baseline (the baseline is the parity part of the gyros' ordinary biases, tracked
+// slowly) feeds two tests: a short-window mean beyond threshold_sigma of its noise (and beyond
+// min_jump_dph), quick on large steps; and CUSUM tests (Page 1954; Basseville & Nikiforov 1993,
+// "Detection of Abrupt Changes", sec. 2.2), which accumulate evidence sample by sample and so catch
+// slow ramps and small steps: for each gyro i in use and each sign, the log-likelihood ratio of a
+// fault of +-cusum_fault_dph on gyro i (mean shift d_i = V e_i), and one for a noise burst (the
+// parity covariance grown noise_ratio times). The noise covariance C is measured over the warm-up.
+// Thresholds from the target false-alarm rate, shared by the n_tests = 2 n_in_use + 1 tests (each
+// gets a mean run length to false alarm of n_tests / false_alarm_per_h hours): for the mean tests
+// Siegmund's approximation of that run length, (e^b - b - 1) / (delta^2 / 2), b = h + 1.166 delta
+// (delta: the design shift in noise sigmas); for the noise test Lorden's bound e^h (Lorden 1971).
+// tests/inertial/fdi_test.cc measures the rate on fault-free noise.
 // Isolation: with one parity relation (four gyros) every gyro moves p, so parity cannot tell which
 // failed; each gyro's output is then compared with the star tracker's rate projected on its axis over
 // isolation_window_s, and the gyro whose residual stands out is isolated. With five or more gyros the
@@ -10,6 +20,7 @@
 #pragma once
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/json.h"
@@ -27,17 +38,26 @@ struct FdiOptions {
   double isolation_ratio = 3.0;      // largest residual / second largest
   double isolation_timeout_s = 1800; // give up isolating after this long ("unresolved")
   double parity_isolation_cos = 0.95;  // 5+ gyros: |cos| between jump and a gyro's parity column
+  double false_alarm_per_h = 1e-3;   // target false-alarm rate of the CUSUM tests (per hour of data)
+  double cusum_fault_dph = 2.0;      // fault size each mean CUSUM is tuned for (smaller ones take longer)
+  double noise_ratio = 4.0;          // parity noise variance growth the noise-burst CUSUM is tuned for
+  double isolation_min_s = 3.0;      // star coverage before a star-rate isolation may be decided
+  double isolation_sigma = 5.0;      // and the residual must exceed this many of its noise sigmas
 
   void Check() const;  // InputError naming the bad field
 };
 
 struct FaultEvent {
   int gyro = 0;                  // 1-based; 0 while not isolated
+  double t_onset_s = 0;          // estimated start (the CUSUM's last zero; the detection time otherwise)
   double t_detect_s = 0;
   double t_isolate_s = -1;       // -1 while not isolated
   double parity_jump_dph = 0;    // norm of the parity jump at detection
   std::string status;            // "isolated", "detected" (awaiting star data), "unresolved"
   std::string method;            // "parity" or "star_rates"
+  std::string test;              // what detected it: "window", "cusum", "noise" or "star_innovation"
+  std::string shape;             // "step", "ramp" or "noise" (from the parity since onset)
+  double step_dph = 0, ramp_dph_per_s = 0;  // fit since onset, on the isolated gyro (parity units before)
   std::vector<double> residual_dph;  // per-gyro star-rate residuals at isolation (deg/h)
   double fault_dph = 0;          // estimated fault size on the isolated gyro (deg/h)
 
@@ -52,8 +72,18 @@ class ParityMonitor {
   ParityMonitor(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& sigma_dph, double dt_s,
                 const FdiOptions& options);
   bool active() const { return v_.rows() > 0; }
+  // Starts the baseline from gyro-level parity biases (V' p of the monitor this one replaces, after an
+  // isolation) instead of the warm-up mean, which a warm-up shorter than the motion's period biases;
+  // the warm-up still measures the noise.
+  void InheritBaseline(const GyroVec& gyro_parity_bias_dph) {
+    inherited_ = gyro_parity_bias_dph;
+    has_inherited_ = true;
+  }
   // Feeds one sample (deg/h); true when the window mean has jumped away from the baseline.
   bool Feed(double t_s, const GyroVec& g_dph);
+  // After an alarm while the fault is unresolved: keeps the residual and its short mean current
+  // without testing or moving the baseline.
+  void Track(double t_s, const GyroVec& g_dph);
   const GyroParity& V() const { return v_; }
   // Baseline parity (deg/h) and the latest window mean minus it.
   const GyroVec& baseline() const { return baseline_; }
@@ -64,8 +94,23 @@ class ParityMonitor {
   // returning the mean parity since that onset minus the baseline and the onset's age (s).
   GyroVec StepEstimate(double* age_s) const;
   bool ready() const { return ready_; }
+  // The CUSUM threshold (log-likelihood units) and the test behind the last alarm ("window", "cusum"
+  // or "noise") with its onset estimate (s).
+  double cusum_threshold() const { return h_; }
+  const std::string& alarm_test() const { return alarm_test_; }
+  double onset_s() const { return onset_s_; }
+  // Least-squares step + ramp of the parity residual since the onset (deg/h, deg/h per s) and the
+  // parity noise variance over it relative to the warm-up's (mean of e' C^-1 e / m).
+  void FitSinceOnset(GyroVec* step, GyroVec* ramp_per_s, double* variance_ratio) const;
+  // Residual e = p - baseline of the last sample and a short (1 s) mean of it, with the 1-sigma of
+  // that mean along each parity axis (from C).
+  const GyroVec& short_mean() const { return short_mean_; }
+  double short_mean_sigma() const { return short_sigma_; }
 
  private:
+  bool FeedCusum(double t_s, const GyroVec& e);
+  void StartCusum(double t_s);
+  void UpdateShort(const GyroVec& e);
   FdiOptions opt_;
   GyroParity v_;
   Eigen::MatrixXd cov_window_inv_;  // inverse covariance of a window mean
@@ -78,6 +123,25 @@ class ParityMonitor {
   bool started_ = false, ready_ = false;
   GyroVec warm_sum_;
   long warm_n_ = 0;
+  // CUSUM state.
+  std::vector<GyroVec> warm_samples_;      // warm-up residuals, for C
+  Eigen::MatrixXd c_inv_;                   // inverse noise covariance of one parity sample
+  std::vector<int> hyp_gyro_;               // gyro of each mean hypothesis
+  std::vector<GyroVec> hyp_w_;              // f * C^-1 d_i (signed)
+  std::vector<double> hyp_k_;               // f^2 d_i' C^-1 d_i / 2
+  std::vector<double> hyp_h_;               // threshold of each
+  std::vector<double> s_, s_zero_t_;        // statistics and the time each last sat at zero
+  double s_noise_ = 0, noise_zero_t_ = 0, h_ = 0;
+  std::string alarm_test_;
+  GyroVec inherited_;
+  bool has_inherited_ = false;
+  double onset_s_ = 0;
+  std::vector<std::pair<double, GyroVec>> hist_;  // (t, e) over the last hist_n_ samples
+  int hist_pos_ = 0, hist_n_ = 1;
+  std::vector<GyroVec> short_ring_;
+  int short_pos_ = 0, short_n_ = 1, short_count_ = 0;
+  GyroVec short_sum_, short_mean_;
+  double short_sigma_ = 0;
 };
 
 // Accumulates each gyro's angle (bias-corrected) and the star tracker's body rotation between
@@ -90,12 +154,15 @@ class StarRateIsolator {
   void AddGyro(const GyroVec& g_dph, double dt_s);
   // Star sample at time t (body -> inertial); intervals since the previous star sample count when the
   // gyros covered them.
-  void AddStar(double t_s, const Quat& q_inertial_from_body);
+  // `r_body`: the sample's error covariance (rad^2, body axes), for the residuals' noise.
+  void AddStar(double t_s, const Quat& q_inertial_from_body, const Mat3& r_body = Mat3::Zero());
   // Restarts the star chain (after an outage or rejected sample).
   void BreakChain();
   double covered_s() const { return covered_s_; }
   // Mean residual per gyro (deg/h), 0 for gyros out of service.
   GyroVec ResidualDph() const;
+  // Its 1-sigma per gyro from the star noise at the ends of each chain of samples (deg/h).
+  GyroVec ResidualSigmaDph() const;
 
  private:
   GyroAxes axes_;
@@ -106,6 +173,9 @@ class StarRateIsolator {
   bool has_prev_ = false;
   Quat q_prev_ = Quat::Identity();
   double t_prev_ = 0, covered_s_ = 0;
+  Mat3 end_cov_ = Mat3::Zero();  // star noise covariance of the chain ends so far
+  Mat3 r_prev_ = Mat3::Zero();
+  bool chain_open_ = false;
 };
 
 // The largest body rate error (deg/h) a parity jump of jump_dph can imply if any one gyro in use
@@ -115,6 +185,16 @@ double LargestImpliedRateDph(const GyroParity& v, const RateSolver& solver, cons
 // Picks the isolated gyro from star residuals (deg/h): the largest |r| if it exceeds min_jump_dph and
 // isolation_ratio times the next; -1 otherwise (0-based).
 int IsolateFromResiduals(const GyroVec& residual_dph, const std::vector<bool>& use, const FdiOptions& options);
+// Sequential form: also needs isolation_min_s of coverage and the largest residual beyond
+// isolation_sigma times sigma_dph (the residuals' noise).
+int IsolateSequential(const GyroVec& residual_dph, const GyroVec& sigma_dph, double covered_s, const std::vector<bool>& use,
+                      const FdiOptions& options);
+// CUSUM threshold for n_tests tests on samples at rate_hz and a target false-alarm rate per hour
+// (Lorden's bound: any log-likelihood-ratio CUSUM).
+double CusumThreshold(int n_tests, double rate_hz, double false_alarm_per_h);
+// Threshold giving a mean run length to false alarm of arl_samples for a Gaussian mean-shift CUSUM
+// tuned to a shift of delta noise sigmas (Siegmund's approximation).
+double CusumThresholdGaussian(double arl_samples, double delta);
 // With 2+ parity relations: the gyro whose parity column is parallel to the jump, or -1.
 int IsolateFromParity(const GyroParity& v, const GyroVec& jump, const std::vector<bool>& use,
                       const FdiOptions& options);

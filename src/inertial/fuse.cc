@@ -10,6 +10,7 @@
 #include "core/attitude.h"
 #include "core/csv.h"
 #include "core/error.h"
+#include "inertial/online_fusion.h"
 #include "inertial/propagate.h"
 
 namespace ssiu {
@@ -89,6 +90,11 @@ void FuseOptions::Check() const {
   fdi_options.Check();
 }
 
+int StatusCode(const std::string& status) {
+  if (status == "ok") return 0;
+  return status == "degraded" ? 1 : 2;
+}
+
 Json FuseResult::ToJson() const {
   Json faults_json = Json::array();
   for (const auto& f : faults) faults_json.push_back(f.ToJson());
@@ -98,6 +104,7 @@ Json FuseResult::ToJson() const {
           {"bias_sigma_dph", {bias_sigma_dph.x(), bias_sigma_dph.y(), bias_sigma_dph.z()}},
           {"faults", faults_json},
           {"gyros_in_use", gyros_in_use},
+          {"status_s", status_s},
           {"n_gyro_samples", n_gyro_samples},
           {"n_st_used", n_st_used},
           {"n_st_rejected", n_st_rejected},
@@ -147,25 +154,16 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
     return res;
   }
 
-  const GyroAxes axes = unit.Axes();
-  const GyroVec arw = unit.NoiseArw();
-  std::vector<bool> use(n, true);
-  GyroVec correction = GyroVec::Zero(n);  // gyro-level parity bias removed after an isolation (deg/h)
-  RateSolver solver(axes, arw, use);
-  MekfNoise noise = FuseNoiseModel(unit, solver, options.bias_drift_floor_dph_per_sqrt_h);
-
   std::vector<double> dts;
   for (size_t k = 1; k < gyro.t_s.size(); ++k) dts.push_back(gyro.t_s[k] - gyro.t_s[k - 1]);
   std::nth_element(dts.begin(), dts.begin() + dts.size() / 2, dts.end());
   const double dt_nominal = dts[dts.size() / 2];
-  const GyroVec sample_sigma_dph = arw * (60.0 / std::sqrt(dt_nominal));  // deg/sqrt(h) -> deg/h per sample
-
-  const bool fdi_on = options.fdi && !gyro.body_rates && n >= 4;
-  ParityMonitor monitor;
-  if (fdi_on) monitor = ParityMonitor(axes, use, sample_sigma_dph, dt_nominal, options.fdi_options);
-  StarRateIsolator isolator;
-  bool isolating = false;
-  std::deque<std::pair<double, Vec3>> bias_history;  // (t, bias rad/s), one per star update
+  unit.rate_hz = 1.0 / dt_nominal;  // the log's own rate sets the per-sample noise
+  FuseOptions fo = options;
+  fo.fdi = options.fdi && !gyro.body_rates;
+  // The on-board estimator, fed in time order (online_fusion.h): one implementation of the MEKF, the
+  // fault detection and isolation and the status for `fuse` and `run`.
+  OnlineFusion fusion(unit, fo);
 
   auto st_r = [&](size_t j) {
     const double c =
@@ -184,160 +182,56 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
     res.message = "no star-tracker sample within the gyro log";
     return res;
   }
-  Mekf filter;
-  Mat6 p0 = Mat6::Zero();
-  p0.block<3, 3>(0, 0) = st_r(j);
-  const double b0 = options.init_bias_sigma_dph * kDphToRadS;
-  p0.block<3, 3>(3, 3) = Mat3::Identity() * b0 * b0;
-  filter.Init(st.q_inertial_from_body[j], Vec3::Zero(), p0);
-  double t_cur = st.t_s[j];
-  double resid_sum2 = 0;
+  double resid_sum2 = 0, t_last_st = st.t_s[j];
   long resid_n = 0;
-  double t_last_st = t_cur;
-  ++j;
-  res.n_st_used = 1;
-
-  auto isolate = [&](int gi, double t, const std::string& method, const GyroVec& resid, double fault_dph) {
-    FaultEvent& ev = res.faults.back();
-    ev.gyro = gi + 1;
-    ev.t_isolate_s = t;
-    ev.status = "isolated";
-    ev.method = method;
-    ev.fault_dph = fault_dph;
-    ev.residual_dph.assign(resid.data(), resid.data() + resid.size());
-    correction = GyroVec::Zero(n);
-    if (monitor.active() && monitor.ready()) correction = monitor.V().transpose() * monitor.baseline();
-    // Between onset and isolation the filter took the fault's share of the rate solution for bias;
-    // the new solution no longer carries it, so the estimate drops it and the covariance opens by
-    // the same amount (the fault's size is only estimated).
-    const Vec3 leak_rad_s = solver.Pinv().col(gi) * fault_dph * kDphToRadS;
-    const double leak = leak_rad_s.norm();
-    filter.ShiftBias(-leak_rad_s);
-    use[gi] = false;
-    solver = RateSolver(axes, arw, use);
-    noise = FuseNoiseModel(unit, solver, options.bias_drift_floor_dph_per_sqrt_h);
-    monitor = ParityMonitor(axes, use, sample_sigma_dph, dt_nominal, options.fdi_options);
-    filter.InflateBias(leak);
-    isolating = false;
-  };
-
-  int consecutive_rejects = 0;
+  const double t_start_fix = st.t_s[j];
   auto star_update = [&](size_t jj) {
-    const double gap = st.t_s[jj] - t_last_st;
-    res.longest_st_gap_s = std::max(res.longest_st_gap_s, gap);
+    res.longest_st_gap_s = std::max(res.longest_st_gap_s, st.t_s[jj] - t_last_st);
     t_last_st = st.t_s[jj];
-    // Star rates for isolation do not depend on the filter: every star sample counts.
-    if (isolating) {
-      if (gap > 5.0) isolator.BreakChain();
-      isolator.AddStar(st.t_s[jj], st.q_inertial_from_body[jj]);
-    }
-    // A run of rejections means the filter, not the star tracker, is wrong: accept the next one.
-    const double gate = consecutive_rejects >= 5 ? std::numeric_limits<double>::infinity() : options.nis_gate;
-    const MekfUpdate u = filter.UpdateAttitude(st.q_inertial_from_body[jj], st_r(jj), gate);
-    if (!u.accepted) {
-      ++res.n_st_rejected;
-      ++consecutive_rejects;
-    } else {
-      consecutive_rejects = 0;
-      ++res.n_st_used;
+    const bool first = !fusion.initialised();
+    const MekfUpdate u = fusion.AddAttitude(st.t_s[jj], st.q_inertial_from_body[jj], st_r(jj));
+    if (u.accepted && !first) {
       resid_sum2 += u.residual_rad.squaredNorm();
       ++resid_n;
-      bias_history.emplace_back(st.t_s[jj], filter.bias());
-      while (bias_history.size() > 2 && bias_history.front().first < st.t_s[jj] - 3 * options.fdi_options.window_s) {
-        bias_history.pop_front();
-      }
-    }
-    if (!isolating) return;
-    FaultEvent& ev = res.faults.back();
-    if (isolator.covered_s() >= options.fdi_options.isolation_window_s) {
-      const GyroVec r = isolator.ResidualDph();
-      const int gi = IsolateFromResiduals(r, use, options.fdi_options);
-      if (gi >= 0) {
-        isolate(gi, st.t_s[jj], "star_rates", r, r[gi]);
-      } else if (st.t_s[jj] - ev.t_detect_s > options.fdi_options.isolation_timeout_s) {
-        ev.status = "unresolved";
-        ev.residual_dph.assign(r.data(), r.data() + r.size());
-        isolating = false;
-      }
     }
   };
-
+  int worst = 0;  // 0 ok, 1 degraded, 2 failed
+  double t_prev_out = t_start_fix;
   for (size_t k = 0; k < gyro.t_s.size(); ++k) {
     const double t_k = gyro.t_s[k];
-    const double t_prev = k == 0 ? t_k - dt_nominal : gyro.t_s[k - 1];
-    if (t_k <= t_cur) continue;
-    const double full = t_k - t_prev;
-    const GyroVec& g = gyro.rates_dph[k];
-    const Vec3 w = solver.Solve(g - correction) * kDphToRadS;
-    ++res.n_gyro_samples;
-
-    if (fdi_on && !isolating && monitor.Feed(t_k, g)) {
-      FaultEvent ev;
-      ev.t_detect_s = t_k;
-      ev.parity_jump_dph = monitor.jump().norm();
-      ev.status = "detected";
-      res.faults.push_back(ev);
-      // The size of the step, not the window mean that crossed the threshold.
-      const GyroVec step = monitor.StepEstimate(nullptr);
-      const double worst_dph = LargestImpliedRateDph(monitor.V(), solver, use, step.norm());
-      // The fault began at most one parity window ago and has turned the attitude since, unknown to
-      // the filter: open the attitude covariance by that angle, or the NIS gate refuses the very
-      // star fixes that would correct it.
-      filter.InflateAttitude(worst_dph * kDphToRadS * options.fdi_options.window_s);
-      const int gi = IsolateFromParity(monitor.V(), monitor.jump(), use, options.fdi_options);
-      if (gi >= 0) {
-        const double f = step.dot(monitor.V().col(gi)) / monitor.V().col(gi).squaredNorm();
-        isolate(gi, t_k, "parity", GyroVec::Zero(n), f);
-      } else {
-        // Gyro-level biases before the fault: body bias from before the window plus the parity part.
-        const Vec3 b_before = bias_history.empty() ? filter.bias() : bias_history.front().second;
-        const GyroVec c = axes * (b_before * kRadSToDph) + monitor.V().transpose() * monitor.baseline();
-        isolator = StarRateIsolator(axes, use, c);
-        isolating = true;
-        // Until isolation the fault feeds the bias: open its covariance by the largest body bias the
-        // parity jump can imply, so that the filter follows instead of diverging.
-        filter.InflateBias(worst_dph * kDphToRadS);
-      }
-    }
-
-    while (j < st.t_s.size() && st.t_s[j] <= t_k) {
-      if (st.t_s[j] <= t_cur) {  // a star sample at the very start time
-        ++j;
-        continue;
-      }
-      const double d = st.t_s[j] - t_cur;
-      filter.Propagate(w, d, noise, std::abs(d - full) < 1e-9 * full);
-      if (isolating) isolator.AddGyro(g, d);
-      t_cur = st.t_s[j];
-      star_update(j);
-      ++j;
-    }
-    if (t_k > t_cur) {
-      const double d = t_k - t_cur;
-      filter.Propagate(w, d, noise, std::abs(d - full) < 1e-9 * full);
-      if (isolating) isolator.AddGyro(g, d);
-      t_cur = t_k;
-    }
+    while (j < st.t_s.size() && st.t_s[j] < t_k - 1e-9) star_update(j++);
+    fusion.AddGyro(t_k, gyro.rates_dph[k]);
+    while (j < st.t_s.size() && st.t_s[j] <= t_k + 1e-9) star_update(j++);
+    if (!fusion.initialised() || t_k <= t_start_fix) continue;
+    const std::string status = fusion.Status();
+    const int code = StatusCode(status);
+    worst = std::max(worst, code);
+    res.status_s[status] += t_k - t_prev_out;
+    t_prev_out = t_k;
     if (static_cast<long>(k) % options.output_every == 0 || k + 1 == gyro.t_s.size()) {
       FusedSample s;
       s.t_s = t_k;
-      s.q_inertial_from_body = filter.q();
-      const Mat6& p = filter.P();
+      s.q_inertial_from_body = fusion.q();
+      const Mat6& p = fusion.P();
       for (int a = 0; a < 3; ++a) {
         s.sigma_rad[a] = std::sqrt(p(MekfIndex::kAttitude + a, MekfIndex::kAttitude + a));
         s.bias_sigma_dph[a] = std::sqrt(p(MekfIndex::kBias + a, MekfIndex::kBias + a)) * kRadSToDph;
       }
-      s.bias_dph = filter.bias() * kRadSToDph;
+      s.bias_dph = fusion.bias_rad_s() * kRadSToDph;
+      s.status = status;
       res.samples.push_back(s);
     }
   }
-  res.status = "fused";
-  res.bias_dph = filter.bias() * kRadSToDph;
+  while (j < st.t_s.size() && st.t_s[j] <= gyro.t_s.back() + 1e-9) star_update(j++);
+  res.n_gyro_samples = fusion.n_gyro_samples();
+  res.n_st_used = fusion.n_updates();
+  res.n_st_rejected = fusion.n_rejected();
+  res.faults = fusion.faults();
+  res.gyros_in_use = fusion.GyrosInUse();
+  res.status = worst == 0 ? "fused" : (worst == 1 ? "degraded" : "failed");
+  res.bias_dph = fusion.bias_rad_s() * kRadSToDph;
   for (int a = 0; a < 3; ++a) {
-    res.bias_sigma_dph[a] = std::sqrt(filter.P()(MekfIndex::kBias + a, MekfIndex::kBias + a)) * kRadSToDph;
-  }
-  for (int i = 0; i < n; ++i) {
-    if (use[i]) res.gyros_in_use.push_back(i + 1);
+    res.bias_sigma_dph[a] = std::sqrt(fusion.P()(MekfIndex::kBias + a, MekfIndex::kBias + a)) * kRadSToDph;
   }
   res.st_residual_rms_arcsec = resid_n > 0 ? std::sqrt(resid_sum2 / (3.0 * resid_n)) * kRadToArcsec : 0.0;
   res.longest_st_gap_s = std::max(res.longest_st_gap_s, gyro.t_s.back() - t_last_st);
@@ -348,17 +242,18 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
 }
 
 void WriteFusedAttitude(const std::string& path, const FuseResult& result) {
-  std::vector<std::vector<double>> c(11);
+  std::vector<std::vector<double>> c(12);
   for (const auto& s : result.samples) {
     const auto q = ToWxyz(s.q_inertial_from_body);
     c[0].push_back(s.t_s);
     for (int a = 0; a < 4; ++a) c[1 + a].push_back(q[a]);
     for (int a = 0; a < 3; ++a) c[5 + a].push_back(s.sigma_rad[a] * kRadToArcsec);
     for (int a = 0; a < 3; ++a) c[8 + a].push_back(s.bias_dph[a]);
+    c[11].push_back(StatusCode(s.status));
   }
   WriteCsv(path,
            {"t_s", "qw", "qx", "qy", "qz", "sigma_x_arcsec", "sigma_y_arcsec", "sigma_z_arcsec", "bx_dph", "by_dph",
-            "bz_dph"},
+            "bz_dph", "status_code"},
            c, 15);
 }
 

@@ -3,6 +3,7 @@
 // failing gyro (fdi.h). The library call behind `ssiu fuse`.
 #pragma once
 
+#include <map>
 #include <string>
 #include <vector>
 
@@ -58,14 +59,18 @@ struct FusedSample {
   Vec3 sigma_rad = Vec3::Zero();   // 1 sigma attitude error about body x, y, z
   Vec3 bias_dph = Vec3::Zero();
   Vec3 bias_sigma_dph = Vec3::Zero();
+  std::string status = "ok";       // OnlineFusion::Status(): ok, degraded or failed
 };
 
 struct FuseResult {
-  std::string status;              // "fused", or "no_star_data" (nothing to start from)
+  // "fused" (the attitude trustworthy throughout), "degraded" or "failed" (some of the time: see
+  // status_s and each sample's status; online_fusion.h), or "no_star_data" (nothing to start from).
+  std::string status;
   std::string message;
   std::vector<FusedSample> samples;
   Vec3 bias_dph = Vec3::Zero(), bias_sigma_dph = Vec3::Zero();
   std::vector<FaultEvent> faults;
+  std::map<std::string, double> status_s;  // time (s) spent ok, degraded, failed
   std::vector<int> gyros_in_use;   // 1-based, at the end
   long n_gyro_samples = 0, n_st_used = 0, n_st_rejected = 0;
   double longest_st_gap_s = 0;
@@ -82,9 +87,13 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
 
 // The MEKF's noise model for the gyros `solver` uses: white rate noise and bias walk of the
 // least-squares body rate (rad^2/s, rad^2/s^3), plus a bias-walk floor (deg/h per sqrt(h)).
+// 0 for "ok", 1 "degraded", 2 "failed" (anything else).
+int StatusCode(const std::string& status);
+
 MekfNoise FuseNoiseModel(const GyroUnit& unit, const RateSolver& solver, double floor_dph_per_sqrt_h);
 
-// Writes t_s,qw,qx,qy,qz,sigma_x_arcsec,sigma_y_arcsec,sigma_z_arcsec,bx_dph,by_dph,bz_dph.
+// Writes t_s,qw,qx,qy,qz,sigma_x_arcsec,sigma_y_arcsec,sigma_z_arcsec,bx_dph,by_dph,bz_dph,status_code
+// (0 ok, 1 degraded, 2 failed).
 void WriteFusedAttitude(const std::string& path, const FuseResult& result);
 
 }  // namespace ssiu

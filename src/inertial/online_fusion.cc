@@ -12,6 +12,13 @@ namespace {
 constexpr double kDphToRadS = kDegToRad / 3600.0;
 constexpr double kRadSToDph = 1.0 / kDphToRadS;
 
+// Shape from the parity fit since onset: a noise burst leaves the residual about the step + ramp fit
+// well above the warm-up noise; a ramp has a trend over the span comparable with its step.
+std::string FaultShape(const GyroVec& step, const GyroVec& ramp_per_s, double span_s, double variance_ratio) {
+  if (variance_ratio > 2) return "noise";
+  return ramp_per_s.norm() * span_s > 0.5 * step.norm() + 1.0 ? "ramp" : "step";
+}
+
 }  // namespace
 
 OnlineFusion::OnlineFusion(const GyroUnit& unit, const FuseOptions& options) : unit_(unit), opt_(options) {
@@ -50,8 +57,33 @@ void OnlineFusion::PropagateTo(double t_s, const Vec3& w, const GyroVec& g, bool
   t_cur_ = t_s;
 }
 
-// As Fuse(): the isolated gyro leaves the rate solution, the parity baseline becomes a per-gyro
-// correction, and the bias estimate drops what the fault leaked into it (its covariance opens by as much).
+std::string OnlineFusion::Status() const {
+  if (!initialised_) return "failed";
+  bool unresolved = isolating_ || compensated_;
+  for (const auto& f : faults_) unresolved |= f.status != "isolated";
+  if (!unresolved) return "ok";
+  return t_cur_ - t_last_accepted_ > kFailedAfterS ? "failed" : "degraded";
+}
+
+Vec3 OnlineFusion::BiasAt(double t_s) const {
+  Vec3 b = bias_history_.empty() ? filter_.bias() : bias_history_.front().second;
+  for (const auto& [t, bias] : bias_history_) {
+    if (t <= t_s) b = bias;
+  }
+  return b;
+}
+
+void OnlineFusion::FloorBias(double sigma) {
+  const Mat6& p = filter_.P();
+  double add = 0;
+  for (int a = 0; a < 3; ++a) add = std::max(add, sigma * sigma - p(MekfIndex::kBias + a, MekfIndex::kBias + a));
+  if (add > 0) filter_.InflateBias(std::sqrt(add));
+}
+
+// The isolated gyro leaves the rate solution, the parity baseline becomes a per-gyro correction, and
+// the bias estimate goes back to its value before the onset: the remaining gyros did not change, and
+// the correction keeps their body bias what it was (the covariance stays open until stars settle it).
+// With no spare gyro (three in use) the gyro stays, its estimated fault subtracted.
 void OnlineFusion::Isolate(int gi, double t, const char* method, const GyroVec& resid, double fault_dph) {
   const int n = unit_.size();
   FaultEvent& ev = faults_.back();
@@ -61,16 +93,87 @@ void OnlineFusion::Isolate(int gi, double t, const char* method, const GyroVec& 
   ev.method = method;
   ev.fault_dph = fault_dph;
   ev.residual_dph.assign(resid.data(), resid.data() + resid.size());
+  ev.step_dph = fault_dph;
+  ev.ramp_dph_per_s = 0;
+  if (fit_v_.rows() > 0) {  // the parity fit since onset, on this gyro's parity column
+    const GyroVec d = fit_v_.col(gi);
+    const double dd = d.squaredNorm();
+    if (dd > 1e-12) {
+      ev.step_dph = d.dot(fit_step_) / dd;
+      ev.ramp_dph_per_s = d.dot(fit_ramp_) / dd;
+      // The parity measures the fault far better than the star rates: its size now, from the
+      // step + ramp fit over everything since the onset.
+      if (monitor_.active() && monitor_.ready()) {
+        GyroVec a, b;
+        double variance_ratio = 1;
+        monitor_.FitSinceOnset(&a, &b, &variance_ratio);
+        ev.shape = FaultShape(a, b, t - ev.t_onset_s, variance_ratio);
+        ev.step_dph = d.dot(a) / dd;
+        ev.ramp_dph_per_s = d.dot(b) / dd;
+        ev.fault_dph = d.dot(a + b * (t - ev.t_onset_s)) / dd;
+      }
+    }
+  }
+  isolating_ = false;
+  const Vec3 b_before = BiasAt(ev.t_onset_s);
+  if (static_cast<int>(GyrosInUse().size()) <= 3) {
+    correction_[gi] += ev.fault_dph;
+    compensated_ = true;
+    const Vec3 leak_rad_s = solver_.Pinv().col(gi) * ev.fault_dph * kDphToRadS;
+    filter_.ShiftBias(-leak_rad_s);
+    innov_s_ = 0;
+    innov_zero_t_ = t;
+    return;
+  }
   correction_ = GyroVec::Zero(n);
   if (monitor_.active() && monitor_.ready()) correction_ = monitor_.V().transpose() * monitor_.baseline();
-  const Vec3 leak_rad_s = solver_.Pinv().col(gi) * fault_dph * kDphToRadS;
-  const double leak = leak_rad_s.norm();
-  filter_.ShiftBias(-leak_rad_s);
+  const Vec3 leak_rad_s = solver_.Pinv().col(gi) * ev.fault_dph * kDphToRadS;
+  filter_.ShiftBias(b_before - filter_.bias());
   use_[gi] = false;
   SetSolver();
   monitor_ = ParityMonitor(axes_, use_, sample_sigma_dph_, dt_nominal_, opt_.fdi_options);
-  filter_.InflateBias(leak);
-  isolating_ = false;
+  if (monitor_.active()) monitor_.InheritBaseline(correction_);
+  filter_.InflateBias(leak_rad_s.norm());
+  innov_s_ = 0;
+  innov_zero_t_ = t;
+}
+
+void OnlineFusion::OnDetection(double t, const std::string& test, double onset_s, double parity_jump_dph) {
+  FaultEvent ev;
+  ev.t_detect_s = t;
+  ev.t_onset_s = std::min(onset_s, t);
+  ev.parity_jump_dph = parity_jump_dph;
+  ev.status = "detected";
+  ev.test = test;
+  fit_v_ = GyroParity();
+  if (monitor_.active() && monitor_.ready()) {
+    double variance_ratio = 1;
+    monitor_.FitSinceOnset(&fit_step_, &fit_ramp_, &variance_ratio);
+    fit_v_ = monitor_.V();
+    const double span = t - ev.t_onset_s;
+    ev.shape = FaultShape(fit_step_, fit_ramp_, span, variance_ratio);
+    ev.step_dph = fit_step_.norm();
+    ev.ramp_dph_per_s = fit_ramp_.norm();
+  } else {
+    ev.shape = "step";
+  }
+  faults_.push_back(ev);
+  const Vec3 b_before = BiasAt(ev.t_onset_s);
+  const GyroVec c = axes_ * (b_before * kRadSToDph) +
+                    (monitor_.active() && monitor_.ready() ? GyroVec(monitor_.V().transpose() * monitor_.baseline())
+                                                           : GyroVec(correction_));
+  isolator_ = StarRateIsolator(axes_, use_, c);
+  isolating_ = true;
+}
+
+// While a fault is detected but not isolated every estimate must cover it: the body bias (the fault's
+// image in the rate solution) is given at least the variance of the largest body rate error the
+// current parity residual can imply (its 1 s mean plus 3 sigma), so that the filter neither refuses
+// the star fixes nor claims an accuracy it has not.
+void OnlineFusion::OpenCovarianceWhileUnresolved() {
+  if (!monitor_.active() || !monitor_.ready()) return;
+  const double e_dph = monitor_.short_mean().norm() + 3 * monitor_.short_mean_sigma();
+  FloorBias(LargestImpliedRateDph(monitor_.V(), solver_, use_, e_dph) * kDphToRadS);
 }
 
 void OnlineFusion::AddGyro(double t_k, const GyroVec& g) {
@@ -89,32 +192,29 @@ void OnlineFusion::AddGyro(double t_k, const GyroVec& g) {
   const double full = t_k - t_prev;
   ++n_gyro_;
 
-  if (fdi_on_ && !isolating_ && monitor_.Feed(t_k, g)) {
-    FaultEvent ev;
-    ev.t_detect_s = t_k;
-    ev.parity_jump_dph = monitor_.jump().norm();
-    ev.status = "detected";
-    faults_.push_back(ev);
-    // The size of the step, not the window mean that crossed the threshold.
+  if (fdi_on_ && isolating_) {
+    monitor_.Track(t_k, g);
+    OpenCovarianceWhileUnresolved();
+  } else if (fdi_on_ && monitor_.Feed(t_k, g)) {
+    OnDetection(t_k, monitor_.alarm_test(), monitor_.onset_s(), monitor_.jump().norm());
+    // The size of the fault now, not the window mean that crossed the threshold.
     const GyroVec step = monitor_.StepEstimate(nullptr);
-    const double worst_dph = LargestImpliedRateDph(monitor_.V(), solver_, use_, step.norm());
-    // The fault began at most one parity window ago and has turned the attitude since, unknown to
-    // the filter: open the attitude covariance by that angle, or the NIS gate refuses the very
-    // star fixes that would correct it.
-    filter_.InflateAttitude(worst_dph * kDphToRadS * opt_.fdi_options.window_s);
-    const int gi = IsolateFromParity(monitor_.V(), monitor_.jump(), use_, opt_.fdi_options);
+    const double now_dph = std::max(step.norm(), monitor_.short_mean().norm() + 3 * monitor_.short_mean_sigma());
+    const double worst_dph = LargestImpliedRateDph(monitor_.V(), solver_, use_, now_dph);
+    // The fault began at the onset (at most one parity window ago for the window test) and has
+    // turned the attitude since, unknown to the filter: open the attitude covariance by that angle,
+    // or the NIS gate refuses the very star fixes that would correct it.
+    const double since_s = std::max(opt_.fdi_options.window_s, t_k - faults_.back().t_onset_s);
+    filter_.InflateAttitude(worst_dph * kDphToRadS * since_s);
+    // Several parity relations (5+ gyros): the direction of the fault's parity since onset.
+    const GyroVec dir = fit_step_ + fit_ramp_ * (t_k - faults_.back().t_onset_s);
+    const int gi = IsolateFromParity(monitor_.V(), dir, use_, opt_.fdi_options);
     if (gi >= 0) {
       const double f = step.dot(monitor_.V().col(gi)) / monitor_.V().col(gi).squaredNorm();
       Isolate(gi, t_k, "parity", GyroVec::Zero(n), f);
       w_last_ = solver_.Solve(g - correction_) * kDphToRadS;
     } else {
-      // Gyro-level biases before the fault: body bias from before the window plus the parity part.
-      const Vec3 b_before = bias_history_.empty() ? filter_.bias() : bias_history_.front().second;
-      const GyroVec c = axes_ * (b_before * kRadSToDph) + monitor_.V().transpose() * monitor_.baseline();
-      isolator_ = StarRateIsolator(axes_, use_, c);
-      isolating_ = true;
-      // Until isolation the fault feeds the bias: open its covariance by the largest body bias the
-      // parity jump can imply, so that the filter follows instead of diverging.
+      // Until isolation the fault feeds the bias: open its covariance (kept open sample by sample).
       filter_.InflateBias(worst_dph * kDphToRadS);
     }
   }
@@ -131,7 +231,8 @@ MekfUpdate OnlineFusion::AddAttitude(double t_j, const Quat& q_meas, const Mat3&
     p0.block<3, 3>(3, 3) = Mat3::Identity() * b0 * b0;
     filter_.Init(q_meas, Vec3::Zero(), p0);
     initialised_ = true;
-    t_cur_ = t_last_st_ = t_j;
+    t_cur_ = t_last_st_ = t_last_accepted_ = t_j;
+    innov_zero_t_ = t_j;
     n_used_ = 1;
     u.accepted = true;
     return u;
@@ -147,7 +248,14 @@ MekfUpdate OnlineFusion::AddAttitude(double t_j, const Quat& q_meas, const Mat3&
   // Star rates for isolation do not depend on the filter: every measurement counts.
   if (isolating_) {
     if (gap > 5.0) isolator_.BreakChain();
-    isolator_.AddStar(t_j, q_meas);
+    isolator_.AddStar(t_j, q_meas, r_body);
+  }
+  // Without parity (three gyros left) a fault shows only in the star innovations: while one is
+  // suspected, keep the bias open to the rate error the last innovation implies.
+  const bool no_parity = fdi_on_ && !monitor_.active();
+  if (no_parity && isolating_ && gap > 0) {
+    const Vec3 resid = 2 * (filter_.q().conjugate() * q_meas).vec();
+    FloorBias(resid.norm() / gap);
   }
   // A run of rejections means the filter, not the star tracker, is wrong: accept the next one.
   const double gate = consecutive_rejects_ >= 5 ? std::numeric_limits<double>::infinity() : opt_.nis_gate;
@@ -158,24 +266,36 @@ MekfUpdate OnlineFusion::AddAttitude(double t_j, const Quat& q_meas, const Mat3&
   } else {
     consecutive_rejects_ = 0;
     ++n_used_;
+    t_last_accepted_ = t_j;
     bias_history_.emplace_back(t_j, filter_.bias());
-    while (bias_history_.size() > 2 && bias_history_.front().first < t_j - 3 * opt_.fdi_options.window_s) {
-      bias_history_.pop_front();
+    while (bias_history_.size() > 2 && bias_history_.front().first < t_j - 120.0) bias_history_.pop_front();
+  }
+  if (no_parity && !isolating_) {
+    // CUSUM on the innovations: their covariance grown noise_ratio times (chi^2, 3 dof; the same
+    // log-likelihood ratio as the parity noise test), threshold from the false-alarm rate at the
+    // star rate.
+    const double rho = opt_.fdi_options.noise_ratio;
+    if (innov_h_ == 0) innov_h_ = CusumThreshold(1, 1.0, opt_.fdi_options.false_alarm_per_h);
+    innov_s_ = std::max(0.0, innov_s_ + 0.5 * (1 - 1 / rho) * u.nis - 1.5 * std::log(rho));
+    if (innov_s_ == 0) innov_zero_t_ = t_j;
+    if (innov_s_ > innov_h_) {
+      OnDetection(t_j, "star_innovation", innov_zero_t_, 0.0);
+      isolator_.AddStar(t_j, q_meas, r_body);
+      innov_s_ = 0;
+      filter_.InflateBias(std::sqrt(u.nis / 3) * std::sqrt(std::max(0.0, r_body.trace() / 3)) / std::max(gap, 1e-3));
     }
+    return u;
   }
   if (!isolating_) return u;
   FaultEvent& ev = faults_.back();
-  if (isolator_.covered_s() >= opt_.fdi_options.isolation_window_s) {
-    const GyroVec r = isolator_.ResidualDph();
-    const int gi = IsolateFromResiduals(r, use_, opt_.fdi_options);
-    if (gi >= 0) {
-      Isolate(gi, t_j, "star_rates", r, r[gi]);
-      w_last_ = solver_.Solve(g_last_ - correction_) * kDphToRadS;
-    } else if (t_j - ev.t_detect_s > opt_.fdi_options.isolation_timeout_s) {
-      ev.status = "unresolved";
-      ev.residual_dph.assign(r.data(), r.data() + r.size());
-      isolating_ = false;
-    }
+  const GyroVec r = isolator_.ResidualDph();
+  const int gi = IsolateSequential(r, isolator_.ResidualSigmaDph(), isolator_.covered_s(), use_, opt_.fdi_options);
+  if (gi >= 0) {
+    Isolate(gi, t_j, "star_rates", r, r[gi]);
+    w_last_ = solver_.Solve(g_last_ - correction_) * kDphToRadS;
+  } else if (t_j - ev.t_detect_s > opt_.fdi_options.isolation_timeout_s) {
+    ev.status = "unresolved";  // still watched: a later isolation resolves it
+    ev.residual_dph.assign(r.data(), r.data() + r.size());
   }
   return u;
 }

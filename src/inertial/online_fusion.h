@@ -44,6 +44,12 @@ class OnlineFusion {
   const Mat6& P() const { return filter_.P(); }
   const Vec3& bias_rad_s() const { return filter_.bias(); }
   const std::vector<FaultEvent>& faults() const { return faults_; }
+  // Whether the attitude can be trusted now: "ok"; "degraded" while a fault is detected but not
+  // isolated (the covariance is opened to cover it), or once a faulty gyro had to stay in use
+  // (three left, its fault compensated); "failed" when degraded and no star measurement has been
+  // accepted for failed_after_s (nothing bounds the drift); "failed" before the first measurement.
+  std::string Status() const;
+  static constexpr double kFailedAfterS = 30.0;
   std::vector<int> GyrosInUse() const;  // 1-based
   long n_gyro_samples() const { return n_gyro_; }
   long n_updates() const { return n_used_; }
@@ -54,6 +60,10 @@ class OnlineFusion {
   void PropagateTo(double t_s, const Vec3& w, const GyroVec& g, bool coning);
   void Isolate(int gi, double t, const char* method, const GyroVec& resid, double fault_dph);
   void SetSolver();
+  void OnDetection(double t, const std::string& test, double onset_s, double parity_jump_dph);
+  void OpenCovarianceWhileUnresolved();
+  void FloorBias(double sigma_rad_s);
+  Vec3 BiasAt(double t_s) const;
 
   GyroUnit unit_;
   FuseOptions opt_;
@@ -67,6 +77,11 @@ class OnlineFusion {
   ParityMonitor monitor_;
   StarRateIsolator isolator_;
   bool isolating_ = false;
+  bool compensated_ = false;           // a faulty gyro stays in use, its fault subtracted
+  GyroVec fit_step_, fit_ramp_;        // parity fit since onset at the pending detection
+  GyroParity fit_v_;                   // the parity matrix it was made with
+  double innov_s_ = 0, innov_zero_t_ = 0, innov_h_ = 0;  // star-innovation CUSUM (no parity left)
+  double t_last_accepted_ = 0;
   std::deque<std::pair<double, Vec3>> bias_history_;  // (t, bias rad/s), one per accepted update
 
   Mekf filter_;

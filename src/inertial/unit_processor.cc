@@ -101,16 +101,24 @@ HeadResult UnitProcessor::SolveHead(int h, const ImageView& image, Identificatio
   const std::vector<Centroid> c = CentroidsFromDetections(det, so.detector_sigma_scale);
 
   // Tracking around the attitude the gyros carried forward; lost in space before the first fix or
-  // when tracking fails (the same fallback as attitude/star_solver.h's Tracker).
+  // when tracking fails (the same fallback as attitude/star_solver.h's Tracker). While the fused
+  // attitude is suspect (a gyro fault not yet resolved) its prediction may be far off and would pull
+  // tracking onto wrong stars: lost in space first, then tracking with a search radius four times wider.
   const auto t1 = Clock::now();
-  if (fusion_.initialised()) {
+  const bool suspect = fusion_.initialised() && fusion_.Status() != "ok";
+  if (fusion_.initialised() && !suspect) {
     const Quat q_pred = fusion_.q() * head.q_body_from_sensor;
     *id = sid.MatchWithAttitude(c, head.camera, q_pred, so.track_search_radius_px, so.identify);
     r.mode = "tracking";
   }
-  if (!fusion_.initialised() || id->status != "solved") {
+  if (!fusion_.initialised() || suspect || id->status != "solved") {
     *id = sid.Identify(c, head.camera, so.identify);
     r.mode = "lost_in_space";
+  }
+  if (suspect && id->status != "solved") {
+    const Quat q_pred = fusion_.q() * head.q_body_from_sensor;
+    *id = sid.MatchWithAttitude(c, head.camera, q_pred, 4 * so.track_search_radius_px, so.identify);
+    r.mode = "tracking";
   }
   r.timing_ms["identify"] = MsSince(t1);
   r.status = id->status;
@@ -185,6 +193,7 @@ UnitAttitude UnitProcessor::Attitude() const {
   for (int i = 0; i < 3; ++i) a.bias_sigma_dph[i] = std::sqrt(p(MekfIndex::kBias + i, MekfIndex::kBias + i)) * kRadSToDph;
   a.faults = fusion_.faults();
   a.gyros_in_use = fusion_.GyrosInUse();
+  a.status = fusion_.Status();
   return a;
 }
 

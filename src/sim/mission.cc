@@ -326,11 +326,13 @@ MissionResult RunMission(const MissionConfig& config_in, const StarCatalog& cata
   res.frames = static_cast<int>(data.frame_t_s.size());
   const Quat q_sensor1_from_body = config.heads[0].q_body_from_sensor.conjugate();
   ErrorAccumulator star_acc, fused_acc;
-  long within = 0, axis_samples = 0, nees_n = 0;
+  long within = 0, axis_samples = 0, nees_n = 0, trusted = 0, trust_n = 0;
+  int worst = 0;
+  double t_prev_status = -1;
   double nees_sum = 0, frame_ms_sum = 0, gyro_s = 0, sim_s = 0;
   const bool write = !out_dir.empty();
   if (write) std::filesystem::create_directories(out_dir);
-  std::vector<std::vector<double>> att_cols(write ? 18 : 0), frame_cols(write ? 6 + 5 * nh : 0);
+  std::vector<std::vector<double>> att_cols(write ? 19 : 0), frame_cols(write ? 6 + 5 * nh : 0);
   bool first_valid = true;
 
   const auto& g = data.gyro;
@@ -410,12 +412,21 @@ MissionResult RunMission(const MissionConfig& config_in, const StarCatalog& cata
       first_valid = false;
     }
     const Vec3 e = BodyError(a.q_inertial_from_body, g.q_true[k]);
+    const int code = StatusCode(a.status);
+    worst = std::max(worst, code);
+    if (t_prev_status >= 0) res.status_s[a.status] += g.t_s[k] - t_prev_status;
+    t_prev_status = g.t_s[k];
     if (g.t_s[k] >= config.score_after_s) {
       fused_acc.Add(q_sensor1_from_body * e);
+      bool all_within = true;
       for (int i = 0; i < 3; ++i) {
-        within += std::abs(e[i]) <= 3 * std::sqrt(a.covariance_rad2(i, i)) ? 1 : 0;
+        const bool w = std::abs(e[i]) <= 3 * std::sqrt(a.covariance_rad2(i, i));
+        within += w ? 1 : 0;
+        all_within &= w;
         ++axis_samples;
       }
+      trusted += all_within || code != 0 ? 1 : 0;
+      ++trust_n;
     }
     if (write) {
       const auto q = ToWxyz(a.q_inertial_from_body);
@@ -426,6 +437,7 @@ MissionResult RunMission(const MissionConfig& config_in, const StarCatalog& cata
       for (int i = 0; i < 3; ++i) att_cols[8 + i].push_back(e[i] * kRadToArcsec);
       for (int i = 0; i < 3; ++i) att_cols[11 + i].push_back(a.bias_dph[i]);
       for (int i = 0; i < 4; ++i) att_cols[14 + i].push_back(qt[i]);
+      att_cols[18].push_back(code);
     }
   }
   while (fi < data.frame_t_s.size()) process_frames(data.frame_t_s[fi]);
@@ -447,6 +459,8 @@ MissionResult RunMission(const MissionConfig& config_in, const StarCatalog& cata
   res.star_only = star_acc.Stats();
   res.fused = fused_acc.Stats();
   res.within_3sigma_fraction = axis_samples > 0 ? static_cast<double>(within) / axis_samples : 0.0;
+  res.trustworthy_fraction = trust_n > 0 ? static_cast<double>(trusted) / trust_n : 0.0;
+  res.status = worst == 0 ? "ok" : (worst == 1 ? "degraded" : "failed");
   res.nees_mean = nees_n > 0 ? nees_sum / nees_n : 0.0;
   res.final_state = proc.Attitude();
   if (!g.t_s.empty()) {
@@ -466,7 +480,8 @@ MissionResult RunMission(const MissionConfig& config_in, const StarCatalog& cata
   if (write) {
     WriteCsv(out_dir + "/attitude.csv",
              {"t_s", "qw", "qx", "qy", "qz", "sigma_x_arcsec", "sigma_y_arcsec", "sigma_z_arcsec", "err_x_arcsec",
-              "err_y_arcsec", "err_z_arcsec", "bx_dph", "by_dph", "bz_dph", "true_qw", "true_qx", "true_qy", "true_qz"},
+              "err_y_arcsec", "err_z_arcsec", "bx_dph", "by_dph", "bz_dph", "true_qw", "true_qx", "true_qy", "true_qz",
+              "status_code"},
              att_cols, 12);
     std::vector<std::string> fh = {"t_s", "heads_solved", "update_accepted", "star_err_x_arcsec", "star_err_y_arcsec",
                                    "star_err_z_arcsec"};
@@ -547,12 +562,17 @@ std::string MissionResult::Text() const {
     s += "  FDI: no fault; gyros in use " + in_use + "\n";
   } else {
     for (const auto& f : final_state.faults) {
-      std::snprintf(b, sizeof b, "  FDI: %s gyro %d, detected at %.2f s, isolated at %.2f s (%s), %.2f deg/h\n",
-                    f.status.c_str(), f.gyro, f.t_detect_s, f.t_isolate_s, f.method.c_str(), f.fault_dph);
+      std::snprintf(b, sizeof b,
+                    "  FDI: %s gyro %d, %s from %.2f s, detected at %.2f s (%s), isolated at %.2f s (%s), %.2f deg/h\n",
+                    f.status.c_str(), f.gyro, f.shape.c_str(), f.t_onset_s, f.t_detect_s, f.test.c_str(), f.t_isolate_s,
+                    f.method.c_str(), f.fault_dph);
       s += b;
     }
     s += "  gyros in use " + in_use + "\n";
   }
+  s += "  status: " + status;
+  for (const auto& [k, v] : status_s) s += ", " + k + " " + std::to_string(v).substr(0, std::to_string(v).find('.') + 2) + " s";
+  s += "\n";
   std::snprintf(b, sizeof b,
                 "  filter: %ld star updates, %ld rejected; processor %.1f ms per frame set (max %.1f), %.2f us per "
                 "gyro sample; %.1f s processing, %.1f s rendering frames\n",
@@ -581,11 +601,13 @@ Json MissionResult::ToJson() const {
   Json fused_json = StatsJson(fused);
   fused_json["within_3sigma_fraction"] = within_3sigma_fraction;
   fused_json["nees_mean"] = nees_mean;
+  fused_json["trustworthy_fraction"] = trustworthy_fraction;
   const auto q = ToWxyz(final_state.q_inertial_from_body);
   const auto qt = ToWxyz(q_truth_final);
   Vec3 sigma;
   for (int i = 0; i < 3; ++i) sigma[i] = std::sqrt(final_state.covariance_rad2(i, i)) * kRadToArcsec;
-  return {{"status", frames_solved > 0 ? "ok" : "no_star_solution"},
+  return {{"status", frames_solved > 0 ? status : "no_star_solution"},
+          {"status_s", status_s},
           {"frames", frames},
           {"frames_solved", frames_solved},
           {"heads", hs},

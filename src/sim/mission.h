@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -72,6 +73,10 @@ struct MissionResult {
   ErrorStats star_only;                // the per-frame star solutions against the truth
   ErrorStats fused;                    // the fused attitude at every gyro sample after score_after_s
   double within_3sigma_fraction = 0;   // of fused per-axis errors at gyro samples after score_after_s
+  // Of gyro samples after score_after_s: every axis within 3 sigma, or the status not ok (issue 16).
+  double trustworthy_fraction = 0;
+  std::string status = "ok";           // worst processor status after the first fix: ok, degraded, failed
+  std::map<std::string, double> status_s;  // time (s) in each status after the first fix
   double nees_mean = 0;                // fused attitude NEES (3 dof) at frame times after score_after_s
   Vec3 bias_truth_dph = Vec3::Zero(), bias_dph = Vec3::Zero(), bias_sigma_dph = Vec3::Zero();
   double bias_error_start_dph = 0;     // |estimate - truth| just after the first fix (estimate 0 then)

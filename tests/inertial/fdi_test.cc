@@ -78,3 +78,83 @@ TEST(Fdi, OptionsCheck) {
 
 }  // namespace
 }  // namespace ssiu
+
+namespace ssiu {
+namespace {
+
+// Feeds four-FOG parity with white noise (6 deg/h per sample at 100 Hz) and `fault(t, i)` added to gyro i.
+template <typename Fault>
+double FirstAlarm(ParityMonitor* m, uint64_t seed, double t_end, Fault fault) {
+  const GyroUnit u = DefaultFourFogUnit();
+  Rng rng(seed);
+  for (long k = 1;; ++k) {
+    const double t = k * 0.01;
+    if (t > t_end) return -1;
+    GyroVec g = u.Axes() * Vec3(50, -20, 360) + (GyroVec(4) << 2.0, -3.0, 1.5, 2.5).finished();
+    for (int i = 0; i < 4; ++i) g[i] += 6.0 * rng.Normal() + fault(t, i);
+    if (m->Feed(t, g)) return t;
+  }
+}
+
+// The CUSUM thresholds come from the target false-alarm rate (fdi.h). With a target high enough to
+// measure (36 per hour) on fault-free noise the measured rate matches it within its Poisson spread and
+// the approximation's error, so the threshold, not luck, sets it. (The default target is 1e-3 per hour.)
+TEST(Fdi, CusumFalseAlarmRateIsBelowItsTarget) {
+  const GyroUnit u = DefaultFourFogUnit();
+  FdiOptions o;
+  o.false_alarm_per_h = 36;
+  o.warmup_s = 2;
+  o.threshold_sigma = 50;  // the window test out of the way
+  const double hours = 1.0;
+  double t_used = 0, m_h = 0;
+  int alarms = 0;
+  for (uint64_t seed = 1; t_used < hours * 3600; ++seed) {
+    ParityMonitor m(u.Axes(), std::vector<bool>(4, true), GyroVec::Constant(4, 6.0), 0.01, o);
+    const double t = FirstAlarm(&m, seed, hours * 3600 - t_used, [](double, int) { return 0.0; });
+    m_h = m.cusum_threshold();
+    if (t < 0) break;
+    ++alarms;
+    t_used += t - o.warmup_s;
+  }
+  const double rate_per_h = alarms / hours;
+  std::printf("CUSUM false alarms: %d in %.1f h at a target of %.0f per hour (h = %.2f)\n", alarms, hours,
+              o.false_alarm_per_h,
+              m_h);
+  EXPECT_LE(rate_per_h, 1.5 * o.false_alarm_per_h);
+  EXPECT_GE(rate_per_h, o.false_alarm_per_h / 3);
+  EXPECT_NEAR(CusumThreshold(9, 100.0, 1e-3), std::log(9 * 100.0 * 3600 / 1e-3), 1e-12);
+}
+
+// A slow ramp (1 deg/h per second) on each gyro: the CUSUM finds it within seconds, dates its onset
+// and fits a ramp of the right slope on that gyro's parity column; a noise burst is told apart.
+TEST(Fdi, CusumCatchesASlowRampAndANoiseBurst) {
+  const GyroUnit u = DefaultFourFogUnit();
+  for (int gi = 0; gi < 4; ++gi) {
+    ParityMonitor m(u.Axes(), std::vector<bool>(4, true), GyroVec::Constant(4, 6.0), 0.01, FdiOptions{});
+    const double t = FirstAlarm(&m, 40 + gi, 400, [gi](double t, int i) { return i == gi && t > 100 ? (t - 100) : 0.0; });
+    ASSERT_GT(t, 100) << gi;
+    EXPECT_LT(t, 110) << gi;
+    EXPECT_EQ(m.alarm_test(), "cusum");
+    EXPECT_NEAR(m.onset_s(), 100, 5.0);  // the CUSUM's last zero: when the ramp began to tell
+    // Tracked on (as while the fault is isolated) for 20 s, the fit since onset settles.
+    Rng rng(90 + gi);
+    for (double tt = t + 0.01; tt < t + 20; tt += 0.01) {
+      GyroVec g = u.Axes() * Vec3(50, -20, 360) + (GyroVec(4) << 2.0, -3.0, 1.5, 2.5).finished();
+      for (int i = 0; i < 4; ++i) g[i] += 6.0 * rng.Normal() + (i == gi ? tt - 100 : 0.0);
+      m.Track(tt, g);
+    }
+    GyroVec a, b;
+    m.FitSinceOnset(&a, &b, nullptr);
+    const GyroVec d = m.V().col(gi);
+    EXPECT_NEAR(d.dot(b) / d.squaredNorm(), 1.0, 0.15) << gi;  // deg/h per s
+  }
+  ParityMonitor m(u.Axes(), std::vector<bool>(4, true), GyroVec::Constant(4, 6.0), 0.01, FdiOptions{});
+  Rng burst(7);
+  const double t = FirstAlarm(&m, 50, 400, [&](double t, int i) { return i == 3 && t > 100 ? 40 * burst.Normal() : 0.0; });
+  EXPECT_GT(t, 100);
+  EXPECT_LT(t, 105);
+  EXPECT_EQ(m.alarm_test(), "noise");
+}
+
+}  // namespace
+}  // namespace ssiu

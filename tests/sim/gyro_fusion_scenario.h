@@ -44,6 +44,27 @@ inline GyroUnit ScenarioUnit(double rate_hz, double bias_instability_dph) {
   return u;
 }
 
+// Fraction of output samples (from t_from_s on) whose attitude error is within 3 reported sigma on
+// every axis or whose status is not "ok": the acceptance measure of issue 16 (a fault may make the
+// estimate wrong only while the unit says it is not trustworthy).
+inline double TrustworthyFraction(const FusionScore& s, double t_from_s, double* ok_but_out_s = nullptr) {
+  long n = 0, good = 0;
+  double bad_s = 0, t_prev = t_from_s;
+  for (size_t k = 0; k < s.fused.samples.size(); ++k) {
+    const FusedSample& f = s.fused.samples[k];
+    if (f.t_s < t_from_s) continue;
+    bool within = true;
+    for (int a = 0; a < 3; ++a) within &= std::abs(s.att_err_rad[k][a]) <= 3 * f.sigma_rad[a];
+    const bool fine = within || f.status != "ok";
+    good += fine;
+    if (!fine) bad_s += f.t_s - t_prev;
+    t_prev = f.t_s;
+    ++n;
+  }
+  if (ok_but_out_s) *ok_but_out_s = bad_s;
+  return n > 0 ? static_cast<double>(good) / n : 0.0;
+}
+
 inline FusionScore RunFusionScenario(const FusionScenario& sc, double bias_check_t_s) {
   FusionScore s;
   const GyroUnit unit = ScenarioUnit(sc.rate_hz, sc.bias_instability_dph);
