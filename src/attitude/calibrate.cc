@@ -282,19 +282,35 @@ Fit SelectAndFit(const Camera& cam0, const std::vector<Mat3>& rot0, const std::v
     }
   }
   // Backward elimination of the distortion terms: the least significant first.
-  for (;;) {
-    int worst = -1;
-    double worst_z = o.significance_sigmas;
-    for (int k = 4; k < kCam; ++k) {
-      if (!mask[k]) continue;
-      const double s = SigmaOf(f, k), z = s > 0 ? std::abs(CamVector(f.cam)[k]) / s : 0;
-      if (z < worst_z) worst = k, worst_z = z;
+  auto eliminate = [&] {
+    for (;;) {
+      int worst = -1;
+      double worst_z = o.significance_sigmas;
+      for (int k = 4; k < kCam; ++k) {
+        if (!mask[k]) continue;
+        const double s = SigmaOf(f, k), z = s > 0 ? std::abs(CamVector(f.cam)[k]) / s : 0;
+        if (z < worst_z) worst = k, worst_z = z;
+      }
+      if (worst < 0) break;
+      std::snprintf(buf, sizeof buf, "%s (%.2f sigma)", kNames[worst], worst_z);
+      dropped->push_back(buf);
+      hold({worst});
+      f = FitAll(f.cam, f.rot, obs, mask, n_frames, o.outlier_sigmas);
     }
-    if (worst < 0) break;
-    std::snprintf(buf, sizeof buf, "%s (%.2f sigma)", kNames[worst], worst_z);
-    dropped->push_back(buf);
-    hold({worst});
-    f = FitAll(f.cam, f.rot, obs, mask, n_frames, o.outlier_sigmas);
+  };
+  eliminate();
+  // A principal point not significantly off the guess is held there (every attitude moves with it:
+  // a fitted but insignificant offset only adds its noise to the solutions' boresights).
+  if (mask[2] && mask[3]) {
+    const auto v = CamVector(f.cam), g = CamVector(cam0);
+    const double z = std::max(std::abs(v[2] - g[2]) / SigmaOf(f, 2), std::abs(v[3] - g[3]) / SigmaOf(f, 3));
+    if (z < o.significance_sigmas) {
+      std::snprintf(buf, sizeof buf, "principal_point (%.2f sigma)", z);
+      dropped->push_back(buf);
+      hold({2, 3});
+      f = FitAll(f.cam, f.rot, obs, mask, n_frames, o.outlier_sigmas);
+      eliminate();  // without the principal point, a distortion term may now tell
+    }
   }
   *mask_out = mask;
   return f;

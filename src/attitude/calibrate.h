@@ -24,7 +24,9 @@ struct CalibrateOptions {
   // until the first fit; later rounds use 1 %).
   double fov_tolerance_pct = 5.0;
   int rounds = 3;                    // solve-and-fit rounds
-  double significance_sigmas = 3.0;  // k1, k2, p1, p2 kept when |value| > this x its sigma
+  // k1, k2, p1, p2 kept when |value| > this x its sigma; the principal point when it is this many
+  // sigmas off the guess's (else held at the guess).
+  double significance_sigmas = 3.0;
   double outlier_sigmas = 5.0;       // matches further than this (x the fit's scatter) are left out
   int holdout_every = 4;             // every n-th frame is held out for the before/after residuals; 0 = none
   // A parameter whose sigma exceeds these is reported unobservable and held at the guess (e.g. the
@@ -64,7 +66,7 @@ struct CameraCalibration {
   std::map<std::string, double> value, sigma;
   Eigen::MatrixXd covariance;  // of `parameters`, scaled by the fit's reduced chi-square when > 1
   std::vector<std::string> unobservable;  // "name: why"
-  std::vector<std::string> dropped;       // distortion terms left out as not significant
+  std::vector<std::string> dropped;       // distortion terms (and principal point) left out as not significant
   int frames_solved = 0, stars_used = 0;
   double rms_px = 0;              // all frames, fitted camera (per axis)
   double reduced_chi2 = 0;
