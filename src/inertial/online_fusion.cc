@@ -59,7 +59,7 @@ void OnlineFusion::PropagateTo(double t_s, const Vec3& w, const GyroVec& g, bool
 
 std::string OnlineFusion::Status() const {
   if (!initialised_) return "failed";
-  bool unresolved = isolating_ || compensated_;
+  bool unresolved = isolating_ || compensated_ || t_cur_ < t_settled_;
   for (const auto& f : faults_) unresolved |= f.status != "isolated";
   if (!unresolved) return "ok";
   return t_cur_ - t_last_accepted_ > kFailedAfterS ? "failed" : "degraded";
@@ -115,6 +115,7 @@ void OnlineFusion::Isolate(int gi, double t, const char* method, const GyroVec& 
     }
   }
   isolating_ = false;
+  t_settled_ = t + kSettleS;
   const Vec3 b_before = BiasAt(ev.t_onset_s);
   if (static_cast<int>(GyrosInUse().size()) <= 3) {
     correction_[gi] += ev.fault_dph;

@@ -45,11 +45,13 @@ class OnlineFusion {
   const Vec3& bias_rad_s() const { return filter_.bias(); }
   const std::vector<FaultEvent>& faults() const { return faults_; }
   // Whether the attitude can be trusted now: "ok"; "degraded" while a fault is detected but not
-  // isolated (the covariance is opened to cover it), or once a faulty gyro had to stay in use
+  // isolated (the covariance is opened to cover it) and for kSettleS after its isolation (the bias
+  // re-converging on the remaining gyros), or once a faulty gyro had to stay in use
   // (three left, its fault compensated); "failed" when degraded and no star measurement has been
   // accepted for failed_after_s (nothing bounds the drift); "failed" before the first measurement.
   std::string Status() const;
   static constexpr double kFailedAfterS = 30.0;
+  static constexpr double kSettleS = 10.0;  // after an isolation, degraded this long
   std::vector<int> GyrosInUse() const;  // 1-based
   long n_gyro_samples() const { return n_gyro_; }
   long n_updates() const { return n_used_; }
@@ -82,6 +84,7 @@ class OnlineFusion {
   GyroParity fit_v_;                   // the parity matrix it was made with
   double innov_s_ = 0, innov_zero_t_ = 0, innov_h_ = 0;  // star-innovation CUSUM (no parity left)
   double t_last_accepted_ = 0;
+  double t_settled_ = -1;  // degraded until then after an isolation (the filter re-converging)
   std::deque<std::pair<double, Vec3>> bias_history_;  // (t, bias rad/s), one per accepted update
 
   Mekf filter_;

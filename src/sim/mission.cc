@@ -418,15 +418,13 @@ MissionResult RunMission(const MissionConfig& config_in, const StarCatalog& cata
     t_prev_status = g.t_s[k];
     if (g.t_s[k] >= config.score_after_s) {
       fused_acc.Add(q_sensor1_from_body * e);
-      bool all_within = true;
       for (int i = 0; i < 3; ++i) {
         const bool w = std::abs(e[i]) <= 3 * std::sqrt(a.covariance_rad2(i, i));
         within += w ? 1 : 0;
-        all_within &= w;
+        trusted += w || code != 0 ? 1 : 0;
         ++axis_samples;
+        ++trust_n;
       }
-      trusted += all_within || code != 0 ? 1 : 0;
-      ++trust_n;
     }
     if (write) {
       const auto q = ToWxyz(a.q_inertial_from_body);

@@ -73,7 +73,8 @@ struct MissionResult {
   ErrorStats star_only;                // the per-frame star solutions against the truth
   ErrorStats fused;                    // the fused attitude at every gyro sample after score_after_s
   double within_3sigma_fraction = 0;   // of fused per-axis errors at gyro samples after score_after_s
-  // Of gyro samples after score_after_s: every axis within 3 sigma, or the status not ok (issue 16).
+  // Of per-axis errors at gyro samples after score_after_s: within 3 sigma, or the status not ok
+  // (issue 16's measure: wrong only while the unit says so).
   double trustworthy_fraction = 0;
   std::string status = "ok";           // worst processor status after the first fix: ok, degraded, failed
   std::map<std::string, double> status_s;  // time (s) in each status after the first fix

@@ -44,22 +44,30 @@ inline GyroUnit ScenarioUnit(double rate_hz, double bias_instability_dph) {
   return u;
 }
 
-// Fraction of output samples (from t_from_s on) whose attitude error is within 3 reported sigma on
-// every axis or whose status is not "ok": the acceptance measure of issue 16 (a fault may make the
-// estimate wrong only while the unit says it is not trustworthy).
-inline double TrustworthyFraction(const FusionScore& s, double t_from_s, double* ok_but_out_s = nullptr) {
+// Fraction of per-axis attitude errors (output samples from t_from_s on) within 3 reported sigma or
+// at a status not "ok": the acceptance measure of issue 16 (a fault may make the estimate wrong only
+// while the unit says it is not trustworthy); per axis like MissionResult::within_3sigma_fraction
+// (a consistent filter gives 99.73%). ok_but_out_s: time with some axis outside while ok.
+inline double TrustworthyFraction(const FusionScore& s, double t_from_s, double* ok_but_out_s = nullptr,
+                                  double* first_bad_t_s = nullptr, double* last_bad_t_s = nullptr) {
   long n = 0, good = 0;
   double bad_s = 0, t_prev = t_from_s;
   for (size_t k = 0; k < s.fused.samples.size(); ++k) {
     const FusedSample& f = s.fused.samples[k];
     if (f.t_s < t_from_s) continue;
-    bool within = true;
-    for (int a = 0; a < 3; ++a) within &= std::abs(s.att_err_rad[k][a]) <= 3 * f.sigma_rad[a];
-    const bool fine = within || f.status != "ok";
-    good += fine;
-    if (!fine) bad_s += f.t_s - t_prev;
+    bool fine = true;
+    for (int a = 0; a < 3; ++a) {
+      const bool ok_axis = std::abs(s.att_err_rad[k][a]) <= 3 * f.sigma_rad[a] || f.status != "ok";
+      good += ok_axis;
+      fine &= ok_axis;
+    }
+    if (!fine) {
+      bad_s += f.t_s - t_prev;
+      if (first_bad_t_s && bad_s == f.t_s - t_prev) *first_bad_t_s = f.t_s;
+      if (last_bad_t_s) *last_bad_t_s = f.t_s;
+    }
     t_prev = f.t_s;
-    ++n;
+    n += 3;
   }
   if (ok_but_out_s) *ok_but_out_s = bad_s;
   return n > 0 ? static_cast<double>(good) / n : 0.0;
