@@ -18,6 +18,7 @@
 #include "core/attitude.h"
 #include "core/catalog.h"
 #include "sim/frame_sim.h"
+#include "sim/scene_sim.h"
 
 namespace ssiu {
 namespace {
@@ -127,6 +128,50 @@ void BM_LostInSpaceNarrow8Deg(benchmark::State& state) {
 }
 BENCHMARK(BM_LostInSpaceNarrow8Deg)->Iterations(400)->Unit(benchmark::kMillisecond);
 
+
+// Kelvins-style scenes (issue 14): 10 x 7.5 deg, 1920 x 1440 px, BSC stars to V 6, 20 microradian
+// centroid noise (with its sigma), 0-80 false objects as bright as the stars; default options but
+// no systematic error (the scenes have none). Wrong: as above. Rates among scenes with >= 4 and with
+// exactly 3 true stars.
+void BM_LostInSpaceFalseObjects(benchmark::State& state) {
+  static const Camera cam = MakeCamera(1920, 1440, 10.0);
+  static const StarCatalog sky = LoadXplanetBsc(DefaultBscPath());
+  static const StarIdentifier id = [] {
+    CatalogBuildOptions co;
+    co.fov_deg = 10.0;
+    return StarIdentifier(BuildSolverCatalog(LoadSourceCatalog(DefaultBscPath()), co));
+  }();
+  SceneSimOptions so;
+  so.centroid_noise_px = 20e-6 * cam.focal_length_px;
+  so.false_objects_max = 80;
+  SolveOptions opt;
+  opt.identify.systematic_px = 0;
+  std::vector<double> ms;
+  int with4 = 0, solved4 = 0, with3 = 0, solved3 = 0, wrong = 0;
+  uint64_t seed = 1;
+  for (auto _ : state) {
+    const SimulatedScene sc = SimulateScene(cam, sky, RandomAttitude(seed), so, seed);
+    ++seed;
+    const double t0 = CpuMs();
+    const SolveResult r = SolveCentroids(id, sc.centroids, cam, opt);
+    ms.push_back(CpuMs() - t0);
+    const bool ok = r.status == "solved";
+    if (sc.true_stars >= 4) ++with4, solved4 += ok;
+    if (sc.true_stars == 3) ++with3, solved3 += ok;
+    const AttitudeErrorSplit e = SplitAttitudeError(r.attitude.q_inertial_from_sensor, sc.q_inertial_from_sensor);
+    const double roll_limit = std::max(60.0, 5 * r.attitude.sigma_roll_rad * kRadToArcsec);
+    if (ok && (e.cross_rad * kRadToArcsec > 60 || std::abs(e.roll_rad) * kRadToArcsec > roll_limit)) ++wrong;
+  }
+  std::sort(ms.begin(), ms.end());
+  state.counters["median_cpu_ms"] = ms[ms.size() / 2];
+  state.counters["p99_cpu_ms"] = ms[std::min(ms.size() - 1, ms.size() * 99 / 100)];
+  state.counters["solved_frac_4plus"] = with4 ? static_cast<double>(solved4) / with4 : 0;
+  state.counters["scenes_4plus"] = with4;
+  state.counters["solved_frac_3"] = with3 ? static_cast<double>(solved3) / with3 : 0;
+  state.counters["scenes_3"] = with3;
+  state.counters["wrong"] = wrong;
+}
+BENCHMARK(BM_LostInSpaceFalseObjects)->Iterations(1000)->Unit(benchmark::kMillisecond);
 
 void BM_TrackingUpdate(benchmark::State& state) {
   Fixture& f = F();

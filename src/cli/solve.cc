@@ -30,6 +30,9 @@ void AddSolverFlags(CLI::App* cmd, Opts* o) {
                   "Focal length known to +/- this percent: search and refine it");
   cmd->add_option("--max-false-prob", o->solve.identify.max_false_match_prob, "Accept below this chance probability")
       ->capture_default_str();
+  cmd->add_option("--timeout-ms", o->solve.identify.timeout_ms,
+                  "Lost in space: stop the hypothesis search after this long, no_match (0 = no limit)")
+      ->capture_default_str();
   cmd->add_option("--centroid-sigma-px", o->solve.identify.centroid_sigma_px, "Centroid noise when not measured")
       ->capture_default_str();
   cmd->add_option("--systematic-px", o->solve.identify.systematic_px, "Unmodelled position error (distortion)")

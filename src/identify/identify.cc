@@ -13,20 +13,54 @@
 namespace ssiu {
 
 struct StarIdentifier::Index {
-  // (ratio_a, ratio_b, ln longest_rad) per triangle. The log of the longest side makes its
-  // tolerance relative (d ln L = dL / L), about as large as the ratios' (~sqrt(2) dL / L), so one
-  // isotropic radius search selects on shape and size together; with the shape alone a short
-  // observed triangle (wide ratio tolerance) returned thousands of candidates.
-  std::vector<float> features;
-  std::vector<double> units;    // star unit vectors
-  std::unique_ptr<flann::Index<flann::L2<float>>> triangles;
+  // Triangles sorted by a key of their features: (ratio_a cell, ratio_b cell, ln longest_rad in fine
+  // steps), ln the least significant. A box query (ratio tolerance, ln-size tolerance) visits the few
+  // (ratio_a, ratio_b) cells it overlaps and, in each, one contiguous run of ln sizes found by binary
+  // search. This replaced a FLANN kd-tree radius search, which took 43% of a deep search's time and
+  // whose isotropic sphere admitted ratio errors as large as the focal-length range.
+  std::vector<uint64_t> keys;     // sorted
+  std::vector<int32_t> triangle;  // triangle index per key
+  std::vector<uint32_t> cell_start;  // first key of each (ratio_a, ratio_b) cell; one past the end last
+  std::vector<double> units;      // star unit vectors
   std::unique_ptr<flann::Index<flann::L2<double>>> stars;
+
+  static constexpr double kRatioCell = 0.004;
+  static constexpr int kRatioCells = 251;  // ratios in [0, 1]
+  static constexpr double kLnStep = 1e-4, kLnMin = -14.0;
+  static constexpr int kLnBits = 20;
+  static int RatioCell(double r) { return std::clamp(static_cast<int>(std::floor(r / kRatioCell)), 0, kRatioCells - 1); }
+  static int64_t LnCell(double ln_l) {
+    const double c = std::floor((ln_l - kLnMin) / kLnStep);
+    return static_cast<int64_t>(std::clamp(c, 0.0, static_cast<double>((1 << kLnBits) - 1)));
+  }
+  static uint64_t Key(int ia, int ib, int64_t il) {
+    return ((static_cast<uint64_t>(ia) * kRatioCells + static_cast<uint64_t>(ib)) << kLnBits) | static_cast<uint64_t>(il);
+  }
+  // Calls fn(triangle index) for every triangle with |ratio_a - qa| <= tol_r, |ratio_b - qb| <= tol_r
+  // and |ln longest - ql| <= tol_l (the cells overlapping the box; the caller checks the sides).
+  template <typename Fn>
+  void ForEachInBox(double qa, double qb, double ql, double tol_r, double tol_l, const SolverCatalog& cat, Fn&& fn) const {
+    const int64_t l0 = LnCell(ql - tol_l), l1 = LnCell(ql + tol_l);
+    for (int ia = RatioCell(qa - tol_r); ia <= RatioCell(qa + tol_r); ++ia) {
+      for (int ib = RatioCell(qb - tol_r); ib <= RatioCell(qb + tol_r); ++ib) {
+        const uint64_t hi = Key(ia, ib, l1);
+        const size_t cell = static_cast<size_t>(ia) * kRatioCells + ib;
+        const auto end = keys.begin() + cell_start[cell + 1];
+        for (auto it = std::lower_bound(keys.begin() + cell_start[cell], end, Key(ia, ib, l0)); it != end && *it <= hi; ++it) {
+          const int32_t ti = triangle[it - keys.begin()];
+          const CatalogTriangle& t = cat.triangles[ti];
+          if (std::abs(t.ratio_a - qa) <= tol_r && std::abs(t.ratio_b - qb) <= tol_r) fn(ti);
+        }
+      }
+    }
+  }
 };
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
 constexpr double kMinTrackedFraction = 0.3;  // tracking: matched / min(predicted, centroids)
+constexpr int kMinTrackedMatches = 5;        // tracking: its chance probability is calibrated for >= 5
 double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 double Angle(const Vec3& a, const Vec3& b) { return std::atan2(a.cross(b).norm(), a.dot(b)); }
@@ -43,6 +77,7 @@ struct Context {
   std::vector<int> order;        // centroid indices, brightest first
   std::vector<double> sigma_px;  // effective 1-sigma per centroid (with the systematic part)
   int m = 0;                     // verification centroids
+  double median_sigma_px = 0;    // typical centroid sigma (with the systematic part)
   double match_radius_px = 0;
 };
 
@@ -101,6 +136,102 @@ Verification Verify(const Context& ctx, const Camera& cam, const Mat3& r, double
     v.matches.push_back(m);
   }
   return v;
+}
+
+// The hypothesis test (stage 1): the attitude (and scale) come from the three triangle stars
+// alone, so every other centroid is independent of the hypothesis and, under the null hypothesis
+// (a chance pattern), falls near a predicted star with probability p_hit. Each predicted star gets
+// the radius verify_sigmas * its position sigma: the centroid noise plus the error that the
+// triangle's own noise puts into the prediction there (rotation about the triangle's centre and,
+// when the focal length is searched, scale: both grow with the distance d from that centre as
+// sigma_tri * d / sqrt(sum rho_i^2), rho_i the vertices' distances from the centre).
+struct HypothesisTest {
+  int extra = 0;       // matched centroids besides the triangle's three
+  double p_hit = 0;    // chance that one random centroid falls within a predicted star's radius
+  double worst = 0;    // largest (distance / radius)^2 among the extra matches
+  int n_cat = 0;       // catalog stars predicted in the image
+  Verification v;      // the triangle's three pairs plus the extra matches
+};
+
+HypothesisTest TestHypothesis(const Context& ctx, const IdentifyOptions& o, const Camera& cam, const Mat3& r,
+                              const int tri_c[3], const int tri_s[3], bool scale_searched) {
+  HypothesisTest h;
+  const SolverCatalog& cat = ctx.id->catalog();
+  const auto& c = *ctx.c;
+  Vec2 centre = Vec2::Zero();
+  double sig_tri = 0;
+  for (int i = 0; i < 3; ++i) {
+    centre += Vec2(c[tri_c[i]].x_px, c[tri_c[i]].y_px) / 3.0;
+    sig_tri = std::max(sig_tri, ctx.sigma_px[tri_c[i]]);
+  }
+  double rho2 = 0;
+  for (int i = 0; i < 3; ++i) rho2 += (Vec2(c[tri_c[i]].x_px, c[tri_c[i]].y_px) - centre).squaredNorm();
+  rho2 = std::max(rho2, 1.0);
+  const double g = scale_searched ? 2.0 : 1.0;
+  const double floor_px = scale_searched ? 2 * ctx.match_radius_px : o.match_radius_px;
+  const std::vector<int> near = ctx.id->StarsWithin(r.col(2), cam.FovDiagRad() / 2 * 1.05 + 0.002);
+  struct Pred {
+    Vec2 px;
+    int star;
+    double r2;
+  };
+  std::vector<Pred> pred;
+  const Mat3 rt = r.transpose();
+  double area_hit = 0;
+  for (int s : near) {
+    if (s == tri_s[0] || s == tri_s[1] || s == tri_s[2]) continue;
+    const auto p = cam.Project(rt * cat.stars[s].unit);
+    if (!p || !cam.InImage(*p)) continue;
+    const double d2 = (*p - centre).squaredNorm();
+    const double var = ctx.median_sigma_px * ctx.median_sigma_px + sig_tri * sig_tri * (1.0 / 3 + g * d2 / rho2);
+    // In tolerance mode the camera model is known to be off (focal length, and often the pixel
+    // aspect or distortion that the caller is about to calibrate): at least twice the refinement
+    // radius, as the verification before this test used (the probability counts whatever radius).
+    const double r2 = std::max(o.verify_sigmas * o.verify_sigmas * var, floor_px * floor_px);
+    area_hit += kPi * r2;
+    pred.push_back({*p, s, r2});
+  }
+  h.n_cat = static_cast<int>(pred.size()) + 3;
+  h.p_hit = std::min(1.0, area_hit / (static_cast<double>(cam.width) * cam.height));
+  struct Cand {
+    double score;  // squared distance over squared radius
+    int c, p;
+  };
+  std::vector<Cand> cands;
+  for (int i = 0; i < ctx.m; ++i) {
+    const int ci = ctx.order[i];
+    if (ci == tri_c[0] || ci == tri_c[1] || ci == tri_c[2]) continue;
+    const Vec2 xy(c[ci].x_px, c[ci].y_px);
+    for (size_t p = 0; p < pred.size(); ++p) {
+      const double d2 = (pred[p].px - xy).squaredNorm();
+      if (d2 <= pred[p].r2) cands.push_back({d2 / pred[p].r2, ci, static_cast<int>(p)});
+    }
+  }
+  std::sort(cands.begin(), cands.end(), [](const Cand& a, const Cand& b) { return a.score < b.score; });
+  std::vector<char> used_c(c.size(), 0), used_p(pred.size(), 0);
+  auto add = [&](int ci, int s) {
+    StarMatch m;
+    m.centroid = ci;
+    m.star = s;
+    m.star_id = cat.stars[s].id;
+    m.mag = cat.stars[s].mag;
+    m.x_px = c[ci].x_px;
+    m.y_px = c[ci].y_px;
+    m.b_sensor = cam.Unproject(Vec2(m.x_px, m.y_px));
+    m.r_inertial = cat.stars[s].unit;
+    m.sigma_rad = ctx.sigma_px[ci] / cam.FocalMeanPx();
+    h.v.matches.push_back(m);
+  };
+  for (int i = 0; i < 3; ++i) add(tri_c[i], tri_s[i]);
+  for (const auto& k : cands) {
+    if (used_c[k.c] || used_p[k.p]) continue;
+    used_c[k.c] = used_p[k.p] = 1;
+    add(k.c, pred[k.p].star);
+    ++h.extra;
+    h.worst = std::max(h.worst, k.score);
+  }
+  h.v.n_cat = h.n_cat;
+  return h;
 }
 
 Mat3 SvdFromMatches(const std::vector<StarMatch>& ms) {
@@ -196,6 +327,7 @@ Context MakeContext(const StarIdentifier* id, const std::vector<Centroid>& c, co
     std::nth_element(s.begin(), s.begin() + s.size() / 2, s.end());
     med = s[s.size() / 2];
   }
+  ctx.median_sigma_px = med;
   ctx.match_radius_px = o.match_radius_px > 0 ? o.match_radius_px : std::max(2.0, 5.0 * med);
   return ctx;
 }
@@ -222,7 +354,7 @@ Camera FittedCamera(Camera camera, const Identification& id) {
 
 void IdentifyOptions::Check() const {
   auto bad = [](const std::string& f, const std::string& w) { throw InputError("identify options", f + " " + w); };
-  if (pattern_centroids < 3 || pattern_centroids > 40) bad("pattern_centroids", "must be in [3, 40]");
+  if (pattern_centroids < 3 || pattern_centroids > 1000) bad("pattern_centroids", "must be in [3, 1000]");
   if (verify_centroids < pattern_centroids) bad("verify_centroids", "must be >= pattern_centroids");
   if (!(centroid_sigma_px > 0 && centroid_sigma_px < 20)) bad("centroid_sigma_px", "must be in (0, 20)");
   if (!(systematic_px >= 0 && systematic_px < 20)) bad("systematic_px", "must be in [0, 20)");
@@ -232,6 +364,8 @@ void IdentifyOptions::Check() const {
   if (!(max_false_match_prob > 0 && max_false_match_prob < 1)) bad("max_false_match_prob", "must be in (0, 1)");
   if (min_matches < 4) bad("min_matches", "must be >= 4");
   if (max_hypotheses < 1) bad("max_hypotheses", "must be >= 1");
+  if (!(verify_sigmas >= 1 && verify_sigmas <= 10)) bad("verify_sigmas", "must be in [1, 10]");
+  if (!(timeout_ms >= 0 && timeout_ms <= 3.6e6)) bad("timeout_ms", "must be in [0, 3600000] (0 = no limit)");
 }
 
 double BinomialTail(int n, double p, int k) {
@@ -250,16 +384,22 @@ double BinomialTail(int n, double p, int k) {
 
 StarIdentifier::StarIdentifier(SolverCatalog catalog) : catalog_(std::move(catalog)), index_(std::make_unique<Index>()) {
   auto& ix = *index_;
-  ix.features.reserve(catalog_.triangles.size() * 3);
-  for (const auto& t : catalog_.triangles) {
-    ix.features.push_back(t.ratio_a);
-    ix.features.push_back(t.ratio_b);
-    ix.features.push_back(std::log(t.longest_rad));
+  std::vector<std::pair<uint64_t, int32_t>> kt;
+  kt.reserve(catalog_.triangles.size());
+  for (size_t i = 0; i < catalog_.triangles.size(); ++i) {
+    const auto& t = catalog_.triangles[i];
+    kt.push_back({Index::Key(Index::RatioCell(t.ratio_a), Index::RatioCell(t.ratio_b), Index::LnCell(std::log(t.longest_rad))),
+                  static_cast<int32_t>(i)});
   }
-  if (!catalog_.triangles.empty()) {
-    flann::Matrix<float> m(ix.features.data(), catalog_.triangles.size(), 3);
-    ix.triangles = std::make_unique<flann::Index<flann::L2<float>>>(m, flann::KDTreeSingleIndexParams(16));
-    ix.triangles->buildIndex();
+  std::sort(kt.begin(), kt.end());
+  for (const auto& [k, i] : kt) {
+    ix.keys.push_back(k);
+    ix.triangle.push_back(i);
+  }
+  ix.cell_start.assign(static_cast<size_t>(Index::kRatioCells) * Index::kRatioCells + 1, 0);
+  for (size_t cell = 0, k = 0; cell < ix.cell_start.size(); ++cell) {
+    while (k < ix.keys.size() && (ix.keys[k] >> Index::kLnBits) < cell) ++k;
+    ix.cell_start[cell] = static_cast<uint32_t>(k);
   }
   ix.units.reserve(catalog_.stars.size() * 3);
   for (const auto& s : catalog_.stars) ix.units.insert(ix.units.end(), {s.unit[0], s.unit[1], s.unit[2]});
@@ -306,7 +446,7 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
     out.timing_ms["identify"] = MsSince(t0);
     return out;
   }
-  if (!index_->triangles) throw InputError(catalog_.source, "catalog has no pattern index");
+  if (index_->keys.empty()) throw InputError(catalog_.source, "catalog has no pattern index");
   const Context ctx = MakeContext(this, centroids, o);
   const int k_pat = std::min(o.pattern_centroids, n);
   std::vector<Vec3> u(k_pat);
@@ -314,30 +454,47 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
     const auto& c = centroids[ctx.order[i]];
     u[i] = camera.Unproject(Vec2(c.x_px, c.y_px));
   }
+  // Angles between pattern centroids, once (a deep search forms each pair's side in many triangles).
+  std::vector<double> ang(static_cast<size_t>(k_pat) * k_pat, 0.0);
+  for (int i = 0; i < k_pat; ++i)
+    for (int j = i + 1; j < k_pat; ++j) ang[i * k_pat + j] = ang[j * k_pat + i] = Angle(u[i], u[j]);
   const double f = camera.FocalMinPx();  // side tolerances hold along both axes
   const double ptol = o.fov_tolerance_pct / 100.0;
   const double fov = catalog_.fov_deg * kDegToRad;
   // ln of the focal-length scale range: observed longest side / catalog longest side.
   const double ln_scale_tol = ptol > 0 ? std::max(std::log1p(ptol), -std::log1p(-ptol)) : 0.0;
+  // Sequential testing: the search stops at the first hypothesis h (1-based) whose chance
+  // probability p_h passes p_h * h * H <= alpha, H = 1 + ln(max_hypotheses) >= sum_{h<=max} 1/h, so
+  // that the chance of accepting any chance pattern over the whole search is at most
+  // sum_h alpha / (h H) <= alpha (a union bound with weights 1/(h H)).
+  const double seq_factor = 1.0 + std::log(static_cast<double>(o.max_hypotheses));
+  const auto deadline = t0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::milli>(o.timeout_ms));
 
-  std::vector<std::vector<int>> idx;
-  std::vector<std::vector<float>> dist;
-  flann::SearchParams sp;
-  sp.sorted = false;
+  std::vector<std::vector<int>> idx(1);
   int hyp = 0;
   double best_prob = 1.0;
   int best_k = 0;
+  auto give_up = [&](const std::string& why) {
+    out.status = "no_match";
+    out.message = why + " (best " + std::to_string(best_k) + " matches, chance probability " + std::to_string(best_prob) + ")";
+    out.hypotheses = hyp;
+    out.false_match_probability = best_prob;
+    out.timing_ms["identify"] = MsSince(t0);
+    return out;
+  };
   static const int kPerm[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
   // Triangles brightest first: all triangles whose faintest vertex is c come before c + 1.
   for (int c = 2; c < k_pat; ++c) {
     for (int b = 1; b < c; ++b) {
+      if (o.timeout_ms > 0 && Clock::now() > deadline)
+        return give_up("timed out after " + std::to_string(hyp) + " hypotheses");
       for (int a = 0; a < b; ++a) {
         const int vtx[3] = {a, b, c};
         // Side-length tolerance (rad) from this triangle's own centroid noise (a poorly measured
         // centroid elsewhere in the frame does not widen every search).
         const double sig_tri = std::max({ctx.sigma_px[ctx.order[a]], ctx.sigma_px[ctx.order[b]], ctx.sigma_px[ctx.order[c]]});
         const double tol_side = o.tolerance_sigmas * std::sqrt(2.0) * sig_tri / f;
-        const double side[3] = {Angle(u[b], u[c]), Angle(u[a], u[c]), Angle(u[a], u[b])};
+        const double side[3] = {ang[b * k_pat + c], ang[a * k_pat + c], ang[a * k_pat + b]};
         double s[3] = {side[0], side[1], side[2]};
         std::sort(s, s + 3);
         if (s[2] > fov * (1 + ptol) + tol_side || s[0] < 1e-9) continue;
@@ -345,27 +502,35 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
         // longest side: the focal-length range plus tol / c.
         const double tol_r = tol_side * std::sqrt(2.0) / s[2] + 1e-4;
         const double tol_l = ln_scale_tol + 1.1 * tol_side / s[2] + 1e-4;
-        float q[3] = {static_cast<float>(s[0] / s[2]), static_cast<float>(s[1] / s[2]), static_cast<float>(std::log(s[2]))};
-        flann::Matrix<float> qm(q, 1, 3);
-        index_->triangles->radiusSearch(qm, idx, dist, static_cast<float>(2 * tol_r * tol_r + tol_l * tol_l), sp);
+        std::vector<int>& cand = idx[0];
+        cand.clear();
+        index_->ForEachInBox(s[0] / s[2], s[1] / s[2], std::log(s[2]), tol_r, tol_l, catalog_, [&](int ti) { cand.push_back(ti); });
         for (int ti : idx[0]) {
           const CatalogTriangle& t = catalog_.triangles[ti];
           const Vec3* r[3] = {&catalog_.stars[t.v[0]].unit, &catalog_.stars[t.v[1]].unit, &catalog_.stars[t.v[2]].unit};
           // Catalog sides from the stored features (vertex i is opposite side i, shortest first).
           const double cside[3] = {t.ratio_a * static_cast<double>(t.longest_rad), t.ratio_b * static_cast<double>(t.longest_rad),
                                    static_cast<double>(t.longest_rad)};
-          const double scale = s[2] / t.longest_rad;  // observed / catalog angle ~ f_true / f_nominal
-          if (std::abs(scale - 1) > ptol + tol_side / s[2]) continue;
+          const double scale0 = s[2] / t.longest_rad;  // observed / catalog angle ~ f_true / f_nominal
+          if (std::abs(scale0 - 1) > ptol + tol_side / s[2]) continue;
           for (const auto& pm : kPerm) {
             // Observed vertex vtx[i] <-> catalog vertex pm[i]: opposite sides must agree (after scale).
             bool ok = true;
-            for (int i = 0; i < 3 && ok; ++i) ok = std::abs(side[i] / scale - cside[pm[i]]) <= 2 * tol_side;
+            for (int i = 0; i < 3 && ok; ++i) ok = std::abs(side[i] / scale0 - cside[pm[i]]) <= 2 * tol_side;
             if (!ok) continue;
             Camera cam = camera;
-            if (ptol > 0) cam.ScaleFocal(scale);
+            if (ptol > 0) {
+              // Least-squares scale over the three sides of this correspondence.
+              double num = 0, den = 0;
+              for (int i = 0; i < 3; ++i) num += side[i] * cside[pm[i]], den += cside[pm[i]] * cside[pm[i]];
+              cam.ScaleFocal(num / den);
+            }
             Vec3 bv[3];
+            int tri_c[3], tri_s[3];
             for (int i = 0; i < 3; ++i) {
-              const auto& cc = centroids[ctx.order[vtx[i]]];
+              tri_c[i] = ctx.order[vtx[i]];
+              tri_s[i] = t.v[pm[i]];
+              const auto& cc = centroids[tri_c[i]];
               bv[i] = cam.Unproject(Vec2(cc.x_px, cc.y_px));
             }
             // Same handedness: a rotation cannot mirror the triangle.
@@ -376,48 +541,41 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
             for (int i = 0; i < 3; ++i) pairs.push_back({bv[i], *r[pm[i]], 1.0});
             const Mat3 rot = SolveWahbaSvd(pairs).toRotationMatrix();
             if (++hyp > o.max_hypotheses) {
-              out.status = "no_match";
-              out.message = "gave up after " + std::to_string(o.max_hypotheses) + " hypotheses";
-              out.hypotheses = hyp - 1;
-              out.false_match_probability = best_prob;
-              out.timing_ms["identify"] = MsSince(t0);
-              return out;
+              hyp = o.max_hypotheses;
+              return give_up("gave up after " + std::to_string(o.max_hypotheses) + " hypotheses");
             }
-            Verification v = Verify(ctx, cam, rot, ctx.match_radius_px * (ptol > 0 ? 2.0 : 1.0));
-            if (static_cast<int>(v.matches.size()) < o.min_matches) continue;
-            Refined rf = Refine(ctx, o, cam, rot, std::move(v));
-            const int k = static_cast<int>(rf.v.matches.size());
-            // Three matches are the hypothesis itself; the others are the evidence. Bonferroni over
-            // the hypotheses tried so far.
-            const double prob =
-                std::min(1.0, ChanceProbability(ctx.m - 3, rf.v.n_cat, ctx.match_radius_px, rf.cam, k - 3) * hyp);
+            HypothesisTest ht = TestHypothesis(ctx, o, cam, rot, tri_c, tri_s, ptol > 0);
+            const int k = ht.extra + 3;
+            if (k < o.min_matches) continue;
+            // Three matches are the hypothesis itself; the others are the evidence: j = extra
+            // centroids all within t sigmas of distinct predictions, t the largest of their
+            // normalised distances. A random centroid comes that close to some prediction with
+            // probability u = p_hit (t / verify_sigmas)^2, so the chance of j or more such among the
+            // m - 3 others is the binomial tail at u (the j-th order statistic of uniform p-values).
+            const double u = ht.p_hit * ht.worst;
+            const double prob = std::min(1.0, BinomialTail(ctx.m - 3, u, ht.extra) * hyp * seq_factor);
             if (prob < best_prob) best_prob = prob, best_k = k;
-            if (k >= o.min_matches && prob < o.max_false_match_prob) {
-              out.status = "solved";
-              out.q_inertial_from_sensor = Quat(rf.r).normalized();
-              if (out.q_inertial_from_sensor.w() < 0) out.q_inertial_from_sensor.coeffs() *= -1;
-              out.focal_length_px = rf.cam.focal_length_px;
-              out.focal_length_y_px = rf.cam.FocalYPx();
-              out.false_match_probability = prob;
-              out.matches = std::move(rf.v.matches);
-              out.hypotheses = hyp;
-              out.catalog_stars_in_field = rf.v.n_cat;
-              out.message = std::to_string(k) + " stars matched";
-              out.timing_ms["identify"] = MsSince(t0);
-              return out;
-            }
+            if (prob >= o.max_false_match_prob) continue;
+            // Accepted: refine the attitude (and focal length) on the matches and re-match.
+            Refined rf = Refine(ctx, o, cam, rot, std::move(ht.v));
+            out.status = "solved";
+            out.q_inertial_from_sensor = Quat(rf.r).normalized();
+            if (out.q_inertial_from_sensor.w() < 0) out.q_inertial_from_sensor.coeffs() *= -1;
+            out.focal_length_px = rf.cam.focal_length_px;
+            out.focal_length_y_px = rf.cam.FocalYPx();
+            out.false_match_probability = prob;
+            out.matches = std::move(rf.v.matches);
+            out.hypotheses = hyp;
+            out.catalog_stars_in_field = rf.v.n_cat;
+            out.message = std::to_string(out.matches.size()) + " stars matched (" + std::to_string(k) + " in the test)";
+            out.timing_ms["identify"] = MsSince(t0);
+            return out;
           }
         }
       }
     }
   }
-  out.status = "no_match";
-  out.hypotheses = hyp;
-  out.false_match_probability = best_prob;
-  out.message = "no hypothesis verified (" + std::to_string(hyp) + " tried, best " + std::to_string(best_k) +
-                " matches, chance probability " + std::to_string(best_prob) + ")";
-  out.timing_ms["identify"] = MsSince(t0);
-  return out;
+  return give_up("no hypothesis verified (" + std::to_string(hyp) + " tried)");
 }
 
 Identification StarIdentifier::MatchWithAttitude(const std::vector<Centroid>& centroids, const Camera& camera,
@@ -425,21 +583,22 @@ Identification StarIdentifier::MatchWithAttitude(const std::vector<Centroid>& ce
                                                  const IdentifyOptions& o) const {
   const auto t0 = Clock::now();
   o.Check();
+  const int min_k = std::max(o.min_matches, kMinTrackedMatches);
   CheckCentroids(centroids);
   Identification out;
   out.focal_length_px = camera.focal_length_px;
   out.focal_length_y_px = camera.FocalYPx();
   const int n = static_cast<int>(centroids.size());
-  if (n < o.min_matches) {
+  if (n < min_k) {
     out.status = "too_few_stars";
-    out.message = std::to_string(n) + " centroids, need at least " + std::to_string(o.min_matches);
+    out.message = std::to_string(n) + " centroids, need at least " + std::to_string(min_k);
     return out;
   }
   const Context ctx = MakeContext(this, centroids, o);
   const Mat3 r_pred = q_predicted.normalized().toRotationMatrix();
   Verification v = Verify(ctx, camera, r_pred, std::max(search_radius_px, ctx.match_radius_px));
   const size_t initial_pairs = v.matches.size();
-  if (static_cast<int>(v.matches.size()) < o.min_matches) {
+  if (static_cast<int>(v.matches.size()) < min_k) {
     out.status = "no_match";
     out.message = "lost lock: " + std::to_string(v.matches.size()) + " stars near their predicted positions";
     out.timing_ms["identify"] = MsSince(t0);
@@ -467,7 +626,7 @@ Identification StarIdentifier::MatchWithAttitude(const std::vector<Centroid>& ce
   out.hypotheses = 1;
   out.catalog_stars_in_field = rf.v.n_cat;
   out.timing_ms["identify"] = MsSince(t0);
-  if (k >= o.min_matches && prob < o.max_false_match_prob) {
+  if (k >= min_k && prob < o.max_false_match_prob) {
     out.status = "solved";
     out.q_inertial_from_sensor = Quat(rf.r).normalized();
     if (out.q_inertial_from_sensor.w() < 0) out.q_inertial_from_sensor.coeffs() *= -1;

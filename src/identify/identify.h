@@ -5,13 +5,15 @@
 //   Identification r = id.Identify(centroids, camera, IdentifyOptions{});
 //   if (r.status == "solved") ... r.matches ...
 //
-// Method (docs/identify.md): triangles of the brightest centroids; the side-length ratios (which do
+// Method (docs/identify.md): triangles of the centroids in brightness order, deep into the list; the
+// side-length ratios (which do
 // not depend on the focal length) and the log of the longest side are looked up in a FLANN kd-tree
 // of catalog triangles with a tolerance from the centroid noise and the focal-length range;
 // each hypothesis (vertex correspondence + handedness) gives an attitude (and focal length) that
-// predicts every catalog star in the field; the matches within the match radius are counted and the
-// chance of as many matches by accident is a binomial tail (after tetra3 / cedar-solve), multiplied
-// by the number of hypotheses tried. Accepted only below max_false_match_prob.
+// predicts every catalog star in the field; the other centroids that fall within verify_sigmas of a
+// prediction are counted and the chance of as many by accident is a binomial tail (after tetra3 /
+// cedar-solve), multiplied by the number of hypotheses tried and a sequential-testing factor.
+// Accepted only below max_false_match_prob.
 #pragma once
 
 #include <map>
@@ -32,16 +34,26 @@ struct Centroid {
 };
 
 struct IdentifyOptions {
-  int pattern_centroids = 12;          // brightest centroids used to form triangles
-  int verify_centroids = 60;           // brightest centroids used in verification
+  // Deep search: triangles of up to this many brightest centroids, in brightness order (every
+  // triangle whose faintest vertex is the c-th centroid before those of the (c+1)-th), so the bright
+  // ones come first but false objects brighter than the stars do not stop the search.
+  int pattern_centroids = 100;
+  int verify_centroids = 150;          // brightest centroids used in verification (>= pattern_centroids)
   double centroid_sigma_px = 0.3;      // position noise when a centroid carries none
   double systematic_px = 0.5;          // unmodelled position error (distortion, catalog) added in quadrature
   double tolerance_sigmas = 4.0;       // pattern tolerance in noise sigmas
-  double match_radius_px = 0.0;        // verification match radius; 0 = max(2 px, 5 sigma)
+  double match_radius_px = 0.0;        // refinement match radius; 0 = max(2 px, 5 sigma)
+  // Hypothesis test radius, in sigmas of each predicted star's position error (centroid noise and
+  // the error the triangle's own noise puts into the hypothesis there); the chance probability is
+  // computed for exactly this radius.
+  double verify_sigmas = 3.5;
   double fov_tolerance_pct = 0.0;      // focal length known to +/- this percent: search and refine it
   double max_false_match_prob = 1e-5;  // accept a hypothesis only below this chance probability
-  int min_matches = 5;                 // fewer verified matches: never solved
-  int max_hypotheses = 20000;          // give up (no_match) after this many hypotheses
+  int min_matches = 4;                 // fewer verified matches: never solved
+  int max_hypotheses = 200000;         // give up (no_match) after this many hypotheses
+  // Give up (no_match) after this long (wall clock; 0 = no limit). 50 ms: on 300 Kelvins-style scenes
+  // (docs/results.md) 99% of the solved ones needed less, and the 10-deg p99 budget is 50 ms.
+  double timeout_ms = 50.0;
   void Check() const;                  // throws InputError naming the field
 };
 

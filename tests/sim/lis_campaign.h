@@ -1,0 +1,157 @@
+// Lost-in-space campaigns on simulated scenes (sim/scene_sim.h), shared by the normal and the long
+// tests: Kelvins-style scenes among false objects, and chance-probability calibration runs in which
+// every solve is a false match.
+#pragma once
+
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "attitude/star_solver.h"
+#include "core/attitude.h"
+#include "core/catalog.h"
+#include "core/rng.h"
+#include "identify/identify.h"
+#include "identify/star_catalog.h"
+#include "sim/frame_sim.h"
+#include "sim/scene_sim.h"
+#include "testing/testing.h"
+
+namespace ssiu::testing {
+
+// ESA Kelvins "Star Trackers: First Contact" geometry: 10 x 7.5 deg, 1920 x 1440 px, 20 microradian
+// centroid noise, stars to V 6.
+inline Camera KelvinsCamera() { return MakeCamera(1920, 1440, 10.0); }
+inline double KelvinsNoisePx() { return 20e-6 * KelvinsCamera().focal_length_px; }
+
+// The BSC solver catalog for a field of fov_deg (stars to V 6.5 at 10 deg), built once per FOV.
+inline const StarIdentifier& BscIdentifier(double fov_deg) {
+  static std::map<double, std::unique_ptr<StarIdentifier>> ids;
+  auto& id = ids[fov_deg];
+  if (!id) {
+    CatalogBuildOptions o;
+    o.fov_deg = fov_deg;
+    id = std::make_unique<StarIdentifier>(BuildSolverCatalog(LoadSourceCatalog(DefaultBscPath()), o));
+  }
+  return *id;
+}
+
+// Wrong, as in bench/identify_bench.cc: the boresight more than 1 arcmin off, or the roll off by more
+// than 1 arcmin and 5 of its reported sigmas (a 10-deg field with 4-arcsec centroids and five stars
+// has a roll sigma of ~20 arcsec).
+inline bool IsWrong(const SolveResult& r, const Quat& truth) {
+  const AttitudeErrorSplit e = SplitAttitudeError(r.attitude.q_inertial_from_sensor, truth);
+  const double roll_limit = std::max(60.0, 5 * r.attitude.sigma_roll_rad * kRadToArcsec);
+  return e.cross_rad * kRadToArcsec > 60 || std::abs(e.roll_rad) * kRadToArcsec > roll_limit;
+}
+
+struct SceneCampaign {
+  int scenes = 0;
+  int with4 = 0, solved4 = 0;  // scenes with >= 4 true stars and of them solved
+  int with3 = 0, solved3 = 0;  // exactly 3 true stars
+  int wrong = 0;               // solved more than 1 arcmin off
+  std::vector<double> ms;      // identify wall time per scene
+  std::vector<double> solved_ms;  // the same, solved scenes
+  std::map<int, std::pair<int, int>> by_stars;  // true stars -> (scenes, solved)
+};
+
+inline IdentifyOptions KelvinsIdentifyOptions() {
+  IdentifyOptions io;
+  io.systematic_px = 0.0;  // the scenes' centroids carry their (exact) noise sigma
+  io.timeout_ms = 0.0;     // deterministic: the hypothesis budget, not the clock
+  return io;
+}
+
+inline SceneCampaign RunKelvinsScenes(int n, uint64_t seed0, const IdentifyOptions& io) {
+  const Camera cam = KelvinsCamera();
+  const StarIdentifier& id = BscIdentifier(10.0);
+  SceneSimOptions so;
+  so.centroid_noise_px = KelvinsNoisePx();
+  so.false_objects_min = 0;
+  so.false_objects_max = 80;
+  SceneCampaign c;
+  for (int k = 0; k < n; ++k) {
+    const uint64_t seed = seed0 + k;
+    const SimulatedScene s = SimulateScene(cam, Bsc(), RandomAttitude(seed), so, seed);
+    SolveOptions so;
+    so.identify = io;
+    const SolveResult sr = SolveCentroids(id, s.centroids, cam, so);
+    const Identification& r = sr.identification;
+    c.ms.push_back(r.timing_ms.count("identify") ? r.timing_ms.at("identify") : 0.0);
+    ++c.scenes;
+    const bool ok = r.status == "solved";
+    if (ok) c.solved_ms.push_back(c.ms.back());
+    if (ok && IsWrong(sr, s.q_inertial_from_sensor)) {
+      const double err_arcsec = AttitudeErrorRad(sr.attitude.q_inertial_from_sensor, s.q_inertial_from_sensor) * kRadToArcsec;
+      ++c.wrong;
+      int true_matches = 0;
+      for (const auto& m : r.matches) true_matches += s.star_id[m.centroid] == m.star_id;
+      std::fprintf(stderr, "WRONG scene seed %llu: %.1f arcsec off, %zu matches (%d right), chance %.3g, %s\n",
+                   static_cast<unsigned long long>(seed), err_arcsec, r.matches.size(), true_matches,
+                   r.false_match_probability, r.message.c_str());
+    }
+    if (s.true_stars >= 4) c.with4 += 1, c.solved4 += ok;
+    c.by_stars[s.true_stars].first += 1;
+    c.by_stars[s.true_stars].second += ok;
+    if (s.true_stars == 3) c.with3 += 1, c.solved3 += ok;
+  }
+  return c;
+}
+
+// Calibration runs: the false solves counted are accepted solves that are wrong.
+struct Calibration {
+  int trials = 0, false_solves = 0, solved = 0;
+};
+
+// Uniformly random centroid sets (8 to max_centroids) on a 1024-px 16.6-deg camera: every solve is false.
+inline Calibration RunRandomCentroids(int n, uint64_t seed0, const IdentifyOptions& io, int max_centroids = 40) {
+  const Camera cam = MakeCamera(1024, 1024, 16.6);
+  const StarIdentifier& id = BscIdentifier(16.6);
+  Calibration c;
+  for (int k = 0; k < n; ++k) {
+    Rng rng(seed0 + k);
+    const int m = 8 + static_cast<int>(rng.Uniform() * (max_centroids - 7));
+    std::vector<Centroid> cs(m);
+    for (auto& x : cs) x = {rng.Uniform(0, 1023), rng.Uniform(0, 1023), rng.Uniform(), 0.3};
+    ++c.trials;
+    const Identification r = id.Identify(cs, cam, io);
+    const bool ok = r.status == "solved";
+    if (ok)
+      std::fprintf(stderr, "FALSE random set seed %llu: %d centroids, %s, chance %.3g, %d hypotheses\n",
+                   static_cast<unsigned long long>(seed0 + k), m, r.message.c_str(), r.false_match_probability, r.hypotheses);
+    c.false_solves += ok;
+    c.solved += ok;
+  }
+  return c;
+}
+
+// Real stars (a Kelvins scene at the true focal length) solved with a camera whose focal length is
+// wrong by 5-15 % in tolerance mode with the given tolerance: a solve more than 1 arcmin off is false.
+inline Calibration RunWrongFocal(int n, uint64_t seed0, double tol_pct, IdentifyOptions io) {
+  const Camera truth = KelvinsCamera();
+  const StarIdentifier& id = BscIdentifier(10.0);
+  io.fov_tolerance_pct = tol_pct;
+  SceneSimOptions so;
+  so.centroid_noise_px = KelvinsNoisePx();
+  so.false_objects_max = 40;
+  Calibration c;
+  for (int k = 0; k < n; ++k) {
+    const uint64_t seed = seed0 + k;
+    Rng rng(seed);
+    Camera guess = truth;
+    guess.focal_length_px *= (rng.Uniform() < 0.5 ? 1 - rng.Uniform(0.05, 0.15) : 1 + rng.Uniform(0.05, 0.15));
+    const SimulatedScene s = SimulateScene(truth, Bsc(), RandomAttitude(seed), so, seed);
+    SolveOptions sopt;
+    sopt.identify = io;
+    const SolveResult r = SolveCentroids(id, s.centroids, guess, sopt);
+    ++c.trials;
+    c.solved += r.status == "solved";
+    if (r.status == "solved" && IsWrong(r, s.q_inertial_from_sensor)) ++c.false_solves;
+  }
+  return c;
+}
+
+}  // namespace ssiu::testing

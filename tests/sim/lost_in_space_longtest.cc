@@ -1,0 +1,86 @@
+// Issue 14 acceptance and calibration at full size (label long; figures in docs/results.md):
+// 1000 Kelvins-style scenes, and >= 10^4 trials each of random centroid sets, star-free rendered
+// frames and frames with the focal length 5-15 % wrong in tolerance mode, at max-false-prob 1e-2,
+// 1e-3 and the default. LIS_TRIALS overrides the trial count (e.g. for a quick look).
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+
+#include "detect/detect.h"
+#include "lis_campaign.h"
+
+namespace ssiu {
+namespace {
+
+using namespace testing;
+
+int Trials(int n) { return std::getenv("LIS_TRIALS") ? std::atoi(std::getenv("LIS_TRIALS")) : n; }
+
+TEST(LostInSpaceLong, KelvinsScenes1000) {
+  for (double alpha : {1e-5, 1e-3}) {
+    IdentifyOptions io = KelvinsIdentifyOptions();
+    io.max_false_match_prob = alpha;
+    SceneCampaign c = RunKelvinsScenes(Trials(1000), 1, io);
+    std::printf("Kelvins scenes at %g: %d scenes, >= 4 stars %d/%d (%.1f%%), 3 stars %d/%d, wrong %d\n", alpha, c.scenes,
+                c.solved4, c.with4, 100.0 * c.solved4 / std::max(1, c.with4), c.solved3, c.with3, c.wrong);
+    for (const auto& [k, v] : c.by_stars) std::printf("  %d stars: %d/%d\n", k, v.second, v.first);
+    EXPECT_EQ(c.wrong, 0);
+  }
+}
+
+// Upper 1e-3 bound on the number of successes of Binomial(n, p) (normal approximation, +3 for
+// small counts): a rate "at or below the threshold" allows this many.
+int Allowed(int n, double p) { return static_cast<int>(n * p + 3.1 * std::sqrt(n * p) + 3); }
+
+TEST(LostInSpaceLong, CalibrationRandomCentroids) {
+  for (double alpha : {1e-2, 1e-3, IdentifyOptions{}.max_false_match_prob}) {
+    IdentifyOptions io;
+    io.timeout_ms = 0;
+    io.pattern_centroids = 40;
+    io.max_false_match_prob = alpha;
+    const Calibration c = RunRandomCentroids(Trials(10000), 100000, io);
+    std::printf("random centroids at %g: %d false of %d (rate %.2g)\n", alpha, c.false_solves, c.trials,
+                static_cast<double>(c.false_solves) / c.trials);
+    EXPECT_LE(c.false_solves, Allowed(c.trials, alpha));
+  }
+}
+
+// Star-free rendered frames (8 deg, 512 x 512: noise, hot pixels, cosmic rays, 5-40 false stars),
+// detected and solved with the defaults: every solve is false.
+TEST(LostInSpaceLong, CalibrationStarFreeFrames) {
+  const Camera cam = MakeCamera(512, 512, 8.0);
+  const StarIdentifier& id = BscIdentifier(8.0);
+  StarCatalog empty;
+  for (double alpha : {1e-3, IdentifyOptions{}.max_false_match_prob}) {
+    int n = 0, solved = 0;
+    for (int k = 0; k < Trials(10000); ++k) {
+      FrameSimOptions fo;
+      fo.false_stars = 5 + k % 36;
+      const SimulatedFrame f = SimulateFrame(cam, empty, RandomAttitude(k), fo, k);
+      SolveOptions so;
+      so.identify.timeout_ms = 0;
+      so.identify.max_false_match_prob = alpha;
+      so.detect.gain_e_per_adu = fo.gain_e_per_adu;
+      const SolveResult r = SolveFrame(id, f.image.view(), cam, so);
+      ++n;
+      solved += r.status == "solved";
+    }
+    std::printf("star-free frames at %g: %d false of %d\n", alpha, solved, n);
+    EXPECT_LE(solved, Allowed(n, alpha));
+  }
+}
+
+TEST(LostInSpaceLong, CalibrationWrongFocalLength) {
+  for (double alpha : {1e-3, IdentifyOptions{}.max_false_match_prob}) {
+    IdentifyOptions io = KelvinsIdentifyOptions();
+    io.timeout_ms = 50;  // a tolerance-mode search of 15 % is long; the deadline keeps 10^4 trials feasible
+    io.max_false_match_prob = alpha;
+    const Calibration c = RunWrongFocal(Trials(10000), 200000, 15.0, io);
+    std::printf("focal length 5-15 %% wrong, tolerance 15 %%, at %g: %d wrong of %d (%d solved)\n", alpha, c.false_solves,
+                c.trials, c.solved);
+    EXPECT_LE(c.false_solves, Allowed(c.trials, alpha));
+  }
+}
+
+}  // namespace
+}  // namespace ssiu
