@@ -110,7 +110,47 @@ Json FuseResult::ToJson() const {
           {"n_st_rejected", n_st_rejected},
           {"longest_st_gap_s", longest_st_gap_s},
           {"st_residual_rms_arcsec", st_residual_rms_arcsec},
-          {"seconds_elapsed", seconds_elapsed}};
+          {"seconds_elapsed", seconds_elapsed},
+          {"noise", noise}};
+}
+
+std::vector<GyroErrorModel> ReadAllanNoise(const std::string& path) {
+  const Json j = ReadJsonFile(path);
+  if (!j.is_object() && !(j.is_array() && !j.empty())) {
+    throw InputError(path, "not an `ssiu allan --json` report (an object, or an array of them)");
+  }
+  const Json reports = j.is_array() ? j : Json::array({j});
+  std::vector<GyroErrorModel> out;
+  for (size_t r = 0; r < reports.size(); ++r) {
+    const std::string at = j.is_array() ? "[" + std::to_string(r) + "]." : "";
+    const Json& rep = reports[r];
+    if (!rep.is_object() || !rep.contains("terms") || !rep.at("terms").is_object()) {
+      throw InputError(path, "missing object '" + at + "terms' (give `ssiu allan --json` output)");
+    }
+    // A term's value when the fit found it significant, else 0 (not distinguishable from none).
+    auto term = [&](const char* key) {
+      const Json& t = rep.at("terms");
+      const std::string name = at + "terms." + key;
+      if (!t.contains(key) || !t.at(key).is_object()) throw InputError(path, "missing object '" + name + "'");
+      const Json& v = t.at(key);
+      if (!v.contains("significant") || !v.at("significant").is_boolean()) {
+        throw InputError(path, "field '" + name + ".significant' is missing or not true/false");
+      }
+      const double value = JsonNumber(v, "value", path + ": " + name);
+      if (value < 0) throw InputError(path, "field '" + name + ".value' must be >= 0");
+      return v.at("significant").get<bool>() ? value : 0.0;
+    };
+    GyroErrorModel g;
+    g.arw_deg_per_sqrt_h = term("arw_deg_per_sqrt_h");
+    g.bias_instability_dph = term("bias_instability_dph");
+    g.rrw_dph_per_sqrt_h = term("rrw_deg_per_h_per_sqrt_h");
+    if (!(g.arw_deg_per_sqrt_h > 0)) {
+      throw InputError(path, "'" + at + "terms.arw_deg_per_sqrt_h' is not significant: no white rate noise for the "
+                             "filter (give --arw-deg-per-sqrt-h)");
+    }
+    out.push_back(g);
+  }
+  return out;
 }
 
 // The filter's noise model for the gyros in use: white rate noise and bias walk of the
@@ -137,12 +177,25 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
   if (gyro.t_s.size() < 2) throw InputError(gyro.file, "too few rows (need at least 2 gyro samples)");
   GyroUnit unit = unit_in;
   if (gyro.body_rates) {
-    // Body rates: an orthogonal triad with the first gyro's noise figures.
-    const auto& g0 = unit_in.gyros.front();
-    unit = OrthogonalTriad(g0.arw_deg_per_sqrt_h, g0.bias_instability_dph);
-    for (auto& g : unit.gyros) g = g0;
+    // Body rates: an orthogonal triad; a 3-gyro unit gives the noise of x, y, z, any other its first gyro's.
+    unit = OrthogonalTriad();
+    for (int a = 0; a < 3; ++a) unit.gyros[a] = unit_in.gyros.at(unit_in.size() == 3 ? a : 0);
   }
   unit.Check("unit");
+  {
+    Json per_gyro = Json::array();
+    for (const auto& g : unit.gyros) {
+      per_gyro.push_back({{"arw_deg_per_sqrt_h", g.arw_deg_per_sqrt_h},
+                          {"bias_instability_dph", g.bias_instability_dph},
+                          {"rrw_dph_per_sqrt_h", g.rrw_dph_per_sqrt_h},
+                          {"bias_walk_dph_per_sqrt_h", g.BiasDriftDphPerSqrtS() * 60.0}});
+    }
+    res.noise = per_gyro[0];
+    res.noise["bias_instability_tau_s"] = unit.gyros[0].bias_instability_tau_s;
+    res.noise["init_bias_sigma_dph"] = options.init_bias_sigma_dph;
+    res.noise["bias_drift_floor_dph_per_sqrt_h"] = options.bias_drift_floor_dph_per_sqrt_h;
+    res.noise["per_gyro"] = per_gyro;
+  }
   const int n = unit.size();
   if (static_cast<int>(gyro.rates_dph.front().size()) != n) {
     throw InputError(gyro.file, "has " + std::to_string(gyro.rates_dph.front().size()) +

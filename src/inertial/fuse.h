@@ -76,12 +76,17 @@ struct FuseResult {
   double longest_st_gap_s = 0;
   double st_residual_rms_arcsec = 0;  // accepted pre-update residuals
   double seconds_elapsed = 0;
+  // The gyro noise the filter used (docs/inertial.md): arw_deg_per_sqrt_h, bias_instability_dph,
+  // rrw_dph_per_sqrt_h, init_bias_sigma_dph of the first gyro (body axis x), the bias walk they map to,
+  // and per_gyro; the caller adds "source".
+  Json noise = Json::object();
 
   Json ToJson() const;
 };
 
 // Fuses a gyro log with a star-tracker log. With body rates (log.body_rates) `unit` gives only the
-// noise figures of an equivalent orthogonal triad. Starts at the first star sample. Throws
+// noise figures of an equivalent orthogonal triad: a 3-gyro unit those of body x, y, z in turn, any
+// other unit its first gyro's on every axis. Starts at the first star sample. Throws
 // InputError when the log's gyro count does not match the unit.
 FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& unit, const FuseOptions& options);
 
@@ -89,6 +94,14 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
 // least-squares body rate (rad^2/s, rad^2/s^3), plus a bias-walk floor (deg/h per sqrt(h)).
 // 0 for "ok", 1 "degraded", 2 "failed" (anything else).
 int StatusCode(const std::string& status);
+
+// Gyro noise from `ssiu allan --json` output (analysis/allan_io.h AllanReportJson): one report (one
+// gyro) or an array of reports (one per axis or gyro). Per report, the terms arw_deg_per_sqrt_h,
+// bias_instability_dph and rrw_deg_per_h_per_sqrt_h ({"value", "significant"}) give the error model's
+// ARW, flicker floor and RRW; a term the fit did not find significant counts as 0 (docs/inertial.md).
+// InputError naming the file and key for a missing or ill-typed field, a negative or non-finite value,
+// or no significant angle random walk (the filter needs white rate noise).
+std::vector<GyroErrorModel> ReadAllanNoise(const std::string& path);
 
 MekfNoise FuseNoiseModel(const GyroUnit& unit, const RateSolver& solver, double floor_dph_per_sqrt_h);
 
