@@ -4,7 +4,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PKGS="build-essential cmake ninja-build pkg-config libopencv-dev libeigen3-dev libflann-dev \
-libapriltag-dev libcfitsio-dev libdeflate-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev nlohmann-json3-dev xplanet"
+libapriltag-dev libcfitsio-dev libdeflate-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev nlohmann-json3-dev xplanet \
+python3-dev python3-pybind11 python3-numpy python3-pytest python3-dask python3-distributed"
 missing=""
 for p in $PKGS; do dpkg -s "$p" >/dev/null 2>&1 || missing="$missing $p"; done
 if [ -n "$missing" ]; then
@@ -22,3 +23,7 @@ fi
 BUILD=${1:-build}; shift || true
 cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release "$@" >/dev/null
 cmake --build "$BUILD" -j"$(nproc)"
+# The Python module (docs/python.md) into Debian's python3, when this build made it (not the sanitizer build).
+if ls "$BUILD"/python/ssiu/_ssiu*.so >/dev/null 2>&1; then
+  cmake --install "$BUILD" --component python >/dev/null
+fi

@@ -1,0 +1,150 @@
+"""The Python module against the CLI (same answers) and against the simulator's truth.
+
+Frames, catalogs and gyro logs are made by the `ssiu` program of the same build (SSIU_BINARY_DIR).
+"""
+import json
+import math
+import os
+import subprocess
+
+import numpy as np
+import pytest
+
+import ssiu
+
+BIN = os.path.join(os.environ.get("SSIU_BINARY_DIR", "build"), "ssiu")
+
+
+def run(*args):
+    r = subprocess.run([BIN, *map(str, args)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    return r
+
+
+def quat_angle_arcsec(a, b):
+    """Rotation angle between two [w, x, y, z] quaternions."""
+    d = abs(float(np.dot(np.asarray(a), np.asarray(b))))
+    return 2 * math.degrees(math.acos(min(1.0, d))) * 3600
+
+
+@pytest.fixture(scope="module")
+def sky(tmp_path_factory):
+    """A solver catalog for the default 16.6-deg camera and three simulated frames with their truth."""
+    d = tmp_path_factory.mktemp("sky")
+    run("catalog", "build", "--fov-deg", "16.6", "--out", d / "cat")
+    run("simulate", "frame", "--random", "--seed", "77", "--count", "3", "--out", d / "f")
+    return d
+
+
+def frame(sky, k):
+    return str(sky / "f" / f"frame_{k:04d}.png")
+
+
+def truth_q(sky, k):
+    return json.loads((sky / "f" / f"frame_{k:04d}.json").read_text())["q"]
+
+
+def cli_solve(sky, k):
+    out = sky / f"cli_{k}.json"
+    run("solve", frame(sky, k), "--camera", sky / "f" / "camera.json", "--catalog", sky / "cat", "--json", out)
+    return json.loads(out.read_text())
+
+
+def test_solve_of_a_frame_equals_the_cli_and_the_truth(sky):
+    cam = str(sky / "f" / "camera.json")
+    for k in range(3):
+        cli = cli_solve(sky, k)
+        py = ssiu.solve(frame(sky, k), cam, catalog=str(sky / "cat"))
+        assert py["status"] == cli["status"] == "solved"
+        assert quat_angle_arcsec(py["q"], cli["q"]) < 0.01
+        assert [m["star_id"] for m in py["matches"]] == [m["star_id"] for m in cli["matches"]]
+        assert set(py) == set(cli)
+        assert quat_angle_arcsec(py["q"], truth_q(sky, k)) < 60
+
+
+def test_array_input_is_read_in_place_with_any_row_stride(sky):
+    cam = json.loads((sky / "f" / "camera.json").read_text())
+    img, info = ssiu.read_frame(frame(sky, 0))
+    assert img.dtype == np.uint16 and img.shape == (cam["height"], cam["width"])
+    assert info["bit_depth"] == 16
+    solver = ssiu.Solver(cam, catalog=str(sky / "cat"))
+    a = solver.solve(img)
+    # The same pixels inside a wider buffer: a view whose rows are not adjacent.
+    wide = np.zeros((img.shape[0], img.shape[1] + 7), dtype=np.uint16)
+    wide[:, 3:3 + img.shape[1]] = img
+    b = solver.solve(wide[:, 3:3 + img.shape[1]])
+    assert a["status"] == b["status"] == "solved"
+    assert quat_angle_arcsec(a["q"], b["q"]) < 1e-6
+    assert quat_angle_arcsec(a["q"], cli_solve(sky, 0)["q"]) < 0.01
+
+
+def test_centroid_list_solves_and_detect_matches_the_cli(sky):
+    cam = str(sky / "f" / "camera.json")
+    det = ssiu.detect(frame(sky, 1), cam)
+    out = sky / "det.json"
+    run("detect", frame(sky, 1), "--camera", cam, "--json", out)
+    cli = json.loads(out.read_text())
+    assert len(det["stars"]) == len(cli["stars"]) > 10
+    xy = np.array([[s["x_px"], s["y_px"], s["flux_adu"]] for s in det["stars"]])
+    r = ssiu.solve(xy, cam, catalog=str(sky / "cat"))
+    assert r["status"] == "solved"
+    assert quat_angle_arcsec(r["q"], truth_q(sky, 1)) < 60
+    # Without the flux column the rows are taken in the given order (here brightest first).
+    r2 = ssiu.solve(xy[:, :2], cam, catalog=str(sky / "cat"))
+    assert r2["status"] == "solved"
+    assert quat_angle_arcsec(r2["q"], truth_q(sky, 1)) < 60
+
+
+def test_tracker_locks_then_tracks(sky):
+    cam = str(sky / "f" / "camera.json")
+    img, _ = ssiu.read_frame(frame(sky, 2))
+    t = ssiu.Tracker(cam, catalog=str(sky / "cat"))
+    assert not t.locked
+    first = t.update(img, 0.0)
+    assert first["status"] == "solved" and first["mode"] == "lost_in_space" and t.locked
+    second = t.update(img, 1.0)
+    assert second["status"] == "solved" and second["mode"] == "tracking"
+    assert quat_angle_arcsec(second["q"], truth_q(sky, 2)) < 60
+
+
+def test_bad_input_is_a_clear_error(sky):
+    cam = str(sky / "f" / "camera.json")
+    with pytest.raises(TypeError, match="did you mean 'max_false_prob'"):
+        ssiu.solve(frame(sky, 0), cam, catalog=str(sky / "cat"), max_false_probb=1e-3)
+    with pytest.raises(TypeError, match="uint8 or uint16"):
+        ssiu.detect(np.zeros((64, 64), dtype=np.int32))
+    with pytest.raises(ValueError, match="2-D"):
+        ssiu.detect(np.zeros((64, 64, 3), dtype=np.uint16))
+    with pytest.raises(ValueError, match="N x 2..4"):
+        ssiu.solve(np.zeros((5, 7)), cam, catalog=str(sky / "cat"))
+    with pytest.raises(ssiu.InputError, match="nope.png"):
+        ssiu.read_frame(str(sky / "nope.png"))
+    with pytest.raises(ValueError, match="camera says"):
+        ssiu.Solver(cam, catalog=str(sky / "cat")).solve(np.zeros((32, 32), dtype=np.uint16))
+
+
+def test_allan_recovers_the_angle_random_walk_of_white_noise():
+    # White rate noise of sigma deg/h at fs Hz has ARW N = sigma / sqrt(fs) deg/h/sqrt(Hz), i.e.
+    # sigma / sqrt(fs) / 60 deg/sqrt(h) (IEEE 952, Annex C).
+    fs, sigma_dph = 100.0, 3.0
+    rate = np.random.default_rng(5).normal(0.0, sigma_dph, 360_000)
+    r = ssiu.allan(rate, fs, "deg/h")
+    arw = r["terms"]["arw_deg_per_sqrt_h"]["value"] if "terms" in r else None
+    expected = sigma_dph / math.sqrt(fs) / 60
+    assert arw is not None, sorted(r)
+    assert abs(arw / expected - 1) < 0.05
+    with pytest.raises(TypeError, match="unknown option"):
+        ssiu.allan(rate, fs, confidenc=0.9)
+
+
+def test_fuse_equals_the_cli(tmp_path):
+    run("simulate", "gyro", "--duration-s", "60", "--seed", "3", "--out", tmp_path / "g")
+    g, st = tmp_path / "g" / "gyro.csv", tmp_path / "g" / "st.csv"
+    out = tmp_path / "fuse.json"
+    run("fuse", "--gyro", g, "--st", st, "--json", out)
+    cli = json.loads(out.read_text())
+    py = ssiu.fuse(str(g), str(st))
+    assert py["status"] == cli["status"]
+    np.testing.assert_allclose(py["bias_dph"], cli["bias_dph"], rtol=1e-9, atol=1e-12)
+    assert py["q"].shape == (len(py["t_s"]), 4)
+    assert np.all(py["sigma_arcsec"] > 0)
