@@ -20,7 +20,10 @@ double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std:
 
 Json NumOrNull(double v) { return std::isfinite(v) ? Json(v) : Json(nullptr); }
 
-void Finish(SolveResult* r) {
+void Finish(const StarIdentifier& id, const SkyCorrections& sky, SolveResult* r) {
+  r->sky = sky;
+  r->catalog_epoch_year = id.catalog().epoch_year;
+  ApplySkyCorrections(id, sky, &r->identification);
   r->status = r->identification.status;
   r->message = r->identification.message;
   for (const auto& [k, v] : r->identification.timing_ms) r->timing_ms[k] = v;
@@ -35,6 +38,7 @@ void Finish(SolveResult* r) {
 
 void SolveOptions::Check() const {
   identify.Check();
+  sky.Check();
   try {
     detect.Check();
   } catch (const std::invalid_argument& e) {
@@ -44,6 +48,16 @@ void SolveOptions::Check() const {
     throw InputError("solve options", "detector_sigma_scale must be in (0, 100)");
   if (!(track_search_radius_px > 0 && track_search_radius_px < 1000))
     throw InputError("solve options", "track_search_radius_px must be in (0, 1000)");
+}
+
+void ApplySkyCorrections(const StarIdentifier& id, const SkyCorrections& sky, Identification* identification) {
+  if (!sky.active()) return;
+  const Vec3 v = sky.ObserverVelocityMS();
+  const auto& stars = id.catalog().stars;
+  for (auto& m : identification->matches) {
+    if (m.star >= 0 && m.star < static_cast<int>(stars.size()))
+      m.r_inertial = sky.Apparent(stars[m.star], id.catalog().epoch_year, v);
+  }
 }
 
 StarIdentifier MakeIdentifierForCamera(const std::string& dir, const Camera& cam, double fov_tolerance_pct,
@@ -103,7 +117,7 @@ SolveResult SolveCentroids(const StarIdentifier& id, const std::vector<Centroid>
   SolveResult r;
   r.centroids = centroids;
   r.identification = id.Identify(centroids, camera, options.identify);
-  Finish(&r);
+  Finish(id, options.sky, &r);
   return r;
 }
 
@@ -161,7 +175,28 @@ Json SolveResultToJson(const SolveResult& r) {
   Json t = Json::object();
   for (const auto& [k, v] : r.timing_ms) t[k] = v;
   j["timing_ms"] = t;
+  AddCorrectionsToJson(r.sky, r.catalog_epoch_year, ok ? &r.attitude.q_inertial_from_sensor : nullptr, &j);
   return j;
+}
+
+void AddCorrectionsToJson(const SkyCorrections& sky, double catalog_epoch_year, const Quat* q, Json* j) {
+  const bool on = sky.active();
+  (*j)["time_utc"] = on ? Json(FormatUtcIso8601(sky.time)) : Json(nullptr);
+  Json c;
+  c["proper_motion_epoch"] = on && sky.proper_motion ? Json(JulianYearTt(sky.time)) : Json(nullptr);
+  c["catalog_epoch"] = catalog_epoch_year;
+  c["annual_aberration"] = on && sky.annual_aberration;
+  if (on && sky.have_velocity) {
+    const Vec3 v = sky.velocity_m_s / 1000.0;
+    c["velocity_kms"] = {v.x(), v.y(), v.z()};
+  } else {
+    c["velocity_kms"] = nullptr;
+  }
+  // Size of the correction at the boresight: (v/c) sin(angle to the apex), to first order.
+  const Vec3 v = on ? sky.ObserverVelocityMS() : Vec3::Zero();
+  c["aberration_arcsec"] =
+      q ? Json(v.cross(q->normalized() * Vec3::UnitZ()).norm() / kSpeedOfLightMS * kRadToArcsec) : Json(nullptr);
+  (*j)["corrections"] = c;
 }
 
 namespace {
@@ -302,7 +337,9 @@ SolveResult Tracker::Update(const std::vector<Centroid>& centroids, double t_s) 
     if (r.identification.status == "solved" && options_.identify.fov_tolerance_pct > 0)
       camera_ = FittedCamera(camera_, r.identification);  // keep the fitted focal length
   }
-  Finish(&r);
+  SkyCorrections sky = options_.sky;
+  if (sky.active()) sky.time = AddSeconds(sky.time, t_s);
+  Finish(id_, sky, &r);
   if (r.status == "solved") {
     const Quat q = r.attitude.q_inertial_from_sensor;
     if (locked_ && r.mode == "tracking") {  // a rate only from two attitudes of one lock

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "attitude/quest.h"
+#include "core/astrometry.h"
 #include "core/camera.h"
 #include "core/image.h"
 #include "core/json.h"
@@ -37,6 +38,12 @@ struct SolveOptions {
   // the normal test inside their 95% bounds (docs/results.md).
   double detector_sigma_scale = 1.17;
   double track_search_radius_px = 25.0;  // tracking: how far a star may be from its prediction
+  // Frame time and observer velocity (docs/identify.md, "Time and motion"): with a time, the matched
+  // catalog stars are brought to the frame's date with proper motion and aberrated (annual, plus the
+  // spacecraft's velocity when given) before the attitude fit, so that q is the attitude in ICRS.
+  // Identification itself does not need them (the field's differential aberration is < 4 arcsec).
+  // Tracker::Update and the unit processor take sky.time as the time of t_s = 0.
+  SkyCorrections sky;
   void Check() const;                    // throws InputError naming the field
 };
 
@@ -47,6 +54,8 @@ struct SolveResult {
   Identification identification;
   AttitudeSolution attitude;
   std::vector<Centroid> centroids;  // what was identified (detections or the CSV)
+  SkyCorrections sky;               // the corrections applied to the matches (sky.active(): any)
+  double catalog_epoch_year = 0;    // epoch of the catalog positions
   Detections detections;            // empty when solved from centroids
   std::map<std::string, double> timing_ms;
 };
@@ -67,9 +76,19 @@ SolveResult SolveCentroids(const StarIdentifier& id, const std::vector<Centroid>
 SolveResult SolveFrame(const StarIdentifier& id, const ImageView& image, const Camera& camera,
                        const SolveOptions& options, const DefectMap* defects = nullptr);
 
+// The matches' catalog directions -> their apparent directions at sky.time (proper motion from the
+// catalog's epoch, aberration); nothing when !sky.active(). Call before SolveAttitude.
+void ApplySkyCorrections(const StarIdentifier& id, const SkyCorrections& sky, Identification* identification);
+
 // The JSON of `ssiu solve` (docs/identify.md): status, q [w,x,y,z], ra/dec/roll (deg), sigmas
-// (arcsec), focal length, false-match probability, matches, timing; unsolved fields are null.
+// (arcsec), focal length, false-match probability, matches, timing; unsolved fields are null;
+// time_utc and corrections (SolveCorrectionsToJson).
 Json SolveResultToJson(const SolveResult& r);
+// {"time_utc": ISO 8601 or null, "corrections": {"proper_motion_epoch": year or null, "catalog_epoch":
+// year, "annual_aberration": bool, "velocity_kms": [x,y,z] or null, "aberration_arcsec": displacement
+// at the boresight (null when q_inertial_from_sensor is null: unsolved)}}, merged into `j`.
+void AddCorrectionsToJson(const SkyCorrections& sky, double catalog_epoch_year, const Quat* q_inertial_from_sensor,
+                          Json* j);
 
 // FITS TAN WCS header (80-character cards, END-terminated) of a solution: CRPIX at the principal
 // point (FITS 1-based pixels), CRVAL its RA/Dec, CD from the attitude and fx, fy. A camera with

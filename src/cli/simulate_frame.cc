@@ -7,6 +7,7 @@
 #include <memory>
 
 #include "cli/command.h"
+#include "core/astrometry.h"
 #include "core/attitude.h"
 #include "core/camera.h"
 #include "core/catalog.h"
@@ -20,10 +21,11 @@ namespace {
 struct Opts {
   std::string camera, config, out, catalog = DefaultBscPath();
   double ra_deg = NAN, dec_deg = NAN, roll_deg = 0;
-  bool random = false, no_shot_noise = false;
   bool scene_csv = false, centroids_only = false;
   SceneSimOptions scene;
   std::vector<int> false_objects;  // N or MIN,MAX
+  bool random = false, no_shot_noise = false, no_proper_motion = false, no_aberration = false;
+  std::string time;
   uint64_t seed = 1;
   int count = 1;
   std::map<std::string, double> set;  // flag name -> value, only for flags given
@@ -32,10 +34,17 @@ struct Opts {
 void Run(const Opts& o, const std::vector<std::pair<std::string, CLI::Option*>>& flags) {
   const Camera cam = o.camera.empty() ? Camera{} : LoadCamera(o.camera);
   FrameSimOptions so = o.config.empty() ? FrameSimOptions{} : FrameSimOptionsFromJson(ReadJsonFile(o.config), o.config);
+  if (!o.time.empty()) {  // before the velocity flags, which need it
+    ParseUtcIso8601(o.time, "--time");
+    so.time_utc = o.time;
+  }
   for (const auto& [name, opt] : flags) {
     if (opt->count() > 0) SetFrameSimOption(&so, name, opt->as<double>());
   }
   if (o.no_shot_noise) so.shot_noise = false;
+  if (o.no_proper_motion) so.proper_motion = false;
+  if (o.no_aberration) so.aberration = false;
+  so.Check();
   if (!o.random && (std::isnan(o.ra_deg) || std::isnan(o.dec_deg))) {
     throw InputError("simulate frame: give --ra-deg and --dec-deg (and --roll-deg), or --random --seed N");
   }
@@ -122,6 +131,10 @@ SSIU_REGISTER_COMMAND(simulate_frame, [](CLI::App& root) {
   cmd->add_option("--centroid-noise-px", o->scene.centroid_noise_px, "Centroid lists: 1-sigma noise per axis")
       ->capture_default_str();
   cmd->add_option("--scene-mag-max", o->scene.mag_max, "Centroid lists: faintest star seen")->capture_default_str();
+  cmd->add_option("--time", o->time,
+                  "Frame UTC time, ISO 8601: stars drawn with proper motion to that date and aberration (docs/simulator.md)");
+  cmd->add_flag("--no-proper-motion", o->no_proper_motion, "With --time: no proper motion");
+  cmd->add_flag("--no-aberration", o->no_aberration, "With --time: no stellar aberration");
   auto flags = std::make_shared<std::vector<std::pair<std::string, CLI::Option*>>>();
   for (const std::string& name : ssiu::FrameSimOptionNames()) {
     std::string flag = "--" + name;

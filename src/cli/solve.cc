@@ -9,6 +9,7 @@
 #include "attitude/overlay.h"
 #include "attitude/star_solver.h"
 #include "cli/command.h"
+#include "cli/sky_flags.h"
 #include "cli/smear_flags.h"
 #include "core/attitude.h"
 #include "core/error.h"
@@ -23,6 +24,7 @@ struct Opts {
   double mag_max = 0;
   std::string source;
   SmearFlags smear;  // sensor axes; body axes with --heads
+  SkyFlags sky;      // one time and velocity for every head
 };
 
 void AddSolverFlags(CLI::App* cmd, Opts* o) {
@@ -64,13 +66,16 @@ void RunSingle(const Opts& o) {
   Frame fr;
   if (!o.centroids.empty()) {
     RefuseSmearFlags(o.smear, "needs a frame, not --centroids");
-    r = SolveCentroids(id, ReadCentroidsCsv(o.centroids), cam, o.solve);
+    SolveOptions so = o.solve;
+    so.sky = SkyFromFlags(o.sky, nullptr);
+    r = SolveCentroids(id, ReadCentroidsCsv(o.centroids), cam, so);
   } else {
     if (o.frames.empty()) throw InputError("ssiu solve", "give a FRAME or --centroids FILE.csv");
     fr = o.dark.empty() ? ReadFrame(o.frames[0]) : SubtractDark(ReadFrame(o.frames[0]), ReadFrame(o.dark));
     SolveOptions so = o.solve;
     so.detect.saturation_adu = fr.saturation_adu;
     so.detect.smear = SmearFromFlags(o.smear, &cam);
+    so.sky = SkyFromFlags(o.sky, &fr);
     r = SolveFrame(id, fr.image.view(), cam, so);
   }
   // Every output is written before the summary line, so that an unwritable one is the only message.
@@ -115,6 +120,7 @@ void RunHeads(const Opts& o) {
     const Frame fr = ReadFrame(o.frames[h]);
     SolveOptions so = o.solve;
     so.detect.saturation_adu = fr.saturation_adu;
+    so.sky = SkyFromFlags(o.sky, &fr);
     if (o.smear.given()) {
       so.detect.smear = SmearModel(mounts.back().normalized().conjugate() * w_body_rad_s, o.smear.exposure_s, cam);
     }
@@ -169,6 +175,8 @@ void RunHeads(const Opts& o) {
   j["num_stars"] = s.num_observations;
   j["timing_ms"] = {{"heads", heads_ms}, {"fuse", fuse_ms}};
   j["heads"] = heads;
+  if (!results.empty())  // every head has the one time and velocity
+    AddCorrectionsToJson(results[0].sky, results[0].catalog_epoch_year, ok ? &s.q_inertial_from_sensor : nullptr, &j);
   WriteJsonFile(o.json, j);
   for (size_t h = 0; h < results.size(); ++h) PrintSummary(o.frames[h], results[h]);
 }
@@ -187,6 +195,7 @@ SSIU_REGISTER_COMMAND(solve, [](CLI::App& root) {
   cmd->add_option("--dark", o->dark, "Dark/median frame subtracted before detection");
   AddSolverFlags(cmd, o.get());
   AddSmearFlags(cmd, &o->smear, "sensor axes (with --heads: body axes)");
+  AddSkyFlags(cmd, &o->sky);
   cmd->callback([o] {
     if (o->heads.empty()) {
       RunSingle(*o);

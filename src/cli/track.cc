@@ -6,6 +6,7 @@
 
 #include "attitude/star_solver.h"
 #include "cli/command.h"
+#include "cli/sky_flags.h"
 #include "cli/smear_flags.h"
 #include "core/error.h"
 
@@ -18,6 +19,7 @@ struct Opts {
   double dt_s = 1.0;
   SolveOptions solve;
   SmearFlags smear;  // one rate for the whole sequence
+  SkyFlags sky;      // the first frame's time (frame k at + k * dt); one velocity
 };
 
 SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
@@ -33,12 +35,13 @@ SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
   cmd->add_option("--search-radius-px", o->solve.track_search_radius_px, "Tracking search radius")->capture_default_str();
   cmd->add_option("--systematic-px", o->solve.identify.systematic_px, "Unmodelled position error")->capture_default_str();
   AddSmearFlags(cmd, &o->smear, "sensor axes, the same for every frame");
+  AddSkyFlags(cmd, &o->sky);
   cmd->callback([o] {
     if (!(o->dt_s > 0) || !std::isfinite(o->dt_s)) throw InputError("--dt-s", "must be a finite number > 0");
     const Camera cam = LoadCamera(o->camera);
     const ExpectedSmear smear = SmearFromFlags(o->smear, &cam);
     const StarIdentifier id = MakeIdentifierForCamera(o->catalog, cam, o->solve.identify.fov_tolerance_pct);
-    Tracker tracker(id, cam, o->solve);
+    std::unique_ptr<Tracker> tracker;  // made at the first frame, whose DATE-OBS may give the time
     Frame dark;
     if (!o->dark.empty()) dark = ReadFrame(o->dark);
     Json out = Json::array();
@@ -52,7 +55,12 @@ SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
       dopt.smear = smear;
       if (dopt.gain_e_per_adu == 0) dopt.gain_e_per_adu = cam.gain_e_per_adu;
       const Detections det = Detect(fr.image.view(), dopt);
-      SolveResult r = tracker.Update(CentroidsFromDetections(det, o->solve.detector_sigma_scale), k * o->dt_s);
+      if (!tracker) {
+        SolveOptions so = o->solve;
+        so.sky = SkyFromFlags(o->sky, &fr);
+        tracker = std::make_unique<Tracker>(id, cam, so);
+      }
+      SolveResult r = tracker->Update(CentroidsFromDetections(det, o->solve.detector_sigma_scale), k * o->dt_s);
       r.timing_ms["detect"] = det.timing_ms.count("total") ? det.timing_ms.at("total") : 0.0;
       Json j = SolveResultToJson(r);
       j["frame"] = o->frames[k];

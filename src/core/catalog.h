@@ -19,12 +19,15 @@ struct CatalogStar {
   double ra_rad = 0;
   double dec_rad = 0;
   double mag = 0;  // visual magnitude V
-  Vec3 unit = Vec3::UnitX();  // J2000 unit vector
+  Vec3 unit = Vec3::UnitX();  // unit vector (ICRS) at the catalog's epoch
+  // Proper motion (rad per Julian year; pm_ra is mu_alpha * cos(dec)); 0 when the source has none.
+  double pm_ra_rad_per_yr = 0, pm_dec_rad_per_yr = 0;
 };
 
 struct StarCatalog {
   std::string source;
   std::vector<CatalogStar> stars;  // sorted brightest first
+  double epoch_year = 2000.0;      // Julian epoch of the positions (proper motion counts from here)
 };
 
 // Debian xplanet's Bright Star Catalogue: columns Dec(deg) RA(h) Mag "Name" HR HD SAO.

@@ -49,6 +49,12 @@ Frame ReadFits(const std::string& path) {
     f = nullptr;
     throw fail("not a readable FITS file (corrupt or truncated)");
   }
+  std::string date_obs;
+  {
+    char value[FLEN_VALUE] = "";
+    int key_status = 0;  // a missing key is not an error
+    if (fits_read_key(f, TSTRING, "DATE-OBS", value, nullptr, &key_status) == 0) date_obs = value;
+  }
   int bitpix = 0, naxis = 0;
   long naxes[3] = {0, 0, 0};
   if (fits_get_img_param(f, 3, &bitpix, &naxis, naxes, &status)) throw fail("cannot read the FITS image header");
@@ -89,6 +95,7 @@ Frame ReadFits(const std::string& path) {
     fits_close_file(f, &status);
     fr.bit_depth = equivtype == BYTE_IMG ? 8 : 16;
     fr.saturation_adu = equivtype == BYTE_IMG ? 255 : 65535;
+    fr.date_obs = date_obs;
     return fr;
   }
   std::vector<double> buf(static_cast<size_t>(w) * static_cast<size_t>(h));
@@ -105,6 +112,7 @@ Frame ReadFits(const std::string& path) {
   }
   Frame fr;
   fr.file = path;
+  fr.date_obs = date_obs;
   fr.image = Image16(static_cast<int>(w), static_cast<int>(h));
   const bool integral = bitpix > 0 && lo >= 0 && hi <= 65535;
   if (integral) {

@@ -43,6 +43,7 @@ struct Frame {
   double value_scale = 1.0;
   double value_offset = 0.0;
   std::string grey_conversion = "none";  // how colour was reduced to grey, e.g. "mean_rgb"
+  std::string date_obs;         // FITS DATE-OBS as written (the frame's UTC time); "" when absent
 };
 
 // Reads PNG/TIFF (8/16-bit; grey, or RGB/RGBA reduced to grey by the mean of R, G, B) or FITS

@@ -14,6 +14,7 @@
 #include <sstream>
 #include <unordered_set>
 
+#include "core/astrometry.h"
 #include "core/attitude.h"
 #include "core/error.h"
 #include "core/json.h"
@@ -23,7 +24,8 @@ namespace ssiu {
 namespace {
 
 constexpr double kMasToRad = kArcsecToRad / 1000.0;
-constexpr char kMagic[8] = {'S', 'S', 'I', 'U', 'C', 'A', 'T', '2'};  // 2: triangles as vertices only
+// 2: triangles as vertices only; 3: per-star proper motion (rad/yr) after the magnitude.
+constexpr char kMagic[8] = {'S', 'S', 'I', 'U', 'C', 'A', 'T', '3'};
 
 bool FileExists(const std::string& p) {
   struct stat st;
@@ -48,6 +50,8 @@ void MergeInto(CatalogStar* a, const CatalogStar& b) {
   const double fa = std::pow(10.0, -0.4 * a->mag), fb = std::pow(10.0, -0.4 * b.mag);
   a->unit = (fa * a->unit + fb * b.unit).normalized();
   RaDecFromUnit(a->unit, &a->ra_rad, &a->dec_rad);
+  a->pm_ra_rad_per_yr = (fa * a->pm_ra_rad_per_yr + fb * b.pm_ra_rad_per_yr) / (fa + fb);
+  a->pm_dec_rad_per_yr = (fa * a->pm_dec_rad_per_yr + fb * b.pm_dec_rad_per_yr) / (fa + fb);
   a->mag = -2.5 * std::log10(fa + fb);
 }
 
@@ -325,15 +329,15 @@ SolverCatalog BuildSolverCatalog(const SourceCatalog& source, const CatalogBuild
   o.Check();
   std::vector<CatalogStar> stars;
   stars.reserve(source.stars.size());
-  const double dt = source.has_proper_motion ? o.epoch_year - 2000.0 : 0.0;
   for (const auto& s : source.stars) {
     CatalogStar c = s.star;
-    if (dt != 0) {
-      // Linear proper motion in (RA, Dec); pm_ra carries cos(dec). Adequate for decades away from the poles.
-      c.dec_rad += s.pm_dec_rad_per_yr * dt;
-      const double cd = std::max(std::cos(s.star.dec_rad), 1e-6);
-      c.ra_rad = std::fmod(c.ra_rad + s.pm_ra_rad_per_yr / cd * dt + 2 * kPi, 2 * kPi);
-      c.unit = UnitFromRaDec(c.ra_rad, c.dec_rad);
+    if (source.has_proper_motion) {
+      // Positions brought from J2000.0 to the catalog epoch; the proper motion is kept so that a
+      // solve can bring them on to the frame's date (core/astrometry.h).
+      c.pm_ra_rad_per_yr = s.pm_ra_rad_per_yr;
+      c.pm_dec_rad_per_yr = s.pm_dec_rad_per_yr;
+      c.unit = PropagateProperMotion(c, 2000.0, o.epoch_year);
+      RaDecFromUnit(c.unit, &c.ra_rad, &c.dec_rad);
     }
     stars.push_back(c);
   }
@@ -341,7 +345,7 @@ SolverCatalog BuildSolverCatalog(const SourceCatalog& source, const CatalogBuild
 }
 
 SolverCatalog BuildSolverCatalog(const StarCatalog& stars, const CatalogBuildOptions& o) {
-  return BuildFromStars(stars.stars, stars.source, 2000.0, o);
+  return BuildFromStars(stars.stars, stars.source, stars.epoch_year, o);
 }
 
 void SaveSolverCatalog(const SolverCatalog& cat, const std::string& dir) {
@@ -361,7 +365,7 @@ void SaveSolverCatalog(const SolverCatalog& cat, const std::string& dir) {
     put(&slen, 8);
     put(cat.source.data(), cat.source.size());
     for (const auto& s : cat.stars) {
-      const double d[3] = {s.ra_rad, s.dec_rad, s.mag};
+      const double d[5] = {s.ra_rad, s.dec_rad, s.mag, s.pm_ra_rad_per_yr, s.pm_dec_rad_per_yr};
       put(&s.id, sizeof s.id);
       put(d, sizeof d);
     }
@@ -371,8 +375,10 @@ void SaveSolverCatalog(const SolverCatalog& cat, const std::string& dir) {
   {
     const std::string path = dir + "/stars.csv";
     std::ofstream out(path);
-    out << "star_id,ra_deg,dec_deg,mag\n" << std::setprecision(10);
-    for (const auto& s : cat.stars) out << s.id << ',' << s.ra_rad * kRadToDeg << ',' << s.dec_rad * kRadToDeg << ',' << s.mag << '\n';
+    out << "star_id,ra_deg,dec_deg,mag,pm_ra_mas_per_yr,pm_dec_mas_per_yr\n" << std::setprecision(10);
+    for (const auto& s : cat.stars)
+      out << s.id << ',' << s.ra_rad * kRadToDeg << ',' << s.dec_rad * kRadToDeg << ',' << s.mag << ','
+          << s.pm_ra_rad_per_yr * kRadToArcsec * 1000 << ',' << s.pm_dec_rad_per_yr * kRadToArcsec * 1000 << '\n';
   }
   Json meta = {{"source", cat.source},
                {"epoch_year", cat.epoch_year},
@@ -413,10 +419,10 @@ SolverCatalog LoadSolverCatalog(const std::string& dir) {
   cat.pattern_neighbours = static_cast<int>(counts[3]);
   cat.stars.resize(static_cast<size_t>(counts[0]));
   for (auto& s : cat.stars) {
-    double d[3];
+    double d[5];
     get(&s.id, sizeof s.id);
     get(d, sizeof d);
-    s.ra_rad = d[0], s.dec_rad = d[1], s.mag = d[2];
+    s.ra_rad = d[0], s.dec_rad = d[1], s.mag = d[2], s.pm_ra_rad_per_yr = d[3], s.pm_dec_rad_per_yr = d[4];
     s.unit = UnitFromRaDec(s.ra_rad, s.dec_rad);
   }
   cat.triangles.resize(static_cast<size_t>(counts[1]));
@@ -453,7 +459,7 @@ SolverCatalog LoadOrBuildCatalog(const std::string& source_path, const CatalogBu
   for (char& c : base)
     if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
   char key[256];
-  std::snprintf(key, sizeof key, "%s_fov%.2f_mag%.2f_ep%.1f_dbl%.1f_p%d_s%.0f_k%d_v2", base.c_str(), o.fov_deg,
+  std::snprintf(key, sizeof key, "%s_fov%.2f_mag%.2f_ep%.1f_dbl%.1f_p%d_s%.0f_k%d_v3", base.c_str(), o.fov_deg,
                 o.mag_max, o.epoch_year, o.double_star_arcsec, o.pattern_stars_per_fov, o.stars_per_fov,
                 o.pattern_neighbours);
   const std::string dir = CatalogCacheDir() + "/" + key;

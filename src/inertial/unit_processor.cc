@@ -70,7 +70,7 @@ void UnitProcessor::OnGyroSample(double t_s, const GyroVec& g_dph) {
   have_gyro_ = true;
 }
 
-HeadResult UnitProcessor::SolveHead(int h, const ImageView& image, Identification* id) {
+HeadResult UnitProcessor::SolveHead(int h, double t_s, const ImageView& image, Identification* id) {
   const auto t0 = Clock::now();
   HeadResult r;
   r.has_frame = true;
@@ -123,6 +123,9 @@ HeadResult UnitProcessor::SolveHead(int h, const ImageView& image, Identificatio
   r.timing_ms["identify"] = MsSince(t1);
   r.status = id->status;
   if (id->status == "solved") {
+    SkyCorrections sky = so.sky;  // the frame's time: the unit's clock t_s from sky.time
+    if (sky.active()) sky.time = AddSeconds(sky.time, t_s);
+    ApplySkyCorrections(sid, sky, id);
     const auto t2 = Clock::now();
     const AttitudeSolution a = SolveAttitude(*id);
     r.timing_ms["attitude"] = MsSince(t2);
@@ -151,7 +154,7 @@ FrameReport UnitProcessor::OnFrames(double t_s, const std::vector<ImageView>& im
       f.heads.emplace_back();
       continue;
     }
-    f.heads.push_back(SolveHead(static_cast<int>(h), images[h], &ids[h]));
+    f.heads.push_back(SolveHead(static_cast<int>(h), t_s, images[h], &ids[h]));
     if (f.heads.back().status == "solved") ++f.heads_solved;
   }
   if (f.heads_solved == 0) {

@@ -110,7 +110,7 @@ class UnitProcessor {
   const OnlineFusion& fusion() const { return fusion_; }
 
  private:
-  HeadResult SolveHead(int h, const ImageView& image, Identification* id);
+  HeadResult SolveHead(int h, double t_s, const ImageView& image, Identification* id);
 
   std::vector<OpticalHead> heads_;
   std::vector<std::shared_ptr<const StarIdentifier>> ids_;

@@ -32,6 +32,9 @@ const DoubleField kDoubleFields[] = {
     {"rate_x_dps", &FrameSimOptions::rate_x_dps},
     {"rate_y_dps", &FrameSimOptions::rate_y_dps},
     {"rate_z_dps", &FrameSimOptions::rate_z_dps},
+    {"velocity_x_kms", &FrameSimOptions::velocity_x_kms},
+    {"velocity_y_kms", &FrameSimOptions::velocity_y_kms},
+    {"velocity_z_kms", &FrameSimOptions::velocity_z_kms},
     {"mag0_flux_e_per_s", &FrameSimOptions::mag0_flux_e_per_s},
     {"mag_max", &FrameSimOptions::mag_max},
     {"vignetting", &FrameSimOptions::vignetting},
@@ -160,6 +163,11 @@ void FrameSimOptions::Check() const {
   need(std::abs(rate_x_dps) <= 90, "rate_x_dps", "must be in [-90, 90]");
   need(std::abs(rate_y_dps) <= 90, "rate_y_dps", "must be in [-90, 90]");
   need(std::abs(rate_z_dps) <= 90, "rate_z_dps", "must be in [-90, 90]");
+  need(Vec3(velocity_x_kms, velocity_y_kms, velocity_z_kms).norm() <= 100, "velocity_x_kms",
+       "(with velocity_y_kms, velocity_z_kms) must be at most 100 km/s");
+  need(!time_utc.empty() || Vec3(velocity_x_kms, velocity_y_kms, velocity_z_kms).norm() == 0, "velocity_x_kms",
+       "(and y, z) needs time_utc (the annual aberration is the larger part)");
+  if (!time_utc.empty()) ParseUtcIso8601(time_utc, "frame simulator options: field 'time_utc'");
   need(mag0_flux_e_per_s >= 0, "mag0_flux_e_per_s", "must be >= 0");
   need(vignetting >= 0 && vignetting <= 1, "vignetting", "must be in [0, 1]");
   need(background_e_per_s >= 0, "background_e_per_s", "must be >= 0");
@@ -200,9 +208,17 @@ FrameSimOptions FrameSimOptionsFromJson(const Json& j, const std::string& source
         known = true;
       }
     }
-    if (key == "shot_noise") {
-      if (!value.is_boolean()) throw InputError(source, "field 'shot_noise' must be true or false");
-      o.shot_noise = value.get<bool>();
+    for (auto [name, ptr] : {std::pair{"shot_noise", &FrameSimOptions::shot_noise},
+                             std::pair{"proper_motion", &FrameSimOptions::proper_motion},
+                             std::pair{"aberration", &FrameSimOptions::aberration}}) {
+      if (key != name) continue;
+      if (!value.is_boolean()) throw InputError(source, "field '" + key + "' must be true or false");
+      o.*ptr = value.get<bool>();
+      known = true;
+    }
+    if (key == "time_utc") {
+      if (!value.is_string()) throw InputError(source, "field 'time_utc' must be an ISO 8601 UTC string");
+      o.time_utc = value.get<std::string>();
       known = true;
     }
     if (!known) throw InputError(source, "unknown field '" + key + "'");
@@ -220,6 +236,9 @@ Json FrameSimOptionsToJson(const FrameSimOptions& o) {
   for (const auto& f : kDoubleFields) j[f.name] = o.*f.ptr;
   for (const auto& f : kIntFields) j[f.name] = o.*f.ptr;
   j["shot_noise"] = o.shot_noise;
+  j["time_utc"] = o.time_utc;
+  j["proper_motion"] = o.proper_motion;
+  j["aberration"] = o.aberration;
   return j;
 }
 
@@ -233,10 +252,21 @@ std::vector<std::string> FrameSimOptionNames() {
 void SetFrameSimOption(FrameSimOptions* o, const std::string& name, double value) {
   *o = FrameSimOptionsFromJson([&] {
     Json j = FrameSimOptionsToJson(*o);
-    if (!j.contains(name) || name == "shot_noise") throw InputError("frame simulator options", "unknown option '" + name + "'");
+    if (!j.contains(name) || !j[name].is_number()) throw InputError("frame simulator options", "unknown option '" + name + "'");
     j[name] = value;
     return j;
   }(), "frame simulator options");
+}
+
+SkyCorrections SkyForSimulation(const FrameSimOptions& o) {
+  SkyCorrections s;
+  if (o.time_utc.empty()) return s;
+  s.time = ParseUtcIso8601(o.time_utc, "frame simulator options: field 'time_utc'");
+  s.proper_motion = o.proper_motion;
+  s.annual_aberration = o.aberration;
+  s.velocity_m_s = Vec3(o.velocity_x_kms, o.velocity_y_kms, o.velocity_z_kms) * 1000.0;
+  s.have_velocity = o.aberration && s.velocity_m_s.norm() > 0;
+  return s;
 }
 
 Quat RandomAttitude(uint64_t seed) {
@@ -354,10 +384,12 @@ SimulatedFrame SimulateFrame(const Camera& cam, const StarCatalog& catalog, cons
     }
     out.stars.push_back(s);
   };
+  const SkyCorrections sky = SkyForSimulation(o);
+  const Vec3 v_observer_m_s = sky.ObserverVelocityMS();
   for (const CatalogStar& cs : catalog.stars) {
     if (cs.mag > o.mag_max) continue;
-    if (cs.unit.dot(boresight) < cos_limit) continue;
-    const Vec3 v = r_sensor_from_inertial * cs.unit;
+    if (cs.unit.dot(boresight) < cos_limit) continue;  // the limit's 0.01 rad margin covers aberration
+    const Vec3 v = r_sensor_from_inertial * sky.Apparent(cs, catalog.epoch_year, v_observer_m_s);
     const auto p = cam.Project(v);
     if (!p || !cam.InImage(*p, moving ? -3 * sigma_max_px - smear_margin_px : -3 * sigma_max_px)) continue;
     add_star(cs.id, cs.mag, *p, v);

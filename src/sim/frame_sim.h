@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "core/astrometry.h"
 #include "core/camera.h"
 #include "core/catalog.h"
 #include "core/image.h"
@@ -34,6 +35,15 @@ struct FrameSimOptions {
   // (deg/s). Each star (and false star) is smeared along the path it projects to over
   // [-exposure/2, +exposure/2] around the attitude given (mid-exposure); 0 = a still frame.
   double rate_x_dps = 0.0, rate_y_dps = 0.0, rate_z_dps = 0.0;
+  // Time and motion (docs/simulator.md): with time_utc (ISO 8601 UTC, mid-exposure) set, stars are
+  // drawn at their apparent directions at that time: proper motion from the catalog's epoch
+  // (StarCatalog::epoch_year) when proper_motion, stellar aberration when aberration (the Earth's
+  // barycentric velocity plus velocity_*_kms, the spacecraft's velocity relative to the Earth, ICRS).
+  // "" = the catalog directions as they are (no time, no motion).
+  std::string time_utc;
+  bool proper_motion = true;
+  bool aberration = true;
+  double velocity_x_kms = 0.0, velocity_y_kms = 0.0, velocity_z_kms = 0.0;
   double mag0_flux_e_per_s = 5.0e6;   // photo-electrons per second from a V = 0 star (aperture, QE)
   double mag_max = 7.5;               // faintest catalog star drawn (SNR about 10 there)
   double vignetting = 0.0;            // flux factor 1 - vignetting * (r / r_corner)^2
@@ -104,6 +114,9 @@ struct SimulatedFrame {
 
 SimulatedFrame SimulateFrame(const Camera& camera, const StarCatalog& catalog, const Quat& q_inertial_from_sensor,
                              const FrameSimOptions& options, uint64_t seed);
+
+// The time and motion the options render (core/astrometry.h): inactive without time_utc.
+SkyCorrections SkyForSimulation(const FrameSimOptions& o);
 
 // A random attitude (uniform over rotations) from a seed.
 Quat RandomAttitude(uint64_t seed);

@@ -119,6 +119,17 @@ void MissionConfig::Check(const std::string& file) const {
   if (!(score_after_s >= 0 && score_after_s < duration_s)) {
     throw InputError(file, "field 'score_after_s' must be in [0, duration_s)");
   }
+  ParseUtcIso8601(start_utc, file + ": field 'start_utc'");
+  if (!velocity_kms.allFinite() || velocity_kms.norm() > 100)
+    throw InputError(file, "field 'velocity_kms' must be [x, y, z] km/s, at most 100 km/s");
+}
+
+SkyCorrections MissionSky(const MissionConfig& c) {
+  SkyCorrections s;
+  s.time = ParseUtcIso8601(c.start_utc, "mission: field 'start_utc'");
+  s.have_velocity = c.velocity_kms.norm() > 0;
+  s.velocity_m_s = c.velocity_kms * 1000.0;
+  return s;
 }
 
 MissionConfig DefaultMissionConfig() {
@@ -148,7 +159,7 @@ MissionConfig DefaultMissionConfig() {
 MissionConfig MissionConfigFromJson(const Json& j, const std::string& file) {
   if (!j.is_object()) throw InputError(file, "the config must be a JSON object");
   CheckKeys(j, {"duration_s", "frame_rate_hz", "seed", "heads", "gyro_unit", "motion", "frame_sim", "processor",
-                "score_after_s", "comment"},
+                "score_after_s", "start_utc", "velocity_kms", "comment"},
             file);
   MissionConfig c = DefaultMissionConfig();
   c.duration_s = JsonNumber(j, "duration_s", file);
@@ -180,6 +191,16 @@ MissionConfig MissionConfigFromJson(const Json& j, const std::string& file) {
   if (j.contains("gyro_unit")) c.unit = GyroUnitFromJson(j.at("gyro_unit"), file + ": gyro_unit");
   if (j.contains("motion")) c.motion = MotionProfileFromJson(j.at("motion"), file + ": motion");
   if (j.contains("frame_sim")) c.frame_sim = FrameSimOptionsFromJson(j.at("frame_sim"), file + ": frame_sim");
+  if (j.contains("start_utc")) {
+    if (!j.at("start_utc").is_string()) throw InputError(file, "field 'start_utc' must be an ISO 8601 UTC string");
+    c.start_utc = j.at("start_utc").get<std::string>();
+  }
+  if (j.contains("velocity_kms")) {
+    const Json& v = j.at("velocity_kms");
+    if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() || !v[2].is_number())
+      throw InputError(file, "field 'velocity_kms' must be [x, y, z] km/s (ICRS)");
+    c.velocity_kms = Vec3(v[0].get<double>(), v[1].get<double>(), v[2].get<double>());
+  }
   if (j.contains("processor")) {
     const Json& p = j.at("processor");
     const std::string what = file + ": processor";
@@ -233,6 +254,8 @@ Json MissionConfigToJson(const MissionConfig& c) {
           {"frame_rate_hz", c.frame_rate_hz},
           {"seed", c.seed},
           {"score_after_s", c.score_after_s},
+          {"start_utc", c.start_utc},
+          {"velocity_kms", V3(c.velocity_kms)},
           {"heads", heads},
           {"gyro_unit", GyroUnitToJson(c.unit)},
           {"motion", motion},
@@ -291,6 +314,11 @@ SimulatedFrame SimulateMissionFrame(const MissionConfig& config, const MissionDa
   so.rate_x_dps = w_sensor_dps.x();
   so.rate_y_dps = w_sensor_dps.y();
   so.rate_z_dps = w_sensor_dps.z();
+  // The mission clock and the spacecraft's velocity.
+  so.time_utc = FormatUtcIso8601(AddSeconds(MissionSky(config).time, t_s));
+  so.velocity_x_kms = config.velocity_kms.x();
+  so.velocity_y_kms = config.velocity_kms.y();
+  so.velocity_z_kms = config.velocity_kms.z();
   const uint64_t seed = Mix(Mix(config.seed) ^ (static_cast<uint64_t>(frame) * kMaxHeads + head));
   return SimulateFrame(h.camera, catalog, q_sensor, so, seed);
 }
@@ -306,6 +334,8 @@ MissionResult RunMission(const MissionConfig& config_in, const StarCatalog& cata
   if (config.processor.solve.detect.smear.exposure_s == 0) {
     config.processor.solve.detect.smear.exposure_s = config.frame_sim.exposure_s;
   }
+  // ... and its clock and velocity, from which it removes proper motion and aberration.
+  config.processor.solve.sky = MissionSky(config);
   const MissionData data = SimulateMission(config);
   const int nh = static_cast<int>(config.heads.size());
 

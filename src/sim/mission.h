@@ -28,6 +28,12 @@ struct MissionConfig {
   FrameSimOptions frame_sim;       // star-frame noise and artefacts (defect_seed + head index per head)
   UnitProcessorOptions processor;
   double score_after_s = 10.0;     // attitude errors are scored from this time on (filter settling)
+  // The mission clock: t = 0 is start_utc (ISO 8601). Frames are rendered with the stars' proper
+  // motion and aberration at start + t (frame_sim's time_utc and velocity are replaced) and the
+  // processor removes them (SolveOptions::sky). velocity_kms: the spacecraft's velocity relative to
+  // the Earth (ICRS), constant over the mission; zero = none.
+  std::string start_utc = "2025-06-21T00:00:00Z";
+  Vec3 velocity_kms = Vec3::Zero();
 
   void Check(const std::string& file) const;  // InputError naming the file and field
 };
@@ -36,10 +42,13 @@ struct MissionConfig {
 // frames at 1 Hz, four FOGs at 100 Hz with turn-on biases of a few deg/h.
 MissionConfig DefaultMissionConfig();
 // SSIU.json: required duration_s, frame_rate_hz, seed, heads; optional gyro_unit (unit.json),
-// motion (a `ssiu simulate gyro` profile), frame_sim, processor, score_after_s. Unknown keys are an
+// motion (a `ssiu simulate gyro` profile), frame_sim, processor, score_after_s, start_utc,
+// velocity_kms [x,y,z]. Unknown keys are an
 // error. InputError naming `file` and the field.
 MissionConfig MissionConfigFromJson(const Json& j, const std::string& file);
 MissionConfig LoadMissionConfig(const std::string& path);
+// The mission clock's start and the spacecraft velocity as the processor's sky corrections.
+SkyCorrections MissionSky(const MissionConfig& config);
 Json MissionConfigToJson(const MissionConfig& c);
 
 // The simulated truth and gyro data; frames are rendered on demand (a mission's frames would not fit

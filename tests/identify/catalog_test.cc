@@ -8,6 +8,7 @@
 #include <fstream>
 #include <vector>
 
+#include "core/astrometry.h"
 #include "core/attitude.h"
 #include "core/error.h"
 #include "testing/testing.h"
@@ -65,6 +66,21 @@ TEST(Catalog, KstarsReaderAndProperMotion) {
   ASSERT_NE(sirius, nullptr);
   const double moved = std::acos(std::min(1.0, sirius->unit.dot(s.star.unit))) * kRadToArcsec;
   EXPECT_NEAR(moved, 25 * std::hypot(0.546, 1.2231), 0.05);
+  // The solver catalog keeps the proper motion (catalog.bin v3), so a solve brings Sirius on to the
+  // frame's date: 10 more years from the 2025.0 catalog, as from J2000 directly.
+  const std::string dir = testing::TempDir("catalog_pm");
+  SaveSolverCatalog(c, dir);
+  const SolverCatalog back = LoadSolverCatalog(dir);
+  const CatalogStar* b = FindId(back.stars, 2491);
+  ASSERT_NE(b, nullptr);
+  EXPECT_NEAR(b->pm_dec_rad_per_yr * kRadToArcsec, -1.2231, 1e-6);
+  EXPECT_NEAR(b->pm_ra_rad_per_yr * kRadToArcsec, -0.546, 1e-6);
+  const Vec3 at_2035 = PropagateProperMotion(*b, back.epoch_year, 2035.0);
+  const CatalogStar* j2000 = &s.star;
+  CatalogStar with_pm = *j2000;
+  with_pm.pm_ra_rad_per_yr = s.pm_ra_rad_per_yr;
+  with_pm.pm_dec_rad_per_yr = s.pm_dec_rad_per_yr;
+  EXPECT_LT(std::acos(std::min(1.0, at_2035.dot(PropagateProperMotion(with_pm, 2000.0, 2035.0)))) * kRadToArcsec, 0.01);
 }
 
 TEST(Catalog, CloseDoublesAreMergedByFlux) {
@@ -159,9 +175,9 @@ TEST(Catalog, NeighbourLimitedIndexIsASmallerSubset) {
     EXPECT_NEAR(back.triangles[i].ratio_a, k10.triangles[i].ratio_a, 1e-6);
     EXPECT_NEAR(back.triangles[i].ratio_b, k10.triangles[i].ratio_b, 1e-6);
   }
-  // On disk: 12 bytes per triangle plus 28 per star and a small header.
+  // On disk: 12 bytes per triangle plus 44 per star (id, ra, dec, mag, proper motion) and a small header.
   const auto bytes = std::filesystem::file_size(dir + "/catalog.bin");
-  EXPECT_LT(bytes, k10.triangles.size() * 12 + k10.stars.size() * 28 + 4096);
+  EXPECT_LT(bytes, k10.triangles.size() * 12 + k10.stars.size() * 44 + 4096);
 }
 
 TEST(Catalog, BadOptionsAreRejected) {
