@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "analysis/discover_frames_internal.h"
+#include "core/astrometry.h"
 #include "core/error.h"
 #include "core/types.h"
 
@@ -16,11 +17,21 @@ using Eigen::MatrixXd;
 using Eigen::VectorXd;
 
 // Camera parameter blocks: 0 focal_length (df), 1-2 principal_point (dcx, dcy), 3 lens_distortion (dk1),
-// 4 pixel_aspect (relative change of fy alone, da: fy -> fy (1 + da)).
-constexpr int kCam = 5;
+// 4 pixel_aspect (relative change of fy alone, da: fy -> fy (1 + da)), 5-7 aberration (b = v/c, ICRS:
+// an observer velocity the catalog directions were not corrected for).
+constexpr int kCam = 8;
+using CamMask = std::array<bool, kCam>;
+constexpr CamMask kNoCam = {false, false, false, false, false, false, false, false};
 
-Camera Apply(const Camera& c0, const double* cam) {
+// The camera of a frame whose boresight (inertial) is `bore`. Uncorrected aberration moves every star
+// towards the apex by (v/c) sin(theta) (core/astrometry.h); across a field, to first order, that is a
+// common shift (taken up by the frame's rotation) and a change of scale by 1 - b.bore: the stars
+// close in on the boresight as it nears the apex. So it acts as a focal length that varies from frame
+// to frame with the pointing, which frames in several directions tell apart from a focal-length error.
+Camera Apply(const Camera& c0, const double* cam, const Vec3& bore = Vec3::Zero()) {
   Camera c = c0;
+  const double aberration_scale = 1 - Vec3(cam[5], cam[6], cam[7]).dot(bore);
+  if (aberration_scale != 1) c.ScaleFocal(aberration_scale);
   c.ScaleFocal((c0.focal_length_px + cam[0]) / c0.focal_length_px);  // fx and fy, aspect kept
   c.cx_px += cam[1];
   c.cy_px += cam[2];
@@ -38,7 +49,7 @@ Quat Perturbed(const Quat& q, const double* d) {
 
 struct GeoFit {
   std::vector<double> rot;        // 3 per frame
-  double cam[kCam] = {0, 0, 0, 0, 0};
+  double cam[kCam] = {0, 0, 0, 0, 0, 0, 0, 0};
   double rss = 0;                 // weighted
   MatrixXd cov_cam;               // unscaled covariance of the active camera parameters
   VectorXd res;                   // 2 per star (px)
@@ -76,11 +87,12 @@ GeoFit FitGeometry(const SolvedFrameSet& set, const Camera& cam0, const std::vec
   np += static_cast<int>(cam_idx.size());
   const int nr = 2 * static_cast<int>(rows.size());
   auto residuals = [&](const GeoFit& st, VectorXd* r) {
-    const Camera c = Apply(cam0, st.cam);
+    std::vector<Camera> c;  // per frame: aberration makes the scale depend on the boresight
+    for (int f = 0; f < nf; ++f) c.push_back(Apply(cam0, st.cam, set.q[f] * Vec3::UnitZ()));
     r->resize(nr);
     for (size_t k = 0; k < rows.size(); ++k) {
       const FrameStar& s = set.stars[rows[k]];
-      const Vec2 p = Predict(c, Perturbed(set.q[s.frame], &st.rot[3 * s.frame]), s);
+      const Vec2 p = Predict(c[s.frame], Perturbed(set.q[s.frame], &st.rot[3 * s.frame]), s);
       const double w = 1 / std::max(s.sigma_px, o.min_sigma_px);
       (*r)(2 * k) = (s.x_px - p.x()) * w;
       (*r)(2 * k + 1) = (s.y_px - p.y()) * w;
@@ -92,7 +104,7 @@ GeoFit FitGeometry(const SolvedFrameSet& set, const Camera& cam0, const std::vec
     residuals(g, &r);
     MatrixXd j = MatrixXd::Zero(nr, np);
     const double h_rot = 1e-7;
-    const double h_cam[kCam] = {1e-3, 1e-3, 1e-3, 1e-7, 1e-7};
+    const double h_cam[kCam] = {1e-3, 1e-3, 1e-3, 1e-7, 1e-7, 1e-7, 1e-7, 1e-7};
     for (int f = 0; f < nf; ++f) {
       if (frame_col[f] < 0) continue;
       for (int a = 0; a < 3; ++a) {
@@ -131,20 +143,22 @@ GeoFit FitGeometry(const SolvedFrameSet& set, const Camera& cam0, const std::vec
   return g;
 }
 
+// P(chi^2_dof > w) for dof 1, 2 or 3 (closed forms).
 double ChiSq1or2Survival(double w, int dof) {
   if (w <= 0) return 1.0;
+  if (dof == 3) return std::erfc(std::sqrt(w / 2)) + std::sqrt(2 * w / kPi) * std::exp(-w / 2);
   return dof == 1 ? std::erfc(std::sqrt(w / 2)) : std::exp(-w / 2);
 }
 
 // Unweighted pixel residual RMS of the stars of `use_frame` under camera offsets `cam`, rotations refitted.
 double HeldOutRms(const SolvedFrameSet& set, const Camera& cam0, const std::vector<bool>& use_frame, const double* cam,
                   const FrameDiscoverOptions& o) {
-  const GeoFit g = FitGeometry(set, cam0, use_frame, {false, false, false, false, false}, cam, o);
-  const Camera c = Apply(cam0, cam);
+  const GeoFit g = FitGeometry(set, cam0, use_frame, kNoCam, cam, o);
   double ss = 0;
   int n = 0;
   for (const auto& s : set.stars) {
     if (!use_frame[s.frame]) continue;
+    const Camera c = Apply(cam0, cam, set.q[s.frame] * Vec3::UnitZ());
     const Vec2 p = Predict(c, Perturbed(set.q[s.frame], &g.rot[3 * s.frame]), s);
     ss += (Vec2(s.x_px, s.y_px) - p).squaredNorm();
     n += 2;
@@ -262,8 +276,18 @@ FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, c
   const discover_internal::CauseResult psf = discover_internal::AnalysePsfShape(set, camera, o, &d);
   if (!hot.tested) d.not_tested.push_back("hot_pixels");
   if (!psf.tested) d.not_tested.push_back("psf_shape");
+  // aberration needs frames pointing in several directions (else it is a focal length): the
+  // boresights' scatter matrix must have no small eigenvalue, and more frames than its 3 parameters
+  // plus a focal length (with 3 frames it fits any per-frame scale).
+  bool aberration_testable = false;
+  if (set.q.size() >= 6) {
+    Mat3 scatter = Mat3::Zero();
+    for (const auto& q : set.q) scatter += (q * Vec3::UnitZ()) * (q * Vec3::UnitZ()).transpose() / set.q.size();
+    aberration_testable = Eigen::SelfAdjointEigenSolver<Mat3>(scatter).eigenvalues().minCoeff() > 0.02;
+  }
+  if (!aberration_testable) d.not_tested.push_back("aberration");
   // Bonferroni over the candidates actually tested (5 geometric/photometric + these).
-  const double alpha_each = o.alpha / (5 + hot.tested + psf.tested);
+  const double alpha_each = o.alpha / (5 + aberration_testable + hot.tested + psf.tested);
   // Names a cause found without the geometric fits (hot_pixels, psf_shape).
   auto name_other = [&](const discover_internal::CauseResult& c) {
     d.cause = c.candidate.cause;
@@ -285,14 +309,16 @@ FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, c
   const double arcsec_per_px = kRadToArcsec / camera.FocalMeanPx();
   struct Spec {
     std::string cause;
-    std::array<bool, kCam> mask;
+    CamMask mask;
   };
-  const std::vector<Spec> specs = {{"focal_length", {true, false, false, false, false}},
-                                   {"principal_point", {false, true, true, false, false}},
-                                   {"lens_distortion", {false, false, false, true, false}},
-                                   {"pixel_aspect", {false, false, false, false, true}}};
-  const GeoFit base = FitGeometry(set, camera, all, {false, false, false, false, false}, nullptr, o);
-  const GeoFit fullest = FitGeometry(set, camera, all, {true, true, true, true, true}, nullptr, o);
+  std::vector<Spec> specs = {{"focal_length", {true, false, false, false, false, false, false, false}},
+                             {"principal_point", {false, true, true, false, false, false, false, false}},
+                             {"lens_distortion", {false, false, false, true, false, false, false, false}},
+                             {"pixel_aspect", {false, false, false, false, true, false, false, false}}};
+  const bool ab = aberration_testable;
+  if (ab) specs.push_back({"aberration", {false, false, false, false, false, true, true, true}});
+  const GeoFit base = FitGeometry(set, camera, all, kNoCam, nullptr, o);
+  const GeoFit fullest = FitGeometry(set, camera, all, {true, true, true, true, true, ab, ab, ab}, nullptr, o);
   const int nobs = 2 * d.stars;
   const int npar = 3 * nf + kCam;
   const double s2 = fullest.rss / std::max(1, nobs - npar);
@@ -467,14 +493,21 @@ FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, c
       if (sp.mask[k]) idx.push_back(k);
     }
   }
-  const char* names[kCam] = {"focal_length_px", "cx_px", "cy_px", "k1", "pixel_aspect"};
+  // aberration: the uncorrected observer velocity v = b c (km/s, ICRS).
+  constexpr double kc_kms = kSpeedOfLightMS / 1000;
+  const char* names[kCam] = {"focal_length_px", "cx_px", "cy_px", "k1", "pixel_aspect",
+                             "velocity_x_kms", "velocity_y_kms", "velocity_z_kms"};
   // pixel_aspect is fy / fx: the nominal aspect times (1 + da).
   const double aspect0 = camera.FocalYPx() / camera.focal_length_px;
-  const double nominal[kCam] = {camera.focal_length_px, camera.cx_px, camera.cy_px, camera.distortion.k1, aspect0};
-  const double unit[kCam] = {1, 1, 1, 1, aspect0};
+  const double nominal[kCam] = {camera.focal_length_px, camera.cx_px, camera.cy_px, camera.distortion.k1, aspect0, 0, 0, 0};
+  const double unit[kCam] = {1, 1, 1, 1, aspect0, kc_kms, kc_kms, kc_kms};
   for (size_t k = 0; k < idx.size(); ++k) {
     d.parameters[names[idx[k]]] = nominal[idx[k]] + unit[idx[k]] * g.cam[idx[k]];
     d.sigmas[names[idx[k]]] = unit[idx[k]] * std::sqrt(g.cov_cam(k, k)) * sc;
+  }
+  if (d.cause == "aberration") {
+    d.fitted_camera = camera;  // not a camera property: the frames' time and velocity were not given
+    d.parameters["speed_kms"] = Vec3(g.cam[5], g.cam[6], g.cam[7]).norm() * kc_kms;
   }
   if (d.cause == "pixel_aspect") {
     d.parameters["focal_length_y_px"] = d.fitted_camera.FocalYPx();
@@ -499,7 +532,7 @@ FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, c
         if (s.cause == d.cause) sp = &s;
       }
       const GeoFit gt = FitGeometry(set, camera, train, sp->mask, nullptr, o);
-      const double zero[kCam] = {0, 0, 0, 0, 0};
+      const double zero[kCam] = {0, 0, 0, 0, 0, 0, 0, 0};
       const double b = HeldOutRms(set, camera, test, zero, o), a = HeldOutRms(set, camera, test, gt.cam, o);
       ssb += b * b * ntest, ssa += a * a * ntest, cnt += ntest;
     }

@@ -26,6 +26,20 @@
 
 namespace ssiu::testing {
 
+// Appends a solved frame of attitude q (no spikes, 400 ADU background, 28 ADU noise) to a synthetic
+// frame set; its stars are added by the caller with FrameStar::frame = the returned index.
+inline int AddSolvedFrame(SolvedFrameSet* set, const Quat& q) {
+  const int f = static_cast<int>(set->q.size());
+  set->status.push_back("solved");
+  set->names.push_back("f" + std::to_string(f));
+  set->q.push_back(q);
+  set->solved_index.push_back(f);
+  set->spikes.emplace_back();
+  set->background_adu.push_back(400);
+  set->noise_adu.push_back(28);
+  return f;
+}
+
 inline const StarCatalog& FrameSky() {
   static const StarCatalog sky = LoadXplanetBsc(DefaultBscPath(), 7.0);
   return sky;

@@ -129,13 +129,7 @@ TEST(DiscoverFrames, EllipticalPsfNamedWithItsEllipticity) {
   set.width = cam.width, set.height = cam.height;
   for (int f = 0; f < 4; ++f) {
     const Quat q = RandomAttitude(100 + f);
-    set.status.push_back("solved");
-    set.names.push_back("f" + std::to_string(f));
-    set.q.push_back(q);
-    set.solved_index.push_back(f);
-    set.spikes.emplace_back();
-    set.background_adu.push_back(400);
-    set.noise_adu.push_back(28);
+    testing::AddSolvedFrame(&set, q);
     for (int i = 0; i < 40; ++i) {
       FrameStar s;
       s.frame = f;
