@@ -8,6 +8,7 @@
 
 #include "analysis/discover_frames.h"
 #include "core/error.h"
+#include "core/image.h"
 
 namespace ssiu {
 
@@ -39,7 +40,7 @@ void WriteResidualQuiver(const std::string& dir, const FrameDiscovery& d, const 
                   which == 0 ? "before" : "after", d.cause.c_str(), rms, max_res, max_res * arcsec_per_px);
     cv::putText(img, title, cv::Point(10, 30), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
     const std::string path = dir + (which == 0 ? "/residuals_before.png" : "/residuals_after.png");
-    if (!cv::imwrite(path, img)) throw InputError(path, "cannot write the plot");
+    WritePng(path, img);
   }
 }
 

@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/error.h"
+#include "core/image.h"
 
 namespace ssiu {
 namespace {
@@ -96,13 +97,7 @@ void WriteFogPlotPng(const std::string& path, const FogPlot& plot) {
   cv::putText(img, plot.title, cv::Point(left, 25), font, 0.6, ink, 1, cv::LINE_AA);
   cv::putText(img, plot.x_label, cv::Point(left + w / 2 - 40, plot.height_px - 15), font, 0.5, ink, 1, cv::LINE_AA);
   cv::putText(img, plot.y_label, cv::Point(5, top - 10), font, 0.5, ink, 1, cv::LINE_AA);
-  bool ok = false;
-  try {
-    ok = cv::imwrite(path, img);
-  } catch (const cv::Exception&) {
-    ok = false;
-  }
-  if (!ok) throw InputError(path, "cannot write PNG");
+  WritePng(path, img);
 }
 
 }  // namespace ssiu

@@ -581,25 +581,33 @@ Json ThermalFitToJson(const ThermalFitResult& fit, const ThermalFitOptions& opti
 
 ThermalModelFile ThermalModelFromJson(const Json& j, const std::string& file) {
   ThermalModelFile m;
-  if (!j.is_object() || !j.contains("terms") || !j.at("terms").is_object()) {
-    throw InputError(file, "missing object 'terms'");
-  }
+  // The file `fog thermal --json` writes: every key it writes is allowed; the model is in 'terms' and 'model'.
+  CheckKeys(j, {"terms", "model", "sigma", "status", "message", "tested", "candidates", "validation_agrees", "selection",
+                "drift_before_dph", "drift_after_dph", "angle_error_before_deg", "angle_error_after_deg", "gain",
+                "holdout", "comment"},
+            file);
+  if (!j.contains("terms") || !j.at("terms").is_object()) throw InputError(file, "missing object 'terms'");
   const Json& terms = j.at("terms");
   for (auto it = terms.begin(); it != terms.end(); ++it) {
     int found = -1;
     for (int k = 0; k < kTerms; ++k) {
       if (ThermalDriftModel::TermName(k) == it.key()) found = k;
     }
-    if (found < 0) throw InputError(file, "unknown term '" + it.key() + "' in 'terms'");
+    if (found < 0) {
+      std::vector<std::string> names;
+      for (int k = 0; k < kTerms; ++k) names.push_back(ThermalDriftModel::TermName(k));
+      CheckKeys(Json{{it.key(), 0}}, names, file + ": terms");
+    }
     m.model.k_dph[found] = JsonNumber(terms, it.key(), file);
   }
   if (j.contains("model")) {
     const Json& mj = j.at("model");
+    CheckKeys(mj, {"t0_c", "t1_c", "g0_c_per_min", "rate_window_s", "rate_order", "bin_s"}, file + ": model");
     m.model.t0_c = JsonNumberOr(mj, "t0_c", m.model.t0_c, file);
     m.model.t1_c = JsonNumberOr(mj, "t1_c", m.model.t1_c, file);
     m.model.g0_c_per_min = JsonNumberOr(mj, "g0_c_per_min", m.model.g0_c_per_min, file);
     m.rate.window_s = JsonNumberOr(mj, "rate_window_s", m.rate.window_s, file);
-    m.rate.order = static_cast<int>(JsonNumberOr(mj, "rate_order", m.rate.order, file));
+    m.rate.order = static_cast<int>(JsonIntOr(mj, "rate_order", m.rate.order, 1, 5, file + ": model"));
     m.bin_s = JsonNumberOr(mj, "bin_s", m.bin_s, file);
   }
   if (!(m.model.t1_c != m.model.t0_c) || !(m.model.g0_c_per_min != 0)) {

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "core/error.h"
+#include "core/image.h"
 
 namespace ssiu {
 namespace {
@@ -241,13 +242,7 @@ void WritePlotPng(const std::string& path, const std::vector<PlotSeries>& series
     cv::line(img, {x - 30, y - 4}, {x - 6, y - 4}, Bgr(s.color), 2, cv::LINE_AA);
     cv::putText(img, s.label, {x, y}, font, 0.45, black, 1, cv::LINE_AA);
   }
-  std::vector<unsigned char> png;
-  if (!cv::imencode(".png", img, png)) throw InputError(path, "cannot encode PNG");
-  FILE* fp = std::fopen(path.c_str(), "wb");
-  if (!fp) throw InputError(path, "cannot write file");
-  const size_t written = std::fwrite(png.data(), 1, png.size(), fp);
-  const bool closed = std::fclose(fp) == 0;
-  if (written != png.size() || !closed) throw InputError(path, "cannot write file");
+  WritePng(path, img);
 }
 
 }  // namespace ssiu

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/error.h"
+#include "core/image.h"
 
 namespace ssiu {
 
@@ -57,7 +58,7 @@ void WriteSolveOverlay(const std::string& path, const ImageView& image, const Ca
   cv::putText(img, title, cv::Point(10, 24), cv::FONT_HERSHEY_SIMPLEX, 0.6, r.status == "solved" ? green : red, 2);
   cv::putText(img, "green: matched (star_id)  yellow: unmatched detection  blue: predicted, not detected  red: rejected",
               cv::Point(10, image.height - 12), cv::FONT_HERSHEY_PLAIN, 1.0, cv::Scalar(255, 255, 255), 1);
-  if (!cv::imwrite(path, img)) throw InputError(path, "cannot write overlay PNG");
+  WritePng(path, img);
 }
 
 }  // namespace ssiu

@@ -13,6 +13,7 @@
 #include "cli/smear_flags.h"
 #include "core/attitude.h"
 #include "core/error.h"
+#include "core/output.h"
 
 namespace ssiu::cli {
 namespace {
@@ -86,8 +87,7 @@ void RunSingle(const Opts& o) {
   }
   if (!o.wcs.empty() && r.status == "solved") {
     const Camera c = FittedCamera(cam, r.identification);
-    std::ofstream wcs(o.wcs);
-    if (!(wcs << TanWcsHeader(r.attitude.q_inertial_from_sensor, c))) throw InputError(o.wcs, "cannot write file");
+    WriteFileAtomic(o.wcs, TanWcsHeader(r.attitude.q_inertial_from_sensor, c));
   }
   PrintSummary(o.centroids.empty() ? o.frames[0] : o.centroids, r);
 }
@@ -108,14 +108,11 @@ void RunHeads(const Opts& o) {
   double heads_ms = 0;  // read excluded: detect + identify + attitude of every head
   for (size_t h = 0; h < hj.size(); ++h) {
     const std::string where = o.heads + ": head " + std::to_string(h);
-    if (!hj[h].contains("camera") || !hj[h].contains("q_body_sensor") || !hj[h]["q_body_sensor"].is_array() ||
-        hj[h]["q_body_sensor"].size() != 4)
-      throw InputError(where, "needs \"camera\" and \"q_body_sensor\": [w,x,y,z]");
-    const Camera cam = CameraFromJson(hj[h]["camera"], where);
-    const auto& qj = hj[h]["q_body_sensor"];
-    for (const auto& v : qj)
-      if (!v.is_number()) throw InputError(where, "q_body_sensor must hold numbers");
-    mounts.push_back(FromWxyz(qj[0], qj[1], qj[2], qj[3], "q_body_sensor"));
+    CheckKeys(hj[h], {"camera", "q_body_sensor"}, where);
+    if (!hj[h].contains("camera")) throw InputError(where, "missing field 'camera'");
+    const Camera cam = CameraFromJson(hj[h]["camera"], where + ": camera");
+    const std::vector<double> qj = JsonNumbers(hj[h], "q_body_sensor", 4, where);
+    mounts.push_back(FromWxyz(qj[0], qj[1], qj[2], qj[3], (where + ": q_body_sensor").c_str()));
     const StarIdentifier id = MakeIdentifier(o, cam);
     const Frame fr = ReadFrame(o.frames[h]);
     SolveOptions so = o.solve;

@@ -95,14 +95,14 @@ Camera MakeCamera(int width, int height, double fov_x_deg) {
 
 Camera CameraFromJson(const Json& j, const std::string& source) {
   if (!j.is_object()) throw InputError(source, "camera must be a JSON object");
+  CheckKeys(j, {"width", "height", "focal_length_px", "focal_length_mm", "pixel_pitch_um", "principal_point",
+                "distortion", "gain_e_per_adu", "psf_sigma_px", "psf_ellipticity", "psf_angle_deg"},
+            source);
   Camera c;
-  const double w = JsonNumber(j, "width", source), h = JsonNumber(j, "height", source);
-  if (w != std::floor(w) || h != std::floor(h) || w < 16 || h < 16 || w > 65536 || h > 65536) {
-    throw InputError(source, "width and height must be whole numbers of pixels, 16..65536");
-  }
-  c.width = static_cast<int>(w);
-  c.height = static_cast<int>(h);
+  c.width = static_cast<int>(JsonInt(j, "width", 16, 65536, source));
+  c.height = static_cast<int>(JsonInt(j, "height", 16, 65536, source));
   if (j.contains("focal_length_px")) {
+    if (j.contains("focal_length_mm")) throw InputError(source, "give 'focal_length_px' or 'focal_length_mm', not both");
     c.focal_length_px = JsonNumber(j, "focal_length_px", source);
   } else if (j.contains("focal_length_mm")) {
     const double f_mm = JsonNumber(j, "focal_length_mm", source);
@@ -116,23 +116,23 @@ Camera CameraFromJson(const Json& j, const std::string& source) {
   c.cx_px = 0.5 * (c.width - 1);
   c.cy_px = 0.5 * (c.height - 1);
   if (j.contains("principal_point")) {
-    const Json& pp = j.at("principal_point");
-    if (!pp.is_array() || pp.size() != 2 || !pp[0].is_number() || !pp[1].is_number()) {
-      throw InputError(source, "field 'principal_point' must be [x, y]");
-    }
-    c.cx_px = pp[0].get<double>();
-    c.cy_px = pp[1].get<double>();
+    const std::vector<double> pp = JsonNumbers(j, "principal_point", 2, source);
+    c.cx_px = pp[0];
+    c.cy_px = pp[1];
   }
   if (j.contains("distortion")) {
     const Json& d = j.at("distortion");
-    if (!d.is_object()) throw InputError(source, "field 'distortion' must be an object");
-    c.distortion.k1 = JsonNumberOr(d, "k1", 0, source);
-    c.distortion.k2 = JsonNumberOr(d, "k2", 0, source);
-    c.distortion.k3 = JsonNumberOr(d, "k3", 0, source);
-    c.distortion.p1 = JsonNumberOr(d, "p1", 0, source);
-    c.distortion.p2 = JsonNumberOr(d, "p2", 0, source);
+    const std::string what = source + ": distortion";
+    CheckKeys(d, {"k1", "k2", "k3", "p1", "p2"}, what);
+    c.distortion.k1 = JsonNumberOr(d, "k1", 0, what);
+    c.distortion.k2 = JsonNumberOr(d, "k2", 0, what);
+    c.distortion.k3 = JsonNumberOr(d, "k3", 0, what);
+    c.distortion.p1 = JsonNumberOr(d, "p1", 0, what);
+    c.distortion.p2 = JsonNumberOr(d, "p2", 0, what);
   }
   c.gain_e_per_adu = JsonNumberOr(j, "gain_e_per_adu", 0, source);
+  // The optional model PSF (read by `discover frames`): checked for type here.
+  for (const char* k : {"psf_sigma_px", "psf_ellipticity", "psf_angle_deg"}) JsonNumberOr(j, k, 0, source);
   c.Check(source);
   return c;
 }

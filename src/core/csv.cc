@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/output.h"
 
 namespace ssiu {
 namespace {
@@ -111,15 +112,15 @@ CsvTable ReadCsv(const std::string& path) {
 
 void WriteCsv(const std::string& path, const std::vector<std::string>& header,
               const std::vector<std::vector<double>>& columns, int precision) {
-  std::ofstream out(path);
-  if (!out) throw InputError(path, "cannot write file");
-  for (size_t i = 0; i < header.size(); ++i) out << (i ? "," : "") << header[i];
-  out << "\n" << std::setprecision(precision);
-  const size_t n = columns.empty() ? 0 : columns[0].size();
-  for (size_t r = 0; r < n; ++r) {
-    for (size_t c = 0; c < columns.size(); ++c) out << (c ? "," : "") << columns[c][r];
-    out << "\n";
-  }
+  WriteFileAtomic(path, [&](std::ostream& out) {
+    for (size_t i = 0; i < header.size(); ++i) out << (i ? "," : "") << header[i];
+    out << "\n" << std::setprecision(precision);
+    const size_t n = columns.empty() ? 0 : columns[0].size();
+    for (size_t r = 0; r < n; ++r) {
+      for (size_t c = 0; c < columns.size(); ++c) out << (c ? "," : "") << columns[c][r];
+      out << "\n";
+    }
+  });
 }
 
 }  // namespace ssiu

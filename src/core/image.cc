@@ -15,6 +15,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/error.h"
+#include "core/output.h"
 #include "core/png_decode.h"
 
 namespace ssiu {
@@ -271,17 +272,23 @@ Frame SubtractDark(const Frame& frame, const Frame& dark, double pedestal_adu) {
   return out;
 }
 
-namespace {
 void WritePng(const std::string& path, const cv::Mat& m) {
+  // The format is PNG whatever the name says: a name with another extension is a usage error (once an
+  // OpenCV exception, exit 2), a name without one (or a device such as /dev/stdout) is fine.
+  const std::string ext = std::filesystem::path(path).extension().string();
+  if (!ext.empty() && ext != ".png" && ext != ".PNG") {
+    throw InputError(path, "unsupported extension '" + ext + "': this output is a PNG (give FILE.png)");
+  }
+  std::vector<uchar> png;
   bool ok = false;
   try {
-    ok = cv::imwrite(path, m);
+    ok = cv::imencode(".png", m, png);
   } catch (const cv::Exception&) {
     ok = false;
   }
-  if (!ok) throw InputError(path, "cannot write PNG");
+  if (!ok) throw InputError(path, "cannot encode PNG");
+  WriteFileAtomic(path, std::string(png.begin(), png.end()));
 }
-}  // namespace
 
 void WritePng16(const std::string& path, const Image16& image) {
   WritePng(path, cv::Mat(image.height, image.width, CV_16UC1, const_cast<uint16_t*>(image.pixels.data())));
@@ -292,17 +299,18 @@ void WritePng8(const std::string& path, int width, int height, const std::vector
 }
 
 void WriteFits16(const std::string& path, const Image16& image) {
-  std::remove(path.c_str());
-  fitsfile* f = nullptr;
-  int status = 0;
-  long naxes[2] = {image.width, image.height};
-  if (fits_create_file(&f, path.c_str(), &status)) throw InputError(path, "cannot create FITS file");
-  fits_create_img(f, USHORT_IMG, 2, naxes, &status);
-  long first[2] = {1, 1};
-  fits_write_pix(f, TUSHORT, first, static_cast<LONGLONG>(image.pixels.size()),
-                 const_cast<uint16_t*>(image.pixels.data()), &status);
-  fits_close_file(f, &status);
-  if (status) throw InputError(path, "cannot write FITS file");
+  WriteFileViaTemp(path, [&](const std::string& temp) {
+    fitsfile* f = nullptr;
+    int status = 0;
+    long naxes[2] = {image.width, image.height};
+    if (fits_create_file(&f, temp.c_str(), &status)) throw InputError(path, "cannot create FITS file");
+    fits_create_img(f, USHORT_IMG, 2, naxes, &status);
+    long first[2] = {1, 1};
+    fits_write_pix(f, TUSHORT, first, static_cast<LONGLONG>(image.pixels.size()),
+                   const_cast<uint16_t*>(image.pixels.data()), &status);
+    fits_close_file(f, &status);
+    if (status) throw InputError(path, "cannot write FITS file");
+  });
 }
 
 }  // namespace ssiu

@@ -8,6 +8,10 @@
 #include <string>
 #include <vector>
 
+namespace cv {
+class Mat;
+}
+
 namespace ssiu {
 
 // Non-owning view of a 16-bit single-channel image (AprilTag's image_u8 idea). stride in pixels.
@@ -59,6 +63,9 @@ void CheckFrameContent(const Frame& frame);
 // InputError naming the dark file when the sizes differ.
 Frame SubtractDark(const Frame& frame, const Frame& dark, double pedestal_adu = 100.0);
 
+// PNG outputs, written atomically (core/output.h); InputError naming the file when it cannot be
+// written or its name has an extension other than .png.
+void WritePng(const std::string& path, const cv::Mat& image);
 void WritePng16(const std::string& path, const Image16& image);
 void WritePng8(const std::string& path, int width, int height, const std::vector<uint8_t>& pixels);
 // 16-bit FITS (BITPIX 16 with BZERO 32768), first stored row = y 0.

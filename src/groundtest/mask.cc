@@ -10,6 +10,7 @@
 
 #include "core/attitude.h"
 #include "core/error.h"
+#include "core/output.h"
 #include "groundtest/apriltag_family.h"
 
 namespace ssiu {
@@ -144,6 +145,10 @@ Json MaskToJson(const Mask& m) {
 Mask MaskFromJson(const Json& j, const std::string& src) {
   if (!j.is_object()) throw InputError(src, "not a mask (JSON object expected)");
   if (!j.contains("format") || j["format"] != "ssiu_mask_v1") throw InputError(src, "format: not ssiu_mask_v1");
+  CheckKeys(j, {"format", "camera", "collimator_focal_mm", "design", "frame", "field_half_x_mm", "field_half_y_mm",
+                "plate_side_mm", "hole_grading", "holes", "tag_family", "distortion_compensated", "tags", "png_dpi",
+                "comment"},
+            src);
   Mask m;
   if (!j.contains("camera")) throw InputError(src, "camera: missing");
   m.camera = CameraFromJson(j["camera"], src + ": camera");
@@ -151,6 +156,7 @@ Mask MaskFromJson(const Json& j, const std::string& src) {
   if (!(m.collimator_focal_mm > 0)) throw InputError(src, "collimator_focal_mm: must be > 0");
   if (!j.contains("design") || !j["design"].contains("q") || !j["design"]["q"].is_array() || j["design"]["q"].size() != 4)
     throw InputError(src, "design.q: missing or not [w,x,y,z]");
+  CheckKeys(j["design"], {"q", "ra_deg", "dec_deg", "roll_deg"}, src + ": design");
   const auto& q = j["design"]["q"];
   for (const auto& v : q)
     if (!v.is_number()) throw InputError(src, "design.q: must hold numbers");
@@ -162,6 +168,7 @@ Mask MaskFromJson(const Json& j, const std::string& src) {
   m.field_half_y_mm = JsonNumber(j, "field_half_y_mm", src);
   m.plate_half_mm = JsonNumber(j, "plate_side_mm", src) / 2;
   if (j.contains("hole_grading")) {
+    CheckKeys(j["hole_grading"], {"law", "mag_faint", "d_min_mm", "d_max_mm", "clamped_holes"}, src + ": hole_grading");
     m.mag_faint = JsonNumberOr(j["hole_grading"], "mag_faint", 0, src);
     m.hole_min_diameter_mm = JsonNumberOr(j["hole_grading"], "d_min_mm", 0, src);
     m.hole_max_diameter_mm = JsonNumberOr(j["hole_grading"], "d_max_mm", 0, src);
@@ -171,12 +178,8 @@ Mask MaskFromJson(const Json& j, const std::string& src) {
     const Json& h = j["holes"][i];
     const std::string w = src + ": holes[" + std::to_string(i) + "]";
     MaskHole mh;
-    const double star_id = JsonNumber(h, "star_id", w);
-    // Converting an out-of-range double to an integer is undefined behaviour.
-    if (!(star_id >= -1 && star_id <= 2.0e9) || star_id != std::floor(star_id)) {
-      throw InputError(w, "star_id: must be a whole number in [-1, 2e9]");
-    }
-    mh.star_id = static_cast<StarId>(star_id);
+    CheckKeys(h, {"star_id", "mag", "mag_effective", "x_mm", "y_mm", "diameter_mm"}, w);
+    mh.star_id = static_cast<StarId>(JsonInt(h, "star_id", -1, 2000000000, w));
     mh.mag = JsonNumber(h, "mag", w);
     mh.mag_effective = JsonNumberOr(h, "mag_effective", mh.mag, w);
     mh.x_mm = JsonNumber(h, "x_mm", w), mh.y_mm = JsonNumber(h, "y_mm", w);
@@ -184,20 +187,16 @@ Mask MaskFromJson(const Json& j, const std::string& src) {
     if (!(mh.diameter_mm > 0)) throw InputError(w, "diameter_mm: must be > 0");
     m.holes.push_back(mh);
   }
-  m.tag_family = j.value("tag_family", std::string("tag36h11"));
-  if (j.contains("distortion_compensated")) {
-    if (!j["distortion_compensated"].is_boolean()) throw InputError(src, "distortion_compensated: must be true or false");
-    m.distortion_compensated = j["distortion_compensated"].get<bool>();
-  }
+  m.tag_family = JsonStringOr(j, "tag_family", "tag36h11", src);
+  m.distortion_compensated = JsonBoolOr(j, "distortion_compensated", m.distortion_compensated, src);
   if (!groundtest_internal::CreateFamily(m.tag_family)) throw InputError(src, "tag_family: unknown '" + m.tag_family + "'");
   if (!j.contains("tags") || !j["tags"].is_array()) throw InputError(src, "tags: missing");
   for (size_t i = 0; i < j["tags"].size(); ++i) {
     const Json& t = j["tags"][i];
     const std::string w = src + ": tags[" + std::to_string(i) + "]";
     MaskTag mt;
-    const double id = JsonNumber(t, "id", w);
-    if (!(id >= 0 && id <= 1.0e6) || id != std::floor(id)) throw InputError(w, "id: must be a whole number in [0, 1e6]");
-    mt.id = static_cast<int>(id);
+    CheckKeys(t, {"id", "x_mm", "y_mm", "size_mm", "corners_mm"}, w);
+    mt.id = static_cast<int>(JsonInt(t, "id", 0, 1000000, w));
     mt.x_mm = JsonNumber(t, "x_mm", w), mt.y_mm = JsonNumber(t, "y_mm", w);
     mt.size_mm = JsonNumber(t, "size_mm", w);
     if (!(mt.size_mm > 0)) throw InputError(w, "size_mm: must be > 0");
@@ -259,35 +258,34 @@ double TagCellMm(const std::string& family, const MaskTag& t) {
 }  // namespace
 
 void WriteMaskSvg(const Mask& m, const std::string& path) {
-  std::ofstream f(path);
-  if (!f) throw InputError(path, "cannot be written");
-  const double s = 2 * m.plate_half_mm;
-  f << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << s << "mm\" height=\"" << s << "mm\" viewBox=\""
-    << -m.plate_half_mm << ' ' << -m.plate_half_mm << ' ' << s << ' ' << s << "\">\n";
-  f << "<!-- ssiu star mask: plate mm, x right, y down as seen from the collimator lens; F = " << m.collimator_focal_mm
-    << " mm; design ra " << m.ra_deg << " dec " << m.dec_deg << " roll " << m.roll_deg << " deg -->\n";
-  f << "<rect x=\"" << -m.plate_half_mm << "\" y=\"" << -m.plate_half_mm << "\" width=\"" << s << "\" height=\"" << s
-    << "\" fill=\"black\"/>\n";
-  f.precision(10);
-  for (const auto& h : m.holes)
-    f << "<circle cx=\"" << h.x_mm << "\" cy=\"" << h.y_mm << "\" r=\"" << h.diameter_mm / 2 << "\" fill=\"white\"><title>HR "
-      << h.star_id << " V " << h.mag << "</title></circle>\n";
-  for (const auto& t : m.tags) {
-    int n = 0;
-    const std::vector<uint8_t> p = TagPattern(m.tag_family, t.id, &n);
-    const double c = TagCellMm(m.tag_family, t);
-    const double x0 = t.x_mm - n * c / 2, y0 = t.y_mm - n * c / 2;
-    f << "<g><title>" << m.tag_family << " id " << t.id << "</title>\n";
-    f << "<rect x=\"" << x0 << "\" y=\"" << y0 << "\" width=\"" << n * c << "\" height=\"" << n * c << "\" fill=\"white\"/>\n";
-    for (int r = 0; r < n; ++r)
-      for (int k = 0; k < n; ++k)
-        if (p[static_cast<size_t>(r) * n + k] < 128)
-          f << "<rect x=\"" << x0 + k * c << "\" y=\"" << y0 + r * c << "\" width=\"" << c << "\" height=\"" << c
-            << "\" fill=\"black\"/>\n";
-    f << "</g>\n";
-  }
-  f << "</svg>\n";
-  if (!f) throw InputError(path, "write failed");
+  WriteFileAtomic(path, [&](std::ostream& f) {
+    const double s = 2 * m.plate_half_mm;
+    f << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << s << "mm\" height=\"" << s << "mm\" viewBox=\""
+      << -m.plate_half_mm << ' ' << -m.plate_half_mm << ' ' << s << ' ' << s << "\">\n";
+    f << "<!-- ssiu star mask: plate mm, x right, y down as seen from the collimator lens; F = " << m.collimator_focal_mm
+      << " mm; design ra " << m.ra_deg << " dec " << m.dec_deg << " roll " << m.roll_deg << " deg -->\n";
+    f << "<rect x=\"" << -m.plate_half_mm << "\" y=\"" << -m.plate_half_mm << "\" width=\"" << s << "\" height=\"" << s
+      << "\" fill=\"black\"/>\n";
+    f.precision(10);
+    for (const auto& h : m.holes)
+      f << "<circle cx=\"" << h.x_mm << "\" cy=\"" << h.y_mm << "\" r=\"" << h.diameter_mm / 2 << "\" fill=\"white\"><title>HR "
+        << h.star_id << " V " << h.mag << "</title></circle>\n";
+    for (const auto& t : m.tags) {
+      int n = 0;
+      const std::vector<uint8_t> p = TagPattern(m.tag_family, t.id, &n);
+      const double c = TagCellMm(m.tag_family, t);
+      const double x0 = t.x_mm - n * c / 2, y0 = t.y_mm - n * c / 2;
+      f << "<g><title>" << m.tag_family << " id " << t.id << "</title>\n";
+      f << "<rect x=\"" << x0 << "\" y=\"" << y0 << "\" width=\"" << n * c << "\" height=\"" << n * c << "\" fill=\"white\"/>\n";
+      for (int r = 0; r < n; ++r)
+        for (int k = 0; k < n; ++k)
+          if (p[static_cast<size_t>(r) * n + k] < 128)
+            f << "<rect x=\"" << x0 + k * c << "\" y=\"" << y0 + r * c << "\" width=\"" << c << "\" height=\"" << c
+              << "\" fill=\"black\"/>\n";
+      f << "</g>\n";
+    }
+    f << "</svg>\n";
+  });
 }
 
 void WriteMaskPng(const Mask& m, const std::string& path, double dpi) {
@@ -339,9 +337,7 @@ void WriteMaskPng(const Mask& m, const std::string& path, double dpi) {
   crc ^= 0xffffffffu;
   for (int b = 3; b >= 0; --b) chunk.push_back(static_cast<uchar>(crc >> (8 * b)));
   png.insert(png.begin() + 33, chunk.begin(), chunk.end());
-  std::ofstream f(path, std::ios::binary);
-  f.write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
-  if (!f) throw InputError(path, "cannot be written");
+  WriteFileAtomic(path, std::string(png.begin(), png.end()));
 }
 
 }  // namespace ssiu

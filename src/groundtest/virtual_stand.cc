@@ -139,6 +139,7 @@ Json AuxCameraToJson(const AuxCamera& a) {
 AuxCamera AuxCameraFromJson(const Json& j, const std::string& src) {
   AuxCamera a;
   if (!j.is_object() || !j.contains("camera")) throw InputError(src, "camera: missing (aux camera file)");
+  CheckKeys(j, {"camera", "r_aux_from_c", "t_aux_mm"}, src);
   a.camera = CameraFromJson(j["camera"], src + ": camera");
   if (!j.contains("r_aux_from_c") || !j["r_aux_from_c"].is_array() || j["r_aux_from_c"].size() != 3)
     throw InputError(src, "r_aux_from_c: missing or not a 3x3 matrix");

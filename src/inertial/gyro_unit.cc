@@ -96,38 +96,34 @@ GyroUnit OrthogonalTriad(double arw_deg_per_sqrt_h, double bias_instability_dph)
 
 namespace {
 
-std::vector<double> NumArray(const Json& j, const std::string& key, const std::string& what) {
-  const Json& a = j.at(key);
-  if (!a.is_array()) throw InputError(what, "field '" + key + "' must be an array of numbers");
-  std::vector<double> v;
-  for (const auto& x : a) {
-    if (!x.is_number() || !std::isfinite(x.get<double>())) throw InputError(what, "field '" + key + "' must hold finite numbers");
-    v.push_back(x.get<double>());
-  }
-  return v;
-}
-
 // Fields present in `j` override those of `m` (so a "default" block and per-gyro blocks compose).
-void ApplyErrorModel(const Json& j, GyroErrorModel* m, const std::string& what) {
+void ApplyErrorModel(const Json& j, GyroErrorModel* m, const std::string& what, bool with_axis) {
   if (!j.is_object()) throw InputError(what, "gyro entry must be an object");
+  std::vector<std::string> keys = {"bias_dph", "arw_deg_per_sqrt_h", "bias_instability_dph", "bias_instability_tau_s",
+                                   "rrw_dph_per_sqrt_h", "quantization_arcsec", "scale_factor_ppm",
+                                   "scale_factor_nonlinearity_ppm_per_dps", "misalignment_arcsec", "time_delay_s",
+                                   "thermal_k_dph", "thermal_t0_c", "thermal_t1_c", "thermal_g0_c_per_min",
+                                   "magnetic_dph_per_ut"};
+  if (with_axis) keys.push_back("axis");
+  CheckKeys(j, keys, what);
   m->bias_dph = JsonNumberOr(j, "bias_dph", m->bias_dph, what);
   m->arw_deg_per_sqrt_h = JsonNumberOr(j, "arw_deg_per_sqrt_h", m->arw_deg_per_sqrt_h, what);
   m->bias_instability_dph = JsonNumberOr(j, "bias_instability_dph", m->bias_instability_dph, what);
-  if (j.contains("bias_instability_tau_s")) m->bias_instability_tau_s = NumArray(j, "bias_instability_tau_s", what);
+  if (j.contains("bias_instability_tau_s")) m->bias_instability_tau_s = JsonNumbers(j, "bias_instability_tau_s", -1, what);
   m->rrw_dph_per_sqrt_h = JsonNumberOr(j, "rrw_dph_per_sqrt_h", m->rrw_dph_per_sqrt_h, what);
   m->quantization_arcsec = JsonNumberOr(j, "quantization_arcsec", m->quantization_arcsec, what);
   m->scale_factor_ppm = JsonNumberOr(j, "scale_factor_ppm", m->scale_factor_ppm, what);
   m->scale_factor_nonlinearity_ppm_per_dps =
       JsonNumberOr(j, "scale_factor_nonlinearity_ppm_per_dps", m->scale_factor_nonlinearity_ppm_per_dps, what);
   if (j.contains("misalignment_arcsec")) {
-    const auto v = NumArray(j, "misalignment_arcsec", what);
+    const auto v = JsonNumbers(j, "misalignment_arcsec", -1, what);
     if (v.size() != 2) throw InputError(what, "misalignment_arcsec must have 2 numbers");
     m->misalignment_arcsec[0] = v[0];
     m->misalignment_arcsec[1] = v[1];
   }
   m->time_delay_s = JsonNumberOr(j, "time_delay_s", m->time_delay_s, what);
   if (j.contains("thermal_k_dph")) {
-    const auto v = NumArray(j, "thermal_k_dph", what);
+    const auto v = JsonNumbers(j, "thermal_k_dph", -1, what);
     if (v.size() != ThermalDriftModel::kNumTerms) throw InputError(what, "thermal_k_dph must have 10 numbers (K00..K03)");
     std::copy(v.begin(), v.end(), m->thermal.k_dph.begin());
   }
@@ -135,7 +131,7 @@ void ApplyErrorModel(const Json& j, GyroErrorModel* m, const std::string& what) 
   m->thermal.t1_c = JsonNumberOr(j, "thermal_t1_c", m->thermal.t1_c, what);
   m->thermal.g0_c_per_min = JsonNumberOr(j, "thermal_g0_c_per_min", m->thermal.g0_c_per_min, what);
   if (j.contains("magnetic_dph_per_ut")) {
-    const auto v = NumArray(j, "magnetic_dph_per_ut", what);
+    const auto v = JsonNumbers(j, "magnetic_dph_per_ut", -1, what);
     if (v.size() != 3) throw InputError(what, "magnetic_dph_per_ut must be [along, across, vertical]");
     m->magnetic = {v[0], v[1], v[2]};
   }
@@ -145,21 +141,22 @@ void ApplyErrorModel(const Json& j, GyroErrorModel* m, const std::string& what) 
 
 GyroUnit GyroUnitFromJson(const Json& j, const std::string& file) {
   if (!j.is_object()) throw InputError(file, "unit must be a JSON object");
+  CheckKeys(j, {"rate_hz", "gyros", "default", "comment"}, file);
   if (!j.contains("gyros") || !j["gyros"].is_array()) throw InputError(file, "missing array 'gyros'");
   GyroErrorModel base;
-  if (j.contains("default")) ApplyErrorModel(j["default"], &base, file + ": default");
+  if (j.contains("default")) ApplyErrorModel(j["default"], &base, file + ": default", false);
   GyroUnit u;
   u.rate_hz = JsonNumberOr(j, "rate_hz", 100.0, file);
   int i = 0;
   for (const auto& g : j["gyros"]) {
     const std::string what = file + ": gyro " + std::to_string(++i);
     if (!g.is_object() || !g.contains("axis")) throw InputError(what, "missing field 'axis'");
-    const auto a = NumArray(g, "axis", what);
+    const auto a = JsonNumbers(g, "axis", -1, what);
     if (a.size() != 3) throw InputError(what, "axis must have 3 numbers");
     const Vec3 axis(a[0], a[1], a[2]);
     if (axis.norm() < 1e-9) throw InputError(what, "axis is zero");
     GyroErrorModel m = base;
-    ApplyErrorModel(g, &m, what);
+    ApplyErrorModel(g, &m, what, true);
     u.axes_body.push_back(axis.normalized());
     u.gyros.push_back(m);
   }

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <limits>
 
 #include "core/attitude.h"
 #include "core/error.h"
@@ -191,38 +192,20 @@ void FrameSimOptions::Check() const {
 
 FrameSimOptions FrameSimOptionsFromJson(const Json& j, const std::string& source) {
   if (!j.is_object()) throw InputError(source, "simulator config must be a JSON object");
+  std::vector<std::string> names = FrameSimOptionNames();
+  for (const char* n : {"shot_noise", "proper_motion", "aberration", "time_utc"}) names.push_back(n);
+  CheckKeys(j, names, source);
   FrameSimOptions o;
-  for (const auto& [key, value] : j.items()) {
-    bool known = false;
-    for (const auto& f : kDoubleFields) {
-      if (key == f.name) {
-        o.*f.ptr = JsonNumber(j, key, source);
-        known = true;
-      }
-    }
-    for (const auto& f : kIntFields) {
-      if (key == f.name) {
-        const double v = JsonNumber(j, key, source);
-        if (v != std::floor(v)) throw InputError(source, "field '" + key + "' must be a whole number");
-        o.*f.ptr = static_cast<int>(v);
-        known = true;
-      }
-    }
-    for (auto [name, ptr] : {std::pair{"shot_noise", &FrameSimOptions::shot_noise},
-                             std::pair{"proper_motion", &FrameSimOptions::proper_motion},
-                             std::pair{"aberration", &FrameSimOptions::aberration}}) {
-      if (key != name) continue;
-      if (!value.is_boolean()) throw InputError(source, "field '" + key + "' must be true or false");
-      o.*ptr = value.get<bool>();
-      known = true;
-    }
-    if (key == "time_utc") {
-      if (!value.is_string()) throw InputError(source, "field 'time_utc' must be an ISO 8601 UTC string");
-      o.time_utc = value.get<std::string>();
-      known = true;
-    }
-    if (!known) throw InputError(source, "unknown field '" + key + "'");
+  for (const auto& f : kDoubleFields) o.*f.ptr = JsonNumberOr(j, f.name, o.*f.ptr, source);
+  // Range checked before the conversion: 4294967299 must not wrap into another field's complaint.
+  for (const auto& f : kIntFields) {
+    o.*f.ptr = static_cast<int>(
+        JsonIntOr(j, f.name, o.*f.ptr, std::numeric_limits<int>::min(), std::numeric_limits<int>::max(), source));
   }
+  o.shot_noise = JsonBoolOr(j, "shot_noise", o.shot_noise, source);
+  o.proper_motion = JsonBoolOr(j, "proper_motion", o.proper_motion, source);
+  o.aberration = JsonBoolOr(j, "aberration", o.aberration, source);
+  o.time_utc = JsonStringOr(j, "time_utc", o.time_utc, source);
   try {
     o.Check();
   } catch (const InputError& e) {

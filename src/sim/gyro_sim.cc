@@ -151,12 +151,10 @@ void MotionProfile::Check(const std::string& file, int n_gyros) const {
 // noise_dph, stuck and end_s optional.
 GyroFault GyroFaultFromJson(const Json& f, const std::string& file) {
   if (!f.is_object()) throw InputError(file, "faults: each fault must be an object");
+  CheckKeys(f, {"gyro", "t_s", "step_dph", "ramp_dph_per_h", "ramp_dph_per_s", "noise_dph", "stuck", "end_s"},
+            file + ": faults");
   GyroFault g;
-  const double gyro = JsonNumber(f, "gyro", file);
-  if (!(gyro >= 1 && gyro <= kMaxGyros) || gyro != std::floor(gyro)) {
-    throw InputError(file, "faults: gyro must be an integer 1..6");
-  }
-  g.gyro = static_cast<int>(gyro);
+  g.gyro = static_cast<int>(JsonInt(f, "gyro", 1, kMaxGyros, file + ": faults"));
   g.t_s = JsonNumber(f, "t_s", file);
   g.step_dph = JsonNumberOr(f, "step_dph", 0, file);
   g.ramp_dph_per_h = JsonNumberOr(f, "ramp_dph_per_h", 0, file);
@@ -165,10 +163,7 @@ GyroFault GyroFaultFromJson(const Json& f, const std::string& file) {
     g.ramp_dph_per_h = 3600.0 * JsonNumber(f, "ramp_dph_per_s", file);
   }
   g.noise_dph = JsonNumberOr(f, "noise_dph", 0, file);
-  if (f.contains("stuck")) {
-    if (!f["stuck"].is_boolean()) throw InputError(file, "faults: field 'stuck' must be true or false");
-    g.stuck = f["stuck"].get<bool>();
-  }
+  g.stuck = JsonBoolOr(f, "stuck", g.stuck, file + ": faults");
   if (f.contains("end_s")) g.end_s = JsonNumber(f, "end_s", file);
   return g;
 }
@@ -183,6 +178,9 @@ Json GyroFault::ToJson() const {
 
 MotionProfile MotionProfileFromJson(const Json& j, const std::string& file) {
   if (!j.is_object()) throw InputError(file, "profile must be a JSON object");
+  CheckKeys(j, {"type", "latitude_deg", "azimuth_deg", "rate_dps", "period_s", "axis", "amplitude_dps",
+                "magnetic_field_ut", "q0", "temperature", "star_tracker", "faults", "comment"},
+            file);
   MotionProfile p;
   if (j.contains("type")) {
     if (!j["type"].is_string()) throw InputError(file, "field 'type' must be a string");
@@ -205,12 +203,14 @@ MotionProfile MotionProfileFromJson(const Json& j, const std::string& file) {
   if (p.type == "temperature") p.temperature.segments = {{600, 0}, {1200, 0.5}, {600, 0}, {1200, -0.5}};
   if (j.contains("temperature")) {
     const Json& t = j["temperature"];
+    CheckKeys(t, {"start_c", "segments"}, file + ": temperature");
     p.temperature.start_c = JsonNumberOr(t, "start_c", 20.0, file);
     p.temperature.segments.clear();
     if (t.contains("segments")) p.temperature.segments = Pairs(t, "segments", file);
   }
   if (j.contains("star_tracker")) {
     const Json& s = j["star_tracker"];
+    CheckKeys(s, {"rate_hz", "sigma_cross_arcsec", "sigma_roll_arcsec", "outages_s"}, file + ": star_tracker");
     p.st_rate_hz = JsonNumberOr(s, "rate_hz", p.st_rate_hz, file);
     p.st_sigma_cross_arcsec = JsonNumberOr(s, "sigma_cross_arcsec", p.st_sigma_cross_arcsec, file);
     p.st_sigma_roll_arcsec = JsonNumberOr(s, "sigma_roll_arcsec", p.st_sigma_roll_arcsec, file);

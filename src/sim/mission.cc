@@ -35,12 +35,6 @@ Quat QuatFromJsonArray(const Json& j, const std::string& key, const std::string&
   return FromWxyz(v[0], v[1], v[2], v[3], (file + ": " + key).c_str());
 }
 
-void CheckKeys(const Json& j, const std::set<std::string>& allowed, const std::string& file) {
-  for (auto it = j.begin(); it != j.end(); ++it) {
-    if (!allowed.count(it.key())) throw InputError(file, "unknown field '" + it.key() + "'");
-  }
-}
-
 // Deterministic, well-mixed per-frame seeds (splitmix64 finaliser).
 uint64_t Mix(uint64_t x) {
   x += 0x9E3779B97F4A7C15ull;
@@ -164,11 +158,7 @@ MissionConfig MissionConfigFromJson(const Json& j, const std::string& file) {
   MissionConfig c = DefaultMissionConfig();
   c.duration_s = JsonNumber(j, "duration_s", file);
   c.frame_rate_hz = JsonNumber(j, "frame_rate_hz", file);
-  const double seed = JsonNumber(j, "seed", file);
-  if (!(seed >= 0 && seed < 9e15) || seed != std::floor(seed)) {
-    throw InputError(file, "field 'seed' must be a whole number >= 0");
-  }
-  c.seed = static_cast<uint64_t>(seed);
+  c.seed = static_cast<uint64_t>(JsonInt(j, "seed", 0, 9000000000000000LL, file));
   c.score_after_s = JsonNumberOr(j, "score_after_s", std::min(c.score_after_s, 0.5 * c.duration_s), file);
 
   if (!j.contains("heads")) throw InputError(file, "missing field 'heads'");
@@ -219,10 +209,7 @@ MissionConfig MissionConfigFromJson(const Json& j, const std::string& file) {
     o.solution_sigma_scale = JsonNumberOr(p, "solution_sigma_scale", o.solution_sigma_scale, what);
     o.solution_sigma_floor_arcsec = JsonNumberOr(p, "solution_sigma_floor_arcsec", o.solution_sigma_floor_arcsec, what);
     o.correlated_fraction = JsonNumberOr(p, "correlated_fraction", o.correlated_fraction, what);
-    if (p.contains("fdi")) {
-      if (!p.at("fdi").is_boolean()) throw InputError(what, "field 'fdi' must be true or false");
-      o.fuse.fdi = p.at("fdi").get<bool>();
-    }
+    o.fuse.fdi = JsonBoolOr(p, "fdi", o.fuse.fdi, what);
   }
   c.Check(file);
   return c;

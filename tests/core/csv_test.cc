@@ -14,14 +14,7 @@ std::string Write(const std::string& dir, const std::string& name, const std::st
   return p;
 }
 
-std::string ErrorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "no error";
-}
+using testing::ErrorOf;
 
 TEST(Csv, ReadsColumnsAndKeepsUnknownOnes) {
   const std::string dir = testing::TempDir("csv");

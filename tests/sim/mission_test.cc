@@ -343,7 +343,7 @@ TEST(MissionConfig, BadConfigNamesTheFileAndField) {
   EXPECT_THAT(ConfigError(R"({"duration_s": 30, "frame_rate_hz": 1, "seed": 1, "heads": [{"camera": {"width": 512, "height": 512}, "q_body_sensor": [1, 0, 0, 0]}]})"),
               HasSubstr("cfg.json: heads[0].camera: missing field 'focal_length_px'"));
   EXPECT_THAT(ConfigError(R"({"duration_s": 30, "frame_rate_hz": 1, "seed": 1, "heads": [)" + head + R"(], "durations": 3})"),
-              HasSubstr("cfg.json: unknown field 'durations'"));
+              HasSubstr("cfg.json: unknown key 'durations' (did you mean 'duration_s'?)"));
   EXPECT_THAT(ConfigError(R"({"duration_s": 30, "frame_rate_hz": 1, "seed": 1, "heads": [)" + head +
                           R"(], "processor": {"correlated_fraction": 1.5}})"),
               HasSubstr("correlated_fraction must be in [0, 1]"));

@@ -7,6 +7,8 @@
 #include <cstdlib>
 #include <filesystem>
 
+#include "core/error.h"
+
 namespace ssiu::testing {
 namespace fs = std::filesystem;
 
@@ -63,6 +65,15 @@ SsiuResult RunSsiu(const std::string& args) {
 const StarCatalog& Bsc() {
   static const StarCatalog cat = LoadXplanetBsc(DefaultBscPath());
   return cat;
+}
+
+std::string ErrorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
 }
 
 }  // namespace ssiu::testing

@@ -5,6 +5,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <functional>
 #include <string>
 
 #include "core/attitude.h"
@@ -29,6 +30,9 @@ struct SsiuResult {
   std::string output;
 };
 SsiuResult RunSsiu(const std::string& args);
+
+// The message of the InputError `f` throws, or "no error".
+std::string ErrorOf(const std::function<void()>& f);
 
 // The bundled Bright Star Catalogue (LoadXplanetBsc(DefaultBscPath())), loaded once per test program.
 const StarCatalog& Bsc();
