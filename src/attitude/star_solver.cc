@@ -67,10 +67,7 @@ StarIdentifier MakeIdentifierForCamera(const std::string& dir, const Camera& cam
   b.mag_max = mag_max;
   const std::string src = source.empty() ? DefaultSourceFor(b.fov_deg) : source;
   if (dir.empty()) return StarIdentifier(LoadOrBuildCatalog(src, b));
-  if (std::ifstream(dir + "/catalog.bin")) return StarIdentifier(LoadSolverCatalog(dir));
-  SolverCatalog c = BuildSolverCatalog(LoadSourceCatalog(src), b);
-  SaveSolverCatalog(c, dir);
-  return StarIdentifier(std::move(c));
+  return StarIdentifier(LoadOrBuildCatalogIn(dir, src, b, /*rebuild_damaged=*/false));
 }
 
 std::vector<Centroid> CentroidsFromDetections(const Detections& d, double sigma_scale) {

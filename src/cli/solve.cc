@@ -13,6 +13,7 @@
 #include "cli/smear_flags.h"
 #include "core/attitude.h"
 #include "core/error.h"
+#include "core/image.h"
 #include "core/output.h"
 
 namespace ssiu::cli {
@@ -181,12 +182,12 @@ void RunHeads(const Opts& o) {
 SSIU_REGISTER_COMMAND(solve, [](CLI::App& root) {
   auto* cmd = root.add_subcommand("solve", "Lost-in-space attitude from a star frame (or centroids)");
   auto o = std::make_shared<Opts>();
-  cmd->add_option("frames", o->frames, "Frame (PNG/TIFF/FITS); with --heads one frame per head");
+  cmd->add_option("frames", o->frames, "Frame (PNG/TIFF/FITS); with --heads one frame per head (more than one frame needs --heads)");
   cmd->add_option("--camera", o->camera, "camera.json");
   cmd->add_option("--catalog", o->catalog, "Solver catalog directory (built there if absent; default: cache)");
   cmd->add_option("--centroids", o->centroids, "CSV x_px,y_px[,flux][,sigma_px] instead of a frame");
   cmd->add_option("--json", o->json, "Output JSON, - for stdout")->capture_default_str();
-  cmd->add_option("--overlay", o->overlay, "Overlay PNG with detected, matched and rejected objects");
+  cmd->add_option("--overlay", o->overlay, "Overlay PNG (FILE.png) with detected, matched and rejected objects");
   cmd->add_option("--wcs", o->wcs, "FITS TAN WCS header of the solution (TAN-SIP when the camera has distortion)");
   cmd->add_option("--heads", o->heads, "heads.json: up to three heads, fused into one body attitude");
   cmd->add_option("--dark", o->dark, "Dark/median frame subtracted before detection");
@@ -194,6 +195,13 @@ SSIU_REGISTER_COMMAND(solve, [](CLI::App& root) {
   AddSmearFlags(cmd, &o->smear, "sensor axes (with --heads: body axes)");
   AddSkyFlags(cmd, &o->sky);
   cmd->callback([o] {
+    // Usage checked before any work. The one place that decides how many frames a solve takes:
+    // several frames are the heads of one unit (--heads); batches of frames are not supported yet.
+    if (o->heads.empty() && o->frames.size() > 1) {
+      throw InputError("ssiu solve", std::to_string(o->frames.size()) +
+                                         " frames given: more than one frame needs --heads HEADS.json (one frame per head)");
+    }
+    if (!o->overlay.empty()) CheckPngOutputName(o->overlay);
     if (o->heads.empty()) {
       RunSingle(*o);
     } else {

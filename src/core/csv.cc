@@ -50,8 +50,8 @@ const std::vector<double>& CsvTable::Column(const std::string& name) const {
   for (size_t i = 0; i < header.size(); ++i) {
     if (header[i] != name) continue;
     if (first_bad_row_[i] >= 0) {
-      throw InputError(file, "row " + std::to_string(first_bad_row_[i]) + ", column '" + name +
-                                 "': not a finite decimal number");
+      throw InputError(file, "row " + std::to_string(first_bad_row_[i]) + ", column '" + name + "': " +
+                                 (why_bad_[i].empty() ? "not a finite decimal number" : why_bad_[i]));
     }
     return columns_[i];
   }
@@ -67,12 +67,33 @@ void CsvTable::CheckIncreasing(const std::string& name) const {
   }
 }
 
-void CsvTable::AddColumn(const std::string& name, std::vector<double> values, long first_bad_row) {
+void CsvTable::AddColumn(const std::string& name, std::vector<double> values, long first_bad_row,
+                         const std::string& why_bad) {
   if (!columns_.empty() && values.size() != rows_) throw std::logic_error("CsvTable: ragged column " + name);
   rows_ = values.size();
   header.push_back(name);
   columns_.push_back(std::move(values));
   first_bad_row_.push_back(first_bad_row);
+  why_bad_.push_back(why_bad);
+}
+
+bool PhysicalBound(const std::string& column, double* lo, double* hi, std::string* text) {
+  auto ends = [&](const char* suffix) {
+    const std::string x(suffix);
+    return column.size() >= x.size() && column.compare(column.size() - x.size(), x.size(), x) == 0;
+  };
+  if (ends("_dph")) {
+    *lo = -3.6e6, *hi = 3.6e6, *text = "|rate| <= 3.6e6 deg/h (1000 deg/s)";
+  } else if (ends("_dps")) {
+    *lo = -1000, *hi = 1000, *text = "|rate| <= 1000 deg/s";
+  } else if (ends("_c")) {
+    *lo = -273.15, *hi = 1000, *text = "-273.15 <= temperature <= 1000 deg C";
+  } else if (ends("_ut")) {
+    *lo = -1e6, *hi = 1e6, *text = "|field| <= 1e6 uT (1 T)";
+  } else {
+    return false;
+  }
+  return true;
 }
 
 CsvTable ReadCsv(const std::string& path) {
@@ -87,6 +108,14 @@ CsvTable ReadCsv(const std::string& path) {
   }
   std::vector<std::vector<double>> cols(names.size());
   std::vector<long> bad(names.size(), -1);
+  std::vector<std::string> why(names.size());
+  struct Bound {
+    bool on = false;
+    double lo = 0, hi = 0;
+    std::string text;
+  };
+  std::vector<Bound> bounds(names.size());
+  for (size_t i = 0; i < names.size(); ++i) bounds[i].on = PhysicalBound(names[i], &bounds[i].lo, &bounds[i].hi, &bounds[i].text);
   long row = 0;
   while (std::getline(in, line)) {
     if (Trim(line).empty()) continue;
@@ -100,13 +129,17 @@ CsvTable ReadCsv(const std::string& path) {
       double v = 0;
       const bool ok = ParseDecimal(cells[i], &v);
       if (!ok && bad[i] < 0) bad[i] = row;
+      if (ok && bounds[i].on && !(v >= bounds[i].lo && v <= bounds[i].hi) && bad[i] < 0) {
+        bad[i] = row;
+        why[i] = cells[i] + " is physically impossible (" + bounds[i].text + ")";
+      }
       cols[i].push_back(ok ? v : std::nan(""));
     }
   }
   if (row == 0) throw InputError(path, "no data rows");
   CsvTable t;
   t.file = path;
-  for (size_t i = 0; i < names.size(); ++i) t.AddColumn(names[i], std::move(cols[i]), bad[i]);
+  for (size_t i = 0; i < names.size(); ++i) t.AddColumn(names[i], std::move(cols[i]), bad[i], why[i]);
   return t;
 }
 

@@ -20,14 +20,23 @@ class CsvTable {
   // Throws InputError unless the column strictly increases.
   void CheckIncreasing(const std::string& name) const;
 
-  // Used by ReadCsv and by code that builds tables in memory.
-  void AddColumn(const std::string& name, std::vector<double> values, long first_bad_row = -1);
+  // Used by ReadCsv and by code that builds tables in memory. first_bad_row: 1-based data row of the
+  // first bad cell (-1 if none) and why it is bad (default: not a finite decimal number).
+  void AddColumn(const std::string& name, std::vector<double> values, long first_bad_row = -1,
+                 const std::string& why_bad = "");
 
  private:
   size_t rows_ = 0;
   std::vector<std::vector<double>> columns_;
-  std::vector<long> first_bad_row_;  // 1-based data row of the first non-number, -1 if none
+  std::vector<long> first_bad_row_;  // 1-based data row of the first bad cell, -1 if none
+  std::vector<std::string> why_bad_;
 };
+
+// Physical bounds of a column, by the unit its name carries (conventions: names carry units):
+// `_dph` |rate| <= 3.6e6 deg/h (1000 deg/s, beyond any gyro's range), `_dps` |rate| <= 1000 deg/s,
+// `temp_c` / `_c` in [-273.15, 1000] deg C, `_ut` |field| <= 1e6 uT (1 T). A cell outside is refused
+// when its column is used, naming the row and column; other columns are unbounded. false if none.
+bool PhysicalBound(const std::string& column, double* lo, double* hi, std::string* text);
 
 // A CSV number: decimal, as in "-1.5e-3" (strtod alone also takes "0x10", "inf" and "nan"); false
 // for anything else or a value that is not finite.

@@ -244,12 +244,97 @@ void CheckFrameContent(const Frame& fr) {
   }
 }
 
-Frame ReadFrame(const std::string& path) {
+ImageLimits ImageLimits::FromEnvironment() {
+  ImageLimits l;
+  auto env = [](const char* name, int64_t lo, int64_t hi, int64_t* out, int64_t unit) {
+    const char* v = std::getenv(name);
+    if (!v || !*v) return;
+    char* end = nullptr;
+    const double d = std::strtod(v, &end);
+    if (*end != '\0' || !(d >= static_cast<double>(lo) && d <= static_cast<double>(hi))) {
+      throw InputError(name, std::string("must be a number in [") + std::to_string(lo) + ", " + std::to_string(hi) + "], not '" + v + "'");
+    }
+    *out = static_cast<int64_t>(d) * unit;
+  };
+  env("SSIU_MAX_IMAGE_SIDE_PX", 16, 65536, &l.max_side_px, 1);
+  env("SSIU_MAX_INPUT_MB", 1, 1 << 20, &l.max_file_bytes, int64_t{1} << 20);
+  return l;
+}
+
+bool DeclaredImageSize(const std::string& path, int64_t* width, int64_t* height) {
+  std::ifstream in(path, std::ios::binary);
+  unsigned char b[32] = {0};
+  in.read(reinterpret_cast<char*>(b), sizeof b);
+  const std::streamsize n = in.gcount();
+  auto be32 = [&](int i) { return (uint32_t(b[i]) << 24) | (uint32_t(b[i + 1]) << 16) | (uint32_t(b[i + 2]) << 8) | b[i + 3]; };
+  if (n >= 24 && b[0] == 0x89 && b[1] == 'P' && b[2] == 'N' && b[3] == 'G' && std::string(b + 12, b + 16) == "IHDR") {
+    *width = be32(16), *height = be32(20);  // PNG 11.2.2: IHDR is the first chunk
+    return true;
+  }
+  if (n >= 8 && ((b[0] == 'I' && b[1] == 'I' && b[2] == 42 && b[3] == 0) || (b[0] == 'M' && b[1] == 'M' && b[2] == 0 && b[3] == 42))) {
+    // TIFF 6.0 section 2: the first IFD's ImageWidth (256) and ImageLength (257), SHORT or LONG.
+    const bool le = b[0] == 'I';
+    auto u = [&](const unsigned char* p, int bytes) {
+      uint32_t v = 0;
+      for (int i = 0; i < bytes; ++i) v |= uint32_t(p[le ? i : bytes - 1 - i]) << (8 * i);
+      return v;
+    };
+    const uint32_t ifd = u(b + 4, 4);
+    in.clear();
+    in.seekg(ifd);
+    unsigned char cnt[2];
+    if (!in.read(reinterpret_cast<char*>(cnt), 2)) return false;
+    const uint32_t entries = u(cnt, 2);
+    int64_t w = -1, h = -1;
+    for (uint32_t k = 0; k < entries && k < 4096; ++k) {
+      unsigned char e[12];
+      if (!in.read(reinterpret_cast<char*>(e), 12)) return false;
+      const uint32_t tag = u(e, 2), type = u(e + 2, 2);
+      const uint32_t value = type == 3 ? u(e + 8, 2) : u(e + 8, 4);
+      if (tag == 256) w = value;
+      if (tag == 257) h = value;
+    }
+    if (w < 0 || h < 0) return false;
+    *width = w, *height = h;
+    return true;
+  }
+  if (n >= 9 && std::string(b, b + 9) == "SIMPLE  =") {
+    fitsfile* f = nullptr;
+    int status = 0, naxis = 0;
+    long naxes[2] = {0, 0};
+    if (fits_open_diskfile(&f, path.c_str(), READONLY, &status)) return false;
+    fits_get_img_dim(f, &naxis, &status);
+    if (!status && naxis >= 2) fits_get_img_size(f, 2, naxes, &status);
+    int s2 = 0;
+    fits_close_file(f, &s2);
+    if (status || naxis < 2) return false;
+    *width = naxes[0], *height = naxes[1];
+    return true;
+  }
+  return false;
+}
+
+Frame ReadFrame(const std::string& path) { return ReadFrame(path, ImageLimits::FromEnvironment()); }
+
+Frame ReadFrame(const std::string& path, const ImageLimits& limits) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw InputError(path, "no such file");
   if (std::filesystem::is_directory(path, ec)) throw InputError(path, "is a directory, not an image");
-  if (std::filesystem::file_size(path, ec) == 0) throw InputError(path, "file is empty");
+  const auto bytes = std::filesystem::file_size(path, ec);
+  if (!ec && bytes == 0) throw InputError(path, "file is empty");
+  if (!ec && static_cast<int64_t>(bytes) > limits.max_file_bytes) {
+    throw InputError(path, std::to_string(bytes) + " bytes, more than the input limit of " +
+                               std::to_string(limits.max_file_bytes) + " (SSIU_MAX_INPUT_MB)");
+  }
+  int64_t w = 0, h = 0;
+  if (DeclaredImageSize(path, &w, &h) && (w > limits.max_side_px || h > limits.max_side_px)) {
+    throw InputError(path, "declares " + std::to_string(w) + " x " + std::to_string(h) + " pixels, more than the limit of " +
+                               std::to_string(limits.max_side_px) + " per side (SSIU_MAX_IMAGE_SIDE_PX)");
+  }
   Frame fr = (IsFitsName(path) || HasFitsMagic(path)) ? ReadFits(path) : ReadRaster(path);
+  if (fr.image.width > limits.max_side_px || fr.image.height > limits.max_side_px) {
+    throw InputError(path, "image is larger than the limit of " + std::to_string(limits.max_side_px) + " px per side");
+  }
   CheckFrameContent(fr);
   return fr;
 }
@@ -272,13 +357,17 @@ Frame SubtractDark(const Frame& frame, const Frame& dark, double pedestal_adu) {
   return out;
 }
 
+void CheckPngOutputName(const std::string& path) {
+  const std::string ext = Lower(std::filesystem::path(path).extension().string());
+  if (!ext.empty() && ext != ".png") {
+    throw InputError(path, "unsupported extension '" + ext + "': this output is a PNG (give FILE.png)");
+  }
+}
+
 void WritePng(const std::string& path, const cv::Mat& m) {
   // The format is PNG whatever the name says: a name with another extension is a usage error (once an
   // OpenCV exception, exit 2), a name without one (or a device such as /dev/stdout) is fine.
-  const std::string ext = std::filesystem::path(path).extension().string();
-  if (!ext.empty() && ext != ".png" && ext != ".PNG") {
-    throw InputError(path, "unsupported extension '" + ext + "': this output is a PNG (give FILE.png)");
-  }
+  CheckPngOutputName(path);
   std::vector<uchar> png;
   bool ok = false;
   try {

@@ -55,6 +55,20 @@ struct Frame {
 // corrupt, truncated, wrongly typed, constant (all-zero / all-saturated) or mostly saturated image.
 Frame ReadFrame(const std::string& path);
 
+// Limits checked before any pixel is allocated: an 8 MB PNG can declare 65536 x 65536 pixels
+// (8.6 GB). The defaults are sized for star trackers (the largest sensors flown are near 4k x 4k);
+// $SSIU_MAX_IMAGE_SIDE_PX and $SSIU_MAX_INPUT_MB override them (docs/conventions.md).
+struct ImageLimits {
+  int64_t max_side_px = 16384;                // width and height each
+  int64_t max_file_bytes = int64_t{2} << 30;  // 2 GiB: a 16k x 16k 64-bit FITS frame
+  static ImageLimits FromEnvironment();       // the defaults, overridden by the variables above
+};
+// ReadFrame with explicit limits; InputError naming the file and the limit when one is exceeded.
+Frame ReadFrame(const std::string& path, const ImageLimits& limits);
+// The width and height an image file declares in its header (PNG IHDR, TIFF first IFD, FITS NAXISn),
+// read without decoding; false when the format is not one of these or the header is unreadable.
+bool DeclaredImageSize(const std::string& path, int64_t* width, int64_t* height);
+
 // Rejects images that carry no usable signal; `file` names the source in the message.
 void CheckFrameContent(const Frame& frame);
 
@@ -66,6 +80,8 @@ Frame SubtractDark(const Frame& frame, const Frame& dark, double pedestal_adu = 
 // PNG outputs, written atomically (core/output.h); InputError naming the file when it cannot be
 // written or its name has an extension other than .png.
 void WritePng(const std::string& path, const cv::Mat& image);
+// InputError unless `path` names a PNG (extension .png, or none): checked before work is done.
+void CheckPngOutputName(const std::string& path);
 void WritePng16(const std::string& path, const Image16& image);
 void WritePng8(const std::string& path, int width, int height, const std::vector<uint8_t>& pixels);
 // 16-bit FITS (BITPIX 16 with BZERO 32768), first stored row = y 0.

@@ -1,6 +1,7 @@
 #include "core/output.h"
 
 #include <fcntl.h>
+#include <libdeflate.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -129,5 +130,7 @@ void WriteFileViaTemp(const std::string& path, const std::function<void(const st
   SyncAndRename(temp.path, target, path);
   temp.keep = true;
 }
+
+uint32_t Crc32(const void* data, size_t bytes) { return libdeflate_crc32(0, data, bytes); }
 
 }  // namespace ssiu

@@ -6,6 +6,8 @@
 // are written directly and the stream is checked; "-" is stdout.
 #pragma once
 
+#include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <iosfwd>
 #include <string>
@@ -20,5 +22,8 @@ void WriteFileAtomic(const std::string& path, const std::string& bytes);
 // For writers that need a path of their own (cfitsio): `write(temp_path)` creates the file at
 // temp_path (which keeps the target's extension), then it is checked and renamed to `path`.
 void WriteFileViaTemp(const std::string& path, const std::function<void(const std::string& temp_path)>& write);
+
+// CRC-32 (ISO 3309, as zlib and PNG) of a buffer, to tie a data file to its metadata.
+uint32_t Crc32(const void* data, size_t bytes);
 
 }  // namespace ssiu

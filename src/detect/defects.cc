@@ -73,10 +73,20 @@ DefectMap LoadDefectMap(const std::string& path) {
   m.width = f.image.width;
   m.height = f.image.height;
   m.mask.resize(f.image.pixels.size());
-  const double full = f.bit_depth == 8 ? 255.0 : 65535.0;
+  // A map holds only the levels SaveDefectMap writes (8-bit 0, 64, 128, 255; the same levels scaled
+  // to 16 bits): anything else, such as a star frame given by mistake, is refused at its first pixel.
+  const int scale = f.bit_depth == 8 ? 1 : 257;
   for (size_t i = 0; i < m.mask.size(); ++i) {
-    const double v = f.image.pixels[i] / full;
-    m.mask[i] = v > 0.75 ? 1 : (v > 0.25 ? 2 : (v > 0 ? 3 : 0));
+    const int v = f.image.pixels[i];
+    if (v == 0) m.mask[i] = 0;
+    else if (v == 255 * scale) m.mask[i] = 1;
+    else if (v == 128 * scale) m.mask[i] = 2;
+    else if (v == 64 * scale) m.mask[i] = 3;
+    else {
+      throw InputError(path, "not a defect map: pixel (" + std::to_string(i % m.width) + ", " + std::to_string(i / m.width) +
+                                 ") is " + std::to_string(v) + "; a map holds only 0 (good), 255 (hot), 128 (dead) and 64 (other)" +
+                                 (scale > 1 ? " times 257" : ""));
+    }
   }
   return m;
 }

@@ -1,6 +1,9 @@
 #include "identify/star_catalog.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
@@ -18,6 +21,7 @@
 #include "core/attitude.h"
 #include "core/error.h"
 #include "core/json.h"
+#include "core/output.h"
 #include "identify/sky_grid.h"
 
 namespace ssiu {
@@ -350,36 +354,34 @@ SolverCatalog BuildSolverCatalog(const StarCatalog& stars, const CatalogBuildOpt
 
 void SaveSolverCatalog(const SolverCatalog& cat, const std::string& dir) {
   MakeDirs(dir);
-  {
-    const std::string path = dir + "/catalog.bin";
-    std::ofstream out(path, std::ios::binary);
-    if (!out) throw InputError(path, "cannot write");
-    auto put = [&](const void* p, size_t n) { out.write(static_cast<const char*>(p), static_cast<std::streamsize>(n)); };
-    put(kMagic, 8);
-    const double hdr[5] = {cat.epoch_year, cat.fov_deg, cat.mag_max, cat.double_star_arcsec, cat.build_time_s};
-    put(hdr, sizeof hdr);
-    const int64_t counts[4] = {static_cast<int64_t>(cat.stars.size()), static_cast<int64_t>(cat.triangles.size()),
-                               cat.num_pattern_stars, cat.pattern_neighbours};
-    put(counts, sizeof counts);
-    const int64_t slen = static_cast<int64_t>(cat.source.size());
-    put(&slen, 8);
-    put(cat.source.data(), cat.source.size());
-    for (const auto& s : cat.stars) {
-      const double d[5] = {s.ra_rad, s.dec_rad, s.mag, s.pm_ra_rad_per_yr, s.pm_dec_rad_per_yr};
-      put(&s.id, sizeof s.id);
-      put(d, sizeof d);
-    }
-    for (const auto& t : cat.triangles) put(t.v.data(), sizeof t.v);
-    if (!out) throw InputError(path, "write failed");
+  // meta.json goes first and comes back last: a directory without it is a build in progress (or
+  // killed), never a catalog, and its checksum ties it to this very catalog.bin.
+  std::remove((dir + "/meta.json").c_str());
+  std::ostringstream out(std::ios::binary);
+  auto put = [&](const void* p, size_t n) { out.write(static_cast<const char*>(p), static_cast<std::streamsize>(n)); };
+  put(kMagic, 8);
+  const double hdr[5] = {cat.epoch_year, cat.fov_deg, cat.mag_max, cat.double_star_arcsec, cat.build_time_s};
+  put(hdr, sizeof hdr);
+  const int64_t counts[4] = {static_cast<int64_t>(cat.stars.size()), static_cast<int64_t>(cat.triangles.size()),
+                             cat.num_pattern_stars, cat.pattern_neighbours};
+  put(counts, sizeof counts);
+  const int64_t slen = static_cast<int64_t>(cat.source.size());
+  put(&slen, 8);
+  put(cat.source.data(), cat.source.size());
+  for (const auto& s : cat.stars) {
+    const double d[5] = {s.ra_rad, s.dec_rad, s.mag, s.pm_ra_rad_per_yr, s.pm_dec_rad_per_yr};
+    put(&s.id, sizeof s.id);
+    put(d, sizeof d);
   }
-  {
-    const std::string path = dir + "/stars.csv";
-    std::ofstream out(path);
-    out << "star_id,ra_deg,dec_deg,mag,pm_ra_mas_per_yr,pm_dec_mas_per_yr\n" << std::setprecision(10);
+  for (const auto& t : cat.triangles) put(t.v.data(), sizeof t.v);
+  const std::string bin = out.str();
+  WriteFileAtomic(dir + "/catalog.bin", bin);
+  WriteFileAtomic(dir + "/stars.csv", [&](std::ostream& csv) {
+    csv << "star_id,ra_deg,dec_deg,mag,pm_ra_mas_per_yr,pm_dec_mas_per_yr\n" << std::setprecision(10);
     for (const auto& s : cat.stars)
-      out << s.id << ',' << s.ra_rad * kRadToDeg << ',' << s.dec_rad * kRadToDeg << ',' << s.mag << ','
+      csv << s.id << ',' << s.ra_rad * kRadToDeg << ',' << s.dec_rad * kRadToDeg << ',' << s.mag << ','
           << s.pm_ra_rad_per_yr * kRadToArcsec * 1000 << ',' << s.pm_dec_rad_per_yr * kRadToArcsec * 1000 << '\n';
-  }
+  });
   Json meta = {{"source", cat.source},
                {"epoch_year", cat.epoch_year},
                {"fov_deg", cat.fov_deg},
@@ -390,12 +392,52 @@ void SaveSolverCatalog(const SolverCatalog& cat, const std::string& dir) {
                {"triangles", cat.triangles.size()},
                {"pattern_neighbours", cat.pattern_neighbours},
                {"index_bytes", cat.IndexBytes()},
-               {"build_time_s", cat.build_time_s}};
+               {"build_time_s", cat.build_time_s},
+               {"catalog_bin_bytes", bin.size()},
+               {"catalog_bin_crc32", Crc32(bin.data(), bin.size())}};
   WriteJsonFile(dir + "/meta.json", meta);
+}
+
+CatalogDirState CheckCatalogDir(const std::string& dir, std::string* why) {
+  const std::string bin_path = dir + "/catalog.bin", meta_path = dir + "/meta.json";
+  if (!FileExists(meta_path)) {
+    if (why) *why = FileExists(bin_path) ? "no meta.json (a build that did not finish)" : "no catalog";
+    return FileExists(bin_path) ? CatalogDirState::kIncomplete : CatalogDirState::kAbsent;
+  }
+  try {
+    const Json meta = ReadJsonFile(meta_path);
+    const int64_t bytes = JsonInt(meta, "catalog_bin_bytes", 0, int64_t{1} << 40, meta_path);
+    const int64_t crc = JsonInt(meta, "catalog_bin_crc32", 0, 0xffffffffLL, meta_path);
+    std::ifstream in(bin_path, std::ios::binary);
+    if (!in) throw InputError(bin_path, "missing");
+    std::ostringstream data;
+    data << in.rdbuf();
+    const std::string bin = data.str();
+    if (static_cast<int64_t>(bin.size()) != bytes) {
+      throw InputError(bin_path, "damaged: " + std::to_string(bin.size()) + " bytes, meta.json records " + std::to_string(bytes));
+    }
+    if (Crc32(bin.data(), bin.size()) != static_cast<uint32_t>(crc)) {
+      throw InputError(bin_path, "damaged: its CRC-32 differs from the one meta.json records");
+    }
+  } catch (const InputError& e) {
+    if (why) *why = e.what();
+    return CatalogDirState::kDamaged;
+  }
+  return CatalogDirState::kOk;
 }
 
 SolverCatalog LoadSolverCatalog(const std::string& dir) {
   const std::string path = dir + "/catalog.bin";
+  std::string why;
+  switch (CheckCatalogDir(dir, &why)) {
+    case CatalogDirState::kAbsent:
+      throw InputError(path, "cannot open built catalog (run `ssiu catalog build`)");
+    case CatalogDirState::kIncomplete:
+    case CatalogDirState::kDamaged:
+      throw InputError(dir, "damaged catalog: " + why + "; delete it or rebuild it with `ssiu catalog build --out DIR`");
+    case CatalogDirState::kOk:
+      break;
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "cannot open built catalog (run `ssiu catalog build`)");
   auto get = [&](void* p, size_t n) {
@@ -463,19 +505,48 @@ SolverCatalog LoadOrBuildCatalog(const std::string& source_path, const CatalogBu
                 o.mag_max, o.epoch_year, o.double_star_arcsec, o.pattern_stars_per_fov, o.stars_per_fov,
                 o.pattern_neighbours);
   const std::string dir = CatalogCacheDir() + "/" + key;
-  if (FileExists(dir + "/catalog.bin")) {
-    try {
-      return LoadSolverCatalog(dir);
-    } catch (const InputError&) {
-      // Corrupt cache: rebuild below.
+  try {
+    return LoadOrBuildCatalogIn(dir, source_path, o, /*rebuild_damaged=*/true);
+  } catch (const InputError&) {
+    // Read-only or unusable cache location: use the catalog without caching it.
+    return BuildSolverCatalog(LoadSourceCatalog(source_path), o);
+  }
+}
+
+SolverCatalog LoadOrBuildCatalogIn(const std::string& dir, const std::string& source_path, const CatalogBuildOptions& o,
+                                   bool rebuild_damaged) {
+  o.Check();
+  MakeDirs(dir);
+  // One builder at a time per directory: the others wait here, then find its catalog complete.
+  const std::string lock_path = dir + "/.lock";
+  const int fd = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0 || ::flock(fd, LOCK_EX) != 0) {
+    if (fd >= 0) ::close(fd);
+    throw InputError(lock_path, "cannot lock the catalog directory");
+  }
+  struct Unlock {
+    int fd;
+    ~Unlock() { ::close(fd); }  // closing releases the flock
+  } unlock{fd};
+  std::string why;
+  const CatalogDirState state = CheckCatalogDir(dir, &why);
+  if (state == CatalogDirState::kOk) {
+    SolverCatalog cat = LoadSolverCatalog(dir);
+    // A pattern index for another field of view finds few or wrong triangles (issue 16).
+    if (!(std::abs(cat.fov_deg / o.fov_deg - 1) <= kCatalogFovTolerance)) {
+      char msg[256];
+      std::snprintf(msg, sizeof msg, "catalog built for a %.2f deg field of view, this camera needs %.2f deg "
+                    "(more than %.0f%% apart): give another --catalog or delete this one to rebuild it",
+                    cat.fov_deg, o.fov_deg, 100 * kCatalogFovTolerance);
+      throw InputError(dir, msg);
     }
+    return cat;
+  }
+  if (state == CatalogDirState::kDamaged && !rebuild_damaged) {
+    throw InputError(dir, "damaged catalog: " + why + "; delete it or rebuild it with `ssiu catalog build --out DIR`");
   }
   SolverCatalog cat = BuildSolverCatalog(LoadSourceCatalog(source_path), o);
-  try {
-    SaveSolverCatalog(cat, dir);
-  } catch (const InputError&) {
-    // Read-only cache location: use the catalog without caching it.
-  }
+  SaveSolverCatalog(cat, dir);
   return cat;
 }
 

@@ -93,9 +93,26 @@ SolverCatalog BuildSolverCatalog(const SourceCatalog& source, const CatalogBuild
 SolverCatalog BuildSolverCatalog(const StarCatalog& stars, const CatalogBuildOptions& options);
 
 // DIR/stars.csv (human-readable table), DIR/catalog.bin (stars and triangle vertices, loaded back;
-// triangle features are recomputed from the star positions), DIR/meta.json.
+// triangle features are recomputed from the star positions), DIR/meta.json (the parameters it was
+// built for, and catalog.bin's size and CRC-32). Every file is written atomically and meta.json last,
+// so a directory without meta.json is a build that did not finish.
 void SaveSolverCatalog(const SolverCatalog& catalog, const std::string& dir);
-SolverCatalog LoadSolverCatalog(const std::string& dir);  // InputError naming the file
+// InputError naming the file; a damaged directory (size or checksum differing from meta.json, or no
+// meta.json) is refused with the reason.
+SolverCatalog LoadSolverCatalog(const std::string& dir);
+
+enum class CatalogDirState { kAbsent, kIncomplete, kDamaged, kOk };
+// Checks a catalog directory against its meta.json without parsing it; `why` says what is wrong.
+CatalogDirState CheckCatalogDir(const std::string& dir, std::string* why = nullptr);
+
+// A built catalog serves cameras whose horizontal FOV is within this fraction of the one it was built for.
+constexpr double kCatalogFovTolerance = 0.10;
+// The catalog in `dir`: loaded when complete (refused when built for another FOV, see
+// kCatalogFovTolerance), built there when absent or unfinished, and when damaged rebuilt
+// (rebuild_damaged, the cache) or refused with the reason (a directory the user gave). Builders
+// of one directory are serialised by a lock file (DIR/.lock), so concurrent runs cannot tear it.
+SolverCatalog LoadOrBuildCatalogIn(const std::string& dir, const std::string& source_path,
+                                   const CatalogBuildOptions& options, bool rebuild_damaged);
 
 // The cache directory for built catalogs: $SSIU_CATALOG_DIR, else $XDG_CACHE_HOME/ssiu/catalog,
 // else ~/.cache/ssiu/catalog.
