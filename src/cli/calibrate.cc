@@ -77,14 +77,9 @@ void RunHeads(const Opts& o) {
   std::vector<Quat> mounts;
   for (size_t h = 0; h < nh; ++h) {
     const std::string where = o.heads + ": head " + std::to_string(h);
-    if (!hj[h].is_object() || !hj[h].contains("camera") || !hj[h].contains("q_body_sensor") ||
-        !hj[h]["q_body_sensor"].is_array() || hj[h]["q_body_sensor"].size() != 4)
-      throw InputError(where, "needs \"camera\" and \"q_body_sensor\": [w,x,y,z]");
-    cams.push_back(CameraFromJson(hj[h]["camera"], where + ": camera"));
-    const auto& qj = hj[h]["q_body_sensor"];
-    for (const auto& v : qj)
-      if (!v.is_number()) throw InputError(where, "q_body_sensor must hold numbers");
-    mounts.push_back(FromWxyz(qj[0], qj[1], qj[2], qj[3], "q_body_sensor"));
+    cams.emplace_back();
+    mounts.emplace_back();
+    HeadFromJson(hj[h], where, &cams.back(), &mounts.back());
   }
   std::vector<CameraCalibration> cals;
   std::vector<std::vector<AttitudeSolution>> att(ne, std::vector<AttitudeSolution>(nh));

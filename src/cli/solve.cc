@@ -109,11 +109,9 @@ void RunHeads(const Opts& o) {
   double heads_ms = 0;  // read excluded: detect + identify + attitude of every head
   for (size_t h = 0; h < hj.size(); ++h) {
     const std::string where = o.heads + ": head " + std::to_string(h);
-    CheckKeys(hj[h], {"camera", "q_body_sensor"}, where);
-    if (!hj[h].contains("camera")) throw InputError(where, "missing field 'camera'");
-    const Camera cam = CameraFromJson(hj[h]["camera"], where + ": camera");
-    const std::vector<double> qj = JsonNumbers(hj[h], "q_body_sensor", 4, where);
-    mounts.push_back(FromWxyz(qj[0], qj[1], qj[2], qj[3], (where + ": q_body_sensor").c_str()));
+    Camera cam;
+    mounts.emplace_back();
+    HeadFromJson(hj[h], where, &cam, &mounts.back());
     const StarIdentifier id = MakeIdentifier(o, cam);
     const Frame fr = ReadFrame(o.frames[h]);
     SolveOptions so = o.solve;

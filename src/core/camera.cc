@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/attitude.h"
 #include "core/error.h"
 
 namespace ssiu {
@@ -96,7 +97,7 @@ Camera MakeCamera(int width, int height, double fov_x_deg) {
 Camera CameraFromJson(const Json& j, const std::string& source) {
   if (!j.is_object()) throw InputError(source, "camera must be a JSON object");
   CheckKeys(j, {"width", "height", "focal_length_px", "focal_length_mm", "pixel_pitch_um", "principal_point",
-                "distortion", "gain_e_per_adu", "psf_sigma_px", "psf_ellipticity", "psf_angle_deg"},
+                "distortion", "gain_e_per_adu", "psf_sigma_px", "psf_ellipticity", "psf_angle_deg", "focal_length_y_px"},
             source);
   Camera c;
   c.width = static_cast<int>(JsonInt(j, "width", 16, 65536, source));
@@ -135,6 +136,14 @@ Camera CameraFromJson(const Json& j, const std::string& source) {
   for (const char* k : {"psf_sigma_px", "psf_ellipticity", "psf_angle_deg"}) JsonNumberOr(j, k, 0, source);
   c.Check(source);
   return c;
+}
+
+void HeadFromJson(const Json& j, const std::string& where, Camera* camera, Quat* q_body_from_sensor) {
+  CheckKeys(j, {"camera", "q_body_sensor"}, where);
+  if (!j.contains("camera")) throw InputError(where, "missing field 'camera'");
+  *camera = CameraFromJson(j.at("camera"), where + ": camera");
+  const std::vector<double> q = JsonNumbers(j, "q_body_sensor", 4, where);
+  *q_body_from_sensor = FromWxyz(q[0], q[1], q[2], q[3], (where + ": q_body_sensor").c_str());
 }
 
 Camera LoadCamera(const std::string& path) { return CameraFromJson(ReadJsonFile(path), path); }

@@ -62,5 +62,8 @@ Camera MakeCamera(int width, int height, double fov_x_deg);
 Camera CameraFromJson(const Json& j, const std::string& source);
 Camera LoadCamera(const std::string& path);
 Json CameraToJson(const Camera& c);
+// One entry of heads.json (conventions): {"camera": {camera.json}, "q_body_sensor": [w,x,y,z]}, read
+// strictly; `where` names the file and head in errors.
+void HeadFromJson(const Json& j, const std::string& where, Camera* camera, Quat* q_body_from_sensor);
 
 }  // namespace ssiu
