@@ -126,7 +126,7 @@ void CheckKeys(const Json& j, const std::vector<std::string>& allowed, const std
 double JsonNumber(const Json& j, const std::string& key, const std::string& file) {
   if (!j.is_object() || !j.contains(key)) throw InputError(file, "missing " + Field(key));
   const Json& v = j.at(key);
-  if (!v.is_number()) throw InputError(file, Field(key) + " must be a number, not " + TypeName(v));
+  if (!v.is_number()) throw InputError(file, Field(key) + " is not a number (it is " + TypeName(v) + ")");
   const double d = v.get<double>();
   if (!std::isfinite(d)) throw InputError(file, Field(key) + " is not finite");
   return d;

@@ -46,7 +46,7 @@ TEST_F(StrictInputsCli, CameraJsonMisspeltDuplicateAndWrongTypeKeys) {
   const std::string d = Write("cam_dup.json", std::string("{") + kCam + R"(, "focal_length_px": 1500})");
   ExpectRefused("simulate frame --camera " + d + out, "cam_dup.json", {"duplicate key 'focal_length_px'"});
   const std::string e = Write("cam_type.json", R"({"width": "512", "height": 512, "focal_length_px": 1750})");
-  ExpectRefused("simulate frame --camera " + e + out, "cam_type.json", {"'width'", "must be a number"});
+  ExpectRefused("simulate frame --camera " + e + out, "cam_type.json", {"'width'", "is not a number"});
   const std::string f = Write("cam_int.json", R"({"width": 4294967808, "height": 512, "focal_length_px": 1750})");
   ExpectRefused("simulate frame --camera " + f + out, "cam_int.json", {"'width'", "whole number"});
 }
@@ -73,7 +73,7 @@ TEST_F(StrictInputsCli, UnitJsonAndGyroFaultProfile) {
   const std::string p = Write("profile.json", R"({"type": "static", "faults": [{"gyro": 2, "t_s": 1, "stp_dph": 50}]})");
   ExpectRefused("simulate gyro --profile " + p + out, "profile.json", {"faults", "unknown key 'stp_dph'", "'step_dph'"});
   const std::string pt = Write("profile_t.json", R"({"type": "static", "faults": [{"gyro": "2", "t_s": 1}]})");
-  ExpectRefused("simulate gyro --profile " + pt + out, "profile_t.json", {"'gyro'", "must be a number"});
+  ExpectRefused("simulate gyro --profile " + pt + out, "profile_t.json", {"'gyro'", "is not a number"});
   const std::string pg = Write("profile_g.json", R"({"type": "static", "faults": [{"gyro": 4294967298, "t_s": 1}]})");
   ExpectRefused("simulate gyro --profile " + pg + out, "profile_g.json", {"'gyro'", "whole number in [1, 6]"});
   const std::string ps = Write("profile_st.json", R"({"type": "static", "star_tracker": {"outage_s": [[1, 2]]}})");

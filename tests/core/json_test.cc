@@ -42,7 +42,7 @@ TEST(StrictJson, TypedReadsRefuseWrongTypesAndOutOfRangeIntegers) {
   const Json j = ParseJsonStrict(
       R"({"n": "3", "big": 4294967299, "half": 2.5, "ok": 7, "flag": 1, "s": 5, "arr": [1, 2, "x"], "neg": -1e300})",
       "f.json");
-  EXPECT_EQ(ErrorOf([&] { JsonNumber(j, "n", "f.json"); }), "f.json: field 'n' must be a number, not a string");
+  EXPECT_EQ(ErrorOf([&] { JsonNumber(j, "n", "f.json"); }), "f.json: field 'n' is not a number (it is a string)");
   EXPECT_THAT(ErrorOf([&] { JsonInt(j, "big", 0, 100000, "f.json"); }),
               HasSubstr("field 'big' must be a whole number in [0, 100000]"));
   EXPECT_THAT(ErrorOf([&] { JsonInt(j, "neg", 0, 100000, "f.json"); }), HasSubstr("field 'neg'"));
