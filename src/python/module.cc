@@ -194,6 +194,12 @@ std::vector<Centroid> CentroidsFrom(const py::array& arr) {
   return c;
 }
 
+void CheckFrameMatchesCamera(const ImageView& v, const Camera& cam) {
+  if (v.width != cam.width || v.height != cam.height)
+    throw py::value_error("the frame is " + std::to_string(v.width) + "x" + std::to_string(v.height) +
+                          " but the camera says " + std::to_string(cam.width) + "x" + std::to_string(cam.height));
+}
+
 // A float array is a centroid list; an integer array is a frame.
 bool IsCentroids(const py::array& a) { return a.dtype().kind() == 'f'; }
 
@@ -248,12 +254,7 @@ class Solver {
   const std::shared_ptr<StarIdentifier>& identifier() const { return id_; }
   const SolverConfig& config() const { return config_; }
 
-  void CheckSize(const ImageView& v) const {
-    if (v.width != camera_.width || v.height != camera_.height)
-      throw py::value_error("the frame is " + std::to_string(v.width) + "x" + std::to_string(v.height) +
-                            " but the camera says " + std::to_string(camera_.width) + "x" +
-                            std::to_string(camera_.height));
-  }
+  void CheckSize(const ImageView& v) const { CheckFrameMatchesCamera(v, camera_); }
 
  private:
   static bool EndsWithCsv(const std::string& p) {
@@ -325,9 +326,7 @@ py::object DetectPy(const py::object& image, const py::object& camera, const py:
   }
   if (!camera.is_none()) {
     const Camera cam = CameraFrom(camera);
-    if (cam.width != f.view.width || cam.height != f.view.height)
-      throw py::value_error("the frame is " + std::to_string(f.view.width) + "x" + std::to_string(f.view.height) +
-                            " but the camera says " + std::to_string(cam.width) + "x" + std::to_string(cam.height));
+    CheckFrameMatchesCamera(f.view, cam);
     if (!kwargs.contains("gain_e_per_adu")) o.gain_e_per_adu = cam.gain_e_per_adu;
   }
   try {
