@@ -35,7 +35,7 @@ void AddSolverFlags(CLI::App* cmd, Opts* o) {
   cmd->add_option("--max-false-prob", o->solve.identify.max_false_match_prob, "Accept below this chance probability")
       ->capture_default_str();
   cmd->add_option("--timeout-ms", o->solve.identify.timeout_ms,
-                  "Lost in space: stop the hypothesis search after this long, no_match (0 = no limit)")
+                  "Lost in space: stop the hypothesis search after this much CPU time, no_match (0 = no limit)")
       ->capture_default_str();
   cmd->add_option("--centroid-sigma-px", o->solve.identify.centroid_sigma_px, "Centroid noise when not measured")
       ->capture_default_str();

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <numeric>
 
+#include <time.h>
+
 #include "core/error.h"
 #include "identify/wahba_svd.h"
 
@@ -62,6 +64,13 @@ using Clock = std::chrono::steady_clock;
 constexpr double kMinTrackedFraction = 0.3;  // tracking: matched / min(predicted, centroids)
 constexpr int kMinTrackedMatches = 5;        // tracking: its chance probability is calibrated for >= 5
 double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+// CPU time of the calling thread: the search deadline counts the work done for this frame, so the
+// result does not depend on how busy the machine is (or on other threads of a batch).
+double ThreadCpuMs() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
 
 double Angle(const Vec3& a, const Vec3& b) { return std::atan2(a.cross(b).norm(), a.dot(b)); }
 
@@ -468,7 +477,7 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
   // that the chance of accepting any chance pattern over the whole search is at most
   // sum_h alpha / (h H) <= alpha (a union bound with weights 1/(h H)).
   const double seq_factor = 1.0 + std::log(static_cast<double>(o.max_hypotheses));
-  const auto deadline = t0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::milli>(o.timeout_ms));
+  const double deadline_cpu_ms = ThreadCpuMs() + o.timeout_ms;
 
   std::vector<std::vector<int>> idx(1);
   int hyp = 0;
@@ -486,7 +495,7 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
   // Triangles brightest first: all triangles whose faintest vertex is c come before c + 1.
   for (int c = 2; c < k_pat; ++c) {
     for (int b = 1; b < c; ++b) {
-      if (o.timeout_ms > 0 && Clock::now() > deadline)
+      if (o.timeout_ms > 0 && ThreadCpuMs() > deadline_cpu_ms)
         return give_up("timed out after " + std::to_string(hyp) + " hypotheses");
       for (int a = 0; a < b; ++a) {
         const int vtx[3] = {a, b, c};

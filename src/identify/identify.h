@@ -51,7 +51,8 @@ struct IdentifyOptions {
   double max_false_match_prob = 1e-5;  // accept a hypothesis only below this chance probability
   int min_matches = 4;                 // fewer verified matches: never solved
   int max_hypotheses = 200000;         // give up (no_match) after this many hypotheses
-  // Give up (no_match) after this long (wall clock; 0 = no limit). 50 ms: on 300 Kelvins-style scenes
+  // Give up (no_match) after this much CPU time of the calling thread (0 = no limit; CPU, not wall
+  // clock, so that a loaded machine or a batch on many threads gives the same answers). 50 ms: on 300 Kelvins-style scenes
   // (docs/results.md) 99% of the solved ones needed less, and the 10-deg p99 budget is 50 ms.
   double timeout_ms = 50.0;
   void Check() const;                  // throws InputError naming the field
