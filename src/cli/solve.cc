@@ -1,5 +1,6 @@
 // `ssiu solve`: a frame (or a centroid CSV) -> verified star identification -> attitude JSON,
-// optionally an overlay PNG and a FITS TAN WCS header; `--heads` fuses up to three optical heads.
+// optionally an overlay PNG and a FITS TAN WCS header; `--heads` fuses up to three optical heads;
+// many inputs (or a batch flag) make a batch: one process, one catalog, many threads (cli/batch.h).
 #include <chrono>
 #include <cmath>
 #include <fstream>
@@ -8,6 +9,7 @@
 
 #include "attitude/overlay.h"
 #include "attitude/star_solver.h"
+#include "cli/batch.h"
 #include "cli/command.h"
 #include "cli/sky_flags.h"
 #include "cli/smear_flags.h"
@@ -20,13 +22,16 @@ namespace ssiu::cli {
 namespace {
 
 struct Opts {
-  std::vector<std::string> frames;
-  std::string camera, catalog, centroids, json = "-", overlay, wcs, heads, dark;
+  std::vector<std::string> frames;     // frames, or centroid lists (*.csv)
+  std::vector<std::string> centroids;  // --centroids, may be repeated
+  std::string camera, catalog, json = "-", overlay, wcs, heads, dark;
   SolveOptions solve;
   double mag_max = 0;
   std::string source;
   SmearFlags smear;  // sensor axes; body axes with --heads
   SkyFlags sky;      // one time and velocity for every head
+  BatchFlags batch;
+  CLI::Option* json_opt = nullptr;
 };
 
 void AddSolverFlags(CLI::App* cmd, Opts* o) {
@@ -60,26 +65,32 @@ void PrintSummary(const std::string& what, const SolveResult& r) {
   std::cerr << " (" << r.message << ")\n";
 }
 
+// One input: a frame (dark-subtracted when `dark`), kept in *fr for the overlay, or a centroid list.
+SolveResult SolveInput(const Opts& o, const StarIdentifier& id, const Camera& cam, const std::string& path,
+                       bool centroids, const Frame* dark, Frame* fr) {
+  if (centroids) {
+    RefuseSmearFlags(o.smear, "needs a frame, not --centroids");
+    SolveOptions so = o.solve;
+    so.sky = SkyFromFlags(o.sky, nullptr);
+    return SolveCentroids(id, ReadCentroidsCsv(path), cam, so);
+  }
+  *fr = dark ? SubtractDark(ReadFrame(path), *dark) : ReadFrame(path);
+  SolveOptions so = o.solve;
+  so.detect.saturation_adu = fr->saturation_adu;
+  so.detect.smear = SmearFromFlags(o.smear, &cam);
+  so.sky = SkyFromFlags(o.sky, fr);
+  return SolveFrame(id, fr->image.view(), cam, so);
+}
+
 void RunSingle(const Opts& o) {
   if (o.camera.empty()) throw InputError("--camera", "required (camera.json)");
   const Camera cam = LoadCamera(o.camera);
   const StarIdentifier id = MakeIdentifier(o, cam);
-  SolveResult r;
   Frame fr;
-  if (!o.centroids.empty()) {
-    RefuseSmearFlags(o.smear, "needs a frame, not --centroids");
-    SolveOptions so = o.solve;
-    so.sky = SkyFromFlags(o.sky, nullptr);
-    r = SolveCentroids(id, ReadCentroidsCsv(o.centroids), cam, so);
-  } else {
-    if (o.frames.empty()) throw InputError("ssiu solve", "give a FRAME or --centroids FILE.csv");
-    fr = o.dark.empty() ? ReadFrame(o.frames[0]) : SubtractDark(ReadFrame(o.frames[0]), ReadFrame(o.dark));
-    SolveOptions so = o.solve;
-    so.detect.saturation_adu = fr.saturation_adu;
-    so.detect.smear = SmearFromFlags(o.smear, &cam);
-    so.sky = SkyFromFlags(o.sky, &fr);
-    r = SolveFrame(id, fr.image.view(), cam, so);
-  }
+  const bool centroids = !o.centroids.empty() || IsCentroidCsv(o.frames.at(0));
+  const std::string& input = o.centroids.empty() ? o.frames[0] : o.centroids[0];
+  const Frame dark = centroids || o.dark.empty() ? Frame{} : ReadFrame(o.dark);
+  const SolveResult r = SolveInput(o, id, cam, input, centroids, o.dark.empty() ? nullptr : &dark, &fr);
   // Every output is written before the summary line, so that an unwritable one is the only message.
   WriteJsonFile(o.json, SolveResultToJson(r));
   if (!o.overlay.empty()) {
@@ -90,7 +101,55 @@ void RunSingle(const Opts& o) {
     const Camera c = FittedCamera(cam, r.identification);
     WriteFileAtomic(o.wcs, TanWcsHeader(r.attitude.q_inertial_from_sensor, c));
   }
-  PrintSummary(o.centroids.empty() ? o.frames[0] : o.centroids, r);
+  PrintSummary(input, r);
+}
+
+// --csv columns of a batch (docs/identify.md "Batch"); the cells come from the record's JSON.
+const std::vector<std::string> kBatchColumns = {
+    "file",     "status",   "mode",     "ra_deg",   "dec_deg", "roll_deg", "q_w",         "q_x",
+    "q_y",      "q_z",      "sigma_cross_arcsec",  "sigma_roll_arcsec",    "focal_length_px",
+    "num_centroids",        "num_matches",         "false_match_probability", "time_ms", "message"};
+
+std::vector<std::string> BatchRow(const std::string& file, const Json& j) {
+  const Json& q = j["q"];
+  double time_ms = 0;  // detect + identify + attitude
+  for (const auto& [k, v] : j["timing_ms"].items()) time_ms += v.get<double>();
+  return {CsvText(file),
+          CsvText(j["status"]),
+          CsvText(j["mode"]),
+          CsvNumber(j["ra_deg"]),
+          CsvNumber(j["dec_deg"]),
+          CsvNumber(j["roll_deg"]),
+          CsvNumber(q.is_array() ? q[0] : Json()),
+          CsvNumber(q.is_array() ? q[1] : Json()),
+          CsvNumber(q.is_array() ? q[2] : Json()),
+          CsvNumber(q.is_array() ? q[3] : Json()),
+          CsvNumber(j["sigma_cross_arcsec"]),
+          CsvNumber(j["sigma_roll_arcsec"]),
+          CsvNumber(j["focal_length_px"]),
+          CsvNumber(j["num_centroids"]),
+          CsvNumber(j["matches"].size()),
+          CsvNumber(j["false_match_probability"]),
+          CsvNumber(time_ms),
+          CsvText(j["message"])};
+}
+
+// Many inputs, one catalog: every input is solved as a single `ssiu solve` of it would be.
+void RunBatchSolve(const Opts& o, const std::vector<std::string>& inputs) {
+  if (o.json_opt->count() > 0) throw InputError("--json", "is one input's output: a batch writes --jsonl and/or --csv");
+  if (!o.overlay.empty() || !o.wcs.empty()) {
+    throw InputError(o.overlay.empty() ? "--wcs" : "--overlay", "is one frame's output: not in a batch");
+  }
+  if (o.camera.empty()) throw InputError("--camera", "required (camera.json)");
+  const Camera cam = LoadCamera(o.camera);
+  const StarIdentifier id = MakeIdentifier(o, cam);
+  const Frame dark = o.dark.empty() ? Frame{} : ReadFrame(o.dark);
+  RunBatch("ssiu solve", inputs, o.batch, kBatchColumns, [&](const std::string& input) {
+    Frame fr;
+    const bool centroids = IsCentroidCsv(input);
+    Json j = SolveResultToJson(SolveInput(o, id, cam, input, centroids, o.dark.empty() ? nullptr : &dark, &fr));
+    return BatchRecord{j, BatchRow(input, j)};
+  });
 }
 
 void RunHeads(const Opts& o) {
@@ -180,11 +239,15 @@ void RunHeads(const Opts& o) {
 SSIU_REGISTER_COMMAND(solve, [](CLI::App& root) {
   auto* cmd = root.add_subcommand("solve", "Lost-in-space attitude from a star frame (or centroids)");
   auto o = std::make_shared<Opts>();
-  cmd->add_option("frames", o->frames, "Frame (PNG/TIFF/FITS); with --heads one frame per head (more than one frame needs --heads)");
+  cmd->add_option("frames", o->frames,
+                  "Frames (PNG/TIFF/FITS) or centroid lists (*.csv); more than one is a batch; with --heads one "
+                  "frame per head");
   cmd->add_option("--camera", o->camera, "camera.json");
   cmd->add_option("--catalog", o->catalog, "Solver catalog directory (built there if absent; default: cache)");
-  cmd->add_option("--centroids", o->centroids, "CSV x_px,y_px[,flux][,sigma_px] instead of a frame");
-  cmd->add_option("--json", o->json, "Output JSON, - for stdout")->capture_default_str();
+  cmd->add_option("--centroids", o->centroids, "CSV x_px,y_px[,flux][,sigma_px] instead of a frame (repeat for a batch)")
+      ->expected(1)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  o->json_opt = cmd->add_option("--json", o->json, "Output JSON of one input, - for stdout")->capture_default_str();
   cmd->add_option("--overlay", o->overlay, "Overlay PNG (FILE.png) with detected, matched and rejected objects");
   cmd->add_option("--wcs", o->wcs, "FITS TAN WCS header of the solution (TAN-SIP when the camera has distortion)");
   cmd->add_option("--heads", o->heads, "heads.json: up to three heads, fused into one body attitude");
@@ -192,18 +255,39 @@ SSIU_REGISTER_COMMAND(solve, [](CLI::App& root) {
   AddSolverFlags(cmd, o.get());
   AddSmearFlags(cmd, &o->smear, "sensor axes (with --heads: body axes)");
   AddSkyFlags(cmd, &o->sky);
+  AddBatchFlags(cmd, &o->batch, "the --json of that input");
+  cmd->footer(
+      "Batch: `ssiu solve F1.png F2.fits C3.csv ... --camera CAM --jsonl OUT.jsonl [--csv OUT.csv] [--threads N]`\n"
+      "  Inputs: positional (frames; names ending in .csv are centroid lists), then --centroids (repeatable),\n"
+      "  then the lines of --list FILE. One camera and catalog for all. Exit status 1 when any input failed\n"
+      "  (its record has status \"error\"), after every input was processed. --csv columns: " +
+      [] {
+        std::string c;
+        for (const auto& k : kBatchColumns) c += (c.empty() ? "" : ",") + k;
+        return c;
+      }() +
+      "\n  (q_* the quaternion w,x,y,z; time_ms detect + identify + attitude; empty cells when unsolved).");
   cmd->callback([o] {
     // Usage checked before any work. The one place that decides how many frames a solve takes:
-    // several frames are the heads of one unit (--heads); batches of frames are not supported yet.
-    if (o->heads.empty() && o->frames.size() > 1) {
-      throw InputError("ssiu solve", std::to_string(o->frames.size()) +
-                                         " frames given: more than one frame needs --heads HEADS.json (one frame per head)");
-    }
+    // with --heads the frames are the heads of one unit; otherwise several inputs (or a batch flag)
+    // are a batch, each input solved on its own.
     if (!o->overlay.empty()) CheckPngOutputName(o->overlay);
-    if (o->heads.empty()) {
-      RunSingle(*o);
-    } else {
+    if (!o->heads.empty()) {
+      if (o->batch.given() || !o->centroids.empty()) {
+        throw InputError("--heads", "takes one frame per head: not with --centroids, --list, --jsonl or --csv");
+      }
       RunHeads(*o);
+      return;
+    }
+    std::vector<std::string> inputs = o->frames;
+    inputs.insert(inputs.end(), o->centroids.begin(), o->centroids.end());
+    inputs = BatchInputs(inputs, o->batch);
+    if (inputs.size() == 1 && !o->batch.given()) {
+      RunSingle(*o);
+    } else if (inputs.empty()) {
+      throw InputError("ssiu solve", "give a FRAME or --centroids FILE.csv");
+    } else {
+      RunBatchSolve(*o, inputs);
     }
   });
 });
