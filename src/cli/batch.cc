@@ -33,11 +33,7 @@ struct Slot {
   std::string json_line, csv_line;
 };
 
-std::string CsvLine(const std::vector<std::string>& cells) {
-  std::string line;
-  for (size_t i = 0; i < cells.size(); ++i) line += (i ? "," : "") + cells[i];
-  return line + "\n";
-}
+std::string CsvLine(const std::vector<std::string>& cells) { return CsvJoin(cells) + "\n"; }
 
 // JSON Lines: compact, one object per line; a file name that is not UTF-8 is written with U+FFFD
 // rather than failing the record.
@@ -188,6 +184,12 @@ std::string CsvNumber(const Json& v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.12g", v.get<double>());
   return buf;
+}
+
+std::string CsvJoin(const std::vector<std::string>& cells) {
+  std::string line;
+  for (size_t i = 0; i < cells.size(); ++i) line += (i ? "," : "") + cells[i];
+  return line;
 }
 
 std::string CsvText(const std::string& s) {

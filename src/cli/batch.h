@@ -60,5 +60,7 @@ void RunBatch(const std::string& command, const std::vector<std::string>& inputs
 // RFC 4180 when it holds a comma, quote or line break).
 std::string CsvNumber(const Json& v);
 std::string CsvText(const std::string& s);
+// Cells joined by commas (a header line without its newline).
+std::string CsvJoin(const std::vector<std::string>& cells);
 
 }  // namespace ssiu::cli

@@ -261,11 +261,7 @@ SSIU_REGISTER_COMMAND(solve, [](CLI::App& root) {
       "  Inputs: positional (frames; names ending in .csv are centroid lists), then --centroids (repeatable),\n"
       "  then the lines of --list FILE. One camera and catalog for all. Exit status 1 when any input failed\n"
       "  (its record has status \"error\"), after every input was processed. --csv columns: " +
-      [] {
-        std::string c;
-        for (const auto& k : kBatchColumns) c += (c.empty() ? "" : ",") + k;
-        return c;
-      }() +
+      CsvJoin(kBatchColumns) +
       "\n  (q_* the quaternion w,x,y,z; time_ms detect + identify + attitude; empty cells when unsolved).");
   cmd->callback([o] {
     // Usage checked before any work. The one place that decides how many frames a solve takes:

@@ -125,5 +125,34 @@ TEST_F(BatchCli, SolveListAndCentroidsFlagsAreOneBatch) {
   EXPECT_THAT(o.output, HasSubstr("--overlay"));
 }
 
+TEST_F(BatchCli, DetectBatchEqualsSingleDetects) {
+  const std::vector<std::string> in = {(*inputs_)[0], (*inputs_)[2], (*inputs_)[1]};
+  const Result b = Ssiu("detect " + in[0] + " " + in[1] + " " + in[2] + " --camera " + P("f/camera.json") +
+                        " --threads 2 --jsonl " + P("d.jsonl") + " --csv " + P("d.csv"));
+  EXPECT_EQ(b.status, 1) << b.output;
+  EXPECT_THAT(b.output, Not(HasSubstr("\r")));
+  const std::vector<std::string> lines = Lines(P("d.jsonl"));
+  const std::vector<std::string> csv = Lines(P("d.csv"));
+  ASSERT_EQ(lines.size(), 3u);
+  ASSERT_EQ(csv.size(), 4u);
+  EXPECT_EQ(csv[0], "file,status,width,height,num_stars,num_rejected,background_adu,noise_adu,psf_sigma_px,time_ms,message");
+  for (size_t i = 0; i < in.size(); ++i) {
+    Json rec = Json::parse(lines[i]);
+    EXPECT_EQ(rec["file"], in[i]);
+    if (i == 1) {
+      EXPECT_EQ(rec["status"], "error");
+      EXPECT_THAT(csv[i + 1], HasSubstr(",error,"));
+      continue;
+    }
+    ASSERT_EQ(Ssiu("detect " + in[i] + " --camera " + P("f/camera.json") + " --json " + P("one.json")).status, 0);
+    Json one = ReadJsonFile(P("one.json"));
+    EXPECT_EQ(rec["status"], "ok");
+    rec.erase("status");
+    EXPECT_EQ(rec["file"], one["file"]);
+    EXPECT_EQ(WithoutTiming(rec), WithoutTiming(one)) << in[i];
+    EXPECT_EQ(csv[i + 1].substr(0, in[i].size() + 1 + 3 + 10), in[i] + ",ok,1024,1024,") << csv[i + 1];
+  }
+}
+
 }  // namespace
 }  // namespace ssiu
