@@ -6,10 +6,10 @@
 Each input (frame: PNG/TIFF/FITS, or a centroid .csv) is solved independently; every worker process
 loads the camera's catalog once and keeps it (``ssiu.solve`` keeps its Solver) for all the frames it
 is given. One JSON object per input is written to --jsonl in input order: the fields of
-``ssiu solve --json`` plus ``"file"``; an input that cannot be read gives ``{"file", "status":
-"error", "error"}`` and the run goes on (exit status 1 when any input failed). With --ship-frames the
-client reads the frames and sends the pixels (workers without shared storage); otherwise the
-workers open the paths themselves (shared storage). docs/scale.md has the measured throughput.
+``ssiu solve --json`` plus ``"file"`` (the records of ``ssiu solve --jsonl``); an input that cannot be
+read gives ``{"file", "status": "error", "error", "message"}`` and the run goes on (exit status 1
+when any input failed). With --ship-frames the client reads the frames and sends the pixels (workers
+without shared storage); otherwise the workers open the paths themselves (shared storage). docs/scale.md has the measured throughput.
 """
 import argparse
 import json
@@ -38,7 +38,8 @@ def _solve_one(item, camera, options):
     try:
         r = ssiu.solve(name if pixels is None else pixels, camera, **options)
     except (ValueError, TypeError, OSError) as e:  # bad input: a record, not the end of the run
-        return json.dumps({"file": name, "status": "error", "error": str(e)})
+        # The record `ssiu solve --jsonl` writes for a bad input (message = error, as the CLI).
+        return json.dumps({"file": name, "status": "error", "error": str(e), "message": str(e)})
     r["file"] = name
     return json.dumps(r)
 
