@@ -70,6 +70,18 @@ StarIdentifier MakeIdentifierForCamera(const std::string& dir, const Camera& cam
   return StarIdentifier(LoadOrBuildCatalogIn(dir, src, b, /*rebuild_damaged=*/false));
 }
 
+StarIdentifier MakeIdentifierForFovRange(const std::string& dir, const Camera& cam, double fov_min_deg, double fov_max_deg,
+                                         double mag_max, const std::string& source) {
+  CatalogBuildOptions b;
+  // Horizontal FOVs; a sensor taller than wide needs the vertical one (square pixels assumed here).
+  b.fov_deg = std::ceil(fov_max_deg * std::max(1.0, static_cast<double>(cam.height) / cam.width) * 10) / 10;
+  b.fov_min_deg = std::min(b.fov_deg, std::floor(fov_min_deg * 10) / 10);
+  b.mag_max = mag_max;
+  const std::string src = source.empty() ? DefaultSourceFor(b.fov_min_deg) : source;
+  if (dir.empty()) return StarIdentifier(LoadOrBuildCatalog(src, b));
+  return StarIdentifier(LoadOrBuildCatalogIn(dir, src, b, /*rebuild_damaged=*/false));
+}
+
 std::vector<Centroid> CentroidsFromDetections(const Detections& d, double sigma_scale) {
   std::vector<Centroid> out;
   out.reserve(d.stars.size());
@@ -331,7 +343,7 @@ SolveResult Tracker::Update(const std::vector<Centroid>& centroids, double t_s) 
     r.identification = id_.Identify(centroids, camera_, options_.identify);
     r.mode = "lost_in_space";
     have_rate_ = false;
-    if (r.identification.status == "solved" && options_.identify.fov_tolerance_pct > 0)
+    if (r.identification.status == "solved" && options_.identify.FocalSearched())
       camera_ = FittedCamera(camera_, r.identification);  // keep the fitted focal length
   }
   SkyCorrections sky = options_.sky;

@@ -66,6 +66,11 @@ struct SolveResult {
 StarIdentifier MakeIdentifierForCamera(const std::string& dir, const Camera& camera, double fov_tolerance_pct,
                                        double mag_max = 0, const std::string& source = "");
 
+// Unknown field of view (IdentifyOptions::fov_min_deg/fov_max_deg): the catalog for horizontal FOVs
+// fov_min_deg..fov_max_deg (stars for the smallest, triangles up to the largest; docs/identify.md).
+StarIdentifier MakeIdentifierForFovRange(const std::string& dir, const Camera& camera, double fov_min_deg,
+                                         double fov_max_deg, double mag_max = 0, const std::string& source = "");
+
 // Centroid list from detections (flux, and the fit's 1-sigma as the position noise).
 std::vector<Centroid> CentroidsFromDetections(const Detections& d, double sigma_scale = 1.0);
 // Reads a centroid CSV: x_px,y_px[,flux][,sigma_px]. InputError naming the file/column/row.

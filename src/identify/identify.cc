@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <numeric>
 
 #include <time.h>
@@ -298,7 +299,7 @@ struct Refined {
 // Fit the attitude (and the focal length when it is uncertain) to the matches and re-match, twice.
 Refined Refine(const Context& ctx, const IdentifyOptions& o, Camera cam, Mat3 r, Verification v) {
   for (int pass = 0; pass < 3; ++pass) {
-    if (o.fov_tolerance_pct > 0) {
+    if (o.FocalSearched()) {
       RefineFocal(ctx, v.matches, &cam, &r);
       for (auto& m : v.matches) m.b_sensor = cam.Unproject(Vec2(m.x_px, m.y_px));
     } else {
@@ -308,7 +309,7 @@ Refined Refine(const Context& ctx, const IdentifyOptions& o, Camera cam, Mat3 r,
     if (v2.matches.size() < 3) break;
     v = std::move(v2);
   }
-  if (o.fov_tolerance_pct == 0) r = SvdFromMatches(v.matches);
+  if (!o.FocalSearched()) r = SvdFromMatches(v.matches);
   for (auto& m : v.matches) {
     m.sigma_rad = ctx.sigma_px[m.centroid] / cam.FocalMeanPx();
     m.residual_rad = Angle(r * m.b_sensor, m.r_inertial);
@@ -370,6 +371,9 @@ void IdentifyOptions::Check() const {
   if (!(tolerance_sigmas >= 1 && tolerance_sigmas <= 20)) bad("tolerance_sigmas", "must be in [1, 20]");
   if (!(match_radius_px >= 0 && match_radius_px < 100)) bad("match_radius_px", "must be in [0, 100)");
   if (!(fov_tolerance_pct >= 0 && fov_tolerance_pct <= 30)) bad("fov_tolerance_pct", "must be in [0, 30]");
+  if (!(fov_min_deg == 0 && fov_max_deg == 0) && !(fov_min_deg > 0.5 && fov_min_deg < fov_max_deg && fov_max_deg < 90))
+    bad("fov_range_deg", "must be MIN,MAX with 0.5 < MIN < MAX < 90 deg");
+  if (FovRange() && fov_tolerance_pct > 0) bad("fov_range_deg", "and fov_tolerance_pct exclude each other");
   if (!(max_false_match_prob > 0 && max_false_match_prob < 1)) bad("max_false_match_prob", "must be in (0, 1)");
   if (min_matches < 4) bad("min_matches", "must be >= 4");
   if (max_hypotheses < 1) bad("max_hypotheses", "must be >= 1");
@@ -439,15 +443,36 @@ std::vector<int> StarIdentifier::StarsWithin(const Vec3& u, double radius_rad) c
   return out;
 }
 
-Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, const Camera& camera,
+Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, const Camera& camera_in,
                                         const IdentifyOptions& o) const {
   const auto t0 = Clock::now();
   o.Check();
-  camera.Check();
+  camera_in.Check();
   CheckCentroids(centroids);
+  // The focal-length scale searched, as the range [lo, hi] of f_true / f_nominal: +/- the tolerance,
+  // or with an unknown FOV the range's focal lengths around their geometric mean (the nominal one).
+  Camera camera = camera_in;
+  double scale_lo = 1 - o.fov_tolerance_pct / 100.0, scale_hi = 1 + o.fov_tolerance_pct / 100.0;
+  if (o.FovRange()) {
+    const double cat_min = catalog_.fov_min_deg > 0 ? catalog_.fov_min_deg : catalog_.fov_deg;
+    if (o.fov_max_deg > catalog_.fov_deg * (1 + kCatalogFovTolerance) || o.fov_min_deg < cat_min * (1 - kCatalogFovTolerance)) {
+      char msg[200];
+      std::snprintf(msg, sizeof msg, "built for fields of view %.2f-%.2f deg, the search needs %.2f-%.2f deg", cat_min,
+                    catalog_.fov_deg, o.fov_min_deg, o.fov_max_deg);
+      throw InputError(catalog_.source, msg);
+    }
+    const double f_hi = 0.5 * camera.width / std::tan(0.5 * o.fov_min_deg * kDegToRad);
+    const double f_lo = 0.5 * camera.width / std::tan(0.5 * o.fov_max_deg * kDegToRad);
+    const double f0 = std::sqrt(f_lo * f_hi);
+    camera.ScaleFocal(f0 / camera.focal_length_px);
+    scale_lo = f_lo / f0;
+    scale_hi = f_hi / f0;
+  }
+  const bool focal_searched = o.FocalSearched();
   Identification out;
-  out.focal_length_px = camera.focal_length_px;
-  out.focal_length_y_px = camera.FocalYPx();
+  // Unknown FOV: no focal length until one is found (null in the JSON).
+  out.focal_length_px = o.FovRange() ? std::nan("") : camera.focal_length_px;
+  out.focal_length_y_px = o.FovRange() ? std::nan("") : camera.FocalYPx();
   const int n = static_cast<int>(centroids.size());
   if (n < o.min_matches) {
     out.status = "too_few_stars";
@@ -467,11 +492,14 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
   std::vector<double> ang(static_cast<size_t>(k_pat) * k_pat, 0.0);
   for (int i = 0; i < k_pat; ++i)
     for (int j = i + 1; j < k_pat; ++j) ang[i * k_pat + j] = ang[j * k_pat + i] = Angle(u[i], u[j]);
-  const double f = camera.FocalMinPx();  // side tolerances hold along both axes
-  const double ptol = o.fov_tolerance_pct / 100.0;
+  // Side tolerances hold along both axes; angles are at the nominal focal length (the side checks
+  // against the catalog, in true angles, are then looser by the scale at most).
+  const double f = camera.FocalMinPx();
   const double fov = catalog_.fov_deg * kDegToRad;
-  // ln of the focal-length scale range: observed longest side / catalog longest side.
-  const double ln_scale_tol = ptol > 0 ? std::max(std::log1p(ptol), -std::log1p(-ptol)) : 0.0;
+  // ln of the catalog's longest side lies in ln(observed) - [ln hi, ln lo] (observed angles are
+  // at the nominal focal length, i.e. scale = f_true / f_nominal times the catalog's).
+  const double ln_mid = 0.5 * (std::log(scale_hi) + std::log(scale_lo));
+  const double ln_half = 0.5 * (std::log(scale_hi) - std::log(scale_lo));
   // Sequential testing: the search stops at the first hypothesis h (1-based) whose chance
   // probability p_h passes p_h * h * H <= alpha, H = 1 + ln(max_hypotheses) >= sum_{h<=max} 1/h, so
   // that the chance of accepting any chance pattern over the whole search is at most
@@ -506,14 +534,15 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
         const double side[3] = {ang[b * k_pat + c], ang[a * k_pat + c], ang[a * k_pat + b]};
         double s[3] = {side[0], side[1], side[2]};
         std::sort(s, s + 3);
-        if (s[2] > fov * (1 + ptol) + tol_side || s[0] < 1e-9) continue;
+        if (s[2] > fov * scale_hi + tol_side || s[0] < 1e-9) continue;
         // Ratio tolerance: d(a/c) = sqrt(da^2 + (a/c)^2 dc^2) / c <= sqrt(2) tol / c; ln of the
-        // longest side: the focal-length range plus tol / c.
+        // longest side: the focal-length range plus tol / c (relative, at the smallest scale).
         const double tol_r = tol_side * std::sqrt(2.0) / s[2] + 1e-4;
-        const double tol_l = ln_scale_tol + 1.1 * tol_side / s[2] + 1e-4;
+        const double tol_l = ln_half + 1.1 * tol_side / (s[2] * scale_lo) + 1e-4;
         std::vector<int>& cand = idx[0];
         cand.clear();
-        index_->ForEachInBox(s[0] / s[2], s[1] / s[2], std::log(s[2]), tol_r, tol_l, catalog_, [&](int ti) { cand.push_back(ti); });
+        index_->ForEachInBox(s[0] / s[2], s[1] / s[2], std::log(s[2]) - ln_mid, tol_r, tol_l, catalog_,
+                             [&](int ti) { cand.push_back(ti); });
         for (int ti : idx[0]) {
           const CatalogTriangle& t = catalog_.triangles[ti];
           const Vec3* r[3] = {&catalog_.stars[t.v[0]].unit, &catalog_.stars[t.v[1]].unit, &catalog_.stars[t.v[2]].unit};
@@ -521,14 +550,14 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
           const double cside[3] = {t.ratio_a * static_cast<double>(t.longest_rad), t.ratio_b * static_cast<double>(t.longest_rad),
                                    static_cast<double>(t.longest_rad)};
           const double scale0 = s[2] / t.longest_rad;  // observed / catalog angle ~ f_true / f_nominal
-          if (std::abs(scale0 - 1) > ptol + tol_side / s[2]) continue;
+          if (scale0 < scale_lo - tol_side / s[2] || scale0 > scale_hi + tol_side / s[2]) continue;
           for (const auto& pm : kPerm) {
             // Observed vertex vtx[i] <-> catalog vertex pm[i]: opposite sides must agree (after scale).
             bool ok = true;
             for (int i = 0; i < 3 && ok; ++i) ok = std::abs(side[i] / scale0 - cside[pm[i]]) <= 2 * tol_side;
             if (!ok) continue;
             Camera cam = camera;
-            if (ptol > 0) {
+            if (focal_searched) {
               // Least-squares scale over the three sides of this correspondence.
               double num = 0, den = 0;
               for (int i = 0; i < 3; ++i) num += side[i] * cside[pm[i]], den += cside[pm[i]] * cside[pm[i]];
@@ -553,7 +582,7 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
               hyp = o.max_hypotheses;
               return give_up("gave up after " + std::to_string(o.max_hypotheses) + " hypotheses");
             }
-            HypothesisTest ht = TestHypothesis(ctx, o, cam, rot, tri_c, tri_s, ptol > 0);
+            HypothesisTest ht = TestHypothesis(ctx, o, cam, rot, tri_c, tri_s, focal_searched);
             const int k = ht.extra + 3;
             if (k < o.min_matches) continue;
             // Three matches are the hypothesis itself; the others are the evidence: j = extra
@@ -561,8 +590,14 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
             // normalised distances. A random centroid comes that close to some prediction with
             // probability u = p_hit (t / verify_sigmas)^2, so the chance of j or more such among the
             // m - 3 others is the binomial tail at u (the j-th order statistic of uniform p-values).
+            // The count j is itself random: for a fixed j, BinomialTail(n, p_hit t_j^2, j) is an exact
+            // p-value of the j-th closest distance t_j, but taking j = the observed count picks one of
+            // several such tests (measured: ~3x too many chance solves on random centroids). A
+            // weighted union bound over j with weights 1 / (j (j + 1)) (summing to 1) makes it valid:
+            // the factor j (j + 1) is 2 for four stars, 6 for five.
             const double u = ht.p_hit * ht.worst;
-            const double prob = std::min(1.0, BinomialTail(ctx.m - 3, u, ht.extra) * hyp * seq_factor);
+            const double j_factor = static_cast<double>(ht.extra) * (ht.extra + 1);
+            const double prob = std::min(1.0, BinomialTail(ctx.m - 3, u, ht.extra) * j_factor * hyp * seq_factor);
             if (prob < best_prob) best_prob = prob, best_k = k;
             if (prob >= o.max_false_match_prob) continue;
             // Accepted: refine the attitude (and focal length) on the matches and re-match.

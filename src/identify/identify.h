@@ -48,6 +48,11 @@ struct IdentifyOptions {
   // computed for exactly this radius.
   double verify_sigmas = 3.5;
   double fov_tolerance_pct = 0.0;      // focal length known to +/- this percent: search and refine it
+  // Unknown field of view (`--fov-range-deg MIN,MAX`): the horizontal FOV is searched in [min, max]
+  // deg and the focal length found and refined; the camera's own focal length is ignored (its pixel
+  // aspect fy/fx is kept). 0, 0 = off. Not with fov_tolerance_pct. The catalog must span the range
+  // (CatalogBuildOptions::fov_min_deg .. fov_deg).
+  double fov_min_deg = 0.0, fov_max_deg = 0.0;
   double max_false_match_prob = 1e-5;  // accept a hypothesis only below this chance probability
   int min_matches = 4;                 // fewer verified matches: never solved
   int max_hypotheses = 200000;         // give up (no_match) after this many hypotheses
@@ -56,6 +61,8 @@ struct IdentifyOptions {
   // (docs/results.md) 99% of the solved ones needed less, and the 10-deg p99 budget is 50 ms.
   double timeout_ms = 50.0;
   void Check() const;                  // throws InputError naming the field
+  bool FovRange() const { return fov_max_deg > 0; }
+  bool FocalSearched() const { return fov_tolerance_pct > 0 || FovRange(); }
 };
 
 struct StarMatch {
@@ -74,7 +81,7 @@ struct Identification {
   std::string status = "too_few_stars";  // solved, no_match, too_few_stars
   std::string message;
   Quat q_inertial_from_sensor = Quat::Identity();  // from the matches (SVD); QUEST refines it
-  double focal_length_px = 0;       // fx used (fitted when fov_tolerance_pct > 0)
+  double focal_length_px = 0;       // fx used (fitted when the focal length is searched)
   double focal_length_y_px = 0;     // fy used (the camera's aspect fy/fx is kept)
   double false_match_probability = 1.0;
   std::vector<StarMatch> matches;
@@ -83,7 +90,7 @@ struct Identification {
   std::map<std::string, double> timing_ms;
 };
 
-// `camera` with the focal lengths that `id` used (fitted when fov_tolerance_pct > 0); the aspect is kept.
+// `camera` with the focal lengths that `id` used (fitted when the focal length is searched); the aspect is kept.
 Camera FittedCamera(Camera camera, const Identification& id);
 
 class StarIdentifier {

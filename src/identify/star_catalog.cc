@@ -90,6 +90,8 @@ void CatalogBuildOptions::Check() const {
   if (!(min_side_frac >= 0 && min_side_frac < 0.5)) throw InputError("catalog options", "min_side_frac must be in [0, 0.5)");
   if (pattern_neighbours != 0 && (pattern_neighbours < 2 || pattern_neighbours > 100))
     throw InputError("catalog options", "pattern_neighbours must be 0 (all) or in [2, 100]");
+  if (!(fov_min_deg == 0 || (fov_min_deg > 0.5 && fov_min_deg <= fov_deg)))
+    throw InputError("catalog options", "fov_min_deg must be 0 (= fov_deg) or in (0.5, fov_deg]");
 }
 
 SourceCatalog LoadBsc5(const std::string& path) {
@@ -211,12 +213,84 @@ std::string DefaultSourceFor(double fov_deg) {
 
 namespace {
 
+// One level of the pattern index, for a field of fov (rad). Pattern stars: brightest first, at most
+// pattern_stars_per_fov in any cap of radius fov/2, so that the sky is covered evenly (tetra3's idea)
+// and faint stars fill sparse regions. Triangles of pattern stars whose sides all fit in the FOV:
+// with pattern_neighbours = K, those of each pattern star with two of its K nearest pattern
+// neighbours, else all (each once: p < j < k); the ones in `seen` (another level, another star's
+// neighbours) are skipped, and null = no deduplication needed (all triangles, one level).
+void AddPatternLevel(double fov, const CatalogBuildOptions& o, SolverCatalog* cat, std::unordered_set<uint64_t>* seen,
+                     std::vector<char>* is_pattern) {
+  std::vector<int> pattern;
+  {
+    internal::SkyGrid grid(fov / 2);
+    for (size_t i = 0; i < cat->stars.size(); ++i) {
+      int count = 0;
+      grid.ForEachWithin(cat->stars[i].unit, fov / 2, [&](int, const Vec3&) { ++count; });
+      if (count < o.pattern_stars_per_fov) {
+        grid.Insert(static_cast<int>(i), cat->stars[i].unit);
+        pattern.push_back(static_cast<int>(i));
+        (*is_pattern)[i] = 1;
+      }
+    }
+  }
+  internal::SkyGrid grid(fov);
+  for (size_t p = 0; p < pattern.size(); ++p) grid.Insert(static_cast<int>(p), cat->stars[pattern[p]].unit);
+  const double min_side = o.min_side_frac * fov;
+  const double cos_fov = std::cos(fov), cos_min = std::cos(min_side);
+  const int k_nb = o.pattern_neighbours;
+  std::vector<std::pair<double, int>> nb;
+  for (size_t p = 0; p < pattern.size(); ++p) {
+    const Vec3& u0 = cat->stars[pattern[p]].unit;
+    nb.clear();
+    grid.ForEachWithin(u0, fov, [&](int id, const Vec3& u) {
+      const double c = u.dot(u0);
+      if (id == static_cast<int>(p) || c > cos_min) return;
+      if (k_nb > 0 || id > static_cast<int>(p)) nb.push_back({-c, id});
+    });
+    if (k_nb > 0 && static_cast<int>(nb.size()) > k_nb) {
+      std::partial_sort(nb.begin(), nb.begin() + k_nb, nb.end());  // nearest first (largest cosine)
+      nb.resize(static_cast<size_t>(k_nb));
+    }
+    std::sort(nb.begin(), nb.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
+    for (size_t j = 0; j < nb.size(); ++j) {
+      for (size_t k = j + 1; k < nb.size(); ++k) {
+        int idx[3] = {pattern[p], pattern[nb[j].second], pattern[nb[k].second]};
+        const Vec3& a = cat->stars[idx[0]].unit;
+        const Vec3& b = cat->stars[idx[1]].unit;
+        const Vec3& c = cat->stars[idx[2]].unit;
+        if (b.dot(c) < cos_fov) continue;
+        // Side opposite each vertex.
+        const double side[3] = {std::acos(std::min(1.0, b.dot(c))), std::acos(std::min(1.0, a.dot(c))),
+                                std::acos(std::min(1.0, a.dot(b)))};
+        int ord[3] = {0, 1, 2};
+        std::sort(ord, ord + 3, [&](int x, int y) { return side[x] < side[y]; });
+        if (side[ord[0]] < min_side) continue;
+        if (seen) {
+          int key3[3] = {idx[0], idx[1], idx[2]};
+          std::sort(key3, key3 + 3);
+          const uint64_t key = (static_cast<uint64_t>(key3[0]) << 42) | (static_cast<uint64_t>(key3[1]) << 21) |
+                               static_cast<uint64_t>(key3[2]);
+          if (!seen->insert(key).second) continue;
+        }
+        CatalogTriangle t;
+        for (int m = 0; m < 3; ++m) t.v[m] = idx[ord[m]];
+        t.longest_rad = static_cast<float>(side[ord[2]]);
+        t.ratio_a = static_cast<float>(side[ord[0]] / side[ord[2]]);
+        t.ratio_b = static_cast<float>(side[ord[1]] / side[ord[2]]);
+        cat->triangles.push_back(t);
+      }
+    }
+  }
+}
+
 SolverCatalog BuildFromStars(std::vector<CatalogStar> stars, const std::string& source, double epoch,
                              const CatalogBuildOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
   o.Check();
   std::stable_sort(stars.begin(), stars.end(), [](const CatalogStar& a, const CatalogStar& b) { return a.mag < b.mag; });
-  const double fov = o.fov_deg * kDegToRad;
+  // Star density (magnitude limit, double separation) for the smallest FOV served.
+  const double fov = o.FovMinDeg() * kDegToRad;
   // Magnitude limit: the star count that gives `stars_per_fov` per cap of diameter fov on average.
   double mag_max = o.mag_max;
   if (mag_max <= 0) {
@@ -226,7 +300,7 @@ SolverCatalog BuildFromStars(std::vector<CatalogStar> stars, const std::string& 
   }
   // Close doubles: merge (flux-weighted) every fainter star within the separation a tracker cannot
   // resolve into the brighter one; companions down to 2 mag below the limit are merged before the cut.
-  const double dbl = (o.double_star_arcsec > 0 ? o.double_star_arcsec : o.fov_deg * 3600.0 / 1024.0 * 3.0) * kArcsecToRad;
+  const double dbl = (o.double_star_arcsec > 0 ? o.double_star_arcsec : o.FovMinDeg() * 3600.0 / 1024.0 * 3.0) * kArcsecToRad;
   {
     std::vector<CatalogStar> kept;
     internal::SkyGrid grid(dbl);
@@ -256,73 +330,20 @@ SolverCatalog BuildFromStars(std::vector<CatalogStar> stars, const std::string& 
   cat.double_star_arcsec = dbl * kRadToArcsec;
   cat.stars = std::move(stars);
 
-  // Pattern stars: brightest first, at most pattern_stars_per_fov in any cap of radius fov/2, so
-  // that the sky is covered evenly (tetra3's idea) and faint stars fill sparse regions.
-  std::vector<int> pattern;
-  {
-    internal::SkyGrid grid(fov / 2);
-    for (size_t i = 0; i < cat.stars.size(); ++i) {
-      int count = 0;
-      grid.ForEachWithin(cat.stars[i].unit, fov / 2, [&](int, const Vec3&) { ++count; });
-      if (count < o.pattern_stars_per_fov) {
-        grid.Insert(static_cast<int>(i), cat.stars[i].unit);
-        pattern.push_back(static_cast<int>(i));
-      }
-    }
-  }
-  cat.num_pattern_stars = static_cast<int>(pattern.size());
+  cat.fov_min_deg = o.FovMinDeg();
   cat.pattern_neighbours = o.pattern_neighbours;
-  // Triangles of pattern stars whose sides all fit in the FOV: with pattern_neighbours = K, those
-  // of each pattern star with two of its K nearest pattern neighbours (deduplicated), else all.
-  internal::SkyGrid grid(fov);
-  for (size_t p = 0; p < pattern.size(); ++p) grid.Insert(static_cast<int>(p), cat.stars[pattern[p]].unit);
-  const double min_side = o.min_side_frac * fov;
-  const double cos_fov = std::cos(fov), cos_min = std::cos(min_side);
-  const int k_nb = o.pattern_neighbours;
-  std::unordered_set<uint64_t> seen;
-  std::vector<std::pair<double, int>> nb;
-  for (size_t p = 0; p < pattern.size(); ++p) {
-    const Vec3& u0 = cat.stars[pattern[p]].unit;
-    nb.clear();
-    grid.ForEachWithin(u0, fov, [&](int id, const Vec3& u) {
-      const double c = u.dot(u0);
-      if (id == static_cast<int>(p) || c > cos_min) return;
-      if (k_nb > 0 || id > static_cast<int>(p)) nb.push_back({-c, id});
-    });
-    if (k_nb > 0 && static_cast<int>(nb.size()) > k_nb) {
-      std::partial_sort(nb.begin(), nb.begin() + k_nb, nb.end());  // nearest first (largest cosine)
-      nb.resize(static_cast<size_t>(k_nb));
-    }
-    std::sort(nb.begin(), nb.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
-    for (size_t j = 0; j < nb.size(); ++j) {
-      for (size_t k = j + 1; k < nb.size(); ++k) {
-        int tri[3] = {static_cast<int>(p), nb[j].second, nb[k].second};
-        const int idx[3] = {pattern[tri[0]], pattern[tri[1]], pattern[tri[2]]};
-        const Vec3& a = cat.stars[idx[0]].unit;
-        const Vec3& b = cat.stars[idx[1]].unit;
-        const Vec3& c = cat.stars[idx[2]].unit;
-        if (b.dot(c) < cos_fov) continue;
-        // Side opposite each vertex.
-        const double side[3] = {std::acos(std::min(1.0, b.dot(c))), std::acos(std::min(1.0, a.dot(c))),
-                                std::acos(std::min(1.0, a.dot(b)))};
-        int ord[3] = {0, 1, 2};
-        std::sort(ord, ord + 3, [&](int x, int y) { return side[x] < side[y]; });
-        if (side[ord[0]] < min_side) continue;
-        if (k_nb > 0) {
-          std::sort(tri, tri + 3);
-          const uint64_t key = (static_cast<uint64_t>(tri[0]) << 42) | (static_cast<uint64_t>(tri[1]) << 21) |
-                               static_cast<uint64_t>(tri[2]);
-          if (!seen.insert(key).second) continue;
-        }
-        CatalogTriangle t;
-        for (int m = 0; m < 3; ++m) t.v[m] = idx[ord[m]];
-        t.longest_rad = static_cast<float>(side[ord[2]]);
-        t.ratio_a = static_cast<float>(side[ord[0]] / side[ord[2]]);
-        t.ratio_b = static_cast<float>(side[ord[1]] / side[ord[2]]);
-        cat.triangles.push_back(t);
-      }
-    }
-  }
+  if (cat.stars.size() >= (size_t{1} << 21)) throw InputError(source, "too many stars for the pattern index (2^21)");
+  // One level per field of view from fov_min_deg to fov_deg in steps of sqrt(2) (one level for a
+  // fixed FOV): a frame of any FOV in the range finds triangles of bright stars spaced for it.
+  std::vector<double> levels;
+  for (double f = o.FovMinDeg(); f < o.fov_deg * (1 - 1e-9); f *= std::sqrt(2.0)) levels.push_back(f);
+  levels.push_back(o.fov_deg);
+  std::unordered_set<uint64_t> seen;  // triangles (sorted star indices) already indexed
+  std::vector<char> is_pattern(cat.stars.size(), 0);
+  const bool dedup = o.pattern_neighbours > 0 || levels.size() > 1;
+  for (const double level_deg : levels)
+    AddPatternLevel(level_deg * kDegToRad, o, &cat, dedup ? &seen : nullptr, &is_pattern);
+  cat.num_pattern_stars = static_cast<int>(std::count(is_pattern.begin(), is_pattern.end(), 1));
   cat.build_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return cat;
 }
@@ -385,6 +406,7 @@ void SaveSolverCatalog(const SolverCatalog& cat, const std::string& dir) {
   Json meta = {{"source", cat.source},
                {"epoch_year", cat.epoch_year},
                {"fov_deg", cat.fov_deg},
+               {"fov_min_deg", cat.fov_min_deg > 0 ? cat.fov_min_deg : cat.fov_deg},
                {"mag_max", cat.mag_max},
                {"double_star_arcsec", cat.double_star_arcsec},
                {"stars", cat.stars.size()},
@@ -450,6 +472,14 @@ SolverCatalog LoadSolverCatalog(const std::string& dir) {
   double hdr[5];
   get(hdr, sizeof hdr);
   cat.epoch_year = hdr[0], cat.fov_deg = hdr[1], cat.mag_max = hdr[2], cat.double_star_arcsec = hdr[3], cat.build_time_s = hdr[4];
+  // The smallest FOV of a range catalog is in meta.json only (catalog.bin's layout is unchanged;
+  // catalogs written before it have one FOV).
+  {
+    const std::string meta_path = dir + "/meta.json";
+    const Json meta = ReadJsonFile(meta_path);
+    cat.fov_min_deg = JsonNumberOr(meta, "fov_min_deg", cat.fov_deg, meta_path);
+    if (!(cat.fov_min_deg > 0 && cat.fov_min_deg <= cat.fov_deg)) throw InputError(meta_path, "field 'fov_min_deg' must be in (0, fov_deg]");
+  }
   int64_t counts[4], slen;
   get(counts, sizeof counts);
   get(&slen, 8);
@@ -504,7 +534,12 @@ SolverCatalog LoadOrBuildCatalog(const std::string& source_path, const CatalogBu
   std::snprintf(key, sizeof key, "%s_fov%.2f_mag%.2f_ep%.1f_dbl%.1f_p%d_s%.0f_k%d_v3", base.c_str(), o.fov_deg,
                 o.mag_max, o.epoch_year, o.double_star_arcsec, o.pattern_stars_per_fov, o.stars_per_fov,
                 o.pattern_neighbours);
-  const std::string dir = CatalogCacheDir() + "/" + key;
+  std::string dir_key = key;
+  if (o.FovMinDeg() < o.fov_deg) {
+    std::snprintf(key, sizeof key, "_min%.2f", o.fov_min_deg);
+    dir_key += key;
+  }
+  const std::string dir = CatalogCacheDir() + "/" + dir_key;
   try {
     return LoadOrBuildCatalogIn(dir, source_path, o, /*rebuild_damaged=*/true);
   } catch (const InputError&) {
@@ -538,6 +573,14 @@ SolverCatalog LoadOrBuildCatalogIn(const std::string& dir, const std::string& so
       std::snprintf(msg, sizeof msg, "catalog built for a %.2f deg field of view, this camera needs %.2f deg "
                     "(more than %.0f%% apart): give another --catalog or delete this one to rebuild it",
                     cat.fov_deg, o.fov_deg, 100 * kCatalogFovTolerance);
+      throw InputError(dir, msg);
+    }
+    // And the smallest FOV of a range (unknown-FOV solving): its star density is what small fields need.
+    if (!(std::abs(cat.fov_min_deg / o.FovMinDeg() - 1) <= kCatalogFovTolerance)) {
+      char msg[256];
+      std::snprintf(msg, sizeof msg, "catalog built for fields of view %.2f-%.2f deg, this solve needs %.2f-%.2f deg "
+                    "(more than %.0f%% apart): give another --catalog or delete this one to rebuild it",
+                    cat.fov_min_deg, cat.fov_deg, o.FovMinDeg(), o.fov_deg, 100 * kCatalogFovTolerance);
       throw InputError(dir, msg);
     }
     return cat;

@@ -23,7 +23,11 @@ namespace ssiu {
 constexpr StarId kKstarsIdOffset = 1000000;
 
 struct CatalogBuildOptions {
-  double fov_deg = 16.6;            // horizontal field of view the pattern index is built for
+  double fov_deg = 16.6;            // horizontal field of view the pattern index is built for (the largest)
+  // Unknown field of view (solve --fov-range-deg): the smallest FOV served; 0 = fov_deg. Stars and
+  // pattern-star density are chosen for it, and the index gets one level of triangles per factor
+  // sqrt(2) of FOV up to fov_deg (docs/identify.md, "Unknown field of view").
+  double fov_min_deg = 0.0;
   double mag_max = 0.0;             // faintest star kept; 0 = chosen from the FOV (stars_per_fov)
   double epoch_year = 2025.0;       // proper motion applied from J2000.0 to this epoch (when known)
   double double_star_arcsec = 0.0;  // merge stars closer than this; 0 = 3 pixels of a 1024-px sensor
@@ -35,6 +39,7 @@ struct CatalogBuildOptions {
   // the neighbours in a field; 0 = every triangle that fits in the FOV.
   int pattern_neighbours = 10;
   void Check() const;               // throws InputError naming the field
+  double FovMinDeg() const { return fov_min_deg > 0 ? fov_min_deg : fov_deg; }
 };
 
 // A triangle of catalog stars. Vertices are ordered by the side opposite them (v[0] opposite the
@@ -48,7 +53,8 @@ struct CatalogTriangle {
 struct SolverCatalog {
   std::string source;
   double epoch_year = 2000.0;
-  double fov_deg = 0;
+  double fov_deg = 0;               // largest horizontal FOV served
+  double fov_min_deg = 0;           // smallest (= fov_deg for a fixed FOV; meta.json `fov_min_deg`)
   double mag_max = 0;
   double double_star_arcsec = 0;
   std::vector<CatalogStar> stars;   // brightest first, positions at epoch_year

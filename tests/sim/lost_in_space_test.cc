@@ -49,7 +49,9 @@ TEST(LostInSpace, WrongFocalLengthInToleranceModeIsNeverAConfidentWrongMatch) {
   const Calibration c = RunWrongFocal(30, 500, 15.0, io);
   std::printf("focal length 5-15 %% wrong, tolerance 15 %%: %d wrong of %d\n", c.false_solves, c.trials);
   EXPECT_EQ(c.false_solves, 0);
-  EXPECT_GE(c.solved, 0.6 * c.trials);
+  // 18/30 before the chance probability took the factor j (j + 1) for the data-chosen match count
+  // (docs/identify.md, step 5); 17/30 after.
+  EXPECT_GE(c.solved, 0.55 * c.trials);
 }
 
 }  // namespace
