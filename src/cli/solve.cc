@@ -32,11 +32,17 @@ struct Opts {
   SkyFlags sky;      // one time and velocity for every head
   BatchFlags batch;
   CLI::Option* json_opt = nullptr;
+  std::vector<double> fov_range_deg;  // --fov-range-deg MIN,MAX: unknown field of view
 };
 
 void AddSolverFlags(CLI::App* cmd, Opts* o) {
   cmd->add_option("--fov-tolerance-pct", o->solve.identify.fov_tolerance_pct,
                   "Focal length known to +/- this percent: search and refine it");
+  cmd->add_option("--fov-range-deg", o->fov_range_deg,
+                  "Unknown field of view: search the horizontal FOV in MIN,MAX deg and fit the focal length "
+                  "(camera.json then needs no focal length; a given one is ignored)")
+      ->expected(2)
+      ->delimiter(',');
   cmd->add_option("--max-false-prob", o->solve.identify.max_false_match_prob, "Accept below this chance probability")
       ->capture_default_str();
   cmd->add_option("--timeout-ms", o->solve.identify.timeout_ms,
@@ -52,7 +58,16 @@ void AddSolverFlags(CLI::App* cmd, Opts* o) {
 }
 
 StarIdentifier MakeIdentifier(const Opts& o, const Camera& cam) {
-  return MakeIdentifierForCamera(o.catalog, cam, o.solve.identify.fov_tolerance_pct, o.mag_max, o.source);
+  const IdentifyOptions& io = o.solve.identify;
+  if (io.FovRange()) return MakeIdentifierForFovRange(o.catalog, cam, io.fov_min_deg, io.fov_max_deg, o.mag_max, o.source);
+  return MakeIdentifierForCamera(o.catalog, cam, io.fov_tolerance_pct, o.mag_max, o.source);
+}
+
+// --camera; with --fov-range-deg it may lack a focal length.
+Camera LoadSolveCamera(const Opts& o) {
+  if (o.camera.empty()) throw InputError("--camera", "required (camera.json)");
+  const IdentifyOptions& io = o.solve.identify;
+  return LoadCamera(o.camera, io.FovRange() ? std::sqrt(io.fov_min_deg * io.fov_max_deg) : 0.0);
 }
 
 void PrintSummary(const std::string& what, const SolveResult& r) {
@@ -83,8 +98,7 @@ SolveResult SolveInput(const Opts& o, const StarIdentifier& id, const Camera& ca
 }
 
 void RunSingle(const Opts& o) {
-  if (o.camera.empty()) throw InputError("--camera", "required (camera.json)");
-  const Camera cam = LoadCamera(o.camera);
+  const Camera cam = LoadSolveCamera(o);
   const StarIdentifier id = MakeIdentifier(o, cam);
   Frame fr;
   const bool centroids = !o.centroids.empty() || IsCentroidCsv(o.frames.at(0));
@@ -140,8 +154,7 @@ void RunBatchSolve(const Opts& o, const std::vector<std::string>& inputs) {
   if (!o.overlay.empty() || !o.wcs.empty()) {
     throw InputError(o.overlay.empty() ? "--wcs" : "--overlay", "is one frame's output: not in a batch");
   }
-  if (o.camera.empty()) throw InputError("--camera", "required (camera.json)");
-  const Camera cam = LoadCamera(o.camera);
+  const Camera cam = LoadSolveCamera(o);
   const StarIdentifier id = MakeIdentifier(o, cam);
   const Frame dark = o.dark.empty() ? Frame{} : ReadFrame(o.dark);
   RunBatch("ssiu solve", inputs, o.batch, kBatchColumns, [&](const std::string& input) {
@@ -268,6 +281,14 @@ SSIU_REGISTER_COMMAND(solve, [](CLI::App& root) {
     // with --heads the frames are the heads of one unit; otherwise several inputs (or a batch flag)
     // are a batch, each input solved on its own.
     if (!o->overlay.empty()) CheckPngOutputName(o->overlay);
+    if (!o->fov_range_deg.empty()) {
+      if (o->solve.identify.fov_tolerance_pct > 0)
+        throw InputError("--fov-range-deg", "give --fov-range-deg or --fov-tolerance-pct, not both");
+      const double lo = o->fov_range_deg[0], hi = o->fov_range_deg[1];
+      if (!(lo > 0.5 && lo < hi && hi < 90)) throw InputError("--fov-range-deg", "must be MIN,MAX with 0.5 < MIN < MAX < 90 deg");
+      o->solve.identify.fov_min_deg = lo;
+      o->solve.identify.fov_max_deg = hi;
+    }
     if (!o->heads.empty()) {
       if (o->batch.given() || !o->centroids.empty()) {
         throw InputError("--heads", "takes one frame per head: not with --centroids, --list, --jsonl or --csv");

@@ -94,7 +94,7 @@ Camera MakeCamera(int width, int height, double fov_x_deg) {
   return c;
 }
 
-Camera CameraFromJson(const Json& j, const std::string& source) {
+Camera CameraFromJson(const Json& j, const std::string& source, double fov_x_deg_if_no_focal) {
   if (!j.is_object()) throw InputError(source, "camera must be a JSON object");
   CheckKeys(j, {"width", "height", "focal_length_px", "focal_length_mm", "pixel_pitch_um", "principal_point",
                 "distortion", "gain_e_per_adu", "psf_sigma_px", "psf_ellipticity", "psf_angle_deg", "focal_length_y_px"},
@@ -110,6 +110,11 @@ Camera CameraFromJson(const Json& j, const std::string& source) {
     const double pitch_um = JsonNumber(j, "pixel_pitch_um", source);
     if (pitch_um <= 0) throw InputError(source, "field 'pixel_pitch_um' must be > 0");
     c.focal_length_px = f_mm * 1000.0 / pitch_um;
+  } else if (fov_x_deg_if_no_focal > 0) {
+    // Unknown field of view: a placeholder the solver replaces; square pixels (an fy alone has no fx).
+    if (j.contains("focal_length_y_px"))
+      throw InputError(source, "field 'focal_length_y_px' needs 'focal_length_px' (without a focal length pixels are square)");
+    c.focal_length_px = 0.5 * c.width / std::tan(0.5 * fov_x_deg_if_no_focal * kDegToRad);
   } else {
     throw InputError(source, "missing field 'focal_length_px' (or 'focal_length_mm' + 'pixel_pitch_um')");
   }
@@ -146,7 +151,9 @@ void HeadFromJson(const Json& j, const std::string& where, Camera* camera, Quat*
   *q_body_from_sensor = FromWxyz(q[0], q[1], q[2], q[3], (where + ": q_body_sensor").c_str());
 }
 
-Camera LoadCamera(const std::string& path) { return CameraFromJson(ReadJsonFile(path), path); }
+Camera LoadCamera(const std::string& path, double fov_x_deg_if_no_focal) {
+  return CameraFromJson(ReadJsonFile(path), path, fov_x_deg_if_no_focal);
+}
 
 Json CameraToJson(const Camera& c) {
   Json j = {{"width", c.width},

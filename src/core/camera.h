@@ -59,8 +59,10 @@ struct Camera {
 // A default camera of `width` x `height` pixels with the given full horizontal FOV.
 Camera MakeCamera(int width, int height, double fov_x_deg);
 
-Camera CameraFromJson(const Json& j, const std::string& source);
-Camera LoadCamera(const std::string& path);
+// fov_x_deg_if_no_focal > 0: a camera.json without a focal length is accepted (unknown field of
+// view, `ssiu solve --fov-range-deg`) and gets the focal length of this horizontal FOV as a placeholder.
+Camera CameraFromJson(const Json& j, const std::string& source, double fov_x_deg_if_no_focal = 0);
+Camera LoadCamera(const std::string& path, double fov_x_deg_if_no_focal = 0);
 Json CameraToJson(const Camera& c);
 // One entry of heads.json (conventions): {"camera": {camera.json}, "q_body_sensor": [w,x,y,z]}, read
 // strictly; `where` names the file and head in errors.
