@@ -11,20 +11,10 @@ namespace {
 
 constexpr double kFlickerFactor = 2.0 * 0.69314718055994531 / 3.14159265358979324;  // 2 ln2 / pi
 
-// Regularised lower incomplete gamma P(a, x): power series for x < a + 1, else a continued fraction
-// for Q = 1 - P evaluated by the modified Lentz method (Abramowitz & Stegun 6.5.29 and 6.5.31).
-double RegularizedGammaP(double a, double x) {
-  if (x <= 0) return 0;
+// Q(a, x) = 1 - P(a, x) for x >= a + 1 by its continued fraction, evaluated by the modified Lentz
+// method (Abramowitz & Stegun 6.5.31); computed directly, small tail probabilities keep their precision.
+double GammaQContinuedFraction(double a, double x) {
   const double log_prefix = a * std::log(x) - x - std::lgamma(a);
-  if (x < a + 1) {
-    double term = 1.0 / a, sum = term;
-    for (int n = 1; n < 100000; ++n) {
-      term *= x / (a + n);
-      sum += term;
-      if (std::abs(term) < std::abs(sum) * 1e-15) break;
-    }
-    return std::exp(log_prefix) * sum;
-  }
   const double tiny = 1e-300;
   double b = x + 1 - a, c = 1 / tiny, d = 1 / b, h = d;
   for (int i = 1; i < 100000; ++i) {
@@ -39,7 +29,27 @@ double RegularizedGammaP(double a, double x) {
     h *= delta;
     if (std::abs(delta - 1) < 1e-15) break;
   }
-  return 1 - std::exp(log_prefix) * h;
+  return std::exp(log_prefix) * h;
+}
+
+// Regularised lower incomplete gamma P(a, x): power series for x < a + 1 (A & S 6.5.29), else
+// 1 - Q from the continued fraction.
+double RegularizedGammaP(double a, double x) {
+  if (x <= 0) return 0;
+  if (x >= a + 1) return 1 - GammaQContinuedFraction(a, x);
+  const double log_prefix = a * std::log(x) - x - std::lgamma(a);
+  double term = 1.0 / a, sum = term;
+  for (int n = 1; n < 100000; ++n) {
+    term *= x / (a + n);
+    sum += term;
+    if (std::abs(term) < std::abs(sum) * 1e-15) break;
+  }
+  return std::exp(log_prefix) * sum;
+}
+
+double RegularizedGammaQ(double a, double x) {
+  if (x <= 0) return 1;
+  return x < a + 1 ? 1 - RegularizedGammaP(a, x) : GammaQContinuedFraction(a, x);
 }
 
 // Standard normal quantile by bisection on erfc (only called a few times per curve).
@@ -80,6 +90,11 @@ void NoiseFitOptions::Check() const {
   if (!(model_error >= 0 && model_error < 1)) throw std::invalid_argument("NoiseFitOptions.model_error must be in [0, 1)");
   if (!(floor_min_edf >= 0)) throw std::invalid_argument("NoiseFitOptions.floor_min_edf must be >= 0");
   if (!std::isfinite(term_penalty)) throw std::invalid_argument("NoiseFitOptions.term_penalty must be finite");
+}
+
+double ChiSquaredSurvival(double x, double dof) {
+  if (!(dof > 0)) throw std::invalid_argument("ChiSquaredSurvival: dof > 0");
+  return x > 0 ? RegularizedGammaQ(0.5 * dof, 0.5 * x) : 1.0;
 }
 
 double ChiSquaredQuantile(double p, double dof) {

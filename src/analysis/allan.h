@@ -66,6 +66,8 @@ void SetConfidenceIntervals(AllanCurve* curve, double confidence);
 
 // Quantile of the chi-squared distribution with `dof` (real, > 0) degrees of freedom.
 double ChiSquaredQuantile(double p, double dof);
+// Upper tail P(X > x) of the chi-squared distribution with `dof` (real, > 0) degrees of freedom.
+double ChiSquaredSurvival(double x, double dof);
 
 // One fitted noise coefficient.
 struct NoiseTerm {

@@ -7,6 +7,7 @@
 #include <limits>
 #include <numeric>
 
+#include "analysis/allan.h"
 #include "core/csv.h"
 #include "core/error.h"
 #include "core/rng.h"
@@ -21,10 +22,13 @@ using Eigen::VectorXd;
 constexpr double kArcsecPerRad = 206264.80624709636;
 
 // Candidate regressor columns (bin means), in this fixed order.
-enum Col { kT1, kT2, kG1, kMagSin, kMagCos, kMis, kScale, kDelay, kNumCols };
+// kBn..kBh: the logged field (uT); kAbsRef: |ref| * 1e-6, which with kScale splits the scale factor of
+// positive and negative rates.
+enum Col { kT1, kT2, kG1, kMagSin, kMagCos, kBn, kBe, kBh, kMis, kScale, kAbsRef, kDelay, kNumCols };
 
 struct LogBins {
-  double bin_s = 0;
+  double bin_s = 0, temp_span_c = 0;
+  std::array<double, 3> field_span_ut{0, 0, 0};  // range of the bin means of bn, be, bh
   std::vector<double> t_s, y_dph;
   std::vector<std::array<double, kNumCols>> x;
 };
@@ -78,7 +82,11 @@ LogBins MakeLogBins(const GyroBenchLog& log, const GyroDiscoverOptions& o) {
       x[kMagCos] += std::cos(p);
       x[kMis] += dref_dpsi[i];
     }
+    if (!log.bn_ut.empty()) x[kBn] += log.bn_ut[i];
+    if (!log.be_ut.empty()) x[kBe] += log.be_ut[i];
+    if (!log.bh_ut.empty()) x[kBh] += log.bh_ut[i];
     x[kScale] += log.ref_dph[i] * 1e-6;
+    x[kAbsRef] += std::abs(log.ref_dph[i]) * 1e-6;
     x[kDelay] += -dref[i];
   }
   for (int k = 0; k < nb; ++k) {
@@ -89,9 +97,18 @@ LogBins MakeLogBins(const GyroBenchLog& log, const GyroDiscoverOptions& o) {
     for (double& v : x) v /= cnt[k];
     b.x.push_back(x);
   }
+  for (int c = 0; c < 3; ++c) {
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (const auto& x : b.x) lo = std::min(lo, x[kBn + c]), hi = std::max(hi, x[kBn + c]);
+    b.field_span_ut[c] = b.x.empty() ? 0.0 : hi - lo;
+  }
   // Temperature terms at the bin centres (local polynomial of fog_thermal.h).
   const TemperatureEstimate te = EstimateTemperatureRate(log.t_s, log.temp_c, b.t_s, o.rate);
   ThermalDriftModel m;
+  if (!te.temp_c.empty()) {
+    const auto [lo, hi] = std::minmax_element(te.temp_c.begin(), te.temp_c.end());
+    b.temp_span_c = *hi - *lo;
+  }
   for (size_t k = 0; k < b.t_s.size(); ++k) {
     const double z1 = m.Z1(te.temp_c[k]), z2 = m.Z2(te.rate_c_per_min[k]);
     b.x[k][kT1] = z1;
@@ -301,13 +318,6 @@ LsFit SolveLs(const MatrixXd& x, const VectorXd& y) {
   return f;
 }
 
-double ChiSquaredSurvival(double w, int dof) {
-  if (w <= 0) return 1.0;
-  if (dof == 1) return std::erfc(std::sqrt(w / 2));
-  if (dof == 2) return std::exp(-w / 2);
-  return std::numeric_limits<double>::quiet_NaN();
-}
-
 struct Design {
   std::vector<LogBins> bins;
   std::vector<int> offset;  // first row of each log
@@ -357,58 +367,99 @@ double VarianceInflation(const Design& d, const VectorXd& ew, int lag_max) {
   return std::clamp(f, 1.0, 20.0);
 }
 
+// A candidate of the vocabulary made of regressor columns: `cols` that are usable are fitted; it is
+// applicable when every column of `required` is usable and at least one column is left.
 struct CandidateSpec {
-  std::string cause;
-  std::vector<int> cols;
+  std::string cause, model;
+  std::vector<int> cols, required;
+};
+
+// Candidates of one cause with different models (magnetic_field: the azimuth harmonic, the logged
+// field) are told apart by cause/model.
+std::string Key(const GyroCandidate& c) { return c.model.empty() ? c.cause : c.cause + "/" + c.model; }
+
+// Significance of a held-out improvement: per-bin differences of squared held-out errors (before -
+// after, in units of the log's noise variance) summed per block; z = mean / (sd / sqrt(B)) over the
+// B blocks of one log (a paired test: the blocks' spread is the hold-out's own noise, so under the
+// null of no effect z is ~N(0, 1), slightly negative since the cause's fitted terms add noise).
+double BlockZ(const std::vector<double>& block_sums) {
+  const int b = static_cast<int>(block_sums.size());
+  if (b < 3) return 0;
+  double mean = 0, ss = 0;
+  for (double v : block_sums) mean += v / b;
+  for (double v : block_sums) ss += (v - mean) * (v - mean);
+  const double se = std::sqrt(ss / (b - 1) / b);
+  return se > 0 ? mean / se : 0.0;
+}
+
+struct CvResult {
+  double rms_before = 0, rms_after = 0;
+  double z = 0;  // significance of the held-out improvement, largest over logs
 };
 
 // Cross-validated RMS (bias-only base vs base + columns), fitting on even blocks and scoring on odd
 // blocks and vice versa; OLS weighted by each log's noise variance.
-void CrossValidate(const Design& d, const std::vector<double>& log_var, const MatrixXd& x_cause, int blocks,
-                   double* rms_before, double* rms_after) {
+// Significance: with p the held-out prediction of the cause (after - before) and e the held-out
+// residual of the base, the improvement is D = sum(e^2 - (e - p)^2) = 2 e.p - p.p. If the cause had
+// no effect, e would be the log's noise (covariance S from its fitted white + Gauss-Markov model,
+// independent of p, which comes from the other blocks): D would have mean -p.p and standard deviation
+// 2 sqrt(p' S p). z = (D + p.p) / (2 sqrt(p' S p)) = e.p / sqrt(p' S p) is N(0, 1) under that null.
+CvResult CrossValidate(const Design& d, const std::vector<NoiseModel>& nm, const MatrixXd& x_cause, int blocks) {
   const int l = static_cast<int>(d.bins.size());
   std::vector<int> fold(d.n);
-  VectorXd wt(d.n);
+  VectorXd wt(d.n), e_base(d.n), pred(d.n);
+  std::vector<double> log_var(l);
   for (int r = 0; r < l; ++r) {
     const int m = static_cast<int>(d.bins[r].t_s.size());
+    log_var[r] = nm[r].var_w + nm[r].var_g;
     for (int k = 0; k < m; ++k) {
       fold[d.offset[r] + k] = (k * blocks / m) % 2;
       wt(d.offset[r] + k) = 1 / std::sqrt(log_var[r]);
     }
   }
-  std::vector<double> ss_before(l, 0), ss_after(l, 0), count(l, 0);
-  std::vector<int> log_of(d.n);
-  for (int r = 0; r < l; ++r) {
-    for (size_t k = 0; k < d.bins[r].t_s.size(); ++k) log_of[d.offset[r] + k] = r;
-  }
   for (int f = 0; f < 2; ++f) {
     std::vector<int> train, test;
     for (int i = 0; i < d.n; ++i) (fold[i] == f ? train : test).push_back(i);
-    auto fit_score = [&](const MatrixXd& x, std::vector<double>* ss) {
+    auto fit = [&](const MatrixXd& x) {
       MatrixXd xt(train.size(), x.cols());
       VectorXd yt(train.size());
       for (size_t i = 0; i < train.size(); ++i) {
         xt.row(i) = x.row(train[i]) * wt(train[i]);
         yt(i) = d.y(train[i]) * wt(train[i]);
       }
-      const LsFit fit = SolveLs(xt, yt);
-      for (int i : test) {
-        const double e = d.y(i) - x.row(i).dot(fit.beta);
-        (*ss)[log_of[i]] += e * e;
-      }
+      return SolveLs(xt, yt).beta;
     };
-    fit_score(d.base, &ss_before);
-    fit_score(x_cause, &ss_after);
-    for (int i : test) count[log_of[i]] += 1;
+    const VectorXd bb = fit(d.base), ba = fit(x_cause);
+    for (int i : test) {
+      e_base(i) = d.y(i) - d.base.row(i).dot(bb);
+      pred(i) = x_cause.row(i).dot(ba) - d.base.row(i).dot(bb);
+    }
   }
-  // The log where the cause explains most (in units of that log's noise variance) carries the
-  // figure: pooling logs of very different noise would dilute it.
-  int best = 0;
-  for (int r = 1; r < l; ++r) {
-    if ((ss_before[r] - ss_after[r]) / log_var[r] > (ss_before[best] - ss_after[best]) / log_var[best]) best = r;
+  CvResult cv;
+  cv.z = -std::numeric_limits<double>::infinity();
+  double best_gain = -1;
+  for (int r = 0; r < l; ++r) {
+    const int m = static_cast<int>(d.bins[r].t_s.size());
+    const VectorXd e = e_base.segment(d.offset[r], m), p = pred.segment(d.offset[r], m);
+    const double ss_before = e.squaredNorm(), ss_after = (e - p).squaredNorm();
+    // p' S p with S_ij = var_w delta_ij + var_g phi^|i-j| (AR(1) sum by recursion).
+    double psp = (nm[r].var_w + nm[r].var_g) * p.squaredNorm(), s = 0;
+    for (int k = 1; k < m; ++k) {
+      s = nm[r].phi * (s + p(k - 1));
+      psp += 2 * nm[r].var_g * p(k) * s;
+    }
+    if (psp > 0) cv.z = std::max(cv.z, e.dot(p) / std::sqrt(psp));
+    // The log where the cause explains most (in units of that log's noise variance) carries the
+    // figure: pooling logs of very different noise would dilute it.
+    const double g = (ss_before - ss_after) / log_var[r];
+    if (g > best_gain || r == 0) {
+      best_gain = g;
+      cv.rms_before = std::sqrt(ss_before / m);
+      cv.rms_after = std::sqrt(ss_after / m);
+    }
   }
-  *rms_before = std::sqrt(ss_before[best] / count[best]);
-  *rms_after = std::sqrt(ss_after[best] / count[best]);
+  if (!std::isfinite(cv.z)) cv.z = 0;
+  return cv;
 }
 
 void Fail(const std::string& what) { throw InputError("options", what); }
@@ -420,7 +471,12 @@ void GyroDiscoverOptions::Check() const {
   if (max_bins_per_log < 50) Fail("max_bins_per_log must be >= 50");
   if (max_noise_lag < 2) Fail("max_noise_lag must be >= 2");
   if (!(wander_tau_max_s > 0)) Fail("wander_tau_max_s must be > 0");
-  if (cv_blocks < 2) Fail("cv_blocks must be >= 2");
+  if (cv_blocks < 6) Fail("cv_blocks must be >= 6");
+  if (!(gain_alpha > 0 && gain_alpha < 0.5)) Fail("gain_alpha must be in (0, 0.5)");
+  if (!(min_temp_span_c >= 0)) Fail("min_temp_span_c must be >= 0");
+  if (!(min_field_span_ut >= 0)) Fail("min_field_span_ut must be >= 0");
+  if (!(rrw_min_log_s >= 0)) Fail("rrw_min_log_s must be >= 0");
+  if (!(periodic_min_cycles >= 2)) Fail("periodic_min_cycles must be >= 2");
   rate.Check();
 }
 
@@ -440,6 +496,10 @@ void CheckGyroBenchLog(const GyroBenchLog& log) {
   same(log.ref_dph, "ref_dph");
   same(log.temp_c, "temp_c");
   if (!log.azimuth_deg.empty()) same(log.azimuth_deg, "azimuth_deg");
+  if (!log.bn_ut.empty()) same(log.bn_ut, "bn_ut");
+  if (!log.be_ut.empty()) same(log.be_ut, "be_ut");
+  if (!log.bh_ut.empty()) same(log.bh_ut, "bh_ut");
+  for (const auto& [name, v] : log.other) same(v, name.c_str());
   for (size_t i = 1; i < n; ++i) {
     if (!(log.t_s[i] > log.t_s[i - 1])) {
       throw InputError(log.file, "column t_s row " + std::to_string(i + 1) + ": time does not increase");
@@ -456,6 +516,20 @@ GyroBenchLog ReadGyroBenchLog(const std::string& path) {
   log.ref_dph = t.Column("ref_dph");
   log.temp_c = t.Column("temp_c");
   if (t.Has("azimuth_deg")) log.azimuth_deg = t.Column("azimuth_deg");
+  if (t.Has("bn_ut")) log.bn_ut = t.Column("bn_ut");
+  if (t.Has("be_ut")) log.be_ut = t.Column("be_ut");
+  if (t.Has("bh_ut")) log.bh_ut = t.Column("bh_ut");
+  // Other columns are kept when every cell is a number (conventions: never an error).
+  for (const auto& name : t.header) {
+    if (name == "t_s" || name == "w_dph" || name == "ref_dph" || name == "temp_c" || name == "azimuth_deg" ||
+        name == "bn_ut" || name == "be_ut" || name == "bh_ut" || log.other.count(name)) {
+      continue;
+    }
+    try {
+      log.other[name] = t.Column(name);
+    } catch (const InputError&) {
+    }
+  }
   CheckGyroBenchLog(log);
   return log;
 }
@@ -500,15 +574,39 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
     if (usable[c]) scale[c] = std::sqrt(ss / d.n);
     d.cols.col(c) /= scale[c];
   }
+  // Temperature terms need a temperature that moves (physical bounds, docs/discrepancy.md): fitted to
+  // a log whose temperature hardly moves they explain anything with absurd coefficients.
+  double temp_span = 0;
+  for (const auto& b : d.bins) temp_span = std::max(temp_span, b.temp_span_c);
+  if (temp_span < o.min_temp_span_c) usable[kT1] = usable[kT2] = usable[kG1] = false;
+  // Likewise a logged field component must move: a magnetometer's noise alone gives absurd sensitivities.
+  for (int c = 0; c < 3; ++c) {
+    double span = 0;
+    for (const auto& b : d.bins) span = std::max(span, b.field_span_ut[c]);
+    if (span < o.min_field_span_ut) usable[kBn + c] = false;
+  }
+  // |ref| splits the scale factor by sign only when the rates take both signs: where they keep one
+  // sign within each log it is the scale-factor column again.
+  if (usable[kAbsRef] && usable[kScale]) {
+    double sab = 0, saa = 0, sbb = 0;
+    for (int r = 0; r < l; ++r) {
+      const int m = static_cast<int>(d.bins[r].t_s.size());
+      VectorXd a = d.cols.col(kAbsRef).segment(d.offset[r], m), b = d.cols.col(kScale).segment(d.offset[r], m);
+      a.array() -= a.mean();
+      b.array() -= b.mean();
+      sab += a.dot(b), saa += a.squaredNorm(), sbb += b.squaredNorm();
+    }
+    if (std::abs(sab) > 0.995 * std::sqrt(saa * sbb)) usable[kAbsRef] = false;
+  }
   std::vector<int> full_cols;
   for (int c = 0; c < kNumCols; ++c) {
     if (usable[c] && c != kMis) full_cols.push_back(c);  // misalignment is nested in the harmonic
   }
   if (!usable[kMagSin] && usable[kMis]) full_cols.push_back(kMis);
 
-  // Two passes: the step of the `bias` candidate is located with the noise model of the full
-  // model, then added to the full model (so that a step does not inflate the fitted wander) and
-  // the noise model, the GLS and the scan are redone.
+  // Two passes: the step of `bias_step` and the sinusoid of `periodic_drift` are located with the
+  // noise model of the full model, then added to the full model (so that they do not inflate the
+  // fitted wander) and the noise model, the GLS and the scans are redone.
   GyroDiscovery res;
   res.n_bins = d.n;
   MatrixXd x_full, bw;
@@ -517,13 +615,34 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
   VectorXd yw, base_res;
   LsFit full, base;
   double sigma2 = 1, f = 1;
-  VectorXd best_step;
-  double best_step_t = 0, best_w = 0;
-  int positions = 0;
+  VectorXd best_step, best_sin, best_cos;
+  double best_step_t = 0, best_w = 0, best_freq = 0, best_pw = 0;
+  int positions = 0, best_step_log = 0, best_periodic_log = 0;
+  double periodic_positions = 0;
+  struct StepPoint {
+    int log;
+    double t_s, w;
+  };
+  std::vector<StepPoint> step_profile;  // the scan's statistic at every position (last pass)
+  // Bin means of sin/cos(2 pi fr t) over a bin of width `bin`: the instantaneous value times
+  // sinc(pi fr bin), so that the amplitude is not biased low near the scan's top frequency.
+  auto sinusoid = [&](int r, double fr, VectorXd* sn, VectorXd* cs) {
+    const LogBins& b = d.bins[r];
+    const int m = static_cast<int>(b.t_s.size());
+    const double x = kPi * fr * b.bin_s, att = x > 1e-9 ? std::sin(x) / x : 1.0;
+    sn->resize(m), cs->resize(m);
+    for (int k = 0; k < m; ++k) {
+      (*sn)(k) = att * std::sin(2 * kPi * fr * b.t_s[k]);
+      (*cs)(k) = att * std::cos(2 * kPi * fr * b.t_s[k]);
+    }
+  };
   for (int pass = 0; pass < 2; ++pass) {
     // 1. OLS of the full model -> per-log noise model.
+    // The located step and sinusoid join the full model in the second pass, so that they do not
+    // inflate the fitted wander (a wander fitted with a sinusoid in it whitens the sinusoid away).
     std::vector<VectorXd> extra;
     if (pass == 1 && best_step.size() == d.n) extra.push_back(best_step);
+    if (pass == 1 && best_sin.size() == d.n) extra.push_back(best_sin), extra.push_back(best_cos);
     x_full = Assemble(d, full_cols, extra);
     const LsFit ols = SolveLs(x_full, d.y);
     if (!ols.ok) throw InputError(logs.front().file, "degenerate regressors");
@@ -549,6 +668,7 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
     // Step scan: a step in one log's bias at a bin boundary (5 %..95 % of the log).
     best_w = 0;
     positions = 0;
+    step_profile.clear();
     for (int r = 0; r < l; ++r) {
       const int m = static_cast<int>(d.bins[r].t_s.size());
       const VectorXd cw = bw.col(r).segment(d.offset[r], m);
@@ -563,12 +683,77 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
         ++positions;
         const double proj = rr.dot(sw);
         const double w = proj * proj / ss / (sigma2 * f);
+        step_profile.push_back({r, 0.5 * (d.bins[r].t_s[j - 1] + d.bins[r].t_s[j]), w});
         if (w > best_w) {
           best_w = w;
           best_step = VectorXd::Zero(d.n);
           best_step.segment(d.offset[r] + j, m - j).setOnes();
           best_step_t = 0.5 * (d.bins[r].t_s[j - 1] + d.bins[r].t_s[j]);
+          best_step_log = r;
         }
+      }
+    }
+    // Periodic scan: a sinusoid in one log's drift, periods from 4 bins to duration / min_cycles
+    // (the GLS periodogram, frequency step 1/4 of the Fourier spacing, refined by golden section);
+    // the number of independent frequencies (range x duration) is the Bonferroni count.
+    best_pw = 0;
+    periodic_positions = 0;
+    for (int r = 0; r < l; ++r) {
+      const int m = static_cast<int>(d.bins[r].t_s.size());
+      const double dur = d.bins[r].t_s.back() - d.bins[r].t_s.front() + d.bins[r].bin_s;
+      const double f_lo = o.periodic_min_cycles / dur, f_hi = 0.25 / d.bins[r].bin_s;
+      if (m < 24 || f_hi <= f_lo) continue;
+      periodic_positions += (f_hi - f_lo) * dur;
+      // First pass: the plain periodogram of the base residual. The noise model of that pass was
+      // fitted with the sinusoid still in the residual: its wander would whiten the sinusoid away.
+      NoiseModel white;
+      white.Prepare(m);
+      const NoiseModel& noise = pass == 0 ? white : nm[r];
+      VectorXd cw = bw.col(r).segment(d.offset[r], m), rr = base_res.segment(d.offset[r], m);
+      if (pass == 0) {
+        cw.setOnes();
+        rr = d.y.segment(d.offset[r], m);
+        rr.array() -= rr.mean();
+      }
+      auto stat = [&](double fr) {
+        VectorXd sn, cs;
+        sinusoid(r, fr, &sn, &cs);
+        MatrixXd a(m, 2);
+        a.col(0) = noise.Whiten(sn);
+        a.col(1) = noise.Whiten(cs);
+        for (int j = 0; j < 2; ++j) a.col(j) -= (cw.dot(a.col(j)) / cw.squaredNorm()) * cw;
+        const Eigen::Matrix2d g = a.transpose() * a;
+        const Eigen::Vector2d p = a.transpose() * rr;
+        if (!(g.determinant() > 1e-12 * g.trace() * g.trace())) return 0.0;
+        return p.dot(g.ldlt().solve(p)) / (sigma2 * f);
+      };
+      const double df = 0.25 / dur;
+      double f_best = 0, w_best = 0;
+      for (double fr = f_lo; fr <= f_hi; fr += df) {
+        const double w = stat(fr);
+        if (w > w_best) w_best = w, f_best = fr;
+      }
+      if (w_best <= 0) continue;
+      double a = std::max(f_lo, f_best - df), b = std::min(f_hi, f_best + df);
+      const double gr = 0.5 * (std::sqrt(5.0) - 1);
+      double c1 = b - gr * (b - a), c2 = a + gr * (b - a), w1 = stat(c1), w2 = stat(c2);
+      for (int it = 0; it < 30; ++it) {
+        if (w1 > w2) {
+          b = c2, c2 = c1, w2 = w1, c1 = b - gr * (b - a), w1 = stat(c1);
+        } else {
+          a = c1, c1 = c2, w1 = w2, c2 = a + gr * (b - a), w2 = stat(c2);
+        }
+      }
+      if (std::max(w1, w2) > w_best) w_best = std::max(w1, w2), f_best = w1 > w2 ? c1 : c2;
+      if (w_best > best_pw) {
+        best_pw = w_best;
+        best_freq = f_best;
+        best_periodic_log = r;
+        VectorXd sn, cs;
+        sinusoid(r, f_best, &sn, &cs);
+        best_sin = VectorXd::Zero(d.n), best_cos = VectorXd::Zero(d.n);
+        best_sin.segment(d.offset[r], m) = sn;
+        best_cos.segment(d.offset[r], m) = cs;
       }
     }
   }
@@ -586,25 +771,45 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
 
   // 3. Candidates.
   const std::vector<CandidateSpec> specs = {
-      {"temperature", {kT1, kT2}},   {"temperature_gradient", {kG1}}, {"magnetic_field", {kMagSin, kMagCos}},
-      {"misalignment", {kMis}},      {"scale_factor", {kScale}},      {"time_delay", {kDelay}},
+      {"temperature", "", {kT1, kT2}, {kT1, kT2}},
+      {"temperature_gradient", "", {kG1}, {kG1}},
+      {"magnetic_field", "azimuth_harmonic", {kMagSin, kMagCos}, {kMagSin, kMagCos}},
+      {"magnetic_field", "logged_field", {kBn, kBe, kBh}, {}},
+      {"misalignment", "", {kMis}, {kMis}},
+      {"scale_factor", "", {kScale}, {kScale}},
+      {"scale_factor_asymmetry", "", {kScale, kAbsRef}, {kScale, kAbsRef}},
+      {"time_delay", "", {kDelay}, {kDelay}},
   };
-  int tested = 2;  // bias and rate_random_walk are always tested
-  for (const auto& s : specs) {
-    bool ok = true;
-    for (int c : s.cols) ok = ok && usable[c];
-    tested += ok;
+  auto spec_cols = [&](const CandidateSpec& sp) {
+    std::vector<int> cols;
+    for (int c : sp.required) {
+      if (!usable[c]) return cols;
+    }
+    for (int c : sp.cols) {
+      if (usable[c]) cols.push_back(c);
+    }
+    return cols;
+  };
+  // Logs long enough to tell a random walk of the bias from the bounded wander.
+  std::vector<int> walk_logs;
+  for (int r = 0; r < l; ++r) {
+    if (d.bins[r].t_s.back() - d.bins[r].t_s.front() + d.bins[r].bin_s >= o.rrw_min_log_s) walk_logs.push_back(r);
   }
-  const double alpha_each = o.alpha / tested;
+  const bool step_ok = best_step.size() == d.n, periodic_ok = best_sin.size() == d.n;
+  int tested = step_ok + periodic_ok + !walk_logs.empty();
+  for (const auto& s : specs) tested += !spec_cols(s).empty();
+  const double alpha_each = o.alpha / std::max(tested, 1);
   res.alpha_per_candidate = alpha_each;
   struct Fitted {
     LsFit gls;
     MatrixXd x;  // raw (unwhitened) design of base + cause
+    std::vector<int> cols;  // its Col columns (empty for the located ones)
     double inflation = 1;
   };
   std::map<std::string, Fitted> fits;
-  // Every deterministic candidate and the located step against the base model, with GLS under
-  // the per-log noise models `noise` and the inflation of the full model's whitened residuals.
+  std::map<std::string, double> position_cost;  // ln(positions scanned) of the located candidates
+  // Every deterministic candidate and the located step and sinusoid against the base model, with
+  // GLS under the per-log noise models `noise` and the inflation of the full model's whitened residuals.
   auto test_all = [&](const std::vector<NoiseModel>& noise) {
     std::vector<GyroCandidate> out;
     const VectorXd y_w = WhitenRows(d, noise, d.y);
@@ -614,42 +819,50 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
     const double infl = VarianceInflation(d, y_w - xf_w * fl.beta, o.max_noise_lag);
     const double n_eff = d.n / infl;
     const LsFit b0 = SolveLs(WhitenRows(d, noise, d.base), y_w);
-    auto score = [&](GyroCandidate* c, const MatrixXd& x, double extra_cost) {
+    auto score = [&](GyroCandidate* c, const MatrixXd& x, const std::vector<int>& cols, double extra_cost) {
       const LsFit g = SolveLs(WhitenRows(d, noise, x), y_w);
       c->statistic = std::max(0.0, (b0.rss - g.rss) / (s2 * infl));
       c->delta_bic = d.n * std::log(b0.rss / g.rss) / infl - c->dof * std::log(n_eff) - extra_cost;
-      fits[c->cause] = {g, x, infl};
+      fits[Key(*c)] = {g, x, cols, infl};
     };
     for (const auto& sp : specs) {
       GyroCandidate c;
       c.cause = sp.cause;
-      c.dof = static_cast<int>(sp.cols.size());
-      for (int col : sp.cols) c.applicable = c.applicable && usable[col];
+      c.model = sp.model;
+      const std::vector<int> cols = spec_cols(sp);
+      c.dof = static_cast<int>(cols.size());
+      c.applicable = !cols.empty();
       if (c.applicable) {
-        score(&c, Assemble(d, sp.cols, {}), 0.0);
+        score(&c, Assemble(d, cols, {}), cols, 0.0);
         c.p_value = ChiSquaredSurvival(c.statistic, c.dof);
         c.significant = c.p_value < alpha_each;
       }
       out.push_back(c);
     }
-    GyroCandidate c;  // bias: the scanned step, Bonferroni-corrected for the positions tried
-    c.cause = "bias";
-    c.dof = 1;
-    c.applicable = best_step.size() == d.n;
-    if (c.applicable) {
-      score(&c, Assemble(d, {}, {best_step}), std::log(std::max(positions, 1)));  // the position costs too
-      c.p_value = std::min(1.0, positions * ChiSquaredSurvival(c.statistic, 1));
-      c.significant = c.p_value < alpha_each;
-    }
-    out.push_back(c);
+    // The located ones: p-values Bonferroni-corrected for the positions tried, which cost in the BIC.
+    auto located = [&](const std::string& cause, bool ok, const std::vector<VectorXd>& cols, double npos) {
+      GyroCandidate c;
+      c.cause = cause;
+      c.dof = static_cast<int>(cols.size());
+      c.applicable = ok;
+      if (ok) {
+        position_cost[cause] = std::log(std::max(npos, 1.0));
+        score(&c, Assemble(d, {}, cols), {}, position_cost[cause]);
+        c.p_value = std::min(1.0, std::max(npos, 1.0) * ChiSquaredSurvival(c.statistic, c.dof));
+        c.significant = c.p_value < alpha_each;
+      }
+      out.push_back(c);
+    };
+    located("bias_step", step_ok, {best_step}, positions);
+    located("periodic_drift", periodic_ok, {best_sin, best_cos}, periodic_positions);
     return out;
   };
   res.candidates = test_all(nm);
 
   // rate_random_walk: likelihood ratio of the noise model with a random walk of the bias against
   // the base noise model (white + Gauss-Markov wander with tau <= wander_tau_max_s), both by
-  // maximum likelihood on each log's full-model residuals. q = 0 lies on the boundary, so the LR
-  // follows 0.5 chi2_0 + 0.5 chi2_1 (Self & Liang 1987).
+  // maximum likelihood on each long log's base-model residuals. q = 0 lies on the boundary, so the
+  // LR follows 0.5 chi2_0 + 0.5 chi2_1 (Self & Liang 1987).
   std::vector<NoiseModel> nm_walk = nm;
   double walk_lnq_sigma = 1, walk_nll = 0;
   int walk_log = 0;
@@ -657,10 +870,11 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
     GyroCandidate c;
     c.cause = "rate_random_walk";
     c.dof = 1;
+    c.applicable = !walk_logs.empty();
     // On the base-model residuals: the slow regressors of the full model would absorb most of a
-    // walk. A deterministic cause then shows here too; it is sorted out by the re-test below.
+    // walk. A deterministic cause then shows here too; it is sorted out by the BIC below.
     double p_min = 1;
-    for (int r = 0; r < l; ++r) {
+    for (int r : walk_logs) {
       const int m = static_cast<int>(d.bins[r].t_s.size());
       VectorXd v = d.y.segment(d.offset[r], m);
       v.array() -= v.mean();
@@ -676,34 +890,43 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
       }
       const double lr = std::max(0.0, 2 * (h0.nll - h1.nll));
       walk_nll += h1.nll;
-      const double p = std::min(1.0, l * 0.5 * ChiSquaredSurvival(lr, 1));
+      const double p = std::min(1.0, walk_logs.size() * 0.5 * ChiSquaredSurvival(lr, 1));
       nm_walk[r] = h1.model;
       nm_walk[r].diffuse_level = false;
       nm_walk[r].Prepare(m);
-      if (p < p_min || r == 0) {
+      if (p < p_min || r == walk_logs.front()) {
         p_min = p;
         c.statistic = lr;
         walk_lnq_sigma = h1.ln_q_sigma;
         walk_log = r;
       }
     }
-    c.p_value = p_min;
-    c.significant = p_min < alpha_each;
-    c.delta_bic = c.statistic - std::log(res.n_eff);
+    if (c.applicable) {
+      c.p_value = p_min;
+      c.significant = p_min < alpha_each;
+      c.delta_bic = c.statistic - std::log(res.n_eff);
+    }
     res.candidates.push_back(c);
   }
-  // 4. Decision among the significant candidates: the smallest BIC of the exact likelihood
-  // (noise model refitted by maximum likelihood on each log's residual), so that a deterministic
-  // cause and a random walk, or a step and a walk, compete on the same footing.
-  const GyroCandidate* chosen = nullptr;
-  double chosen_bic = std::numeric_limits<double>::infinity();
+  // 4. Order of the significant candidates: the smallest BIC of the exact likelihood (noise model
+  // refitted by maximum likelihood on each log's residual), so that a deterministic cause and a
+  // random walk, or a step and a walk, compete on the same footing.
+  std::vector<GyroCandidate*> order;
   for (auto& c : res.candidates) {
     if (!c.applicable || !c.significant) continue;
     double bic = 0;
     if (c.cause == "rate_random_walk") {
-      bic = 2 * walk_nll + 4.0 * l * std::log(static_cast<double>(d.n));
+      // The short logs keep their base noise model: only the long ones carry the walk.
+      bic = 2 * walk_nll + 4.0 * walk_logs.size() * std::log(static_cast<double>(d.n));
+      for (int r = 0; r < l; ++r) {
+        if (std::find(walk_logs.begin(), walk_logs.end(), r) != walk_logs.end()) continue;
+        const int m = static_cast<int>(d.bins[r].t_s.size());
+        VectorXd v = d.y.segment(d.offset[r], m);
+        v.array() -= v.mean();
+        bic += 2 * FitNoiseMle(v, d.bins[r].bin_s, o.wander_tau_max_s, nm[r], false).nll + 3.0 * std::log(double(d.n));
+      }
     } else {
-      const Fitted& ft = fits[c.cause];
+      const Fitted& ft = fits[Key(c)];
       const LsFit g = SolveLs(WhitenRows(d, nm, ft.x), WhitenRows(d, nm, d.y));
       const VectorXd e = d.y - ft.x * g.beta;
       for (int r = 0; r < l; ++r) {
@@ -711,116 +934,270 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
         bic += 2 * FitNoiseMle(e.segment(d.offset[r], m), d.bins[r].bin_s, o.wander_tau_max_s, nm[r], false).nll;
       }
       bic += (3.0 * l + c.dof) * std::log(static_cast<double>(d.n));
-      if (c.cause == "bias") bic += 2 * std::log(std::max(positions, 1));
+      if (position_cost.count(c.cause)) bic += 2 * position_cost[c.cause];
     }
     c.bic = bic;
-    if (bic < chosen_bic) chosen_bic = bic, chosen = &c;
+    order.push_back(&c);
   }
-  // misalignment is nested in magnetic_field (a harmonic of fixed phase): the free phase is kept
-  // when its extra term is itself significant (chi^2_1 at alpha, a follow-up test).
-  if (chosen && chosen->cause == "misalignment") {
-    for (const auto& c : res.candidates) {
-      if (c.cause == "magnetic_field" && c.significant &&
-          ChiSquaredSurvival(c.statistic - chosen->statistic, 1) < o.alpha) {
-        chosen = &c;
+  std::sort(order.begin(), order.end(), [](const GyroCandidate* a, const GyroCandidate* b) { return a->bic < b->bic; });
+  auto find = [&](const std::string& cause) -> GyroCandidate* {
+    for (auto& c : res.candidates) {
+      if (c.cause == cause) return &c;
+    }
+    return nullptr;
+  };
+  // Nested pairs: misalignment is a harmonic of fixed phase inside magnetic_field, scale_factor is
+  // scale_factor_asymmetry with equal scale factors for both signs. The larger model is taken when
+  // its extra terms are themselves significant (chi^2 of the difference, a follow-up test at alpha).
+  auto upgrade = [&](GyroCandidate* c) {
+    const std::map<std::string, std::string> wider = {{"misalignment", "magnetic_field"},
+                                                      {"scale_factor", "scale_factor_asymmetry"}};
+    if (!wider.count(c->cause)) return c;
+    GyroCandidate* w = find(wider.at(c->cause));
+    if (w && w->applicable && w->significant && w->dof > c->dof &&
+        ChiSquaredSurvival(w->statistic - c->statistic, w->dof - c->dof) < o.alpha) {
+      return w;
+    }
+    return c;
+  };
+
+  // 5. Gates, in BIC order: the first candidate whose parameters lie within the physical bounds and
+  // whose held-out improvement is significant is named.
+  // One-sided normal quantile at gain_alpha / l (Bonferroni over the logs), by bisection on erfc
+  // (which keeps tiny tail probabilities).
+  double z_lo = 0, z_hi = 40;
+  for (int it = 0; it < 100; ++it) {
+    const double mid = 0.5 * (z_lo + z_hi);
+    (0.5 * std::erfc(mid / std::sqrt(2.0)) > o.gain_alpha / l ? z_lo : z_hi) = mid;
+  }
+  const double z_min = 0.5 * (z_lo + z_hi);
+  res.gain_z_min = z_min;
+  struct Evaluation {
+    std::map<std::string, double> parameters, sigmas;
+    CvResult cv;
+    std::string out_of_bounds;  // empty when within the bounds
+  };
+  auto evaluate = [&](const GyroCandidate& cand) {
+    const std::string& cause = cand.cause;
+    Evaluation ev;
+    auto& par = ev.parameters;
+    auto& sig = ev.sigmas;
+    if (cause == "rate_random_walk") {
+      // K from the walk's variance per bin: q = K^2 bin (K in dph/sqrt(s)).
+      const double q = nm_walk[walk_log].q_rw, bin = d.bins[walk_log].bin_s;
+      const double k_dph_sqrt_h = std::sqrt(q / bin) * 60.0;
+      par["K_dph_per_sqrt_h"] = k_dph_sqrt_h;
+      sig["K_dph_per_sqrt_h"] = 0.5 * k_dph_sqrt_h * walk_lnq_sigma;
+      // Held-out one-step prediction of the second half's bins: constant bias (base) vs an
+      // exponentially smoothed level with its factor tuned on the first half (local-level model).
+      double best_ratio = -1;
+      ev.cv.z = -std::numeric_limits<double>::infinity();
+      for (int rr : walk_logs) {
+        const int mm = static_cast<int>(d.bins[rr].t_s.size());
+        const VectorXd z = d.y.segment(d.offset[rr], mm);
+        const int half = mm / 2;
+        // Squared one-step errors from `from` to `to` with smoothing factor a (0: constant level).
+        auto one_step = [&](double a, int from, int to, double level, std::vector<double>* e2) {
+          double ss = 0;
+          for (int i = from; i < to; ++i) {
+            const double e = z(i) - level;
+            ss += e * e;
+            if (e2) e2->push_back(e * e);
+            level += a * e;
+          }
+          return ss;
+        };
+        double best_a = 0, best_ss = std::numeric_limits<double>::infinity();
+        for (double a = 0.002; a <= 0.5; a *= 1.25) {
+          const double ss = one_step(a, 1, half, z(0), nullptr);
+          if (ss < best_ss) best_ss = ss, best_a = a;
+        }
+        const double mean_first = z.head(half).mean();
+        double level = z(0);
+        for (int i = 1; i < half; ++i) level += best_a * (z(i) - level);
+        std::vector<double> eb, ea;
+        const double sb = one_step(0.0, half, mm, mean_first, &eb), sa = one_step(best_a, half, mm, level, &ea);
+        const int nblk = o.cv_blocks / 2;
+        std::vector<double> blk(nblk, 0.0);
+        for (size_t i = 0; i < eb.size(); ++i) blk[i * nblk / eb.size()] += (eb[i] - ea[i]) / log_var[rr];
+        ev.cv.z = std::max(ev.cv.z, BlockZ(blk));
+        if (sb / sa > best_ratio) {  // the log where the level model predicts best carries the figure
+          best_ratio = sb / sa;
+          ev.cv.rms_before = std::sqrt(sb / (mm - half));
+          ev.cv.rms_after = std::sqrt(sa / (mm - half));
+        }
+      }
+    } else {
+      // Parameters (GLS, sigma scaled by the residual variance and the inflation).
+      const Fitted& fit = fits[Key(cand)];
+      const LsFit& g = fit.gls;
+      const int dof_res = std::max(1, d.n - static_cast<int>(fit.x.cols()));
+      const double s2 = g.rss / dof_res * fit.inflation;
+      auto pos = [&](int col) {
+        return l + static_cast<int>(std::find(fit.cols.begin(), fit.cols.end(), col) - fit.cols.begin());
+      };
+      auto has = [&](int col) { return std::find(fit.cols.begin(), fit.cols.end(), col) != fit.cols.end(); };
+      auto est = [&](int col, double unscale, const std::string& name) {
+        const int j = pos(col);
+        par[name] = g.beta(j) / unscale;
+        sig[name] = std::sqrt(g.cov_unscaled(j, j) * s2) / unscale;
+      };
+      // A harmonic e_s sin x + e_c cos x = S sin(x + phi) from coefficient rows js, jc.
+      // Its covariance from `gc` (for periodic_drift: the fit with the frequency free).
+      auto harmonic = [&](int js, int jc, double us, double uc, const LsFit& gc) {
+        const double es = g.beta(js) / us, ec = g.beta(jc) / uc;
+        Eigen::Matrix2d cov;
+        cov << gc.cov_unscaled(js, js) / (us * us), gc.cov_unscaled(js, jc) / (us * uc),
+            gc.cov_unscaled(jc, js) / (us * uc), gc.cov_unscaled(jc, jc) / (uc * uc);
+        cov *= s2;
+        const double amp = std::hypot(es, ec);
+        const Eigen::Vector2d da(es / amp, ec / amp), dp(-ec / (amp * amp), es / (amp * amp));
+        par["amplitude_dph"] = amp;
+        sig["amplitude_dph"] = std::sqrt(da.dot(cov * da));
+        par["phase_deg"] = std::atan2(ec, es) * kRadToDeg;
+        sig["phase_deg"] = std::sqrt(dp.dot(cov * dp)) * kRadToDeg;
+      };
+      // Largest swing of one term against the swing of their sum (over all bins): correlated
+      // regressors that cancel each other (absurd coefficients) show as a ratio >> 1.
+      auto swing_ratio = [&](const std::vector<std::vector<int>>& groups) {
+        VectorXd total = VectorXd::Zero(d.n);
+        double worst = 0;
+        for (const auto& grp : groups) {
+          VectorXd t = VectorXd::Zero(d.n);
+          for (int col : grp) {
+            if (has(col)) t += d.cols.col(col) * g.beta(pos(col));
+          }
+          total += t;
+          worst = std::max(worst, t.maxCoeff() - t.minCoeff());
+        }
+        const double range = total.maxCoeff() - total.minCoeff();
+        return range > 0 ? worst / range : 1.0;
+      };
+      if (cause == "temperature") {
+        est(kT1, scale[kT1], "K10_dph");
+        est(kT2, scale[kT2], "K20_dph");
+        par["swing_ratio"] = swing_ratio({{kT1}, {kT2}});
+      } else if (cause == "temperature_gradient") {
+        est(kG1, scale[kG1], "K01_dph");
+      } else if (cause == "magnetic_field") {
+        // f = e_sin sin(psi) + e_cos cos(psi) = S sin(psi + phi); the logged field's sensitivities.
+        if (has(kMagSin) && has(kMagCos)) harmonic(pos(kMagSin), pos(kMagCos), scale[kMagSin], scale[kMagCos], g);
+        if (has(kBn)) est(kBn, scale[kBn], "sensitivity_bn_dph_per_ut");
+        if (has(kBe)) est(kBe, scale[kBe], "sensitivity_be_dph_per_ut");
+        if (has(kBh)) est(kBh, scale[kBh], "sensitivity_bh_dph_per_ut");
+        par["swing_ratio"] = swing_ratio({{kMagSin, kMagCos}, {kBn}, {kBe}, {kBh}});
+      } else if (cause == "misalignment") {
+        est(kMis, scale[kMis], "misalignment_arcsec");
+      } else if (cause == "scale_factor") {
+        est(kScale, scale[kScale], "scale_factor_ppm");
+      } else if (cause == "scale_factor_asymmetry") {
+        // drift = s ref + a |ref| (ppm): scale factor s + a for positive rates, s - a for negative.
+        const int js = pos(kScale), ja = pos(kAbsRef);
+        const double us = scale[kScale], ua = scale[kAbsRef];
+        const double s = g.beta(js) / us, a = g.beta(ja) / ua;
+        const double vs = g.cov_unscaled(js, js) * s2 / (us * us), va = g.cov_unscaled(ja, ja) * s2 / (ua * ua);
+        const double csa = g.cov_unscaled(js, ja) * s2 / (us * ua);
+        par["scale_factor_ppm"] = s, sig["scale_factor_ppm"] = std::sqrt(vs);
+        par["asymmetry_ppm"] = 2 * a, sig["asymmetry_ppm"] = 2 * std::sqrt(va);
+        par["scale_factor_positive_ppm"] = s + a, sig["scale_factor_positive_ppm"] = std::sqrt(std::max(0.0, vs + va + 2 * csa));
+        par["scale_factor_negative_ppm"] = s - a, sig["scale_factor_negative_ppm"] = std::sqrt(std::max(0.0, vs + va - 2 * csa));
+      } else if (cause == "time_delay") {
+        est(kDelay, scale[kDelay], "delay_s");
+      } else if (cause == "bias_step") {
+        par["step_dph"] = g.beta(l), sig["step_dph"] = std::sqrt(g.cov_unscaled(l, l) * s2);
+        // Step time: the positions whose statistic is within 1 of the best (a profile-likelihood
+        // interval, Delta chi^2 = 1); half its width, at least one bin.
+        double t_lo = best_step_t, t_hi = best_step_t;
+        for (const auto& sp : step_profile) {
+          if (sp.log == best_step_log && sp.w >= best_w - 1) t_lo = std::min(t_lo, sp.t_s), t_hi = std::max(t_hi, sp.t_s);
+        }
+        par["step_time_s"] = best_step_t;
+        sig["step_time_s"] = std::max(d.bins[best_step_log].bin_s, 0.5 * (t_hi - t_lo));
+      } else if (cause == "periodic_drift") {
+        // Period sigma: the GLS covariance with the derivative in frequency added (linearised).
+        const LogBins& b = d.bins[best_periodic_log];
+        VectorXd dcol = VectorXd::Zero(d.n);
+        for (size_t k = 0; k < b.t_s.size(); ++k) {
+          const int i = d.offset[best_periodic_log] + static_cast<int>(k);
+          const double tt = 2 * kPi * b.t_s[k];
+          dcol(i) = tt * (g.beta(l) * best_cos(i) - g.beta(l + 1) * best_sin(i));
+        }
+        MatrixXd xd(d.n, fit.x.cols() + 1);
+        xd << fit.x, dcol;
+        const LsFit gd = SolveLs(WhitenRows(d, nm, xd), WhitenRows(d, nm, d.y));
+        const double sf = std::sqrt(gd.cov_unscaled(fit.x.cols(), fit.x.cols()) * s2);
+        harmonic(l, l + 1, 1.0, 1.0, gd);  // phase at t_s = 0: its sigma grows with the frequency's
+        par["period_s"] = 1 / best_freq, sig["period_s"] = sf / (best_freq * best_freq);
+        par["frequency_hz"] = best_freq, sig["frequency_hz"] = sf;
+      }
+      ev.cv = CrossValidate(d, nm, fit.x, o.cv_blocks);
+    }
+    // Physical bounds (the table of docs/discrepancy.md).
+    struct Bound {
+      const char* cause;
+      const char* parameter;
+      double max_abs;
+    };
+    static const Bound kBounds[] = {
+        {"temperature", "K10_dph", 5},          {"temperature", "K20_dph", 5},
+        {"temperature", "swing_ratio", 5},      {"temperature_gradient", "K01_dph", 5},
+        {"magnetic_field", "amplitude_dph", 2}, {"magnetic_field", "sensitivity_bn_dph_per_ut", 0.1},
+        {"magnetic_field", "sensitivity_be_dph_per_ut", 0.1}, {"magnetic_field", "sensitivity_bh_dph_per_ut", 0.1},
+        {"magnetic_field", "swing_ratio", 5},   {"misalignment", "misalignment_arcsec", 3600},
+        {"scale_factor", "scale_factor_ppm", 1e4}, {"scale_factor_asymmetry", "scale_factor_ppm", 1e4},
+        {"scale_factor_asymmetry", "asymmetry_ppm", 1e4}, {"time_delay", "delay_s", 0.1},
+        {"bias_step", "step_dph", 10},          {"periodic_drift", "amplitude_dph", 10},
+        {"rate_random_walk", "K_dph_per_sqrt_h", 2},
+    };
+    for (const auto& bd : kBounds) {
+      if (cause != bd.cause || !par.count(bd.parameter)) continue;
+      const double v = par.at(bd.parameter);
+      if (!(std::abs(v) <= bd.max_abs)) {
+        ev.out_of_bounds = std::string(bd.parameter) + " = " + std::to_string(v) + " beyond " + std::to_string(bd.max_abs);
         break;
       }
     }
+    return ev;
+  };
+
+  const GyroCandidate* chosen = nullptr;
+  Evaluation chosen_ev;
+  std::vector<std::string> tried;
+  for (GyroCandidate* c0 : order) {
+    for (GyroCandidate* c : {upgrade(c0), c0}) {
+      if (chosen || std::find(tried.begin(), tried.end(), Key(*c)) != tried.end()) continue;
+      tried.push_back(Key(*c));
+      Evaluation ev = evaluate(*c);
+      c->evaluated = true;
+      c->gain = ev.cv.rms_after > 0 ? ev.cv.rms_before / ev.cv.rms_after : 1.0;
+      c->gain_z = ev.cv.z;
+      if (!ev.out_of_bounds.empty()) {
+        c->verdict = "outside bounds: " + ev.out_of_bounds;
+      } else if (!(c->gain > 1 && c->gain_z > z_min)) {
+        c->verdict = "held-out gain not significant";
+      } else {
+        c->verdict = "named";
+        chosen = c;
+        chosen_ev = ev;
+      }
+    }
+    if (chosen) break;
   }
   if (!chosen) {
     res.cause = "none";
-    CrossValidate(d, log_var, d.base, o.cv_blocks, &res.rms_before_dph, &res.rms_after_dph);
-    res.rms_after_dph = res.rms_before_dph;
+    const CvResult cv = CrossValidate(d, nm, d.base, o.cv_blocks);
+    res.rms_before_dph = res.rms_after_dph = cv.rms_before;
     res.gain = 1;
     return res;
   }
   res.cause = chosen->cause;
-
-  // 5. Parameters (GLS, sigma scaled by the residual variance and the inflation).
-  if (res.cause != "rate_random_walk") {
-    const Fitted& fit = fits[res.cause];
-    const LsFit& g = fit.gls;
-    const int dof_res = std::max(1, d.n - static_cast<int>(fit.x.cols()));
-    const double s2 = g.rss / dof_res * fit.inflation;
-    auto est = [&](int j, double unscale) { return std::pair<double, double>{g.beta(l + j) / unscale, std::sqrt(g.cov_unscaled(l + j, l + j) * s2) / unscale}; };
-    if (res.cause == "temperature") {
-      auto [a, sa] = est(0, scale[kT1]);
-      auto [b, sb] = est(1, scale[kT2]);
-      res.parameters["K10_dph"] = a, res.sigmas["K10_dph"] = sa;
-      res.parameters["K20_dph"] = b, res.sigmas["K20_dph"] = sb;
-    } else if (res.cause == "temperature_gradient") {
-      auto [a, sa] = est(0, scale[kG1]);
-      res.parameters["K01_dph"] = a, res.sigmas["K01_dph"] = sa;
-    } else if (res.cause == "magnetic_field") {
-      // f = e_sin sin(psi) + e_cos cos(psi) = S sin(psi + phi): S cos(phi) = e_sin, S sin(phi) = e_cos.
-      const double es = g.beta(l) / scale[kMagSin], ec = g.beta(l + 1) / scale[kMagCos];
-      Eigen::Matrix2d cov;
-      cov << g.cov_unscaled(l, l) / (scale[kMagSin] * scale[kMagSin]),
-          g.cov_unscaled(l, l + 1) / (scale[kMagSin] * scale[kMagCos]),
-          g.cov_unscaled(l + 1, l) / (scale[kMagSin] * scale[kMagCos]),
-          g.cov_unscaled(l + 1, l + 1) / (scale[kMagCos] * scale[kMagCos]);
-      cov *= s2;
-      const double amp = std::hypot(es, ec);
-      const Eigen::Vector2d da(es / amp, ec / amp), dp(-ec / (amp * amp), es / (amp * amp));
-      res.parameters["amplitude_dph"] = amp;
-      res.sigmas["amplitude_dph"] = std::sqrt(da.dot(cov * da));
-      res.parameters["phase_deg"] = std::atan2(ec, es) * kRadToDeg;
-      res.sigmas["phase_deg"] = std::sqrt(dp.dot(cov * dp)) * kRadToDeg;
-    } else if (res.cause == "misalignment") {
-      auto [a, sa] = est(0, scale[kMis]);
-      res.parameters["misalignment_arcsec"] = a, res.sigmas["misalignment_arcsec"] = sa;
-    } else if (res.cause == "scale_factor") {
-      auto [a, sa] = est(0, scale[kScale]);
-      res.parameters["scale_factor_ppm"] = a, res.sigmas["scale_factor_ppm"] = sa;
-    } else if (res.cause == "time_delay") {
-      auto [a, sa] = est(0, scale[kDelay]);
-      res.parameters["delay_s"] = a, res.sigmas["delay_s"] = sa;
-    } else if (res.cause == "bias") {
-      auto [a, sa] = est(0, 1.0);
-      res.parameters["step_dph"] = a, res.sigmas["step_dph"] = sa;
-      res.parameters["step_time_s"] = best_step_t;
-      res.sigmas["step_time_s"] = d.bins[0].bin_s;
-    }
-    CrossValidate(d, log_var, fit.x, o.cv_blocks, &res.rms_before_dph, &res.rms_after_dph);
-  } else {
-    // K from the walk's variance per bin: q = K^2 bin (K in dph/sqrt(s)).
-    const double q = nm_walk[walk_log].q_rw, bin = d.bins[walk_log].bin_s;
-    const double k_dph_sqrt_h = std::sqrt(q / bin) * 60.0;
-    res.parameters["K_dph_per_sqrt_h"] = k_dph_sqrt_h;
-    res.sigmas["K_dph_per_sqrt_h"] = 0.5 * k_dph_sqrt_h * walk_lnq_sigma;
-    // Held-out one-step prediction of the second half's bins: constant bias (base) vs an
-    // exponentially smoothed level with its factor tuned on the first half (local-level model).
-    double best_ratio = -1;
-    for (int rr = 0; rr < l; ++rr) {
-      const int mm = static_cast<int>(d.bins[rr].t_s.size());
-      const VectorXd z = d.y.segment(d.offset[rr], mm);
-      const int half = mm / 2;
-      auto one_step = [&](double a, int from, int to, double level) {
-        double ss = 0;
-        for (int i = from; i < to; ++i) {
-          const double e2 = z(i) - level;
-          ss += e2 * e2;
-          level += a * e2;
-        }
-        return ss;
-      };
-      double best_a = 0, best_ss = std::numeric_limits<double>::infinity();
-      for (double a = 0.002; a <= 0.5; a *= 1.25) {
-        const double ss = one_step(a, 1, half, z(0));
-        if (ss < best_ss) best_ss = ss, best_a = a;
-      }
-      const double mean_first = z.head(half).mean();
-      double level = z(0);
-      for (int i = 1; i < half; ++i) level += best_a * (z(i) - level);
-      const double sb = one_step(0.0, half, mm, mean_first), sa = one_step(best_a, half, mm, level);
-      if (sb / sa > best_ratio) {  // the log where the level model predicts best carries the figure
-        best_ratio = sb / sa;
-        res.rms_before_dph = std::sqrt(sb / (mm - half));
-        res.rms_after_dph = std::sqrt(sa / (mm - half));
-      }
-    }
-  }
-  res.gain = res.rms_after_dph > 0 ? res.rms_before_dph / res.rms_after_dph : 1.0;
+  res.parameters = chosen_ev.parameters;
+  res.sigmas = chosen_ev.sigmas;
+  res.parameters.erase("swing_ratio");
+  res.rms_before_dph = chosen_ev.cv.rms_before;
+  res.rms_after_dph = chosen_ev.cv.rms_after;
+  res.gain = chosen->gain;
+  res.gain_z = chosen->gain_z;
   return res;
 }
 
@@ -834,6 +1211,8 @@ Json GyroDiscoveryToJson(const GyroDiscovery& d) {
   j["rms_before_dph"] = d.rms_before_dph;
   j["rms_after_dph"] = d.rms_after_dph;
   j["gain"] = d.gain;
+  j["gain_z"] = d.gain_z;
+  j["gain_z_min"] = d.gain_z_min;
   j["gain_method"] = d.cause == "rate_random_walk" ? "held-out one-step prediction (second half of each log)"
                                                    : "cross-validation on interleaved blocks";
   j["evidence"] = {{"n_bins", d.n_bins},
@@ -846,12 +1225,18 @@ Json GyroDiscoveryToJson(const GyroDiscovery& d) {
   j["candidates"] = Json::array();
   for (const auto& c : d.candidates) {
     Json cj = {{"cause", c.cause}, {"applicable", c.applicable}};
+    if (!c.model.empty()) cj["model"] = c.model;
     if (c.applicable) {
       cj["statistic"] = c.statistic;
       cj["p_value"] = c.p_value;
       cj["delta_bic"] = c.delta_bic;
       cj["significant"] = c.significant;
       if (c.significant) cj["likelihood_bic"] = c.bic;
+      if (c.evaluated) {
+        cj["gain"] = c.gain;
+        cj["gain_z"] = c.gain_z;
+        cj["verdict"] = c.verdict;
+      }
     }
     j["candidates"].push_back(cj);
   }

@@ -23,6 +23,13 @@
 //  4. Among the significant candidates the lowest exact-likelihood BIC wins (noise model refitted
 //     by maximum likelihood on the residual of each), so that steps, walks and slow regressors
 //     compete on the same footing.
+//     New in issue 18: bias_step (the located step, formerly reported as `bias`), periodic_drift (a
+//     located sinusoid: GLS periodogram, Bonferroni over independent frequencies),
+//     scale_factor_asymmetry (ref and |ref|), magnetic_field from the logged bn/be/bh columns.
+//  4b. Gates, in BIC order until one passes: the parameters lie within physical bounds (temperature
+//     and field must move; K, ppm, delay, amplitude limits; no cancelling terms; a walk needs >= 1 h)
+//     and the held-out improvement is significant: z = e.p / sqrt(p' S p) (e held-out base residual,
+//     p held-out prediction, S the fitted noise covariance) above the one-sided quantile of gain_alpha.
 //  5. Gain: each log is cut into cv_blocks blocks; the model is fitted on the even blocks and scored
 //     on the odd ones and vice versa (bin RMS of the drift after a bias-only fit / after the cause).
 //     For rate_random_walk: one-step prediction of the bins of the second half of each log by a
@@ -41,10 +48,13 @@ namespace ssiu {
 struct GyroBenchLog {
   std::string file;
   std::vector<double> t_s, w_dph, ref_dph, temp_c, azimuth_deg;  // azimuth empty when absent
+  std::vector<double> bn_ut, be_ut, bh_ut;  // logged magnetic field (north, east, vertical); empty when absent
+  // Every other numeric column (name -> values): the residual is tested against each (`unexplained`).
+  std::map<std::string, std::vector<double>> other;
 };
 
-// Reads t_s,w_dph,ref_dph,temp_c[,azimuth_deg]. InputError on a missing column, a non-number,
-// unsorted time or fewer than 50 rows.
+// Reads t_s,w_dph,ref_dph,temp_c[,azimuth_deg][,bn_ut,be_ut,bh_ut]; other all-numeric columns go to
+// `other`. InputError on a missing column, a non-number, unsorted time or fewer than 50 rows.
 GyroBenchLog ReadGyroBenchLog(const std::string& path);
 void CheckGyroBenchLog(const GyroBenchLog& log);
 
@@ -55,11 +65,19 @@ struct GyroDiscoverOptions {
   int max_noise_lag = 30;        // bins used for the noise model and the effective sample size
   double wander_tau_max_s = 1800;  // the base model's wander is bounded with correlation time <= this
   int cv_blocks = 32;            // per log, for the cross-validated gain
+  // Gates (docs/discrepancy.md): a cause is named only when its held-out improvement is significant
+  // at gain_alpha (one-sided, Bonferroni over logs) and its parameters lie within the physical bounds.
+  double gain_alpha = 0.01;
+  double min_temp_span_c = 1.0;    // temperature terms are tested only when T moves at least this much
+  double min_field_span_ut = 1.0;  // a logged field component is a regressor only when it moves this much
+  double rrw_min_log_s = 3600;     // a random walk is tested only on logs at least this long
+  double periodic_min_cycles = 3;  // a periodic drift must repeat at least this often within its log
   void Check() const;
 };
 
 struct GyroCandidate {
   std::string cause;
+  std::string model;      // when a cause has several: magnetic_field "azimuth_harmonic" or "logged_field"
   double statistic = 0;   // Wald chi^2 (deterministic, bias) or likelihood ratio (rate_random_walk)
   double p_value = 1;
   double delta_bic = 0;   // BIC(base) - BIC(base + cause) under the GLS whitening; > 0 favours the cause
@@ -67,6 +85,10 @@ struct GyroCandidate {
   int dof = 0;
   bool applicable = true;  // false when the logs cannot show it (e.g. no azimuth column)
   bool significant = false;
+  // Gates, for the significant candidates tried in BIC order until one passes.
+  bool evaluated = false;
+  double gain = 0, gain_z = 0;  // held-out gain and its significance (z of the improvement)
+  std::string verdict;          // "named", "gain not significant", "outside bounds: ...", ...
 };
 
 struct GyroDiscovery {
@@ -74,6 +96,7 @@ struct GyroDiscovery {
   std::map<std::string, double> parameters;  // names of the FOG calibration issue (K10_dph, amplitude_dph, ...)
   std::map<std::string, double> sigmas;      // 1-sigma of each parameter (same keys)
   double rms_before_dph = 0, rms_after_dph = 0, gain = 1;  // cross-validated, held-out bins
+  double gain_z = 0, gain_z_min = 0;  // significance of the held-out improvement and the gate on it
   std::vector<GyroCandidate> candidates;
   // Evidence: noise model and sample sizes.
   int n_bins = 0;

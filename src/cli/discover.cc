@@ -212,15 +212,28 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
 SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
   auto* discover = ssiu::cli::GetOrAddSubcommand(root, "discover", "Find what the model gets wrong in measured data");
   auto* cmd = discover->add_subcommand(
-      "gyro", "Test candidate causes (temperature, magnetic_field, scale_factor, ...) against the base gyro model");
+      "gyro",
+      "Test candidate causes (temperature, magnetic_field, scale_factor, bias_step, periodic_drift, ...) against the "
+      "base gyro model; a cause is named only when its held-out gain is significant and its parameters are within "
+      "physical bounds (docs/discrepancy.md)");
   auto o = std::make_shared<GyroOpts>();
-  cmd->add_option("logs", o->logs, "Bench logs t_s,w_dph,ref_dph,temp_c[,azimuth_deg]")->required();
+  cmd->add_option("logs", o->logs,
+                  "Bench logs t_s,w_dph,ref_dph,temp_c[,azimuth_deg][,bn_ut,be_ut,bh_ut] (other numeric columns "
+                  "are kept for the residual test)")
+      ->required();
   cmd->add_option("--json", o->json, "Output JSON, - for stdout");
   cmd->add_option("--alpha", o->opt.alpha, "Family-wise false-alarm probability")->capture_default_str();
   cmd->add_option("--max-bins", o->opt.max_bins_per_log, "Bins per log at most")->capture_default_str();
   cmd->add_option("--wander-tau-max-s", o->opt.wander_tau_max_s, "Longest correlation time of the base wander, s")
       ->capture_default_str();
   cmd->add_option("--cv-blocks", o->opt.cv_blocks, "Blocks per log for the cross-validated gain")->capture_default_str();
+  cmd->add_option("--gain-alpha", o->opt.gain_alpha,
+                  "One-sided false-alarm probability of the held-out gain's significance gate")
+      ->capture_default_str();
+  cmd->add_option("--min-temp-span-c", o->opt.min_temp_span_c, "Temperature terms tested only when T moves this much")
+      ->capture_default_str();
+  cmd->add_option("--rrw-min-log-s", o->opt.rrw_min_log_s, "Random walk tested only on logs this long")
+      ->capture_default_str();
   cmd->callback([o] {
     std::vector<ssiu::GyroBenchLog> logs;
     for (const auto& f : o->logs) logs.push_back(ssiu::ReadGyroBenchLog(f));

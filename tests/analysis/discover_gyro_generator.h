@@ -25,7 +25,7 @@ struct GyroCase {
 inline const std::vector<std::string>& GyroCauses() {
   static const std::vector<std::string> k = {"none",         "temperature",  "temperature_gradient",
                                              "magnetic_field", "misalignment", "scale_factor",
-                                             "time_delay",   "bias",         "rate_random_walk"};
+                                             "time_delay",   "bias_step",    "rate_random_walk"};
   return k;
 }
 
@@ -47,12 +47,20 @@ struct BaseNoise {
   }
 };
 
+// The causes added by issue 18 (the logged-field variant of magnetic_field is named
+// "magnetic_field_logged" here; its expected answer is magnetic_field).
+inline const std::vector<std::string>& NewGyroCauses() {
+  static const std::vector<std::string> k = {"bias_step", "periodic_drift", "scale_factor_asymmetry",
+                                             "magnetic_field_logged"};
+  return k;
+}
+
 inline double RandomSign(Rng& rng) { return rng.Uniform() < 0.5 ? -1.0 : 1.0; }
 
 inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
   Rng rng(seed);
   GyroCase c;
-  c.cause = cause;
+  c.cause = cause == "magnetic_field_logged" ? "magnetic_field" : cause;
   const double lat = 50.0 * kDegToRad;
   const double earth_dph = 15.041067;
   const double omega_h = earth_dph * std::cos(lat), omega_v = earth_dph * std::sin(lat);
@@ -62,7 +70,7 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
   const double bias = rng.Uniform(-0.5, 0.5);
   // Hidden-cause strengths.
   double k10 = 0, k20 = 0, k01 = 0, mag_amp = 0, mag_phase = 0, mis_rad = 0, sf_ppm = 0, delay_s = 0;
-  double step = 0, step_t = 0, rrw = 0;
+  double step = 0, step_t = 0, rrw = 0, per_amp = 0, per_period = 1, per_phase = 0, asym_ppm = 0, k_bh = 0;
   if (cause == "temperature") {
     k10 = RandomSign(rng) * rng.Uniform(0.02, 0.06);
     k20 = RandomSign(rng) * rng.Uniform(0.0, 0.03);
@@ -83,10 +91,22 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
   } else if (cause == "time_delay") {
     delay_s = rng.Uniform(0.5e-3, 3e-3);
     c.truth = {{"delay_s", delay_s}};
-  } else if (cause == "bias") {
+  } else if (cause == "bias_step") {
     step = RandomSign(rng) * rng.Uniform(0.03, 0.06);
     step_t = rng.Uniform(0.2, 0.8) * 43200;
     c.truth = {{"step_dph", step}, {"step_time_s", step_t}};
+  } else if (cause == "periodic_drift") {
+    // An orbital thermal cycle (80-110 min) that the logged temperature does not follow.
+    per_amp = rng.Uniform(0.03, 0.1);
+    per_period = rng.Uniform(80, 110) * 60;
+    per_phase = rng.Uniform(-kPi, kPi);
+    c.truth = {{"amplitude_dph", per_amp}, {"period_s", per_period}, {"phase_deg", per_phase * kRadToDeg}};
+  } else if (cause == "scale_factor_asymmetry") {
+    asym_ppm = RandomSign(rng) * rng.Uniform(50, 170);  // scale factor +a/2 for positive rates, -a/2 negative
+    c.truth = {{"asymmetry_ppm", asym_ppm}};
+  } else if (cause == "magnetic_field_logged") {
+    k_bh = RandomSign(rng) * rng.Uniform(0.001, 0.003);  // dph per uT of the vertical field
+    c.truth = {{"sensitivity_bh_dph_per_ut", k_bh}};
   } else if (cause == "rate_random_walk") {
     rrw = rng.Uniform(0.05, 0.1);  // dph / sqrt(h)
     c.truth = {{"K_dph_per_sqrt_h", rrw}};
@@ -103,6 +123,11 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
     const double t_ramp1 = rng.Uniform(3600, 6000), rate1 = rng.Uniform(0.15, 0.25);  // C/min
     const double hold = rng.Uniform(3000, 7000), rate2 = -rng.Uniform(0.08, 0.2);
     const double psi0 = rng.Uniform(0, 360);
+    // Logged field (uT): constant horizontal components (magnetometer noise 0.05 uT) and a vertical
+    // one driven by a coil programme: +-10-25 uT steps every 40-80 min plus a slow sine.
+    const double coil_amp = rng.Uniform(10, 25), coil_step_s = rng.Uniform(2400, 4800);
+    const double coil_sine = rng.Uniform(5, 15), coil_period = rng.Uniform(3, 6) * 3600;
+    Rng field_rng(seed ^ 0x9e3779b97f4a7c15ULL);  // the magnetometer's own noise stream
     for (int k = 0; k * dt < 43200; ++k) {
       const double t = k * dt;
       // Temperature programme: 20 C, ramp up, hold, ramp down, hold.
@@ -124,12 +149,19 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
       double w = ref + bias + k10 * z1 + k20 * z1 * z1 + k01 * z2 + mag_amp * std::sin(psi + mag_phase);
       w += omega_h * (std::cos(psi + mis_rad) - std::cos(psi));
       if (step != 0 && t >= step_t) w += step;
+      w += per_amp * std::sin(2 * kPi * t / per_period + per_phase);
+      const double bh = 45 + coil_amp * (static_cast<int>(t / coil_step_s) % 2 == 0 ? 1 : -1) +
+                        coil_sine * std::sin(2 * kPi * t / coil_period);
+      w += k_bh * bh;
       w += noise.Next(rng, dt);
       log.t_s.push_back(t);
       log.w_dph.push_back(w);
       log.ref_dph.push_back(ref);
       log.temp_c.push_back(temp + 0.02 * rng.Normal());
       log.azimuth_deg.push_back(psi * kRadToDeg);
+      log.bn_ut.push_back(17 + 0.05 * field_rng.Normal());
+      log.be_ut.push_back(1 + 0.05 * field_rng.Normal());
+      log.bh_ut.push_back(bh + 0.05 * field_rng.Normal());
     }
     c.logs.push_back(std::move(log));
   }
@@ -160,6 +192,7 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
       const double z1 = (temp - 20) / 10;
       double w = rate(t - delay_s) + omega_v;
       w += bias + k10 * z1 + k20 * z1 * z1 + sf_ppm * 1e-6 * ref + noise.Next(rng, dt);
+      w += 0.5 * asym_ppm * 1e-6 * std::abs(ref);
       log.t_s.push_back(t);
       log.w_dph.push_back(w);
       log.ref_dph.push_back(ref);
