@@ -148,6 +148,32 @@ Verification Verify(const Context& ctx, const Camera& cam, const Mat3& r, double
   return v;
 }
 
+// Radius (px, squared) of the hypothesis test at pixel p for a triangle of centroids tri_c (as in
+// TestHypothesis: centroid noise plus the triangle's own rotation and scale error there).
+struct TriangleSpread {
+  Vec2 centre = Vec2::Zero();
+  double sig_tri = 0, rho2 = 1;
+};
+TriangleSpread SpreadOf(const Context& ctx, const int tri_c[3]) {
+  TriangleSpread t;
+  const auto& c = *ctx.c;
+  for (int i = 0; i < 3; ++i) {
+    t.centre += Vec2(c[tri_c[i]].x_px, c[tri_c[i]].y_px) / 3.0;
+    t.sig_tri = std::max(t.sig_tri, ctx.sigma_px[tri_c[i]]);
+  }
+  double rho2 = 0;
+  for (int i = 0; i < 3; ++i) rho2 += (Vec2(c[tri_c[i]].x_px, c[tri_c[i]].y_px) - t.centre).squaredNorm();
+  t.rho2 = std::max(rho2, 1.0);
+  return t;
+}
+double TestRadius2(const Context& ctx, const IdentifyOptions& o, const TriangleSpread& t, const Vec2& p, bool scale_searched) {
+  const double g = scale_searched ? 2.0 : 1.0;
+  const double floor_px = scale_searched ? 2 * ctx.match_radius_px : o.match_radius_px;
+  const double d2 = (p - t.centre).squaredNorm();
+  const double var = ctx.median_sigma_px * ctx.median_sigma_px + t.sig_tri * t.sig_tri * (1.0 / 3 + g * d2 / t.rho2);
+  return std::max(o.verify_sigmas * o.verify_sigmas * var, floor_px * floor_px);
+}
+
 // The hypothesis test (stage 1): the attitude (and scale) come from the three triangle stars
 // alone, so every other centroid is independent of the hypothesis and, under the null hypothesis
 // (a chance pattern), falls near a predicted star with probability p_hit. Each predicted star gets
@@ -168,17 +194,7 @@ HypothesisTest TestHypothesis(const Context& ctx, const IdentifyOptions& o, cons
   HypothesisTest h;
   const SolverCatalog& cat = ctx.id->catalog();
   const auto& c = *ctx.c;
-  Vec2 centre = Vec2::Zero();
-  double sig_tri = 0;
-  for (int i = 0; i < 3; ++i) {
-    centre += Vec2(c[tri_c[i]].x_px, c[tri_c[i]].y_px) / 3.0;
-    sig_tri = std::max(sig_tri, ctx.sigma_px[tri_c[i]]);
-  }
-  double rho2 = 0;
-  for (int i = 0; i < 3; ++i) rho2 += (Vec2(c[tri_c[i]].x_px, c[tri_c[i]].y_px) - centre).squaredNorm();
-  rho2 = std::max(rho2, 1.0);
-  const double g = scale_searched ? 2.0 : 1.0;
-  const double floor_px = scale_searched ? 2 * ctx.match_radius_px : o.match_radius_px;
+  const TriangleSpread spread = SpreadOf(ctx, tri_c);
   const std::vector<int> near = ctx.id->StarsWithin(r.col(2), cam.FovDiagRad() / 2 * 1.05 + 0.002);
   struct Pred {
     Vec2 px;
@@ -192,12 +208,10 @@ HypothesisTest TestHypothesis(const Context& ctx, const IdentifyOptions& o, cons
     if (s == tri_s[0] || s == tri_s[1] || s == tri_s[2]) continue;
     const auto p = cam.Project(rt * cat.stars[s].unit);
     if (!p || !cam.InImage(*p)) continue;
-    const double d2 = (*p - centre).squaredNorm();
-    const double var = ctx.median_sigma_px * ctx.median_sigma_px + sig_tri * sig_tri * (1.0 / 3 + g * d2 / rho2);
     // In tolerance mode the camera model is known to be off (focal length, and often the pixel
     // aspect or distortion that the caller is about to calibrate): at least twice the refinement
     // radius, as the verification before this test used (the probability counts whatever radius).
-    const double r2 = std::max(o.verify_sigmas * o.verify_sigmas * var, floor_px * floor_px);
+    const double r2 = TestRadius2(ctx, o, spread, *p, scale_searched);
     area_hit += kPi * r2;
     pred.push_back({*p, s, r2});
   }
@@ -242,6 +256,26 @@ HypothesisTest TestHypothesis(const Context& ctx, const IdentifyOptions& o, cons
   }
   h.v.n_cat = h.n_cat;
   return h;
+}
+
+// Whether any of the kQuickCentroids brightest centroids outside the triangle lies within its test
+// radius of a catalog star under the hypothesis (cam, r): a cheap necessary condition for the test
+// to find an extra match among them.
+bool AnyBrightCentroidNearAStar(const Context& ctx, const IdentifyOptions& o, const Camera& cam, const Mat3& r,
+                                const int tri_c[3]) {
+  constexpr int kQuickCentroids = 12;
+  const TriangleSpread t = SpreadOf(ctx, tri_c);
+  const auto& c = *ctx.c;
+  const double f = cam.FocalMinPx();
+  for (int i = 0, seen = 0; i < ctx.m && seen < kQuickCentroids; ++i) {
+    const int ci = ctx.order[i];
+    if (ci == tri_c[0] || ci == tri_c[1] || ci == tri_c[2]) continue;
+    ++seen;
+    const Vec2 p(c[ci].x_px, c[ci].y_px);
+    const double radius_rad = std::sqrt(TestRadius2(ctx, o, t, p, true)) / f;
+    if (!ctx.id->StarsWithin(r * cam.Unproject(p), radius_rad).empty()) return true;
+  }
+  return false;
 }
 
 Mat3 SvdFromMatches(const std::vector<StarMatch>& ms) {
@@ -582,6 +616,10 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
               hyp = o.max_hypotheses;
               return give_up("gave up after " + std::to_string(o.max_hypotheses) + " hypotheses");
             }
+            // Unknown FOV: hundreds of catalog triangles fit each query; skip the full test (which
+            // predicts every catalog star in the field) unless one of the brightest other centroids
+            // has a catalog star within its test radius. A skipped hypothesis still counts in h.
+            if (o.FovRange() && !AnyBrightCentroidNearAStar(ctx, o, cam, rot, tri_c)) continue;
             HypothesisTest ht = TestHypothesis(ctx, o, cam, rot, tri_c, tri_s, focal_searched);
             const int k = ht.extra + 3;
             if (k < o.min_matches) continue;
