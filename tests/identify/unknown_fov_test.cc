@@ -37,6 +37,7 @@ TEST(UnknownFov, SolvesFramesOfUnknownFocalLength) {
               c.solved, c.frames, c.wrong, c.worst_focal_pct, c.MedianMs());
   EXPECT_GE(c.solved, 15);
   EXPECT_EQ(c.wrong, 0);
+  EXPECT_EQ(c.misidentified, 0);
   EXPECT_LT(c.worst_focal_pct, 0.2);
 }
 
