@@ -27,70 +27,19 @@ void CheckFlag(double v, const char* flag, bool positive) {
   }
 }
 
-// The gyro noise the filter uses, in order of precedence: flags, --noise FILE, --unit, the default
-// four-FOG unit (docs/inertial.md "How a log gets its noise"). Sets `unit`'s error models' noise terms
-// and returns the source.
-std::string ApplyNoise(const Opts& o, const GyroLog& log, GyroUnit* unit) {
-  std::string source = o.unit.empty() ? "default_unit" : "unit_file";
-  if (log.body_rates && o.unit.empty() && (!o.noise.empty() || o.arw_given ||
-                                           o.bias_instability_given || o.rrw_given)) {
-    *unit = OrthogonalTriad();  // body rates with their own noise: an ideal triad carries it
-  }
-  const int n = log.body_rates ? (unit->size() == 3 ? 3 : 1) : unit->size();
-  if (!o.noise.empty()) {
-    const std::vector<GyroErrorModel> m = ReadAllanNoise(o.noise);
-    if (m.size() != 1 && static_cast<int>(m.size()) != n) {
-      throw InputError(o.noise, "has " + std::to_string(m.size()) + " reports: give one, or one per " +
-                                    (log.body_rates ? std::string("body axis (3)") : "gyro (" + std::to_string(n) + ")"));
-    }
-    for (int i = 0; i < unit->size(); ++i) {
-      GyroErrorModel& g = unit->gyros[i];
-      const GyroErrorModel& s = m[m.size() == 1 ? 0 : std::min<size_t>(i, m.size() - 1)];
-      g.arw_deg_per_sqrt_h = s.arw_deg_per_sqrt_h;
-      g.bias_instability_dph = s.bias_instability_dph;
-      g.rrw_dph_per_sqrt_h = s.rrw_dph_per_sqrt_h;
-    }
-    source = "noise_file";
-  }
-  auto flag = [&](bool given, double v, const char* name, bool positive, double GyroErrorModel::*field) {
-    if (given) {
-      CheckFlag(v, name, positive);
-      for (auto& g : unit->gyros) g.*field = v;
-      source = "flags";
-    }
-  };
-  flag(o.arw_given, o.arw, "--arw-deg-per-sqrt-h", true, &GyroErrorModel::arw_deg_per_sqrt_h);
-  flag(o.bias_instability_given, o.bias_instability, "--bias-instability-dph", false, &GyroErrorModel::bias_instability_dph);
-  flag(o.rrw_given, o.rrw, "--rrw-dph-per-sqrt-h", false, &GyroErrorModel::rrw_dph_per_sqrt_h);
-  if (o.init_bias_sigma_given) {
-    CheckFlag(o.fuse.init_bias_sigma_dph, "--init-bias-sigma-dph", true);
-    source = "flags";
-  }
-  return source;
-}
-
 void Run(Opts o) {
-  GyroUnit unit;
-  GyroLog log;
-  if (!o.unit.empty()) {
-    unit = LoadGyroUnit(o.unit);
-    // Read every g*_dph column and compare the count: reading only the unit's first N ignored a
-    // log's extra gyros (a 3-gyro unit on a four-FOG log dropped g4 without a word).
-    log = ReadGyroLog(o.gyro, 0);
-    const int n_log = static_cast<int>(log.rates_dph.front().size());
-    if (!log.body_rates && n_log != unit.size()) {
-      throw InputError(o.gyro, "has g1_dph..g" + std::to_string(n_log) + "_dph columns for " + std::to_string(n_log) +
-                                   " gyros but " + o.unit + " describes " + std::to_string(unit.size()));
-    }
-  } else {
-    log = ReadGyroLog(o.gyro, 0);
-    unit = DefaultFourFogUnit();
-    if (!log.body_rates && log.rates_dph.front().size() != 4) {
-      throw InputError(o.gyro, "has g1_dph..gN_dph columns for " + std::to_string(log.rates_dph.front().size()) +
-                                   " gyros: give --unit unit.json");
-    }
-  }
-  const std::string noise_source = ApplyNoise(o, log, &unit);
+  // Flags are checked here to name them; the library checks the figures again.
+  FuseNoiseGiven given;
+  given.noise_file = o.noise;
+  if (o.arw_given) CheckFlag(o.arw, "--arw-deg-per-sqrt-h", true), given.arw_deg_per_sqrt_h = o.arw;
+  if (o.bias_instability_given)
+    CheckFlag(o.bias_instability, "--bias-instability-dph", false), given.bias_instability_dph = o.bias_instability;
+  if (o.rrw_given) CheckFlag(o.rrw, "--rrw-dph-per-sqrt-h", false), given.rrw_dph_per_sqrt_h = o.rrw;
+  if (o.init_bias_sigma_given) CheckFlag(o.fuse.init_bias_sigma_dph, "--init-bias-sigma-dph", true);
+  given.init_bias_sigma_given = o.init_bias_sigma_given;
+  const GyroLog log = ReadGyroLog(o.gyro, 0);
+  std::string noise_source;
+  const GyroUnit unit = FuseUnitForLog(log, o.gyro, o.unit, given, &noise_source);
   const StarTrackerLog st = ReadStarTrackerLog(o.st);
   o.fuse.fdi = !o.no_fdi;
   FuseResult r = Fuse(log, st, unit, o.fuse);

@@ -310,4 +310,53 @@ void WriteFusedAttitude(const std::string& path, const FuseResult& result) {
            c, 15);
 }
 
+GyroUnit FuseUnitForLog(const GyroLog& log, const std::string& log_name, const std::string& unit_path,
+                        const FuseNoiseGiven& noise, std::string* noise_source) {
+  if (log.rates_dph.empty()) throw InputError(log_name, "has no samples");
+  const int n_log = static_cast<int>(log.rates_dph.front().size());
+  GyroUnit unit;
+  std::string source = unit_path.empty() ? "default_unit" : "unit_file";
+  if (!unit_path.empty()) {
+    unit = LoadGyroUnit(unit_path);
+    // Every g*_dph column is compared: reading only the unit's first N ignored a log's extra gyros
+    // (a 3-gyro unit on a four-FOG log dropped g4 without a word).
+    if (!log.body_rates && n_log != unit.size())
+      throw InputError(log_name, "has g1_dph..g" + std::to_string(n_log) + "_dph columns for " + std::to_string(n_log) +
+                                     " gyros but " + unit_path + " describes " + std::to_string(unit.size()));
+  } else {
+    unit = DefaultFourFogUnit();
+    if (!log.body_rates && n_log != unit.size())
+      throw InputError(log_name, "has g1_dph..gN_dph columns for " + std::to_string(n_log) + " gyros: give their unit.json (--unit)");
+    if (log.body_rates && noise.any()) unit = OrthogonalTriad();  // body rates with their own noise: an ideal triad
+  }
+  const int n = log.body_rates ? (unit.size() == 3 ? 3 : 1) : unit.size();
+  if (!noise.noise_file.empty()) {
+    const std::vector<GyroErrorModel> m = ReadAllanNoise(noise.noise_file);
+    if (m.size() != 1 && static_cast<int>(m.size()) != n)
+      throw InputError(noise.noise_file, "has " + std::to_string(m.size()) + " reports: give one, or one per " +
+                                             (log.body_rates ? std::string("body axis (3)") : "gyro (" + std::to_string(n) + ")"));
+    for (int i = 0; i < unit.size(); ++i) {
+      GyroErrorModel& g = unit.gyros[i];
+      const GyroErrorModel& r = m[m.size() == 1 ? 0 : std::min<size_t>(i, m.size() - 1)];
+      g.arw_deg_per_sqrt_h = r.arw_deg_per_sqrt_h;
+      g.bias_instability_dph = r.bias_instability_dph;
+      g.rrw_dph_per_sqrt_h = r.rrw_dph_per_sqrt_h;
+    }
+    source = "noise_file";
+  }
+  auto given = [&](double v, bool positive, const char* name, double GyroErrorModel::*field) {
+    if (v < 0) return;
+    if (!std::isfinite(v) || (positive && v == 0))
+      throw InputError(name, positive ? "must be a finite number > 0" : "must be a finite number >= 0");
+    for (auto& g : unit.gyros) g.*field = v;
+    source = "flags";
+  };
+  given(noise.arw_deg_per_sqrt_h, true, "arw_deg_per_sqrt_h", &GyroErrorModel::arw_deg_per_sqrt_h);
+  given(noise.bias_instability_dph, false, "bias_instability_dph", &GyroErrorModel::bias_instability_dph);
+  given(noise.rrw_dph_per_sqrt_h, false, "rrw_dph_per_sqrt_h", &GyroErrorModel::rrw_dph_per_sqrt_h);
+  if (noise.init_bias_sigma_given) source = "flags";
+  if (noise_source) *noise_source = source;
+  return unit;
+}
+
 }  // namespace ssiu

@@ -90,8 +90,6 @@ struct FuseResult {
 // InputError when the log's gyro count does not match the unit.
 FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& unit, const FuseOptions& options);
 
-// The MEKF's noise model for the gyros `solver` uses: white rate noise and bias walk of the
-// least-squares body rate (rad^2/s, rad^2/s^3), plus a bias-walk floor (deg/h per sqrt(h)).
 // 0 for "ok", 1 "degraded", 2 "failed" (anything else).
 int StatusCode(const std::string& status);
 
@@ -103,7 +101,31 @@ int StatusCode(const std::string& status);
 // or no significant angle random walk (the filter needs white rate noise).
 std::vector<GyroErrorModel> ReadAllanNoise(const std::string& path);
 
+// The MEKF's noise model for the gyros `solver` uses: white rate noise and bias walk of the
+// least-squares body rate (rad^2/s, rad^2/s^3), plus a bias-walk floor (deg/h per sqrt(h)).
 MekfNoise FuseNoiseModel(const GyroUnit& unit, const RateSolver& solver, double floor_dph_per_sqrt_h);
+
+// Gyro noise given for a fuse run beside (or instead of) a unit file: `ssiu fuse --noise` and the
+// noise flags, the Python module's keyword arguments. Unset (< 0) figures are not given.
+struct FuseNoiseGiven {
+  std::string noise_file;             // `ssiu allan --json` output; "" = none
+  double arw_deg_per_sqrt_h = -1;     // every gyro/axis; > 0 when given
+  double bias_instability_dph = -1;   // >= 0 when given
+  double rrw_dph_per_sqrt_h = -1;     // >= 0 when given
+  bool init_bias_sigma_given = false; // FuseOptions::init_bias_sigma_dph was set by the user
+  bool any() const {
+    return !noise_file.empty() || arw_deg_per_sqrt_h >= 0 || bias_instability_dph >= 0 || rrw_dph_per_sqrt_h >= 0;
+  }
+};
+
+// The unit a fuse run uses for `log` (read from `log_name`): `unit_path`'s unit.json, else the
+// default four-FOG unit (an ideal triad when a body-rate log has its own noise). The log must have
+// as many g*_dph columns as the unit has gyros. Its noise, in order of precedence: the given figures,
+// the noise file (one report, or one per gyro/axis), the unit (docs/inertial.md "How a log gets its
+// noise"). `noise_source` gets flags, noise_file, unit_file or default_unit. InputError naming the
+// file or field.
+GyroUnit FuseUnitForLog(const GyroLog& log, const std::string& log_name, const std::string& unit_path,
+                        const FuseNoiseGiven& noise, std::string* noise_source);
 
 // Writes t_s,qw,qx,qy,qz,sigma_x_arcsec,sigma_y_arcsec,sigma_z_arcsec,bx_dph,by_dph,bz_dph,status_code
 // (0 ok, 1 degraded, 2 failed).

@@ -14,6 +14,7 @@
 #include <pybind11/stl.h>
 
 #include <algorithm>
+#include <cmath>
 #include <functional>
 #include <map>
 #include <memory>
@@ -364,27 +365,43 @@ py::tuple ReadFramePy(const std::string& path) {
 py::object FusePy(const std::string& gyro, const std::string& star_tracker, const py::object& unit,
                   const py::kwargs& kwargs) {
   FuseOptions o;
+  FuseNoiseGiven noise;
   bool no_fdi = false;
+  double init_bias_sigma_dph = -1;
   ApplyOptions(kwargs,
                {{"st_sigma_cross_arcsec", Set(&o.st_sigma_cross_arcsec)},
                 {"st_sigma_roll_arcsec", Set(&o.st_sigma_roll_arcsec)},
-                {"init_bias_sigma_dph", Set(&o.init_bias_sigma_dph)},
+                {"init_bias_sigma_dph", Set(&init_bias_sigma_dph)},
                 {"output_every", Set(&o.output_every)},
-                {"no_fdi", Set(&no_fdi)}},
+                {"no_fdi", Set(&no_fdi)},
+                {"noise", Set(&noise.noise_file)},
+                {"arw_deg_per_sqrt_h", Set(&noise.arw_deg_per_sqrt_h)},
+                {"bias_instability_dph", Set(&noise.bias_instability_dph)},
+                {"rrw_dph_per_sqrt_h", Set(&noise.rrw_dph_per_sqrt_h)}},
                "fuse");
   o.fdi = !no_fdi;
+  if (kwargs.contains("init_bias_sigma_dph")) {
+    if (!(std::isfinite(init_bias_sigma_dph) && init_bias_sigma_dph > 0))
+      throw InputError("init_bias_sigma_dph", "must be a finite number > 0");
+    o.init_bias_sigma_dph = init_bias_sigma_dph;
+    noise.init_bias_sigma_given = true;
+  }
+  // A negative figure means "not given" to the library: refuse it here as the CLI does.
+  for (const char* k : {"arw_deg_per_sqrt_h", "bias_instability_dph", "rrw_dph_per_sqrt_h"}) {
+    if (kwargs.contains(k) && !(kwargs[k].cast<double>() >= 0))
+      throw InputError(k, std::string("must be a finite number ") + (std::string(k) == "arw_deg_per_sqrt_h" ? "> 0" : ">= 0"));
+  }
   const GyroLog log = ReadGyroLog(gyro, 0);
-  const GyroUnit u = unit.is_none() ? DefaultFourFogUnit() : LoadGyroUnit(unit.cast<std::string>());
-  const int n_log = static_cast<int>(log.rates_dph.front().size());
-  if (!log.body_rates && n_log != u.size())
-    throw InputError(gyro, "has " + std::to_string(n_log) + " g*_dph columns but the unit has " +
-                               std::to_string(u.size()) + " gyros");
+  std::string noise_source;
+  const GyroUnit u = FuseUnitForLog(log, gyro, unit.is_none() ? std::string() : unit.cast<std::string>(), noise, &noise_source);
   const StarTrackerLog st = ReadStarTrackerLog(star_tracker);
   FuseResult r;
   {
     py::gil_scoped_release nogil;
     r = Fuse(log, st, u, o);
   }
+  r.noise["source"] = noise_source;
+  if (!noise.noise_file.empty()) r.noise["noise_file"] = noise.noise_file;
   py::dict out = ToPython(r.ToJson());
   // The attitude history as arrays (the columns of `ssiu fuse --out`).
   const py::ssize_t n = static_cast<py::ssize_t>(r.samples.size());
@@ -476,7 +493,9 @@ PYBIND11_MODULE(_ssiu, m) {
         "Stars, background, noise and rejected objects of a frame: the fields of `ssiu detect --json`");
   m.def("fuse", &FusePy, py::arg("gyro"), py::arg("star_tracker"), py::arg("unit") = py::none(),
         "Star-inertial fusion of a gyro log and a star-tracker log (CSV paths): the fields of `ssiu fuse --json` "
-        "plus arrays t_s, q, sigma_arcsec, bias_samples_dph");
+        "plus arrays t_s, q, sigma_arcsec, bias_samples_dph. Options as the CLI's flags: noise (an `ssiu allan "
+        "--json` file), arw_deg_per_sqrt_h, bias_instability_dph, rrw_dph_per_sqrt_h, init_bias_sigma_dph, "
+        "st_sigma_cross_arcsec, st_sigma_roll_arcsec, output_every, no_fdi");
   m.def("allan", &AllanPy, py::arg("rate"), py::arg("sample_rate_hz"), py::arg("unit") = "deg/h",
         "Overlapping Allan deviation and IEEE 952 noise terms of a rate array: the fields of `ssiu allan --json`");
 }

@@ -148,3 +148,23 @@ def test_fuse_equals_the_cli(tmp_path):
     np.testing.assert_allclose(py["bias_dph"], cli["bias_dph"], rtol=1e-9, atol=1e-12)
     assert py["q"].shape == (len(py["t_s"]), 4)
     assert np.all(py["sigma_arcsec"] > 0)
+
+
+def test_fuse_noise_options_equal_the_cli_flags(tmp_path):
+    # A body-rate log with its own noise: the keyword arguments take the CLI's flags' place, with the
+    # same precedence and the same noise source in the result.
+    run("simulate", "gyro", "--duration-s", "60", "--seed", "4", "--out", tmp_path / "g")
+    g, st = tmp_path / "g" / "gyro.csv", tmp_path / "g" / "st.csv"
+    out = tmp_path / "fuse.json"
+    run("fuse", "--gyro", g, "--st", st, "--json", out, "--arw-deg-per-sqrt-h", "0.02",
+        "--bias-instability-dph", "0.1")
+    cli = json.loads(out.read_text())
+    py = ssiu.fuse(str(g), str(st), arw_deg_per_sqrt_h=0.02, bias_instability_dph=0.1)
+    assert py["noise"]["source"] == cli["noise"]["source"] == "flags"
+    assert py["noise"]["arw_deg_per_sqrt_h"] == pytest.approx(0.02)
+    np.testing.assert_allclose(py["bias_dph"], cli["bias_dph"], rtol=1e-9, atol=1e-12)
+    default = ssiu.fuse(str(g), str(st))
+    assert default["noise"]["source"] == "default_unit"
+    assert default["noise"]["arw_deg_per_sqrt_h"] != pytest.approx(0.02)
+    with pytest.raises(ValueError, match="arw_deg_per_sqrt_h: must be a finite number > 0"):
+        ssiu.fuse(str(g), str(st), arw_deg_per_sqrt_h=-1.0)
