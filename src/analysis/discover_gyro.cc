@@ -31,6 +31,7 @@ struct LogBins {
   std::array<double, 3> field_span_ut{0, 0, 0};  // range of the bin means of bn, be, bh
   std::vector<double> t_s, y_dph;
   std::vector<std::array<double, kNumCols>> x;
+  std::map<std::string, std::vector<double>> column_mean;  // bin means of the logged columns (residual test)
 };
 
 LogBins MakeLogBins(const GyroBenchLog& log, const GyroDiscoverOptions& o) {
@@ -89,8 +90,22 @@ LogBins MakeLogBins(const GyroBenchLog& log, const GyroDiscoverOptions& o) {
     x[kAbsRef] += std::abs(log.ref_dph[i]) * 1e-6;
     x[kDelay] += -dref[i];
   }
+  // Bin means of every logged column other than t_s and w_dph, for the residual test.
+  std::map<std::string, const std::vector<double>*> logged = {{"ref_dph", &log.ref_dph}, {"temp_c", &log.temp_c}};
+  if (has_az) logged["azimuth_deg"] = &log.azimuth_deg;
+  if (!log.bn_ut.empty()) logged["bn_ut"] = &log.bn_ut;
+  if (!log.be_ut.empty()) logged["be_ut"] = &log.be_ut;
+  if (!log.bh_ut.empty()) logged["bh_ut"] = &log.bh_ut;
+  for (const auto& [name, v] : log.other) logged[name] = &v;
+  std::map<std::string, std::vector<double>> col_sum;
+  for (const auto& [name, v] : logged) {
+    std::vector<double>& cs = col_sum[name];
+    cs.assign(nb, 0.0);
+    for (size_t i = 0; i < n; ++i) cs[std::min(nb - 1, static_cast<int>((log.t_s[i] - t0) / b.bin_s))] += (*v)[i];
+  }
   for (int k = 0; k < nb; ++k) {
     if (cnt[k] == 0) continue;
+    for (auto& [name, cs] : col_sum) b.column_mean[name].push_back(cs[k] / cnt[k]);
     b.t_s.push_back(sum_t[k] / cnt[k]);
     b.y_dph.push_back(sum_y[k] / cnt[k]);
     auto x = sum_x[k];
@@ -367,6 +382,58 @@ double VarianceInflation(const Design& d, const VectorXd& ew, int lag_max) {
   return std::clamp(f, 1.0, 20.0);
 }
 
+// Bin means of sin/cos(2 pi fr t) over a bin of width `bin`: the instantaneous value times
+// sinc(pi fr bin), so that the amplitude is not biased low near the scan's top frequency.
+void BinSinusoid(const LogBins& b, double fr, VectorXd* sn, VectorXd* cs) {
+  const int m = static_cast<int>(b.t_s.size());
+  const double x = kPi * fr * b.bin_s, att = x > 1e-9 ? std::sin(x) / x : 1.0;
+  sn->resize(m), cs->resize(m);
+  for (int k = 0; k < m; ++k) {
+    (*sn)(k) = att * std::sin(2 * kPi * fr * b.t_s[k]);
+    (*cs)(k) = att * std::cos(2 * kPi * fr * b.t_s[k]);
+  }
+}
+
+// GLS periodogram of one log: the chi^2 (2 dof, divided by `norm`) of a sinusoid against whitened
+// residual rr (whitened bias column cw projected out), frequencies f_lo..f_hi in steps of a quarter
+// of 1/duration, the best refined by golden section. Returns {frequency, chi^2}.
+std::pair<double, double> ScanSinusoid(const LogBins& b, const NoiseModel& noise, const VectorXd& cw,
+                                       const VectorXd& rr, double norm, double f_lo, double f_hi) {
+  const int m = static_cast<int>(b.t_s.size());
+  const double dur = b.t_s.back() - b.t_s.front() + b.bin_s;
+  auto stat = [&](double fr) {
+    VectorXd sn, cs;
+    BinSinusoid(b, fr, &sn, &cs);
+    MatrixXd a(m, 2);
+    a.col(0) = noise.Whiten(sn);
+    a.col(1) = noise.Whiten(cs);
+    for (int j = 0; j < 2; ++j) a.col(j) -= (cw.dot(a.col(j)) / cw.squaredNorm()) * cw;
+    const Eigen::Matrix2d g = a.transpose() * a;
+    const Eigen::Vector2d p = a.transpose() * rr;
+    if (!(g.determinant() > 1e-12 * g.trace() * g.trace())) return 0.0;
+    return p.dot(g.ldlt().solve(p)) / norm;
+  };
+  const double df = 0.25 / dur;
+  double f_best = 0, w_best = 0;
+  for (double fr = f_lo; fr <= f_hi; fr += df) {
+    const double w = stat(fr);
+    if (w > w_best) w_best = w, f_best = fr;
+  }
+  if (w_best <= 0) return {0.0, 0.0};
+  double a = std::max(f_lo, f_best - df), c = std::min(f_hi, f_best + df);
+  const double gr = 0.5 * (std::sqrt(5.0) - 1);
+  double c1 = c - gr * (c - a), c2 = a + gr * (c - a), w1 = stat(c1), w2 = stat(c2);
+  for (int it = 0; it < 30; ++it) {
+    if (w1 > w2) {
+      c = c2, c2 = c1, w2 = w1, c1 = c - gr * (c - a), w1 = stat(c1);
+    } else {
+      a = c1, c1 = c2, w1 = w2, c2 = a + gr * (c - a), w2 = stat(c2);
+    }
+  }
+  if (std::max(w1, w2) > w_best) w_best = std::max(w1, w2), f_best = w1 > w2 ? c1 : c2;
+  return {f_best, w_best};
+}
+
 // A candidate of the vocabulary made of regressor columns: `cols` that are usable are fitted; it is
 // applicable when every column of `required` is usable and at least one column is left.
 struct CandidateSpec {
@@ -462,6 +529,146 @@ CvResult CrossValidate(const Design& d, const std::vector<NoiseModel>& nm, const
   return cv;
 }
 
+// `unexplained`: the residual e of the fitted model (raw units) against the noise model it was
+// whitened with (docs/discrepancy.md). Four tests on the whitened residual, each combined over logs
+// (Bonferroni) and then over the four: the strongest sinusoid (GLS periodogram, as periodic_drift);
+// Ljung-Box over the first lags (dof lags - 2: two noise parameters fitted); a Wald-Wolfowitz runs
+// test of the signs; the regression on every logged column (chi^2_1, Bonferroni over the columns).
+GyroResidual TestResidual(const Design& d, const std::vector<NoiseModel>& nm, const VectorXd& e,
+                          const GyroDiscoverOptions& o) {
+  GyroResidual res;
+  const int l = static_cast<int>(d.bins.size());
+  res.rms_dph = std::sqrt(e.squaredNorm() / std::max(1, d.n));
+  const VectorXd w = WhitenRows(d, nm, MatrixXd(e)).col(0);
+  const MatrixXd bw = WhitenRows(d, nm, d.base);
+  VectorXd wr(d.n);  // whitened residual with each log's whitened bias column projected out
+  std::vector<double> s2(l, 1.0);
+  double ss_pool = 0;
+  for (int r = 0; r < l; ++r) {
+    const int m = static_cast<int>(d.bins[r].t_s.size());
+    const VectorXd cw = bw.col(r).segment(d.offset[r], m);
+    VectorXd v = w.segment(d.offset[r], m);
+    v -= (cw.dot(v) / cw.squaredNorm()) * cw;
+    wr.segment(d.offset[r], m) = v;
+    s2[r] = std::max(v.squaredNorm() / std::max(1, m - 1), 1e-300);
+    ss_pool += v.squaredNorm();
+  }
+  const double s2_pool = std::max(ss_pool / std::max(1, d.n - l), 1e-300);
+  double positions = 0, best_stat = 0, lb_p = 1, runs_p = 1;
+  for (int r = 0; r < l; ++r) {
+    const LogBins& b = d.bins[r];
+    const int m = static_cast<int>(b.t_s.size());
+    const VectorXd v = wr.segment(d.offset[r], m);
+    // Spectral peak.
+    const double dur = b.t_s.back() - b.t_s.front() + b.bin_s;
+    const double f_lo = o.periodic_min_cycles / dur, f_hi = 0.25 / b.bin_s;
+    if (m >= 24 && f_hi > f_lo) {
+      positions += (f_hi - f_lo) * dur;
+      const auto [fr, stat] = ScanSinusoid(b, nm[r], bw.col(r).segment(d.offset[r], m), v, s2[r], f_lo, f_hi);
+      if (stat > best_stat && fr > 0) {
+        best_stat = stat;
+        VectorXd sn, cs;
+        BinSinusoid(b, fr, &sn, &cs);
+        MatrixXd a(m, 3);
+        a << VectorXd::Ones(m), sn, cs;
+        const LsFit g = SolveLs(a, e.segment(d.offset[r], m));
+        res.period_s = 1 / fr;
+        res.amplitude_dph = std::hypot(g.beta(1), g.beta(2));
+      }
+    }
+    // Ljung & Box (1978): Q = m (m + 2) sum_k rho_k^2 / (m - k).
+    const int lags = std::min(o.residual_lags, m / 5);
+    if (lags >= 3) {
+      const double mean = v.mean(), var = (v.array() - mean).square().sum();
+      double q = 0;
+      for (int k = 1; k <= lags; ++k) {
+        double c = 0;
+        for (int i = k; i < m; ++i) c += (v(i) - mean) * (v(i - k) - mean);
+        const double rho = var > 0 ? c / var : 0.0;
+        q += rho * rho / (m - k);
+      }
+      q *= m * (m + 2.0);
+      const double p = ChiSquaredSurvival(q, lags - 2);
+      if (p < lb_p || res.ljung_box_lags == 0) lb_p = p, res.ljung_box_q = q, res.ljung_box_lags = lags;
+    }
+    // Runs of the signs (Wald & Wolfowitz 1940), normal approximation.
+    double n1 = 0, n2 = 0, runs = 0;
+    int last = 0;
+    for (int i = 0; i < m; ++i) {
+      const int sg = v(i) > 0 ? 1 : (v(i) < 0 ? -1 : 0);
+      if (sg == 0) continue;
+      (sg > 0 ? n1 : n2) += 1;
+      if (sg != last) runs += 1;
+      last = sg;
+    }
+    const double nn = n1 + n2;
+    if (n1 > 0 && n2 > 0 && nn > 2) {
+      const double mu = 2 * n1 * n2 / nn + 1, var = 2 * n1 * n2 * (2 * n1 * n2 - nn) / (nn * nn * (nn - 1));
+      const double z = var > 0 ? (runs - mu) / std::sqrt(var) : 0.0;
+      const double p = std::erfc(std::abs(z) / std::sqrt(2.0));
+      if (p < runs_p) runs_p = p, res.runs_z = z;
+    }
+  }
+  res.spectral_chi2 = best_stat;
+  res.spectral_p = std::min(1.0, std::max(positions, 1.0) * ChiSquaredSurvival(best_stat, 2));
+  res.ljung_box_p = std::min(1.0, l * lb_p);
+  res.runs_p = std::min(1.0, l * runs_p);
+  // Every logged column (bin means, zero in logs without it, per-log means removed).
+  std::map<std::string, VectorXd> cols;
+  for (int r = 0; r < l; ++r) {
+    const int m = static_cast<int>(d.bins[r].t_s.size());
+    for (const auto& [name, v] : d.bins[r].column_mean) {
+      if (!cols.count(name)) cols[name] = VectorXd::Zero(d.n);
+      VectorXd seg = Eigen::Map<const VectorXd>(v.data(), m);
+      seg.array() -= seg.mean();
+      cols[name].segment(d.offset[r], m) = seg;
+    }
+  }
+  double col_p = 1;
+  int tested = 0;
+  for (const auto& [name, c] : cols) {
+    if (!(c.squaredNorm() > 1e-20 * std::max(1.0, c.cwiseAbs().maxCoeff()))) continue;
+    VectorXd cw = WhitenRows(d, nm, MatrixXd(c)).col(0);
+    const LsFit pb = SolveLs(bw, cw);
+    cw -= bw * pb.beta;
+    const double cc = cw.squaredNorm();
+    if (!(cc > 0)) continue;
+    ++tested;
+    GyroResidualColumn rc;
+    rc.column = name;
+    const double proj = wr.dot(cw);
+    rc.chi2 = proj * proj / cc / s2_pool;
+    rc.p_value = ChiSquaredSurvival(rc.chi2, 1);
+    rc.coefficient_dph_per_unit = proj / cc;
+    VectorXd ed(d.n);
+    for (int r = 0; r < l; ++r) {
+      const int m = static_cast<int>(d.bins[r].t_s.size());
+      ed.segment(d.offset[r], m) = e.segment(d.offset[r], m).array() - e.segment(d.offset[r], m).mean();
+    }
+    const double den = std::sqrt(ed.squaredNorm() * c.squaredNorm());
+    rc.correlation = den > 0 ? ed.dot(c) / den : 0.0;
+    res.columns.push_back(rc);
+    if (rc.p_value < col_p) {
+      col_p = rc.p_value;
+      res.follows_column = name;
+      res.column_coefficient = rc.coefficient_dph_per_unit;
+      res.column_correlation = rc.correlation;
+    }
+  }
+  res.column_p = std::min(1.0, std::max(tested, 1) * col_p);
+  const std::pair<double, const char*> tests[] = {{res.spectral_p, "spectral_peak"},
+                                                  {res.ljung_box_p, "autocorrelation"},
+                                                  {res.runs_p, "runs"},
+                                                  {res.column_p, "column"}};
+  double p_min = 1;
+  for (const auto& [p, name] : tests) {
+    if (p < p_min || res.finding.empty()) p_min = p, res.finding = name;
+  }
+  res.p_value = std::min(1.0, 4 * p_min);
+  res.structured = res.p_value < o.residual_alpha;
+  return res;
+}
+
 void Fail(const std::string& what) { throw InputError("options", what); }
 
 }  // namespace
@@ -477,6 +684,8 @@ void GyroDiscoverOptions::Check() const {
   if (!(min_field_span_ut >= 0)) Fail("min_field_span_ut must be >= 0");
   if (!(rrw_min_log_s >= 0)) Fail("rrw_min_log_s must be >= 0");
   if (!(periodic_min_cycles >= 2)) Fail("periodic_min_cycles must be >= 2");
+  if (!(residual_alpha > 0 && residual_alpha < 0.5)) Fail("residual_alpha must be in (0, 0.5)");
+  if (residual_lags < 3) Fail("residual_lags must be >= 3");
   rate.Check();
 }
 
@@ -624,18 +833,6 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
     double t_s, w;
   };
   std::vector<StepPoint> step_profile;  // the scan's statistic at every position (last pass)
-  // Bin means of sin/cos(2 pi fr t) over a bin of width `bin`: the instantaneous value times
-  // sinc(pi fr bin), so that the amplitude is not biased low near the scan's top frequency.
-  auto sinusoid = [&](int r, double fr, VectorXd* sn, VectorXd* cs) {
-    const LogBins& b = d.bins[r];
-    const int m = static_cast<int>(b.t_s.size());
-    const double x = kPi * fr * b.bin_s, att = x > 1e-9 ? std::sin(x) / x : 1.0;
-    sn->resize(m), cs->resize(m);
-    for (int k = 0; k < m; ++k) {
-      (*sn)(k) = att * std::sin(2 * kPi * fr * b.t_s[k]);
-      (*cs)(k) = att * std::cos(2 * kPi * fr * b.t_s[k]);
-    }
-  };
   for (int pass = 0; pass < 2; ++pass) {
     // 1. OLS of the full model -> per-log noise model.
     // The located step and sinusoid join the full model in the second pass, so that they do not
@@ -715,42 +912,13 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
         rr = d.y.segment(d.offset[r], m);
         rr.array() -= rr.mean();
       }
-      auto stat = [&](double fr) {
-        VectorXd sn, cs;
-        sinusoid(r, fr, &sn, &cs);
-        MatrixXd a(m, 2);
-        a.col(0) = noise.Whiten(sn);
-        a.col(1) = noise.Whiten(cs);
-        for (int j = 0; j < 2; ++j) a.col(j) -= (cw.dot(a.col(j)) / cw.squaredNorm()) * cw;
-        const Eigen::Matrix2d g = a.transpose() * a;
-        const Eigen::Vector2d p = a.transpose() * rr;
-        if (!(g.determinant() > 1e-12 * g.trace() * g.trace())) return 0.0;
-        return p.dot(g.ldlt().solve(p)) / (sigma2 * f);
-      };
-      const double df = 0.25 / dur;
-      double f_best = 0, w_best = 0;
-      for (double fr = f_lo; fr <= f_hi; fr += df) {
-        const double w = stat(fr);
-        if (w > w_best) w_best = w, f_best = fr;
-      }
-      if (w_best <= 0) continue;
-      double a = std::max(f_lo, f_best - df), b = std::min(f_hi, f_best + df);
-      const double gr = 0.5 * (std::sqrt(5.0) - 1);
-      double c1 = b - gr * (b - a), c2 = a + gr * (b - a), w1 = stat(c1), w2 = stat(c2);
-      for (int it = 0; it < 30; ++it) {
-        if (w1 > w2) {
-          b = c2, c2 = c1, w2 = w1, c1 = b - gr * (b - a), w1 = stat(c1);
-        } else {
-          a = c1, c1 = c2, w1 = w2, c2 = a + gr * (b - a), w2 = stat(c2);
-        }
-      }
-      if (std::max(w1, w2) > w_best) w_best = std::max(w1, w2), f_best = w1 > w2 ? c1 : c2;
+      const auto [f_best, w_best] = ScanSinusoid(d.bins[r], noise, cw, rr, sigma2 * f, f_lo, f_hi);
       if (w_best > best_pw) {
         best_pw = w_best;
         best_freq = f_best;
         best_periodic_log = r;
         VectorXd sn, cs;
-        sinusoid(r, f_best, &sn, &cs);
+        BinSinusoid(d.bins[r], f_best, &sn, &cs);
         best_sin = VectorXd::Zero(d.n), best_cos = VectorXd::Zero(d.n);
         best_sin.segment(d.offset[r], m) = sn;
         best_cos.segment(d.offset[r], m) = cs;
@@ -1183,21 +1351,45 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
     }
     if (chosen) break;
   }
+  // 6. The residual of the chosen model (or of the base) against its noise model.
+  VectorXd e_fit = d.y - d.base * base.beta;
+  std::vector<NoiseModel> noise_fit = nm;
   if (!chosen) {
     res.cause = "none";
     const CvResult cv = CrossValidate(d, nm, d.base, o.cv_blocks);
     res.rms_before_dph = res.rms_after_dph = cv.rms_before;
     res.gain = 1;
-    return res;
+  } else {
+    res.cause = chosen->cause;
+    res.parameters = chosen_ev.parameters;
+    res.sigmas = chosen_ev.sigmas;
+    res.parameters.erase("swing_ratio");
+    res.rms_before_dph = chosen_ev.cv.rms_before;
+    res.rms_after_dph = chosen_ev.cv.rms_after;
+    res.gain = chosen->gain;
+    res.gain_z = chosen->gain_z;
+    if (chosen->cause == "rate_random_walk") {
+      noise_fit = nm_walk;  // the walk is in the noise model: its innovations are the residual
+    } else {
+      const Fitted& ft = fits[Key(*chosen)];
+      e_fit = d.y - ft.x * ft.gls.beta;
+    }
   }
-  res.cause = chosen->cause;
-  res.parameters = chosen_ev.parameters;
-  res.sigmas = chosen_ev.sigmas;
-  res.parameters.erase("swing_ratio");
-  res.rms_before_dph = chosen_ev.cv.rms_before;
-  res.rms_after_dph = chosen_ev.cv.rms_after;
-  res.gain = chosen->gain;
-  res.gain_z = chosen->gain_z;
+  if (!chosen || chosen->cause != "rate_random_walk") {
+    // The noise model of this model's residual: the full model's one was fitted without the terms of
+    // every candidate (and the best noise sinusoid), so it misses part of the wander left here.
+    for (int r = 0; r < l; ++r) {
+      const int m = static_cast<int>(d.bins[r].t_s.size());
+      VectorXd v = e_fit.segment(d.offset[r], m);
+      v.array() -= v.mean();
+      noise_fit[r] = FitNoise(v, o.max_noise_lag, std::exp(-d.bins[r].bin_s / o.wander_tau_max_s));
+    }
+  }
+  res.residual = TestResidual(d, noise_fit, e_fit, o);
+  if (res.residual.structured) {
+    res.partial_cause = res.cause == "none" ? "" : res.cause;
+    res.cause = "unexplained";
+  }
   return res;
 }
 
@@ -1222,6 +1414,36 @@ Json GyroDiscoveryToJson(const GyroDiscovery& d) {
                    {"noise_wander_dph", d.noise_wander_dph},
                    {"noise_wander_tau_s", d.noise_wander_tau_s},
                    {"alpha_per_candidate", d.alpha_per_candidate}};
+  if (!d.partial_cause.empty()) j["partial_cause"] = d.partial_cause;
+  {
+    const GyroResidual& r = d.residual;
+    Json rj = {{"structured", r.structured},
+               {"p_value", r.p_value},
+               {"finding", r.finding},
+               {"rms_dph", r.rms_dph},
+               {"period_s", r.period_s},
+               {"amplitude_dph", r.amplitude_dph},
+               {"spectral_chi2", r.spectral_chi2},
+               {"spectral_p", r.spectral_p},
+               {"ljung_box_q", r.ljung_box_q},
+               {"ljung_box_lags", r.ljung_box_lags},
+               {"ljung_box_p", r.ljung_box_p},
+               {"runs_z", r.runs_z},
+               {"runs_p", r.runs_p},
+               {"follows_column", r.follows_column},
+               {"column_coefficient_dph_per_unit", r.column_coefficient},
+               {"column_correlation", r.column_correlation},
+               {"column_p", r.column_p}};
+    rj["columns"] = Json::array();
+    for (const auto& c : r.columns) {
+      rj["columns"].push_back({{"column", c.column},
+                               {"chi2", c.chi2},
+                               {"p_value", c.p_value},
+                               {"coefficient_dph_per_unit", c.coefficient_dph_per_unit},
+                               {"correlation", c.correlation}});
+    }
+    j["residual"] = rj;
+  }
   j["candidates"] = Json::array();
   for (const auto& c : d.candidates) {
     Json cj = {{"cause", c.cause}, {"applicable", c.applicable}};

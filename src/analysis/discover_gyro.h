@@ -30,6 +30,10 @@
 //     and field must move; K, ppm, delay, amplitude limits; no cancelling terms; a walk needs >= 1 h)
 //     and the held-out improvement is significant: z = e.p / sqrt(p' S p) (e held-out base residual,
 //     p held-out prediction, S the fitted noise covariance) above the one-sided quantile of gain_alpha.
+//  4c. `unexplained`: the residual of the named cause (or of the base) is whitened with a noise model
+//     refitted on it and tested (spectral peak, Ljung-Box, runs, regression on every logged column;
+//     Bonferroni over the four at residual_alpha); structure left -> `unexplained`, the residual
+//     described (period, amplitude, the column it follows) and the first cause kept as partial_cause.
 //  5. Gain: each log is cut into cv_blocks blocks; the model is fitted on the even blocks and scored
 //     on the odd ones and vice versa (bin RMS of the drift after a bias-only fit / after the cause).
 //     For rate_random_walk: one-step prediction of the bins of the second half of each log by a
@@ -72,6 +76,10 @@ struct GyroDiscoverOptions {
   double min_field_span_ut = 1.0;  // a logged field component is a regressor only when it moves this much
   double rrw_min_log_s = 3600;     // a random walk is tested only on logs at least this long
   double periodic_min_cycles = 3;  // a periodic drift must repeat at least this often within its log
+  // `unexplained`: the residual of the named cause (or of the base model) is tested against the
+  // fitted noise model; family-wise false-alarm probability of the four residual tests.
+  double residual_alpha = 0.01;
+  int residual_lags = 10;          // Ljung-Box lags (bins)
   void Check() const;
 };
 
@@ -91,6 +99,28 @@ struct GyroCandidate {
   std::string verdict;          // "named", "gain not significant", "outside bounds: ...", ...
 };
 
+// A logged column against the residual (whitened GLS regression, per-log means removed).
+struct GyroResidualColumn {
+  std::string column;
+  double chi2 = 0, p_value = 1;
+  double coefficient_dph_per_unit = 0, correlation = 0;
+};
+
+// The residual after the best cause (or the base model) against the fitted noise model.
+struct GyroResidual {
+  bool structured = false;  // significant at residual_alpha over the four tests
+  double p_value = 1;       // family-wise (Bonferroni over the four tests)
+  std::string finding;      // the most significant test: spectral_peak, autocorrelation, runs, column
+  double rms_dph = 0;
+  double period_s = 0, amplitude_dph = 0, spectral_chi2 = 0, spectral_p = 1;  // strongest sinusoid
+  double ljung_box_q = 0, ljung_box_p = 1;
+  int ljung_box_lags = 0;
+  double runs_z = 0, runs_p = 1;
+  std::string follows_column;  // the most significant logged column
+  double column_coefficient = 0, column_correlation = 0, column_p = 1;
+  std::vector<GyroResidualColumn> columns;
+};
+
 struct GyroDiscovery {
   std::string cause = "none";
   std::map<std::string, double> parameters;  // names of the FOG calibration issue (K10_dph, amplitude_dph, ...)
@@ -98,6 +128,9 @@ struct GyroDiscovery {
   double rms_before_dph = 0, rms_after_dph = 0, gain = 1;  // cross-validated, held-out bins
   double gain_z = 0, gain_z_min = 0;  // significance of the held-out improvement and the gate on it
   std::vector<GyroCandidate> candidates;
+  // `unexplained`: the cause that was fitted before the residual test found structure left.
+  std::string partial_cause;
+  GyroResidual residual;
   // Evidence: noise model and sample sizes.
   int n_bins = 0;
   double n_eff = 0, variance_inflation = 1;

@@ -215,7 +215,8 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
       "gyro",
       "Test candidate causes (temperature, magnetic_field, scale_factor, bias_step, periodic_drift, ...) against the "
       "base gyro model; a cause is named only when its held-out gain is significant and its parameters are within "
-      "physical bounds (docs/discrepancy.md)");
+      "physical bounds; `unexplained` when the residual keeps structure (spectral peak, autocorrelation, runs, a "
+      "logged column) that no cause explains (docs/discrepancy.md)");
   auto o = std::make_shared<GyroOpts>();
   cmd->add_option("logs", o->logs,
                   "Bench logs t_s,w_dph,ref_dph,temp_c[,azimuth_deg][,bn_ut,be_ut,bh_ut] (other numeric columns "
@@ -234,6 +235,9 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
       ->capture_default_str();
   cmd->add_option("--rrw-min-log-s", o->opt.rrw_min_log_s, "Random walk tested only on logs this long")
       ->capture_default_str();
+  cmd->add_option("--residual-alpha", o->opt.residual_alpha,
+                  "False-alarm probability of the residual tests behind `unexplained`")
+      ->capture_default_str();
   cmd->callback([o] {
     std::vector<ssiu::GyroBenchLog> logs;
     for (const auto& f : o->logs) logs.push_back(ssiu::ReadGyroBenchLog(f));
@@ -244,5 +248,12 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
     for (const auto& [k, v] : d.parameters) std::cerr << " " << k << "=" << v << "+-" << d.sigmas.at(k);
     std::cerr << "; held-out rms " << d.rms_before_dph << " -> " << d.rms_after_dph << " deg/h (gain " << d.gain
               << ")\n";
+    if (d.cause == "unexplained") {
+      std::cerr << "  residual structure (" << d.residual.finding << ", p " << d.residual.p_value << "): period "
+                << d.residual.period_s << " s, amplitude " << d.residual.amplitude_dph << " deg/h, follows column "
+                << d.residual.follows_column << " (" << d.residual.column_coefficient << " deg/h per unit)";
+      if (!d.partial_cause.empty()) std::cerr << "; fitted first: " << d.partial_cause;
+      std::cerr << "\n";
+    }
   });
 });

@@ -5,6 +5,7 @@
 // code with the library under test (the truth is computed analytically here).
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <string>
@@ -55,12 +56,26 @@ inline const std::vector<std::string>& NewGyroCauses() {
   return k;
 }
 
+// Effects outside the vocabulary (expected answer `unexplained`): a drift that follows an irregular
+// heater on/off column of the log (steps 20-60 min apart), and a chirp (period sweeping 4 h -> 15 min).
+inline const std::vector<std::string>& UnexplainedGyroEffects() {
+  static const std::vector<std::string> k = {"square_wave_column", "chirp"};
+  return k;
+}
+
 inline double RandomSign(Rng& rng) { return rng.Uniform() < 0.5 ? -1.0 : 1.0; }
 
 inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
   Rng rng(seed);
   GyroCase c;
   c.cause = cause == "magnetic_field_logged" ? "magnetic_field" : cause;
+  if (cause == "square_wave_column" || cause == "chirp") c.cause = "unexplained";
+  // The heater column and the out-of-vocabulary effects draw from their own stream, so that the other
+  // cases keep their data.
+  Rng rng_x(seed * 2654435761ULL + 17);
+  double heater_amp = 0, chirp_amp = 0, chirp_phase = rng_x.Uniform(-kPi, kPi);
+  if (cause == "square_wave_column") heater_amp = RandomSign(rng_x) * rng_x.Uniform(0.03, 0.06);
+  if (cause == "chirp") chirp_amp = rng_x.Uniform(0.04, 0.08);
   const double lat = 50.0 * kDegToRad;
   const double earth_dph = 15.041067;
   const double omega_h = earth_dph * std::cos(lat), omega_v = earth_dph * std::sin(lat);
@@ -128,6 +143,9 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
     const double coil_amp = rng.Uniform(10, 25), coil_step_s = rng.Uniform(2400, 4800);
     const double coil_sine = rng.Uniform(5, 15), coil_period = rng.Uniform(3, 6) * 3600;
     Rng field_rng(seed ^ 0x9e3779b97f4a7c15ULL);  // the magnetometer's own noise stream
+    // A heater switched on and off at irregular times (20-60 min), logged as `heater_on`.
+    std::vector<double> toggles;
+    for (double tt = rng_x.Uniform(600, 3600); tt < 43200; tt += rng_x.Uniform(1200, 3600)) toggles.push_back(tt);
     for (int k = 0; k * dt < 43200; ++k) {
       const double t = k * dt;
       // Temperature programme: 20 C, ramp up, hold, ramp down, hold.
@@ -153,6 +171,12 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
       const double bh = 45 + coil_amp * (static_cast<int>(t / coil_step_s) % 2 == 0 ? 1 : -1) +
                         coil_sine * std::sin(2 * kPi * t / coil_period);
       w += k_bh * bh;
+      const double heater = static_cast<double>(
+          (std::upper_bound(toggles.begin(), toggles.end(), t) - toggles.begin()) % 2);
+      w += heater_amp * heater;
+      // Chirp: frequency linear in time from 1/(4 h) to 1/(15 min) over the 12 h.
+      const double f0 = 1.0 / 14400, f1 = 1.0 / 900, rate = (f1 - f0) / 43200;
+      w += chirp_amp * std::sin(2 * kPi * (f0 * t + 0.5 * rate * t * t) + chirp_phase);
       w += noise.Next(rng, dt);
       log.t_s.push_back(t);
       log.w_dph.push_back(w);
@@ -162,6 +186,7 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
       log.bn_ut.push_back(17 + 0.05 * field_rng.Normal());
       log.be_ut.push_back(1 + 0.05 * field_rng.Normal());
       log.bh_ut.push_back(bh + 0.05 * field_rng.Normal());
+      log.other["heater_on"].push_back(heater);
     }
     c.logs.push_back(std::move(log));
   }

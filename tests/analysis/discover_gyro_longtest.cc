@@ -32,12 +32,27 @@ TEST(DiscoverGyroLong, NewCausesEightEach) {
   EXPECT_GE(s.params_within_3_sigma, 0.9 * s.params_checked);
 }
 
+// Effects outside the vocabulary: 8 cases each; `unexplained` >= 90 %, a wrongly named cause <= 5 %.
+TEST(DiscoverGyroLong, OutOfVocabularyIsUnexplained) {
+  const auto s = testing::RunGyroMonteCarlo(testing::UnexplainedGyroEffects(), 8, 272727, true);
+  int wrong = 0;
+  for (const auto& [cause, n] : s.found) {
+    if (cause != "unexplained" && cause != "none") wrong += n;
+  }
+  std::cout << "unexplained " << s.right_cause << "/" << s.with_cause << ", wrongly named " << wrong << "\n";
+  testing::PrintGyroRates(s);
+  EXPECT_GE(s.right_cause, 0.9 * s.with_cause);
+  EXPECT_LE(wrong, 0.05 * s.with_cause);
+}
+
 // False alarms need many clean logs to measure: 40 clean cases.
 TEST(DiscoverGyroLong, CleanLogsGiveNone) {
   int none = 0;
   for (int i = 0; i < 40; ++i) {
     const auto c = testing::MakeGyroCase("none", 9000 + 31 * i);
-    none += DiscoverGyro(c.logs, GyroDiscoverOptions{}).cause == "none";
+    const std::string found = DiscoverGyro(c.logs, GyroDiscoverOptions{}).cause;
+    none += found == "none";
+    if (found != "none") std::cout << "clean case " << i << ": " << found << "\n";
   }
   std::cout << "none on " << none << " of 40 clean cases\n";
   EXPECT_GE(none, 38);

@@ -16,12 +16,14 @@ struct GyroMcSummary {
   int cases = 0, with_cause = 0, right_cause = 0, clean = 0, clean_none = 0;
   int named = 0, named_gain_above_1 = 0, params_checked = 0, params_within_3_sigma = 0;
   std::map<std::string, std::pair<int, int>> per_cause;  // generator cause -> (right, cases)
+  std::map<std::string, int> found;                      // cause found -> cases
 };
 
 // One case into the summary (its expected answer is c.cause).
 inline void ScoreGyroCase(const std::string& variant, const GyroCase& c, const GyroDiscovery& d, bool verbose,
                           GyroMcSummary* s) {
   ++s->cases;
+  ++s->found[d.cause];
   auto& pc = s->per_cause[variant];
   ++pc.second;
   pc.first += d.cause == c.cause;
@@ -51,6 +53,8 @@ inline void ScoreGyroCase(const std::string& variant, const GyroCase& c, const G
   }
   if (verbose) {
     std::cout << "case " << variant << " found " << d.cause << " gain " << d.gain << " z " << d.gain_z << params
+              << "\n   residual p " << d.residual.p_value << " " << d.residual.finding << " period "
+              << d.residual.period_s << " column " << d.residual.follows_column << " partial " << d.partial_cause
               << "\n";
     for (const auto& cand : d.candidates) {
       if (!cand.applicable) continue;

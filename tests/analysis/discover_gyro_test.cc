@@ -75,6 +75,20 @@ TEST(DiscoverGyro, ShortLogAsymmetryNotTemperatureOrWalk) {
   }
 }
 
+// Structure no cause explains: a drift that follows an irregular heater column of the log is
+// `unexplained`, and the report names the column and its coefficient.
+TEST(DiscoverGyro, DriftFollowingAnUnrelatedColumnIsUnexplained) {
+  const auto c = testing::MakeGyroCase("square_wave_column", 2);
+  const GyroDiscovery d = DiscoverGyro(c.logs, GyroDiscoverOptions{});
+  ASSERT_EQ(d.cause, "unexplained") << GyroDiscoveryToJson(d).dump(1);
+  EXPECT_TRUE(d.residual.structured);
+  EXPECT_EQ(d.residual.follows_column, "heater_on");
+  EXPECT_LT(d.residual.p_value, 0.01);
+  const Json j = GyroDiscoveryToJson(d);
+  EXPECT_EQ(j["residual"]["follows_column"], "heater_on");
+  EXPECT_GT(std::abs(j["residual"]["column_coefficient_dph_per_unit"].get<double>()), 0.01);
+}
+
 // The held-out gate: with the significance demanded of the held-out improvement out of reach, a cause
 // that passes every in-sample test is not named; every named cause of the Monte Carlo above has a
 // gain > 1 (TwelveHiddenCausesFoundOrNone).
