@@ -1,6 +1,5 @@
 #include "attitude/overlay.h"
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>

@@ -1,8 +1,6 @@
 #include "core/image.h"
 
-#include <fcntl.h>
 #include <fitsio.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -11,12 +9,11 @@
 #include <filesystem>
 #include <fstream>
 #include <opencv2/core.hpp>
-#include <opencv2/core/utils/logger.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include "core/error.h"
 #include "core/output.h"
 #include "core/png_decode.h"
+#include "core/raster_codec.h"
 
 namespace ssiu {
 namespace {
@@ -133,90 +130,61 @@ Frame ReadFits(const std::string& path) {
   return fr;
 }
 
+// Decoded samples -> a grey frame: colour reduced to the mean of R, G, B (alpha ignored; rounded to
+// nearest, as OpenCV's convertTo did), grey+alpha to its grey (conventions.md).
+Frame FrameFromSamples(const RasterSamples& r, const std::string& path) {
+  Frame fr;
+  fr.file = path;
+  fr.bit_depth = r.depth;
+  fr.saturation_adu = r.depth == 8 ? 255 : 65535;
+  fr.image = Image16(r.width, r.height);
+  const size_t n = fr.image.pixels.size(), ch = static_cast<size_t>(r.channels);
+  const uint16_t* s = r.samples.data();
+  uint16_t* d = fr.image.pixels.data();
+  if (ch == 1) {
+    std::copy(s, s + n, d);
+  } else if (ch == 2) {
+    for (size_t i = 0; i < n; ++i) d[i] = s[2 * i];
+    fr.grey_conversion = "first_of_grey_alpha";
+  } else {
+    // Mean of the three colour channels: keeps each channel's signal with equal weight (the
+    // openstartracker frames have unequal channels). (a + b + c + 1) / 3 is the nearest integer.
+    for (size_t i = 0; i < n; ++i) {
+      const uint32_t sum = uint32_t{s[ch * i]} + s[ch * i + 1] + s[ch * i + 2];
+      d[i] = static_cast<uint16_t>((sum + 1) / 3);
+    }
+    fr.grey_conversion = "mean_rgb";
+  }
+  return fr;
+}
+
+// PNG (the fast grey decoder, else libpng) or TIFF (libtiff); anything else is refused.
 Frame ReadRaster(const std::string& path) {
-  cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
-  cv::Mat m;
   std::vector<uint8_t> bytes;
-  const bool png = [&] {
+  {
     std::ifstream in(path, std::ios::binary);
-    char sig[8] = {0};
-    if (!in.read(sig, 8) || static_cast<unsigned char>(sig[0]) != 0x89 || std::string(sig + 1, 3) != "PNG") return false;
     in.seekg(0, std::ios::end);
     const std::streamoff n = in.tellg();
-    if (n <= 0) return false;
+    if (!in || n <= 0) throw InputError(path, "cannot read file");
+    bytes.resize(static_cast<size_t>(std::min<std::streamoff>(n, 8)));
+    in.seekg(0);
+    in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    if (IsTiff(bytes)) return FrameFromSamples(DecodeTiff(path), path);
+    static const uint8_t kSig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+    if (bytes.size() < 8 || !std::equal(kSig, kSig + 8, bytes.begin())) {
+      throw InputError(path, "cannot decode image (corrupt, truncated or not PNG/TIFF/FITS)");
+    }
     bytes.resize(static_cast<size_t>(n));
     in.seekg(0);
     in.read(reinterpret_cast<char*>(bytes.data()), n);
-    return static_cast<bool>(in);
-  }();
-  // The common case, non-interlaced 8/16-bit grey PNG, has its own fast decoder (png_decode.h).
-  if (png) {
-    Frame fast;
-    if (DecodeGreyPng(bytes, path, &fast)) return fast;
+    if (!in) throw InputError(path, "read failed");
   }
-  {
-    // libpng/libtiff print their own complaints on stderr for corrupt files; keep the one-line
-    // error below the only message by muting stderr for the duration of the decode.
-    std::fflush(stderr);
-    const int saved = dup(2);
-    const int devnull = open("/dev/null", O_WRONLY);
-    if (saved >= 0 && devnull >= 0) dup2(devnull, 2);
-    try {
-      m = png ? cv::imdecode(bytes, cv::IMREAD_UNCHANGED) : cv::imread(path, cv::IMREAD_UNCHANGED);
-    } catch (const cv::Exception&) {
-      m.release();
-    }
-    std::fflush(stderr);
-    if (saved >= 0) {
-      dup2(saved, 2);
-      close(saved);
-    }
-    if (devnull >= 0) close(devnull);
-  }
-  if (m.empty()) throw InputError(path, "cannot decode image (corrupt, truncated or not PNG/TIFF/FITS)");
-  if (m.dims != 2 || m.rows <= 0 || m.cols <= 0) throw InputError(path, "image has zero size");
-  const int depth = m.depth();
-  if (depth != CV_8U && depth != CV_16U) {
-    throw InputError(path, "unsupported pixel type (only 8- or 16-bit unsigned images are read)");
-  }
-  Frame fr;
-  fr.file = path;
-  fr.bit_depth = depth == CV_8U ? 8 : 16;
-  fr.saturation_adu = depth == CV_8U ? 255 : 65535;
-  const int ch = m.channels();
-  cv::Mat grey;
-  if (ch == 1) {
-    grey = m;
-  } else if (ch == 3 || ch == 4) {
-    // Mean of the three colour channels (alpha ignored): keeps each channel's signal with equal
-    // weight; the openstartracker frames have unequal channels.
-    std::vector<cv::Mat> planes;
-    cv::split(m, planes);
-    cv::Mat acc;
-    cv::add(planes[0], planes[1], acc, cv::noArray(), CV_32S);
-    cv::add(acc, planes[2], acc, cv::noArray(), CV_32S);
-    acc.convertTo(grey, depth, 1.0 / 3.0);
-    fr.grey_conversion = "mean_rgb";
-  } else if (ch == 2) {
-    std::vector<cv::Mat> planes;
-    cv::split(m, planes);
-    grey = planes[0];
-    fr.grey_conversion = "first_of_grey_alpha";
-  } else {
-    throw InputError(path, "unsupported channel count " + std::to_string(ch));
-  }
-  fr.image = Image16(grey.cols, grey.rows);
-  for (int y = 0; y < grey.rows; ++y) {
-    uint16_t* dst = &fr.image.pixels[static_cast<size_t>(y) * grey.cols];
-    if (depth == CV_8U) {
-      const uint8_t* src = grey.ptr<uint8_t>(y);
-      std::copy(src, src + grey.cols, dst);
-    } else {
-      const uint16_t* src = grey.ptr<uint16_t>(y);
-      std::copy(src, src + grey.cols, dst);
-    }
-  }
-  return fr;
+  // The common case, non-interlaced 8/16-bit grey PNG, has its own fast decoder (png_decode.h);
+  // it packs the IDAT chunks in place, so libpng gets a fresh copy of the file.
+  std::vector<uint8_t> copy = bytes;
+  Frame fast;
+  if (DecodeGreyPng(copy, path, &fast)) return fast;
+  return FrameFromSamples(DecodePngLibpng(bytes, path), path);
 }
 
 }  // namespace
@@ -364,19 +332,41 @@ void CheckPngOutputName(const std::string& path) {
   }
 }
 
+std::string PngBytes(const cv::Mat& m, int level) {
+  const int depth = m.depth() == CV_8U ? 8 : m.depth() == CV_16U ? 16 : 0;
+  const int ch = m.channels();
+  if (depth == 0 || ch < 1 || ch > 4 || m.dims != 2 || m.empty()) {
+    throw std::invalid_argument("PngBytes: only 8/16-bit images of 1-4 channels");
+  }
+  // Rows packed, and OpenCV's colour order BGR(A) turned into PNG's RGB(A).
+  const size_t row = static_cast<size_t>(m.cols) * ch;
+  std::vector<uint16_t> wide;
+  std::vector<uint8_t> narrow;
+  (depth == 8 ? narrow.resize(row * m.rows) : wide.resize(row * m.rows));
+  for (int y = 0; y < m.rows; ++y) {
+    for (size_t i = 0; i < row; ++i) {
+      const size_t c = i % ch, src = ch >= 3 && c < 3 ? i - c + (2 - c) : i;  // B <-> R
+      if (depth == 8) {
+        narrow[y * row + i] = m.ptr<uint8_t>(y)[src];
+      } else {
+        wide[y * row + i] = m.ptr<uint16_t>(y)[src];
+      }
+    }
+  }
+  return EncodePng(depth == 8 ? static_cast<const void*>(narrow.data()) : wide.data(), m.cols, m.rows, ch, depth, level);
+}
+
 void WritePng(const std::string& path, const cv::Mat& m) {
   // The format is PNG whatever the name says: a name with another extension is a usage error (once an
   // OpenCV exception, exit 2), a name without one (or a device such as /dev/stdout) is fine.
   CheckPngOutputName(path);
-  std::vector<uchar> png;
-  bool ok = false;
+  std::string png;
   try {
-    ok = cv::imencode(".png", m, png);
-  } catch (const cv::Exception&) {
-    ok = false;
+    png = PngBytes(m);
+  } catch (const std::invalid_argument&) {
+    throw InputError(path, "cannot encode PNG");
   }
-  if (!ok) throw InputError(path, "cannot encode PNG");
-  WriteFileAtomic(path, std::string(png.begin(), png.end()));
+  WriteFileAtomic(path, png);
 }
 
 void WritePng16(const std::string& path, const Image16& image) {

@@ -80,6 +80,9 @@ Frame SubtractDark(const Frame& frame, const Frame& dark, double pedestal_adu = 
 // PNG outputs, written atomically (core/output.h); InputError naming the file when it cannot be
 // written or its name has an extension other than .png.
 void WritePng(const std::string& path, const cv::Mat& image);
+// The PNG file of an 8/16-bit image of 1-4 channels (OpenCV order: grey, BGR, BGRA), deflated at
+// `level` (libdeflate, 1-12); std::invalid_argument for another type. No OpenCV codec involved.
+std::string PngBytes(const cv::Mat& image, int level = 6);
 // InputError unless `path` names a PNG (extension .png, or none): checked before work is done.
 void CheckPngOutputName(const std::string& path);
 void WritePng16(const std::string& path, const Image16& image);

@@ -131,11 +131,11 @@ bool DecodeGreyPng(std::vector<uint8_t>& bytes, const std::string& path, Frame* 
       depth = data[8];
       if (w == 0 || h == 0) Corrupt(path, "IHDR width or height is zero");
       if (data[10] != 0 || data[11] != 0) Corrupt(path, "IHDR compression or filter method is not 0");
-      // Colour, palette, alpha, interlaced or sub-byte depths: OpenCV's reader.
+      // Colour, palette, alpha, interlaced or sub-byte depths: libpng (raster_codec.h).
       if (data[9] != 0 || (depth != 8 && depth != 16) || data[12] != 0) return false;
       if (w > 65536 || h > 65536) Corrupt(path, "IHDR size " + std::to_string(w) + "x" + std::to_string(h) + " is too large");
     } else if (type == "tRNS" && !idat_seen) {
-      return false;  // transparency: left to OpenCV, which turns it into an alpha channel
+      return false;  // transparency: left to libpng, which turns it into an alpha channel
     } else if (type == "IDAT") {
       if (idat_closed) Corrupt(path, "IDAT chunks are not consecutive");
       if (!idat_seen) idat_begin = idat_end = pos + 8;

@@ -1,5 +1,5 @@
 // Internal to core: a fast decoder for the PNG kind every simulated and most captured star frames
-// are, non-interlaced 8- or 16-bit greyscale. Everything else goes to OpenCV's libpng reader.
+// are, non-interlaced 8- or 16-bit greyscale. Everything else goes to libpng (raster_codec.h).
 // Why: libpng inflates with zlib, which takes ~12 ms of the ~14 ms frame-to-quaternion time of a
 // 1 Mpx 16-bit frame; libdeflate's whole-buffer inflate is ~2.5x faster (docs/results.md).
 #pragma once

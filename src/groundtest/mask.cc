@@ -5,11 +5,11 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/attitude.h"
 #include "core/error.h"
+#include "core/image.h"
 #include "core/output.h"
 #include "groundtest/apriltag_family.h"
 
@@ -318,9 +318,9 @@ void WriteMaskPng(const Mask& m, const std::string& path, double dpi) {
         cv::rectangle(img, cv::Rect(xa, ya, xb - xa, yb - ya), cv::Scalar(p[static_cast<size_t>(r) * cells + k]), cv::FILLED);
       }
   }
-  std::vector<uchar> png;
-  if (!cv::imencode(".png", img, png, {cv::IMWRITE_PNG_COMPRESSION, 9}) || png.size() < 33)
-    throw InputError(path, "PNG encoding failed");
+  const std::string bytes = PngBytes(img, 12);
+  std::vector<uchar> png(bytes.begin(), bytes.end());
+  if (png.size() < 33) throw InputError(path, "PNG encoding failed");
   // The print scale as a pHYs chunk (PNG 1.2 spec, section 4.2.4.2: pixels per metre, unit 1), right
   // after IHDR (8-byte signature + 25-byte IHDR chunk), so that a print shop or a viewer reproduces the
   // plate at 1:1.

@@ -241,7 +241,7 @@ TEST(PngDecode, CorruptFilesGiveAnErrorNamingFileAndField) {
   EXPECT_THAT(ErrorOf(WriteFile(dir + "/empty_idat.png", no_idat)), ::testing::HasSubstr("no IDAT"));
 }
 
-TEST(PngDecode, ColourPngStillGoesThroughOpenCv) {
+TEST(PngDecode, ColourPngIsReducedToTheMeanOfRgb) {
   const std::string dir = testing::TempDir("pngdec");
   cv::Mat rgb(8, 8, CV_8UC3, cv::Scalar(30, 60, 90));
   rgb.at<cv::Vec3b>(2, 3) = cv::Vec3b(3, 6, 9);
@@ -250,6 +250,58 @@ TEST(PngDecode, ColourPngStillGoesThroughOpenCv) {
   EXPECT_EQ(fr.grey_conversion, "mean_rgb");
   EXPECT_EQ(fr.image.at(0, 0), 60);
   EXPECT_EQ(fr.image.at(3, 2), 6);
+}
+
+// ssiu reads PNG and TIFF with libpng/libtiff and writes PNG with its own encoder (no OpenCV codec at
+// run time); OpenCV's codecs are the independent reference: every kind they write is read as they
+// read it (grey kept, colour to the rounded mean of R, G, B), and what ssiu writes they read back.
+TEST(RasterCodec, PngAndTiffOfEveryDepthAndChannelCountMatchOpenCv) {
+  const std::string dir = testing::TempDir("codec");
+  std::mt19937 rng(5);
+  int n = 0;
+  for (int type : {CV_8UC1, CV_16UC1, CV_8UC3, CV_16UC3, CV_8UC4, CV_16UC4}) {
+    cv::Mat m(23, 37, type);
+    cv::randu(m, 0, CV_MAT_DEPTH(type) == CV_8U ? 256 : 65536);
+    // ssiu's PNG encoder: the reference decoder reads back every sample.
+    const std::string png = PngBytes(m);
+    const cv::Mat back = cv::imdecode(std::vector<uchar>(png.begin(), png.end()), cv::IMREAD_UNCHANGED);
+    ASSERT_EQ(back.type(), type);
+    EXPECT_EQ(cv::norm(back, m, cv::NORM_INF), 0) << "PngBytes type " << type;
+    for (const std::string ext : {".png", ".tiff", "_ssiu.png"}) {
+      const std::string path = dir + "/f" + std::to_string(n++) + ext;
+      if (ext == "_ssiu.png") {
+        std::ofstream(path, std::ios::binary) << png;
+      } else {
+        ASSERT_TRUE(cv::imwrite(path, m));
+      }
+      const cv::Mat ref = cv::imread(path, cv::IMREAD_UNCHANGED);
+      ASSERT_EQ(ref.type(), type) << path;
+      const Frame fr = ReadFrame(path);
+      ASSERT_EQ(fr.image.width, m.cols);
+      ASSERT_EQ(fr.image.height, m.rows);
+      EXPECT_EQ(fr.bit_depth, CV_MAT_DEPTH(type) == CV_8U ? 8 : 16);
+      EXPECT_EQ(fr.grey_conversion, m.channels() == 1 ? "none" : "mean_rgb") << path;
+      cv::Mat grey;
+      if (m.channels() == 1) {
+        ref.convertTo(grey, CV_32S);
+      } else {
+        std::vector<cv::Mat> planes;
+        cv::split(ref, planes);
+        cv::Mat sum;
+        cv::add(planes[0], planes[1], sum, cv::noArray(), CV_32S);
+        cv::add(sum, planes[2], sum, cv::noArray(), CV_32S);
+        sum.convertTo(grey, CV_MAT_DEPTH(type), 1.0 / 3.0);  // rounded to nearest
+        grey.convertTo(grey, CV_32S);
+      }
+      for (int y = 0; y < m.rows; ++y)
+        for (int x = 0; x < m.cols; ++x) ASSERT_EQ(fr.image.at(x, y), grey.at<int>(y, x)) << path << " " << x << "," << y;
+    }
+  }
+  // A truncated TIFF is an error naming the file, nothing on stderr but the one line.
+  std::ifstream in(dir + "/f1.tiff", std::ios::binary);
+  const std::string tiff((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::ofstream(dir + "/cut.tiff", std::ios::binary) << tiff.substr(0, 200);
+  EXPECT_THAT(ErrorOf(dir + "/cut.tiff"), ::testing::HasSubstr("cut.tiff"));
 }
 
 }  // namespace
