@@ -159,7 +159,7 @@ Frame FrameFromSamples(const RasterSamples& r, const std::string& path) {
 }
 
 // PNG (the fast grey decoder, else libpng) or TIFF (libtiff); anything else is refused.
-Frame ReadRaster(const std::string& path) {
+Frame ReadRaster(const std::string& path, int64_t max_side_px) {
   std::vector<uint8_t> bytes;
   {
     std::ifstream in(path, std::ios::binary);
@@ -169,7 +169,7 @@ Frame ReadRaster(const std::string& path) {
     bytes.resize(static_cast<size_t>(std::min<std::streamoff>(n, 8)));
     in.seekg(0);
     in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
-    if (IsTiff(bytes)) return FrameFromSamples(DecodeTiff(path), path);
+    if (IsTiff(bytes)) return FrameFromSamples(DecodeTiff(path, max_side_px), path);
     static const uint8_t kSig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
     if (bytes.size() < 8 || !std::equal(kSig, kSig + 8, bytes.begin())) {
       throw InputError(path, "cannot decode image (corrupt, truncated or not PNG/TIFF/FITS)");
@@ -184,7 +184,7 @@ Frame ReadRaster(const std::string& path) {
   std::vector<uint8_t> copy = bytes;
   Frame fast;
   if (DecodeGreyPng(copy, path, &fast)) return fast;
-  return FrameFromSamples(DecodePngLibpng(bytes, path), path);
+  return FrameFromSamples(DecodePngLibpng(bytes, path, max_side_px), path);
 }
 
 }  // namespace
@@ -299,7 +299,7 @@ Frame ReadFrame(const std::string& path, const ImageLimits& limits) {
     throw InputError(path, "declares " + std::to_string(w) + " x " + std::to_string(h) + " pixels, more than the limit of " +
                                std::to_string(limits.max_side_px) + " per side (SSIU_MAX_IMAGE_SIDE_PX)");
   }
-  Frame fr = (IsFitsName(path) || HasFitsMagic(path)) ? ReadFits(path) : ReadRaster(path);
+  Frame fr = (IsFitsName(path) || HasFitsMagic(path)) ? ReadFits(path) : ReadRaster(path, limits.max_side_px);
   if (fr.image.width > limits.max_side_px || fr.image.height > limits.max_side_px) {
     throw InputError(path, "image is larger than the limit of " + std::to_string(limits.max_side_px) + " px per side");
   }

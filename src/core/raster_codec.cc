@@ -7,8 +7,11 @@
 #include <cstdarg>
 #include <cstdio>
 #include <cstdlib>
+#include <algorithm>
 #include <cstring>
 #include <memory>
+#include <new>
+#include <stdexcept>
 
 #include "core/error.h"
 
@@ -56,7 +59,7 @@ void PngWarning(png_structp, png_const_charp) {}  // libpng would print them on 
 
 // Every libpng call that can fail, in a frame with no object that has a destructor (longjmp would
 // skip it); the buffers belong to the caller. The transforms are OpenCV's for IMREAD_UNCHANGED.
-bool ReadPng(png_structp png, png_infop info, PngSource* src, std::vector<uint8_t>* bytes,
+bool ReadPng(png_structp png, png_infop info, PngSource* src, int64_t max_side_px, std::vector<uint8_t>* bytes,
              std::vector<png_bytep>* rows, RasterSamples* out) {
   if (setjmp(png_jmpbuf(png))) return false;
   png_set_read_fn(png, src, PngRead);
@@ -64,6 +67,7 @@ bool ReadPng(png_structp png, png_infop info, PngSource* src, std::vector<uint8_
   png_uint_32 w = 0, h = 0;
   int depth = 0, color = 0;
   png_get_IHDR(png, info, &w, &h, &depth, &color, nullptr, nullptr, nullptr);
+  if (w > max_side_px || h > max_side_px) png_error(png, "image larger than the limit (SSIU_MAX_IMAGE_SIDE_PX)");
   const bool trns = png_get_valid(png, info, PNG_INFO_tRNS) != 0;
   if (color == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png);
   if ((color == PNG_COLOR_TYPE_PALETTE || color == PNG_COLOR_TYPE_RGB) && trns) png_set_tRNS_to_alpha(png);
@@ -147,7 +151,7 @@ uint64_t Filter(int type, const uint8_t* c, const uint8_t* p, size_t n, size_t b
 
 }  // namespace
 
-RasterSamples DecodePngLibpng(const std::vector<uint8_t>& bytes, const std::string& path) {
+RasterSamples DecodePngLibpng(const std::vector<uint8_t>& bytes, const std::string& path, int64_t max_side_px) {
   PngMessage msg;
   png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &msg, PngError, PngWarning);
   png_infop info = png ? png_create_info_struct(png) : nullptr;
@@ -159,7 +163,7 @@ RasterSamples DecodePngLibpng(const std::vector<uint8_t>& bytes, const std::stri
   std::vector<uint8_t> raw;
   std::vector<png_bytep> rows;
   RasterSamples out;
-  const bool ok = ReadPng(png, info, &src, &raw, &rows, &out);
+  const bool ok = ReadPng(png, info, &src, max_side_px, &raw, &rows, &out);
   png_destroy_read_struct(&png, &info, nullptr);
   if (!ok) throw Undecodable(path, std::string("libpng: ") + msg.text);
   if (out.depth != 8 && out.depth != 16) throw Undecodable(path, "unexpected bit depth after expansion");
@@ -174,7 +178,7 @@ bool IsTiff(const std::vector<uint8_t>& b) {
                            (b[0] == 'M' && b[1] == 'M' && b[2] == 0 && b[3] == 42));
 }
 
-RasterSamples DecodeTiff(const std::string& path) {
+RasterSamples DecodeTiff(const std::string& path, int64_t max_side_px) {
   std::string err;
   TIFFOpenOptions* opts = TIFFOpenOptionsAlloc();
   if (!opts) throw InputError(path, "out of memory decoding TIFF");
@@ -194,6 +198,10 @@ RasterSamples DecodeTiff(const std::string& path) {
   TIFFGetFieldDefaulted(t, TIFFTAG_SAMPLEFORMAT, &format);
   TIFFGetField(t, TIFFTAG_PHOTOMETRIC, &photo);
   if (w == 0 || h == 0) throw InputError(path, "image has zero size");
+  if (w > max_side_px || h > max_side_px) {
+    throw InputError(path, "image is larger than the limit of " + std::to_string(max_side_px) +
+                               " px per side (SSIU_MAX_IMAGE_SIDE_PX)");
+  }
   RasterSamples out;
   out.width = static_cast<int>(w);
   out.height = static_cast<int>(h);

@@ -19,15 +19,17 @@ struct RasterSamples {
 
 // Any PNG libpng reads, as OpenCV's IMREAD_UNCHANGED gave it: palette -> RGB (RGBA with a tRNS
 // chunk), grey+alpha -> RGBA, 1/2/4-bit grey scaled to 8 bits, a grey tRNS ignored, interlacing
-// undone. InputError naming `path` (with libpng's reason) for a corrupt or truncated file.
-RasterSamples DecodePngLibpng(const std::vector<uint8_t>& bytes, const std::string& path);
+// undone. InputError naming `path` (with libpng's reason) for a corrupt or truncated file, or one
+// wider or taller than max_side_px (checked before the pixels are allocated).
+RasterSamples DecodePngLibpng(const std::vector<uint8_t>& bytes, const std::string& path, int64_t max_side_px);
 
 // True when `bytes` start with a TIFF header (II*\0 or MM\0*).
 bool IsTiff(const std::vector<uint8_t>& bytes);
 // A TIFF's first image: 8/16-bit unsigned grey, grey+alpha, RGB or RGBA, in strips or tiles, any
 // compression libtiff knows; other 8-bit kinds (palette, YCbCr, CMYK, 1-4 bit) through libtiff's
-// RGBA reader. InputError naming `path` for a corrupt file or an unsupported kind.
-RasterSamples DecodeTiff(const std::string& path);
+// RGBA reader. InputError naming `path` for a corrupt file, an unsupported kind, or a side longer
+// than max_side_px (checked before the pixels are allocated).
+RasterSamples DecodeTiff(const std::string& path, int64_t max_side_px);
 
 // A PNG file's bytes: `samples` row-major interleaved, channels 1-4 (grey, grey+alpha, RGB, RGBA),
 // depth 8 (uint8_t samples) or 16 (uint16_t samples, host order); each row filtered with the
