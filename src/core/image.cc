@@ -1,6 +1,5 @@
 #include "core/image.h"
 
-#include <fitsio.h>
 
 #include <algorithm>
 #include <cmath>
@@ -11,6 +10,7 @@
 #include <opencv2/core.hpp>
 
 #include "core/error.h"
+#include "core/fits_lazy.h"
 #include "core/output.h"
 #include "core/png_decode.h"
 #include "core/raster_codec.h"
@@ -40,10 +40,10 @@ Frame ReadFits(const std::string& path) {
   int status = 0;
   auto fail = [&](const std::string& what) -> InputError {
     int s2 = 0;
-    if (f) fits_close_file(f, &s2);
+    if (f) Cfitsio().close_file(f, &s2);
     return InputError(path, what);
   };
-  if (fits_open_diskfile(&f, path.c_str(), READONLY, &status)) {
+  if (Cfitsio().open_diskfile(&f, path.c_str(), READONLY, &status)) {
     f = nullptr;
     throw fail("not a readable FITS file (corrupt or truncated)");
   }
@@ -51,11 +51,11 @@ Frame ReadFits(const std::string& path) {
   {
     char value[FLEN_VALUE] = "";
     int key_status = 0;  // a missing key is not an error
-    if (fits_read_key(f, TSTRING, "DATE-OBS", value, nullptr, &key_status) == 0) date_obs = value;
+    if (Cfitsio().read_key(f, TSTRING, "DATE-OBS", value, nullptr, &key_status) == 0) date_obs = value;
   }
   int bitpix = 0, naxis = 0;
   long naxes[3] = {0, 0, 0};
-  if (fits_get_img_param(f, 3, &bitpix, &naxis, naxes, &status)) throw fail("cannot read the FITS image header");
+  if (Cfitsio().get_img_param(f, 3, &bitpix, &naxis, naxes, &status)) throw fail("cannot read the FITS image header");
   if (naxis < 2 || (naxis == 3 && naxes[2] != 1) || naxis > 3) {
     throw fail("FITS primary HDU must hold a 2-D image (NAXIS=" + std::to_string(naxis) + ")");
   }
@@ -71,7 +71,7 @@ Frame ReadFits(const std::string& path) {
     LONGLONG header_start = 0, data_start = 0, data_end = 0;
     std::error_code ec;
     const auto file_bytes = std::filesystem::file_size(path, ec);
-    if (!fits_get_hduaddrll(f, &header_start, &data_start, &data_end, &status) && !ec &&
+    if (!Cfitsio().get_hduaddrll(f, &header_start, &data_start, &data_end, &status) && !ec &&
         static_cast<LONGLONG>(file_bytes) < data_start + static_cast<LONGLONG>(w) * h * (std::abs(bitpix) / 8)) {
       throw fail("FITS data is shorter than its header's NAXIS1 x NAXIS2 x BITPIX (truncated)");
     }
@@ -79,18 +79,18 @@ Frame ReadFits(const std::string& path) {
   long first[3] = {1, 1, 1};
   int anynul = 0;
   int equivtype = 0;
-  if (fits_get_img_equivtype(f, &equivtype, &status)) throw fail("cannot read the FITS image header");
+  if (Cfitsio().get_img_equivtype(f, &equivtype, &status)) throw fail("cannot read the FITS image header");
   if (equivtype == BYTE_IMG || equivtype == USHORT_IMG) {
     // Integers that fit uint16 exactly (8-bit, or 16-bit with BZERO 32768): read straight into the
     // frame; the double round trip below costs several ms per megapixel.
     Frame fr;
     fr.file = path;
     fr.image = Image16(static_cast<int>(w), static_cast<int>(h));
-    if (fits_read_pix(f, TUSHORT, first, static_cast<LONGLONG>(fr.image.pixels.size()), nullptr,
+    if (Cfitsio().read_pix(f, TUSHORT, first, static_cast<LONGLONG>(fr.image.pixels.size()), nullptr,
                       fr.image.pixels.data(), &anynul, &status)) {
       throw fail("cannot read FITS pixel data (truncated?)");
     }
-    fits_close_file(f, &status);
+    Cfitsio().close_file(f, &status);
     fr.bit_depth = equivtype == BYTE_IMG ? 8 : 16;
     fr.saturation_adu = equivtype == BYTE_IMG ? 255 : 65535;
     fr.date_obs = date_obs;
@@ -98,10 +98,10 @@ Frame ReadFits(const std::string& path) {
   }
   std::vector<double> buf(static_cast<size_t>(w) * static_cast<size_t>(h));
   double nulval = std::nan("");
-  if (fits_read_pix(f, TDOUBLE, first, static_cast<LONGLONG>(buf.size()), &nulval, buf.data(), &anynul, &status)) {
+  if (Cfitsio().read_pix(f, TDOUBLE, first, static_cast<LONGLONG>(buf.size()), &nulval, buf.data(), &anynul, &status)) {
     throw fail("cannot read FITS pixel data (truncated?)");
   }
-  fits_close_file(f, &status);
+  Cfitsio().close_file(f, &status);
   double lo = INFINITY, hi = -INFINITY;
   for (double v : buf) {
     if (!std::isfinite(v)) throw InputError(path, "FITS pixel data contains NaN or infinite values");
@@ -270,11 +270,11 @@ bool DeclaredImageSize(const std::string& path, int64_t* width, int64_t* height)
     fitsfile* f = nullptr;
     int status = 0, naxis = 0;
     long naxes[2] = {0, 0};
-    if (fits_open_diskfile(&f, path.c_str(), READONLY, &status)) return false;
-    fits_get_img_dim(f, &naxis, &status);
-    if (!status && naxis >= 2) fits_get_img_size(f, 2, naxes, &status);
+    if (Cfitsio().open_diskfile(&f, path.c_str(), READONLY, &status)) return false;
+    Cfitsio().get_img_dim(f, &naxis, &status);
+    if (!status && naxis >= 2) Cfitsio().get_img_size(f, 2, naxes, &status);
     int s2 = 0;
-    fits_close_file(f, &s2);
+    Cfitsio().close_file(f, &s2);
     if (status || naxis < 2) return false;
     *width = naxes[0], *height = naxes[1];
     return true;
@@ -382,12 +382,12 @@ void WriteFits16(const std::string& path, const Image16& image) {
     fitsfile* f = nullptr;
     int status = 0;
     long naxes[2] = {image.width, image.height};
-    if (fits_create_file(&f, temp.c_str(), &status)) throw InputError(path, "cannot create FITS file");
-    fits_create_img(f, USHORT_IMG, 2, naxes, &status);
+    if (Cfitsio().create_file(&f, temp.c_str(), &status)) throw InputError(path, "cannot create FITS file");
+    Cfitsio().create_img(f, USHORT_IMG, 2, naxes, &status);
     long first[2] = {1, 1};
-    fits_write_pix(f, TUSHORT, first, static_cast<LONGLONG>(image.pixels.size()),
+    Cfitsio().write_pix(f, TUSHORT, first, static_cast<LONGLONG>(image.pixels.size()),
                    const_cast<uint16_t*>(image.pixels.data()), &status);
-    fits_close_file(f, &status);
+    Cfitsio().close_file(f, &status);
     if (status) throw InputError(path, "cannot write FITS file");
   });
 }

@@ -1,5 +1,5 @@
 // Frames: a non-owning view for the stages, an owning 16-bit image, and file I/O at the edge
-// (OpenCV for PNG/TIFF, cfitsio for FITS). Pixel (0,0) is the centre of the top-left pixel; for FITS
+// (libpng/libtiff for PNG/TIFF, cfitsio for FITS). Pixel (0,0) is the centre of the top-left pixel; for FITS
 // the first stored row is y = 0 (so FITS pixel (i, j) is our (i - 1, j - 1)).
 #pragma once
 
