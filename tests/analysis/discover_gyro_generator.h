@@ -57,9 +57,11 @@ inline const std::vector<std::string>& NewGyroCauses() {
 }
 
 // Effects outside the vocabulary (expected answer `unexplained`): a drift that follows an irregular
-// heater on/off column of the log (steps 20-60 min apart), and a chirp (period sweeping 4 h -> 15 min).
+// heater on/off column of the log (steps 20-60 min apart), a chirp (period sweeping 4 h -> 15 min), a
+// random telegraph bias (two levels, switching at random, 40 min on average, nothing logged), and a
+// sawtooth (a linear ramp reset every 50-80 min).
 inline const std::vector<std::string>& UnexplainedGyroEffects() {
-  static const std::vector<std::string> k = {"square_wave_column", "chirp"};
+  static const std::vector<std::string> k = {"square_wave_column", "chirp", "telegraph", "sawtooth"};
   return k;
 }
 
@@ -69,13 +71,25 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
   Rng rng(seed);
   GyroCase c;
   c.cause = cause == "magnetic_field_logged" ? "magnetic_field" : cause;
-  if (cause == "square_wave_column" || cause == "chirp") c.cause = "unexplained";
+  if (cause == "square_wave_column" || cause == "chirp" || cause == "telegraph" || cause == "sawtooth") {
+    c.cause = "unexplained";
+  }
   // The heater column and the out-of-vocabulary effects draw from their own stream, so that the other
   // cases keep their data.
   Rng rng_x(seed * 2654435761ULL + 17);
   double heater_amp = 0, chirp_amp = 0, chirp_phase = rng_x.Uniform(-kPi, kPi);
   if (cause == "square_wave_column") heater_amp = RandomSign(rng_x) * rng_x.Uniform(0.03, 0.06);
   if (cause == "chirp") chirp_amp = rng_x.Uniform(0.04, 0.08);
+  Rng rng_y(seed * 40503ULL + 91);
+  double tele_amp = 0, saw_amp = 0, saw_period = 3600;
+  std::vector<double> tele_switch;
+  if (cause == "telegraph") {
+    tele_amp = rng_y.Uniform(0.04, 0.07);
+    for (double tt = -2400 * std::log(1 - rng_y.Uniform()); tt < 43200; tt += -2400 * std::log(1 - rng_y.Uniform())) {
+      tele_switch.push_back(tt);
+    }
+  }
+  if (cause == "sawtooth") saw_amp = rng_y.Uniform(0.04, 0.08), saw_period = rng_y.Uniform(50, 80) * 60;
   const double lat = 50.0 * kDegToRad;
   const double earth_dph = 15.041067;
   const double omega_h = earth_dph * std::cos(lat), omega_v = earth_dph * std::sin(lat);
@@ -174,6 +188,8 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
       const double heater = static_cast<double>(
           (std::upper_bound(toggles.begin(), toggles.end(), t) - toggles.begin()) % 2);
       w += heater_amp * heater;
+      w += tele_amp * (((std::upper_bound(tele_switch.begin(), tele_switch.end(), t) - tele_switch.begin()) % 2) - 0.5);
+      w += saw_amp * (std::fmod(t, saw_period) / saw_period - 0.5);
       // Chirp: frequency linear in time from 1/(4 h) to 1/(15 min) over the 12 h.
       const double f0 = 1.0 / 14400, f1 = 1.0 / 900, rate = (f1 - f0) / 43200;
       w += chirp_amp * std::sin(2 * kPi * (f0 * t + 0.5 * rate * t * t) + chirp_phase);

@@ -145,6 +145,38 @@ TEST(DiscoverGyroCli, FindsMagneticHarmonicAndWritesJson) {
   EXPECT_GE(j["candidates"].size(), 8u);
 }
 
+// Through the CLI: logged field columns and an unknown numeric column are read from the CSV; a drift
+// that follows the vertical field is magnetic_field with its sensitivity, one that follows the heater
+// column is `unexplained` and the JSON's residual names the column.
+TEST(DiscoverGyroCli, LoggedFieldAndUnknownColumnReachTheAnalysis) {
+  const std::string dir = testing::TempDir("discover_gyro_cols");
+  for (const std::string variant : {"magnetic_field_logged", "square_wave_column"}) {
+    const auto c = testing::MakeGyroCase(variant, 2);
+    const GyroBenchLog& l = c.logs[0];
+    WriteCsv(dir + "/" + variant + ".csv",
+             {"t_s", "w_dph", "ref_dph", "temp_c", "azimuth_deg", "bn_ut", "be_ut", "bh_ut", "heater_on", "note"},
+             {l.t_s, l.w_dph, l.ref_dph, l.temp_c, l.azimuth_deg, l.bn_ut, l.be_ut, l.bh_ut, l.other.at("heater_on"),
+              std::vector<double>(l.t_s.size(), 1.0)});
+    WriteLog(dir + "/rate.csv", c.logs[1]);
+    std::string out;
+    ASSERT_EQ(testing::Run(testing::SsiuProgram() + " discover gyro " + dir + "/" + variant + ".csv " + dir +
+                               "/rate.csv --json " + dir + "/d.json",
+                           &out),
+              0)
+        << out;
+    const Json j = ReadJsonFile(dir + "/d.json");
+    if (variant == "magnetic_field_logged") {
+      ASSERT_EQ(j["cause"], "magnetic_field") << j.dump(1);
+      EXPECT_NEAR(j["parameters"]["sensitivity_bh_dph_per_ut"].get<double>(), c.truth.at("sensitivity_bh_dph_per_ut"),
+                  4 * j["parameter_sigmas"]["sensitivity_bh_dph_per_ut"].get<double>());
+    } else {
+      ASSERT_EQ(j["cause"], "unexplained") << j.dump(1);
+      EXPECT_EQ(j["residual"]["follows_column"], "heater_on");
+      EXPECT_THAT(out, ::testing::HasSubstr("follows column heater_on"));
+    }
+  }
+}
+
 TEST(DiscoverGyroCli, BadInputExitsOneNamingTheField) {
   const auto c = testing::MakeGyroCase("none", 5);
   const std::string dir = testing::TempDir("discover_gyro_bad");
