@@ -111,13 +111,14 @@ class Pool {
 };
 
 std::string Duration(double s) {
+  s = std::min(s, 3.6e8);  // 100000 h: keeps the int casts below in range
   char buf[32];
   if (s < 60) {
     std::snprintf(buf, sizeof buf, "%.0f s", s);
   } else if (s < 3600) {
     std::snprintf(buf, sizeof buf, "%dm%02ds", static_cast<int>(s / 60), static_cast<int>(s) % 60);
   } else {
-    std::snprintf(buf, sizeof buf, "%dh%02dm", static_cast<int>(std::min(s / 3600, 1e6)), static_cast<int>(s / 60) % 60);
+    std::snprintf(buf, sizeof buf, "%dh%02dm", static_cast<int>(s / 3600), static_cast<int>(s / 60) % 60);
   }
   return buf;
 }
