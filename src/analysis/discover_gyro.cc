@@ -534,8 +534,11 @@ CvResult CrossValidate(const Design& d, const std::vector<NoiseModel>& nm, const
 // (Bonferroni) and then over the four: the strongest sinusoid (GLS periodogram, as periodic_drift);
 // Ljung-Box over the first lags (dof lags - 2: two noise parameters fitted); a Wald-Wolfowitz runs
 // test of the signs; the regression on every logged column (chi^2_1, Bonferroni over the columns).
+// With a periodic_drift fitted (fundamental_hz > 0 in log fundamental_log), a fifth test: its 2nd and
+// 3rd harmonics (2 positions, not a scan), so that a non-sinusoidal periodic drift (sawtooth, square
+// wave) is not taken for a sinusoid.
 GyroResidual TestResidual(const Design& d, const std::vector<NoiseModel>& nm, const VectorXd& e,
-                          const GyroDiscoverOptions& o) {
+                          const GyroDiscoverOptions& o, double fundamental_hz = 0, int fundamental_log = 0) {
   GyroResidual res;
   const int l = static_cast<int>(d.bins.size());
   res.rms_dph = std::sqrt(e.squaredNorm() / std::max(1, d.n));
@@ -609,6 +612,21 @@ GyroResidual TestResidual(const Design& d, const std::vector<NoiseModel>& nm, co
       if (p < runs_p) runs_p = p, res.runs_z = z;
     }
   }
+  double harm_p = 1;
+  int n_tests = 4;
+  if (fundamental_hz > 0) {
+    n_tests = 5;
+    const int r = fundamental_log, m = static_cast<int>(d.bins[r].t_s.size());
+    for (int k = 2; k <= 3; ++k) {
+      const double fk = k * fundamental_hz;
+      if (fk > 0.5 / d.bins[r].bin_s) break;
+      const auto [fr, stat] =
+          ScanSinusoid(d.bins[r], nm[r], bw.col(r).segment(d.offset[r], m), wr.segment(d.offset[r], m), s2[r], fk, fk);
+      const double p = std::min(1.0, 2 * ChiSquaredSurvival(stat, 2));
+      if (p < harm_p) harm_p = p, res.harmonic_period_s = 1 / fr;
+    }
+  }
+  res.harmonics_p = harm_p;
   res.spectral_chi2 = best_stat;
   res.spectral_p = std::min(1.0, std::max(positions, 1.0) * ChiSquaredSurvival(best_stat, 2));
   res.ljung_box_p = std::min(1.0, l * lb_p);
@@ -659,12 +677,13 @@ GyroResidual TestResidual(const Design& d, const std::vector<NoiseModel>& nm, co
   const std::pair<double, const char*> tests[] = {{res.spectral_p, "spectral_peak"},
                                                   {res.ljung_box_p, "autocorrelation"},
                                                   {res.runs_p, "runs"},
-                                                  {res.column_p, "column"}};
+                                                  {res.column_p, "column"},
+                                                  {res.harmonics_p, "harmonics"}};
   double p_min = 1;
   for (const auto& [p, name] : tests) {
     if (p < p_min || res.finding.empty()) p_min = p, res.finding = name;
   }
-  res.p_value = std::min(1.0, 4 * p_min);
+  res.p_value = std::min(1.0, n_tests * p_min);
   res.structured = res.p_value < o.residual_alpha;
   return res;
 }
@@ -1385,7 +1404,8 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
       noise_fit[r] = FitNoise(v, o.max_noise_lag, std::exp(-d.bins[r].bin_s / o.wander_tau_max_s));
     }
   }
-  res.residual = TestResidual(d, noise_fit, e_fit, o);
+  const bool periodic = chosen && chosen->cause == "periodic_drift";
+  res.residual = TestResidual(d, noise_fit, e_fit, o, periodic ? best_freq : 0.0, best_periodic_log);
   if (res.residual.structured) {
     res.partial_cause = res.cause == "none" ? "" : res.cause;
     res.cause = "unexplained";
@@ -1433,7 +1453,9 @@ Json GyroDiscoveryToJson(const GyroDiscovery& d) {
                {"follows_column", r.follows_column},
                {"column_coefficient_dph_per_unit", r.column_coefficient},
                {"column_correlation", r.column_correlation},
-               {"column_p", r.column_p}};
+               {"column_p", r.column_p},
+               {"harmonics_p", r.harmonics_p},
+               {"harmonic_period_s", r.harmonic_period_s}};
     rj["columns"] = Json::array();
     for (const auto& c : r.columns) {
       rj["columns"].push_back({{"column", c.column},

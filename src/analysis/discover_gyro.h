@@ -119,6 +119,7 @@ struct GyroResidual {
   std::string follows_column;  // the most significant logged column
   double column_coefficient = 0, column_correlation = 0, column_p = 1;
   std::vector<GyroResidualColumn> columns;
+  double harmonics_p = 1, harmonic_period_s = 0;  // periodic_drift's 2nd/3rd harmonics (when it was fitted)
 };
 
 struct GyroDiscovery {
