@@ -147,6 +147,8 @@ inline Calibration RunUnknownFovRandom(int n, uint64_t seed0, const IdentifyOpti
                    static_cast<unsigned long long>(seed0 + k), m, r.message.c_str(), r.false_match_probability,
                    r.hypotheses);
     }
+    if (n > 1000 && (k + 1) % 500 == 0)  // long runs: partial counts (a shared machine may not finish)
+      std::fprintf(stderr, "progress at %g: %d false of %d\n", io.max_false_match_prob, c.false_solves, c.trials);
   }
   return c;
 }
