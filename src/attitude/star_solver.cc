@@ -82,6 +82,12 @@ StarIdentifier MakeIdentifierForFovRange(const std::string& dir, const Camera& c
   return StarIdentifier(LoadOrBuildCatalogIn(dir, src, b, /*rebuild_damaged=*/false));
 }
 
+StarIdentifier MakeIdentifierFor(const std::string& dir, const Camera& camera, const IdentifyOptions& o, double mag_max,
+                                 const std::string& source) {
+  if (o.FovRange()) return MakeIdentifierForFovRange(dir, camera, o.fov_min_deg, o.fov_max_deg, mag_max, source);
+  return MakeIdentifierForCamera(dir, camera, o.fov_tolerance_pct, mag_max, source);
+}
+
 std::vector<Centroid> CentroidsFromDetections(const Detections& d, double sigma_scale) {
   std::vector<Centroid> out;
   out.reserve(d.stars.size());

@@ -71,6 +71,11 @@ StarIdentifier MakeIdentifierForCamera(const std::string& dir, const Camera& cam
 StarIdentifier MakeIdentifierForFovRange(const std::string& dir, const Camera& camera, double fov_min_deg,
                                          double fov_max_deg, double mag_max = 0, const std::string& source = "");
 
+// The identifier a solve with `options` needs: MakeIdentifierForFovRange when the field of view is
+// unknown (options.FovRange()), else MakeIdentifierForCamera with options.fov_tolerance_pct.
+StarIdentifier MakeIdentifierFor(const std::string& dir, const Camera& camera, const IdentifyOptions& options,
+                                 double mag_max = 0, const std::string& source = "");
+
 // Centroid list from detections (flux, and the fit's 1-sigma as the position noise).
 std::vector<Centroid> CentroidsFromDetections(const Detections& d, double sigma_scale = 1.0);
 // Reads a centroid CSV: x_px,y_px[,flux][,sigma_px]. InputError naming the file/column/row.

@@ -58,9 +58,7 @@ void AddSolverFlags(CLI::App* cmd, Opts* o) {
 }
 
 StarIdentifier MakeIdentifier(const Opts& o, const Camera& cam) {
-  const IdentifyOptions& io = o.solve.identify;
-  if (io.FovRange()) return MakeIdentifierForFovRange(o.catalog, cam, io.fov_min_deg, io.fov_max_deg, o.mag_max, o.source);
-  return MakeIdentifierForCamera(o.catalog, cam, io.fov_tolerance_pct, o.mag_max, o.source);
+  return MakeIdentifierFor(o.catalog, cam, o.solve.identify, o.mag_max, o.source);
 }
 
 // --camera; with --fov-range-deg it may lack a focal length.

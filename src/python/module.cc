@@ -69,12 +69,13 @@ py::object ToPython(const Json& j) {
   }
 }
 
-// A camera from a dict (the content of camera.json) or a path to camera.json.
-Camera CameraFrom(const py::object& camera) {
-  if (py::isinstance<py::str>(camera)) return LoadCamera(camera.cast<std::string>());
+// A camera from a dict (the content of camera.json) or a path to camera.json; without a focal length
+// only when the field of view is searched (fov_x_deg_if_no_focal > 0, core/camera.h).
+Camera CameraFrom(const py::object& camera, double fov_x_deg_if_no_focal = 0) {
+  if (py::isinstance<py::str>(camera)) return LoadCamera(camera.cast<std::string>(), fov_x_deg_if_no_focal);
   if (py::isinstance<py::dict>(camera)) {
     const std::string text = py::module_::import("json").attr("dumps")(camera).cast<std::string>();
-    return CameraFromJson(Json::parse(text), "camera");
+    return CameraFromJson(Json::parse(text), "camera", fov_x_deg_if_no_focal);
   }
   throw py::type_error("camera must be a dict (camera.json's content) or a path to camera.json");
 }
@@ -134,7 +135,14 @@ Setters SolverSetters(SolverConfig* c) {
           {"mag_max", Set(&c->mag_max)},
           {"source", Set(&c->source)},
           {"fov_tolerance_pct", Set(&id.fov_tolerance_pct)},
+          {"fov_range_deg",
+           [&id](const py::handle& v) {
+             const auto r = v.cast<std::vector<double>>();
+             if (r.size() != 2) throw InputError("fov_range_deg", "must be (MIN, MAX) in degrees");
+             id.fov_min_deg = r[0], id.fov_max_deg = r[1];
+           }},
           {"max_false_prob", Set(&id.max_false_match_prob)},
+          {"timeout_ms", Set(&id.timeout_ms)},
           {"centroid_sigma_px", Set(&id.centroid_sigma_px)},
           {"systematic_px", Set(&id.systematic_px)},
           {"threshold_sigma", Set(&c->solve.detect.threshold_sigma)},
@@ -209,11 +217,12 @@ bool IsCentroids(const py::array& a) { return a.dtype().kind() == 'f'; }
 // A camera with its catalog loaded once: what a worker keeps between frames.
 class Solver {
  public:
-  Solver(const py::object& camera, const py::kwargs& kwargs) : camera_(CameraFrom(camera)) {
+  Solver(const py::object& camera, const py::kwargs& kwargs) {
     ApplyOptions(kwargs, SolverSetters(&config_), "Solver");
     config_.solve.Check();
-    id_ = std::make_shared<StarIdentifier>(MakeIdentifierForCamera(
-        config_.catalog, camera_, config_.solve.identify.fov_tolerance_pct, config_.mag_max, config_.source));
+    const IdentifyOptions& io = config_.solve.identify;
+    camera_ = CameraFrom(camera, io.FovRange() ? std::sqrt(io.fov_min_deg * io.fov_max_deg) : 0.0);
+    id_ = std::make_shared<StarIdentifier>(MakeIdentifierFor(config_.catalog, camera_, io, config_.mag_max, config_.source));
   }
 
   // A frame (uint8/uint16 array or a file path: PNG/TIFF/FITS, or a .csv centroid list) -> solve JSON.
@@ -267,9 +276,18 @@ class Solver {
 };
 
 class PyTracker {
+  // Tracking keeps one focal length (as `ssiu track`): find it once with Solver(fov_range_deg=...)
+  // and give the fitted one in the camera.
+  static Solver NoFovRange(const py::object& camera, const py::kwargs& kwargs) {
+    if (kwargs.contains("fov_range_deg"))
+      throw InputError("fov_range_deg", "not for a Tracker: solve once with Solver(fov_range_deg=...) and give the "
+                                        "fitted focal_length_px in the camera");
+    return Solver(camera, kwargs);
+  }
+
  public:
   PyTracker(const py::object& camera, const py::kwargs& kwargs)
-      : solver_(camera, kwargs),
+      : solver_(NoFovRange(camera, kwargs)),
         tracker_(*solver_.identifier(), solver_.camera(), solver_.config().solve) {}
 
   py::object Update(const py::object& input, double t_s) {
@@ -477,7 +495,8 @@ PYBIND11_MODULE(_ssiu, m) {
 
   py::class_<Solver>(m, "Solver",
                      "A camera with its star catalog loaded once. Keyword options are the flags of `ssiu solve`: "
-                     "catalog, fov_tolerance_pct, max_false_prob, centroid_sigma_px, systematic_px, "
+                     "catalog, fov_tolerance_pct, fov_range_deg=(MIN, MAX) (unknown field of view: the camera may "
+                     "lack a focal length), max_false_prob, timeout_ms, centroid_sigma_px, systematic_px, "
                      "threshold_sigma, mag_max, source, saturation_adu, psf_sigma_px")
       .def(py::init<const py::object&, const py::kwargs&>(), py::arg("camera"))
       .def("solve", &Solver::Solve, py::arg("image_or_centroids"),

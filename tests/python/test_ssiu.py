@@ -168,3 +168,23 @@ def test_fuse_noise_options_equal_the_cli_flags(tmp_path):
     assert default["noise"]["arw_deg_per_sqrt_h"] != pytest.approx(0.02)
     with pytest.raises(ValueError, match="arw_deg_per_sqrt_h: must be a finite number > 0"):
         ssiu.fuse(str(g), str(st), arw_deg_per_sqrt_h=-1.0)
+
+
+def test_unknown_field_of_view_equals_the_cli(sky, tmp_path):
+    cam = json.loads((sky / "f" / "camera.json").read_text())
+    f_true = cam.pop("focal_length_px")
+    nofocal = tmp_path / "nofocal.json"
+    nofocal.write_text(json.dumps(cam))
+    out = tmp_path / "cli.json"
+    run("solve", frame(sky, 1), "--camera", nofocal, "--fov-range-deg", "14,20", "--json", out)
+    cli = json.loads(out.read_text())
+    py = ssiu.Solver(cam, fov_range_deg=(14, 20)).solve(frame(sky, 1))
+    assert py["status"] == cli["status"] == "solved"
+    assert abs(py["focal_length_px"] / f_true - 1) < 0.002
+    assert py["focal_length_px"] == pytest.approx(cli["focal_length_px"], rel=1e-9)
+    assert quat_angle_arcsec(py["q"], cli["q"]) < 0.01
+    assert quat_angle_arcsec(py["q"], truth_q(sky, 1)) < 60
+    with pytest.raises(ValueError, match="focal_length_px"):
+        ssiu.Solver(cam)
+    with pytest.raises(ValueError, match="fov_range_deg"):
+        ssiu.Tracker(cam, fov_range_deg=(14, 20))
