@@ -5,6 +5,8 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <thread>
+#include <vector>
 
 #include "core/catalog.h"
 #include "core/error.h"
@@ -61,6 +63,39 @@ TEST(CatalogIntegrity, BuildKilledBeforeMetaJsonIsFinishedByTheNextRun) {
   EXPECT_EQ(CheckCatalogDir(dir), CatalogDirState::kIncomplete);
   LoadOrBuildCatalogIn(dir, DefaultBscPath(), Fov(30), false);
   EXPECT_EQ(CheckCatalogDir(dir), CatalogDirState::kOk);
+}
+
+// Concurrent builders of one directory (issue 16, item 2): four at once on an empty directory all get
+// the same whole catalog, and the directory is left whole with no temporary beside it.
+TEST(CatalogIntegrity, ConcurrentBuildersOfOneDirectoryCannotTearIt) {
+  const std::string dir = testing::TempDir("catalog_integrity_concurrent");
+  const int n = 4;
+  std::vector<SolverCatalog> cats(n);
+  std::vector<std::string> errors(n);
+  std::vector<std::thread> builders;
+  for (int i = 0; i < n; ++i) {
+    builders.emplace_back([&, i] {
+      try {
+        cats[i] = LoadOrBuildCatalogIn(dir, DefaultBscPath(), Fov(20), false);
+      } catch (const std::exception& e) {
+        errors[i] = e.what();
+      }
+    });
+  }
+  for (auto& t : builders) t.join();
+  for (int i = 0; i < n; ++i) {
+    EXPECT_EQ(errors[i], "") << "builder " << i;
+    ASSERT_EQ(cats[i].stars.size(), cats[0].stars.size()) << "builder " << i;
+    ASSERT_EQ(cats[i].triangles.size(), cats[0].triangles.size()) << "builder " << i;
+    for (size_t k = 0; k < cats[i].stars.size(); k += 97) EXPECT_EQ(cats[i].stars[k].id, cats[0].stars[k].id);
+  }
+  EXPECT_GT(cats[0].triangles.size(), 1000u);
+  EXPECT_EQ(CheckCatalogDir(dir), CatalogDirState::kOk);
+  for (const auto& e : std::filesystem::directory_iterator(dir)) {
+    const std::string name = e.path().filename().string();
+    // The atomic writer's temporaries are hidden files beside their targets (core/output.h).
+    EXPECT_TRUE(name[0] != '.' || name == ".lock") << "left behind: " << name;
+  }
 }
 
 }  // namespace
