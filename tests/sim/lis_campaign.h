@@ -149,7 +149,17 @@ inline Calibration RunWrongFocal(int n, uint64_t seed0, double tol_pct, Identify
     const SolveResult r = SolveCentroids(id, s.centroids, guess, sopt);
     ++c.trials;
     c.solved += r.status == "solved";
-    if (r.status == "solved" && IsWrong(r, s.q_inertial_from_sensor)) ++c.false_solves;
+    if (r.status == "solved" && IsWrong(r, s.q_inertial_from_sensor)) {
+      ++c.false_solves;
+      const AttitudeErrorSplit e = SplitAttitudeError(r.attitude.q_inertial_from_sensor, s.q_inertial_from_sensor);
+      int true_matches = 0;
+      for (const auto& m : r.identification.matches) true_matches += s.star_id[m.centroid] == m.star_id;
+      std::fprintf(stderr, "WRONG focal seed %llu: cross %.1f roll %.1f arcsec (sigma %.1f), %zu matches (%d right), "
+                   "f %.1f (true %.1f, guess %.1f), chance %.3g, %s\n", static_cast<unsigned long long>(seed),
+                   e.cross_rad * kRadToArcsec, e.roll_rad * kRadToArcsec, r.attitude.sigma_roll_rad * kRadToArcsec,
+                   r.identification.matches.size(), true_matches, r.identification.focal_length_px, truth.focal_length_px,
+                   guess.focal_length_px, r.identification.false_match_probability, r.message.c_str());
+    }
   }
   return c;
 }
