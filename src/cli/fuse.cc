@@ -28,7 +28,7 @@ void CheckFlag(double v, const char* flag, bool positive) {
 }
 
 void Run(Opts o) {
-  // Flags are checked here to name them; the library checks the figures again.
+  // Flags are checked here so that the message names the flag; the library checks the figures too.
   FuseNoiseGiven given;
   given.noise_file = o.noise;
   if (o.arw_given) CheckFlag(o.arw, "--arw-deg-per-sqrt-h", true), given.arw_deg_per_sqrt_h = o.arw;

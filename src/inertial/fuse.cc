@@ -344,9 +344,10 @@ GyroUnit FuseUnitForLog(const GyroLog& log, const std::string& log_name, const s
     }
     source = "noise_file";
   }
-  auto given = [&](double v, bool positive, const char* name, double GyroErrorModel::*field) {
-    if (v < 0) return;
-    if (!std::isfinite(v) || (positive && v == 0))
+  auto given = [&](const std::optional<double>& figure, bool positive, const char* name, double GyroErrorModel::*field) {
+    if (!figure) return;
+    const double v = *figure;
+    if (!std::isfinite(v) || v < 0 || (positive && v == 0))
       throw InputError(name, positive ? "must be a finite number > 0" : "must be a finite number >= 0");
     for (auto& g : unit.gyros) g.*field = v;
     source = "flags";

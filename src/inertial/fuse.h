@@ -4,6 +4,7 @@
 #pragma once
 
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -106,15 +107,16 @@ std::vector<GyroErrorModel> ReadAllanNoise(const std::string& path);
 MekfNoise FuseNoiseModel(const GyroUnit& unit, const RateSolver& solver, double floor_dph_per_sqrt_h);
 
 // Gyro noise given for a fuse run beside (or instead of) a unit file: `ssiu fuse --noise` and the
-// noise flags, the Python module's keyword arguments. Unset (< 0) figures are not given.
+// noise flags, the Python module's keyword arguments. Every figure given is checked by
+// FuseUnitForLog (InputError naming the field).
 struct FuseNoiseGiven {
-  std::string noise_file;             // `ssiu allan --json` output; "" = none
-  double arw_deg_per_sqrt_h = -1;     // every gyro/axis; > 0 when given
-  double bias_instability_dph = -1;   // >= 0 when given
-  double rrw_dph_per_sqrt_h = -1;     // >= 0 when given
-  bool init_bias_sigma_given = false; // FuseOptions::init_bias_sigma_dph was set by the user
+  std::string noise_file;                     // `ssiu allan --json` output; "" = none
+  std::optional<double> arw_deg_per_sqrt_h;   // every gyro/axis; must be > 0
+  std::optional<double> bias_instability_dph; // must be >= 0
+  std::optional<double> rrw_dph_per_sqrt_h;   // must be >= 0
+  bool init_bias_sigma_given = false;         // FuseOptions::init_bias_sigma_dph was set by the user
   bool any() const {
-    return !noise_file.empty() || arw_deg_per_sqrt_h >= 0 || bias_instability_dph >= 0 || rrw_dph_per_sqrt_h >= 0;
+    return !noise_file.empty() || arw_deg_per_sqrt_h || bias_instability_dph || rrw_dph_per_sqrt_h;
   }
 };
 

@@ -385,11 +385,10 @@ py::object FusePy(const std::string& gyro, const std::string& star_tracker, cons
   FuseOptions o;
   FuseNoiseGiven noise;
   bool no_fdi = false;
-  double init_bias_sigma_dph = -1;
   ApplyOptions(kwargs,
                {{"st_sigma_cross_arcsec", Set(&o.st_sigma_cross_arcsec)},
                 {"st_sigma_roll_arcsec", Set(&o.st_sigma_roll_arcsec)},
-                {"init_bias_sigma_dph", Set(&init_bias_sigma_dph)},
+                {"init_bias_sigma_dph", Set(&o.init_bias_sigma_dph)},
                 {"output_every", Set(&o.output_every)},
                 {"no_fdi", Set(&no_fdi)},
                 {"noise", Set(&noise.noise_file)},
@@ -398,17 +397,7 @@ py::object FusePy(const std::string& gyro, const std::string& star_tracker, cons
                 {"rrw_dph_per_sqrt_h", Set(&noise.rrw_dph_per_sqrt_h)}},
                "fuse");
   o.fdi = !no_fdi;
-  if (kwargs.contains("init_bias_sigma_dph")) {
-    if (!(std::isfinite(init_bias_sigma_dph) && init_bias_sigma_dph > 0))
-      throw InputError("init_bias_sigma_dph", "must be a finite number > 0");
-    o.init_bias_sigma_dph = init_bias_sigma_dph;
-    noise.init_bias_sigma_given = true;
-  }
-  // A negative figure means "not given" to the library: refuse it here as the CLI does.
-  for (const char* k : {"arw_deg_per_sqrt_h", "bias_instability_dph", "rrw_dph_per_sqrt_h"}) {
-    if (kwargs.contains(k) && !(kwargs[k].cast<double>() >= 0))
-      throw InputError(k, std::string("must be a finite number ") + (std::string(k) == "arw_deg_per_sqrt_h" ? "> 0" : ">= 0"));
-  }
+  noise.init_bias_sigma_given = kwargs.contains("init_bias_sigma_dph");  // checked by FuseOptions::Check
   const GyroLog log = ReadGyroLog(gyro, 0);
   std::string noise_source;
   const GyroUnit u = FuseUnitForLog(log, gyro, unit.is_none() ? std::string() : unit.cast<std::string>(), noise, &noise_source);
