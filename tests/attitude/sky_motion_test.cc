@@ -62,6 +62,16 @@ double CrossNees(const AttitudeSolution& a, const Quat& q_true) {
   return e.dot(a.covariance_rad2.topLeftCorner<2, 2>().inverse() * e);
 }
 
+// Where the uncorrected solution must be: the corrected one rotated by the rotation that takes the
+// matched stars' catalog directions to their apparent ones (weighted as the fit) -- the aberration
+// (at the boresight, shifted away from the apex) and the proper motion since the catalog epoch. The
+// same centroids are used, so their noise cancels.
+Quat ExpectedUncorrected(const StarIdentifier& id, const SolveResult& corrected) {
+  std::vector<WahbaObservation> obs;
+  for (const auto& m : corrected.identification.matches) obs.push_back({id.catalog().stars[m.star].unit, m.r_inertial, m.sigma_rad});
+  return SolveQuest(obs).q_inertial_from_sensor.conjugate() * corrected.attitude.q_inertial_from_sensor;
+}
+
 TEST(SkyMotion, TimeAndVelocityGiveIcrsAttitudeAndWithoutThemTheErrorIsTheAberration) {
   const Camera cam = MakeCamera(1024, 1024, 16.6);
   CatalogBuildOptions co;
@@ -97,14 +107,7 @@ TEST(SkyMotion, TimeAndVelocityGiveIcrsAttitudeAndWithoutThemTheErrorIsTheAberra
     const Quat qc = rc.attitude.q_inertial_from_sensor, qp = rp.attitude.q_inertial_from_sensor;
     cross_corrected.push_back(SplitAttitudeError(qc, q).cross_rad * kRadToArcsec);
     nees.push_back(CrossNees(rc.attitude, q));
-    // Uncorrected, the solution is off by the rotation that takes the matched stars' catalog
-    // directions to their apparent ones (weighted as the fit): the aberration (at the boresight,
-    // shifted away from the apex) and the proper motion since the catalog epoch. The same centroids
-    // are used, so their noise cancels.
-    std::vector<WahbaObservation> obs;
-    for (const auto& m : rc.identification.matches) obs.push_back({id.catalog().stars[m.star].unit, m.r_inertial, m.sigma_rad});
-    const Quat q_apparent_from_catalog = SolveQuest(obs).q_inertial_from_sensor;
-    const Quat q_expected = q_apparent_from_catalog.conjugate() * qc;
+    const Quat q_expected = ExpectedUncorrected(id, rc);
     const Vec3 bore = q * Vec3::UnitZ();
     const Vec3 shift = AberrateDirection(bore, corrected.sky.ObserverVelocityMS()) - bore;
     const double uncorrected = SplitAttitudeError(qp, qc).cross_rad * kRadToArcsec;
@@ -165,11 +168,7 @@ TEST(SkyMotion, NonSquarePixelsDistortionProperMotionAndAberrationTogether) {
       nees.push_back(CrossNees(rc.attitude, q));
       const SolveResult rp = SolveFrame(id, sf.image.view(), cam, plain);
       ASSERT_EQ(rp.status, "solved");
-      // Uncorrected, off by the rotation from the matched stars' catalog directions to their
-      // apparent ones (aberration and proper motion; same detections, so their noise cancels).
-      std::vector<WahbaObservation> obs;
-      for (const auto& m : rc.identification.matches) obs.push_back({id.catalog().stars[m.star].unit, m.r_inertial, m.sigma_rad});
-      const Quat q_expected = SolveQuest(obs).q_inertial_from_sensor.conjugate() * rc.attitude.q_inertial_from_sensor;
+      const Quat q_expected = ExpectedUncorrected(id, rc);
       const Vec3 bore = q * Vec3::UnitZ();
       const double shift = (AberrateDirection(bore, corrected.sky.ObserverVelocityMS()) - bore).norm() * kRadToArcsec;
       const double uncorrected = SplitAttitudeError(rp.attitude.q_inertial_from_sensor, q).cross_rad * kRadToArcsec;

@@ -48,6 +48,13 @@ inline bool IsWrong(const SolveResult& r, const Quat& truth) {
   return e.cross_rad * kRadToArcsec > 60 || std::abs(e.roll_rad) * kRadToArcsec > roll_limit;
 }
 
+// Matches whose catalog star is the scene's truth for that centroid.
+inline int RightMatches(const SimulatedScene& s, const std::vector<StarMatch>& matches) {
+  int n = 0;
+  for (const auto& m : matches) n += s.star_id[m.centroid] == m.star_id;
+  return n;
+}
+
 struct SceneCampaign {
   int scenes = 0;
   int with4 = 0, solved4 = 0;  // scenes with >= 4 true stars and of them solved
@@ -87,8 +94,7 @@ inline SceneCampaign RunKelvinsScenes(int n, uint64_t seed0, const IdentifyOptio
     if (ok && IsWrong(sr, s.q_inertial_from_sensor)) {
       const double err_arcsec = AttitudeErrorRad(sr.attitude.q_inertial_from_sensor, s.q_inertial_from_sensor) * kRadToArcsec;
       ++c.wrong;
-      int true_matches = 0;
-      for (const auto& m : r.matches) true_matches += s.star_id[m.centroid] == m.star_id;
+      const int true_matches = RightMatches(s, r.matches);
       std::fprintf(stderr, "WRONG scene seed %llu: %.1f arcsec off, %zu matches (%d right), chance %.3g, %s\n",
                    static_cast<unsigned long long>(seed), err_arcsec, r.matches.size(), true_matches,
                    r.false_match_probability, r.message.c_str());
@@ -152,8 +158,7 @@ inline Calibration RunWrongFocal(int n, uint64_t seed0, double tol_pct, Identify
     if (r.status == "solved" && IsWrong(r, s.q_inertial_from_sensor)) {
       ++c.false_solves;
       const AttitudeErrorSplit e = SplitAttitudeError(r.attitude.q_inertial_from_sensor, s.q_inertial_from_sensor);
-      int true_matches = 0;
-      for (const auto& m : r.identification.matches) true_matches += s.star_id[m.centroid] == m.star_id;
+      const int true_matches = RightMatches(s, r.identification.matches);
       std::fprintf(stderr, "WRONG focal seed %llu: cross %.1f roll %.1f arcsec (sigma %.1f), %zu matches (%d right), "
                    "f %.1f (true %.1f, guess %.1f), chance %.3g, %s\n", static_cast<unsigned long long>(seed),
                    e.cross_rad * kRadToArcsec, e.roll_rad * kRadToArcsec, r.attitude.sigma_roll_rad * kRadToArcsec,
