@@ -1,7 +1,5 @@
 #include "identify/identify.h"
 
-#include <flann/flann.hpp>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -11,53 +9,10 @@
 #include <time.h>
 
 #include "core/error.h"
+#include "identify/catalog_index.h"
 #include "identify/wahba_svd.h"
 
 namespace ssiu {
-
-struct StarIdentifier::Index {
-  // Triangles sorted by a key of their features: (ratio_a cell, ratio_b cell, ln longest_rad in fine
-  // steps), ln the least significant. A box query (ratio tolerance, ln-size tolerance) visits the few
-  // (ratio_a, ratio_b) cells it overlaps and, in each, one contiguous run of ln sizes found by binary
-  // search. This replaced a FLANN kd-tree radius search, which took 43% of a deep search's time and
-  // whose isotropic sphere admitted ratio errors as large as the focal-length range.
-  std::vector<uint64_t> keys;     // sorted
-  std::vector<int32_t> triangle;  // triangle index per key
-  std::vector<uint32_t> cell_start;  // first key of each (ratio_a, ratio_b) cell; one past the end last
-  std::vector<double> units;      // star unit vectors
-  std::unique_ptr<flann::Index<flann::L2<double>>> stars;
-
-  static constexpr double kRatioCell = 0.004;
-  static constexpr int kRatioCells = 251;  // ratios in [0, 1]
-  static constexpr double kLnStep = 1e-4, kLnMin = -14.0;
-  static constexpr int kLnBits = 20;
-  static int RatioCell(double r) { return std::clamp(static_cast<int>(std::floor(r / kRatioCell)), 0, kRatioCells - 1); }
-  static int64_t LnCell(double ln_l) {
-    const double c = std::floor((ln_l - kLnMin) / kLnStep);
-    return static_cast<int64_t>(std::clamp(c, 0.0, static_cast<double>((1 << kLnBits) - 1)));
-  }
-  static uint64_t Key(int ia, int ib, int64_t il) {
-    return ((static_cast<uint64_t>(ia) * kRatioCells + static_cast<uint64_t>(ib)) << kLnBits) | static_cast<uint64_t>(il);
-  }
-  // Calls fn(triangle index) for every triangle with |ratio_a - qa| <= tol_r, |ratio_b - qb| <= tol_r
-  // and |ln longest - ql| <= tol_l (the cells overlapping the box; the caller checks the sides).
-  template <typename Fn>
-  void ForEachInBox(double qa, double qb, double ql, double tol_r, double tol_l, const SolverCatalog& cat, Fn&& fn) const {
-    const int64_t l0 = LnCell(ql - tol_l), l1 = LnCell(ql + tol_l);
-    for (int ia = RatioCell(qa - tol_r); ia <= RatioCell(qa + tol_r); ++ia) {
-      for (int ib = RatioCell(qb - tol_r); ib <= RatioCell(qb + tol_r); ++ib) {
-        const uint64_t hi = Key(ia, ib, l1);
-        const size_t cell = static_cast<size_t>(ia) * kRatioCells + ib;
-        const auto end = keys.begin() + cell_start[cell + 1];
-        for (auto it = std::lower_bound(keys.begin() + cell_start[cell], end, Key(ia, ib, l0)); it != end && *it <= hi; ++it) {
-          const int32_t ti = triangle[it - keys.begin()];
-          const CatalogTriangle& t = cat.triangles[ti];
-          if (std::abs(t.ratio_a - qa) <= tol_r && std::abs(t.ratio_b - qb) <= tol_r) fn(ti);
-        }
-      }
-    }
-  }
-};
 
 namespace {
 
@@ -429,31 +384,13 @@ double BinomialTail(int n, double p, int k) {
   return std::min(1.0, sum);
 }
 
-StarIdentifier::StarIdentifier(SolverCatalog catalog) : catalog_(std::move(catalog)), index_(std::make_unique<Index>()) {
-  auto& ix = *index_;
-  std::vector<std::pair<uint64_t, int32_t>> kt;
-  kt.reserve(catalog_.triangles.size());
-  for (size_t i = 0; i < catalog_.triangles.size(); ++i) {
-    const auto& t = catalog_.triangles[i];
-    kt.push_back({Index::Key(Index::RatioCell(t.ratio_a), Index::RatioCell(t.ratio_b), Index::LnCell(std::log(t.longest_rad))),
-                  static_cast<int32_t>(i)});
-  }
-  std::sort(kt.begin(), kt.end());
-  for (const auto& [k, i] : kt) {
-    ix.keys.push_back(k);
-    ix.triangle.push_back(i);
-  }
-  ix.cell_start.assign(static_cast<size_t>(Index::kRatioCells) * Index::kRatioCells + 1, 0);
-  for (size_t cell = 0, k = 0; cell < ix.cell_start.size(); ++cell) {
-    while (k < ix.keys.size() && (ix.keys[k] >> Index::kLnBits) < cell) ++k;
-    ix.cell_start[cell] = static_cast<uint32_t>(k);
-  }
-  ix.units.reserve(catalog_.stars.size() * 3);
-  for (const auto& s : catalog_.stars) ix.units.insert(ix.units.end(), {s.unit[0], s.unit[1], s.unit[2]});
-  if (!catalog_.stars.empty()) {
-    flann::Matrix<double> m(ix.units.data(), catalog_.stars.size(), 3);
-    ix.stars = std::make_unique<flann::Index<flann::L2<double>>>(m, flann::KDTreeSingleIndexParams(16));
-    ix.stars->buildIndex();
+StarIdentifier::StarIdentifier(SolverCatalog catalog) : catalog_(std::move(catalog)) {
+  // A catalog built or loaded by star_catalog.h carries its index; one assembled otherwise gets it here.
+  if (catalog_.index && catalog_.index->Fits(catalog_)) {
+    index_ = catalog_.index;
+  } else {
+    index_ = std::make_shared<const CatalogIndex>(catalog_);
+    catalog_.index = index_;
   }
 }
 
@@ -462,19 +399,7 @@ StarIdentifier::StarIdentifier(StarIdentifier&&) noexcept = default;
 StarIdentifier& StarIdentifier::operator=(StarIdentifier&&) noexcept = default;
 
 std::vector<int> StarIdentifier::StarsWithin(const Vec3& u, double radius_rad) const {
-  std::vector<int> out;
-  if (!index_->stars) return out;
-  double q[3] = {u[0], u[1], u[2]};
-  flann::Matrix<double> qm(q, 1, 3);
-  std::vector<std::vector<int>> idx;
-  std::vector<std::vector<double>> dist;
-  const double chord = 2 * std::sin(std::min(radius_rad, kPi) / 2);
-  flann::SearchParams sp;
-  sp.sorted = false;
-  index_->stars->radiusSearch(qm, idx, dist, chord * chord, sp);
-  out = std::move(idx[0]);
-  std::sort(out.begin(), out.end());  // brightest first (catalog order)
-  return out;
+  return index_->StarsWithin(u, radius_rad);
 }
 
 Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, const Camera& camera_in,
@@ -514,7 +439,7 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
     out.timing_ms["identify"] = MsSince(t0);
     return out;
   }
-  if (index_->keys.empty()) throw InputError(catalog_.source, "catalog has no pattern index");
+  if (index_->Empty()) throw InputError(catalog_.source, "catalog has no pattern index");
   const Context ctx = MakeContext(this, centroids, o);
   const int k_pat = std::min(o.pattern_centroids, n);
   std::vector<Vec3> u(k_pat);

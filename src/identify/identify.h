@@ -114,9 +114,8 @@ class StarIdentifier {
   std::vector<int> StarsWithin(const Vec3& u, double radius_rad) const;
 
  private:
-  struct Index;
   SolverCatalog catalog_;
-  std::unique_ptr<Index> index_;
+  std::shared_ptr<const CatalogIndex> index_;  // the catalog's own (star_catalog.h), or built here
 };
 
 // P(X >= k) for X ~ Binomial(n, p).

@@ -22,14 +22,17 @@
 #include "core/error.h"
 #include "core/json.h"
 #include "core/output.h"
+#include "identify/catalog_index.h"
 #include "identify/sky_grid.h"
 
 namespace ssiu {
 namespace {
 
 constexpr double kMasToRad = kArcsecToRad / 1000.0;
-// 2: triangles as vertices only; 3: per-star proper motion (rad/yr) after the magnitude.
-constexpr char kMagic[8] = {'S', 'S', 'I', 'U', 'C', 'A', 'T', '3'};
+// 2: triangles as vertices only; 3: per-star proper motion (rad/yr) after the magnitude; 4: stars'
+// unit vectors, triangles' features and the search index stored as used (nothing rebuilt at load).
+constexpr char kMagic[8] = {'S', 'S', 'I', 'U', 'C', 'A', 'T', '4'};
+constexpr char kMagicV3[8] = {'S', 'S', 'I', 'U', 'C', 'A', 'T', '3'};
 
 bool FileExists(const std::string& p) {
   struct stat st;
@@ -318,8 +321,13 @@ SolverCatalog BuildFromStars(std::vector<CatalogStar> stars, const std::string& 
       }
     }
     stars.clear();
-    for (const auto& s : kept)
-      if (s.mag <= mag_max) stars.push_back(s);
+    // Each unit vector made anew from (ra, dec), as they are stored: a loaded catalog is then the
+    // built one bit for bit (merging and proper motion leave it a few ulp off).
+    for (auto& s : kept) {
+      if (s.mag > mag_max) continue;
+      s.unit = UnitFromRaDec(s.ra_rad, s.dec_rad);
+      stars.push_back(s);
+    }
     std::stable_sort(stars.begin(), stars.end(), [](const CatalogStar& a, const CatalogStar& b) { return a.mag < b.mag; });
   }
   SolverCatalog cat;
@@ -344,6 +352,7 @@ SolverCatalog BuildFromStars(std::vector<CatalogStar> stars, const std::string& 
   for (const double level_deg : levels)
     AddPatternLevel(level_deg * kDegToRad, o, &cat, dedup ? &seen : nullptr, &is_pattern);
   cat.num_pattern_stars = static_cast<int>(std::count(is_pattern.begin(), is_pattern.end(), 1));
+  cat.index = std::make_shared<const CatalogIndex>(cat);
   cat.build_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return cat;
 }
@@ -390,11 +399,19 @@ void SaveSolverCatalog(const SolverCatalog& cat, const std::string& dir) {
   put(&slen, 8);
   put(cat.source.data(), cat.source.size());
   for (const auto& s : cat.stars) {
-    const double d[5] = {s.ra_rad, s.dec_rad, s.mag, s.pm_ra_rad_per_yr, s.pm_dec_rad_per_yr};
+    const double d[8] = {s.ra_rad, s.dec_rad, s.mag, s.pm_ra_rad_per_yr, s.pm_dec_rad_per_yr, s.unit[0], s.unit[1], s.unit[2]};
     put(&s.id, sizeof s.id);
     put(d, sizeof d);
   }
-  for (const auto& t : cat.triangles) put(t.v.data(), sizeof t.v);
+  for (const auto& t : cat.triangles) {
+    const float f[3] = {t.longest_rad, t.ratio_a, t.ratio_b};
+    put(t.v.data(), sizeof t.v);
+    put(f, sizeof f);
+  }
+  std::string index;
+  const auto ix = cat.index && cat.index->Fits(cat) ? cat.index : std::make_shared<const CatalogIndex>(cat);
+  ix->Write(&index);
+  put(index.data(), index.size());
   const std::string bin = out.str();
   WriteFileAtomic(dir + "/catalog.bin", bin);
   WriteFileAtomic(dir + "/stars.csv", [&](std::ostream& csv) {
@@ -420,25 +437,45 @@ void SaveSolverCatalog(const SolverCatalog& cat, const std::string& dir) {
   WriteJsonFile(dir + "/meta.json", meta);
 }
 
-CatalogDirState CheckCatalogDir(const std::string& dir, std::string* why) {
+namespace {
+
+// The whole file in one read (catalog.bin is read once: checked against meta.json, then parsed).
+std::string ReadWhole(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw InputError(path, "missing");
+  struct Close {
+    int fd;
+    ~Close() { ::close(fd); }
+  } close_fd{fd};
+  struct stat st;
+  if (::fstat(fd, &st) != 0) throw InputError(path, "cannot stat");
+  std::string bytes(static_cast<size_t>(st.st_size), '\0');
+  size_t got = 0;
+  while (got < bytes.size()) {
+    const ssize_t n = ::read(fd, bytes.data() + got, bytes.size() - got);
+    if (n <= 0) break;
+    got += static_cast<size_t>(n);
+  }
+  bytes.resize(got);
+  return bytes;
+}
+
+// CheckCatalogDir, keeping what it read: catalog.bin's bytes and meta.json (when kOk).
+CatalogDirState CheckCatalogDirKeep(const std::string& dir, std::string* why, std::string* bin, Json* meta) {
   const std::string bin_path = dir + "/catalog.bin", meta_path = dir + "/meta.json";
   if (!FileExists(meta_path)) {
     if (why) *why = FileExists(bin_path) ? "no meta.json (a build that did not finish)" : "no catalog";
     return FileExists(bin_path) ? CatalogDirState::kIncomplete : CatalogDirState::kAbsent;
   }
   try {
-    const Json meta = ReadJsonFile(meta_path);
-    const int64_t bytes = JsonInt(meta, "catalog_bin_bytes", 0, int64_t{1} << 40, meta_path);
-    const int64_t crc = JsonInt(meta, "catalog_bin_crc32", 0, 0xffffffffLL, meta_path);
-    std::ifstream in(bin_path, std::ios::binary);
-    if (!in) throw InputError(bin_path, "missing");
-    std::ostringstream data;
-    data << in.rdbuf();
-    const std::string bin = data.str();
-    if (static_cast<int64_t>(bin.size()) != bytes) {
-      throw InputError(bin_path, "damaged: " + std::to_string(bin.size()) + " bytes, meta.json records " + std::to_string(bytes));
+    *meta = ReadJsonFile(meta_path);
+    const int64_t bytes = JsonInt(*meta, "catalog_bin_bytes", 0, int64_t{1} << 40, meta_path);
+    const int64_t crc = JsonInt(*meta, "catalog_bin_crc32", 0, 0xffffffffLL, meta_path);
+    *bin = ReadWhole(bin_path);
+    if (static_cast<int64_t>(bin->size()) != bytes) {
+      throw InputError(bin_path, "damaged: " + std::to_string(bin->size()) + " bytes, meta.json records " + std::to_string(bytes));
     }
-    if (Crc32(bin.data(), bin.size()) != static_cast<uint32_t>(crc)) {
+    if (Crc32(bin->data(), bin->size()) != static_cast<uint32_t>(crc)) {
       throw InputError(bin_path, "damaged: its CRC-32 differs from the one meta.json records");
     }
   } catch (const InputError& e) {
@@ -448,35 +485,26 @@ CatalogDirState CheckCatalogDir(const std::string& dir, std::string* why) {
   return CatalogDirState::kOk;
 }
 
-SolverCatalog LoadSolverCatalog(const std::string& dir) {
+// Parses catalog.bin (format 4, or 3 whose features and index are recomputed) checked by CheckCatalogDirKeep.
+SolverCatalog ParseCatalog(const std::string& bin, const Json& meta, const std::string& dir) {
   const std::string path = dir + "/catalog.bin";
-  std::string why;
-  switch (CheckCatalogDir(dir, &why)) {
-    case CatalogDirState::kAbsent:
-      throw InputError(path, "cannot open built catalog (run `ssiu catalog build`)");
-    case CatalogDirState::kIncomplete:
-    case CatalogDirState::kDamaged:
-      throw InputError(dir, "damaged catalog: " + why + "; delete it or rebuild it with `ssiu catalog build --out DIR`");
-    case CatalogDirState::kOk:
-      break;
-  }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, "cannot open built catalog (run `ssiu catalog build`)");
+  size_t pos = 0;
   auto get = [&](void* p, size_t n) {
-    if (!in.read(static_cast<char*>(p), static_cast<std::streamsize>(n))) throw InputError(path, "truncated catalog file");
+    if (n > bin.size() - pos) throw InputError(path, "truncated catalog file");
+    std::memcpy(p, bin.data() + pos, n);
+    pos += n;
   };
   char magic[8];
   get(magic, 8);
-  if (std::memcmp(magic, kMagic, 8) != 0) throw InputError(path, "not an ssiu catalog (bad magic)");
+  const bool v3 = std::memcmp(magic, kMagicV3, 8) == 0;
+  if (!v3 && std::memcmp(magic, kMagic, 8) != 0) throw InputError(path, "not an ssiu catalog (bad magic)");
   SolverCatalog cat;
   double hdr[5];
   get(hdr, sizeof hdr);
   cat.epoch_year = hdr[0], cat.fov_deg = hdr[1], cat.mag_max = hdr[2], cat.double_star_arcsec = hdr[3], cat.build_time_s = hdr[4];
-  // The smallest FOV of a range catalog is in meta.json only (catalog.bin's layout is unchanged;
-  // catalogs written before it have one FOV).
+  // The smallest FOV of a range catalog is in meta.json only (catalogs written before it have one FOV).
   {
     const std::string meta_path = dir + "/meta.json";
-    const Json meta = ReadJsonFile(meta_path);
     cat.fov_min_deg = JsonNumberOr(meta, "fov_min_deg", cat.fov_deg, meta_path);
     if (!(cat.fov_min_deg > 0 && cat.fov_min_deg <= cat.fov_deg)) throw InputError(meta_path, "field 'fov_min_deg' must be in (0, fov_deg]");
   }
@@ -491,22 +519,25 @@ SolverCatalog LoadSolverCatalog(const std::string& dir) {
   cat.pattern_neighbours = static_cast<int>(counts[3]);
   cat.stars.resize(static_cast<size_t>(counts[0]));
   for (auto& s : cat.stars) {
-    double d[5];
+    double d[8];
     get(&s.id, sizeof s.id);
-    get(d, sizeof d);
+    get(d, (v3 ? 5 : 8) * sizeof(double));
     s.ra_rad = d[0], s.dec_rad = d[1], s.mag = d[2], s.pm_ra_rad_per_yr = d[3], s.pm_dec_rad_per_yr = d[4];
-    s.unit = UnitFromRaDec(s.ra_rad, s.dec_rad);
+    s.unit = v3 ? UnitFromRaDec(s.ra_rad, s.dec_rad) : Vec3(d[5], d[6], d[7]);
   }
   cat.triangles.resize(static_cast<size_t>(counts[1]));
-  std::vector<int32_t> v(cat.triangles.size() * 3);
-  get(v.data(), v.size() * sizeof(int32_t));
-  for (size_t i = 0; i < cat.triangles.size(); ++i) {
-    auto& t = cat.triangles[i];
-    for (int k = 0; k < 3; ++k) {
-      t.v[k] = v[3 * i + k];
+  for (auto& t : cat.triangles) {
+    get(t.v.data(), sizeof t.v);
+    for (int k = 0; k < 3; ++k)
       if (t.v[k] < 0 || t.v[k] >= static_cast<int>(cat.stars.size())) throw InputError(path, "corrupt triangle index");
+    if (!v3) {
+      float f[3];
+      get(f, sizeof f);
+      t.longest_rad = f[0], t.ratio_a = f[1], t.ratio_b = f[2];
+      if (!(t.longest_rad > 0)) throw InputError(path, "corrupt triangle index (degenerate triangle)");
+      continue;
     }
-    // Features from the stars (vertices are stored ordered by the side opposite them).
+    // Format 3: features from the stars (vertices are stored ordered by the side opposite them).
     const Vec3 &a = cat.stars[t.v[0]].unit, &b = cat.stars[t.v[1]].unit, &c = cat.stars[t.v[2]].unit;
     const double s0 = std::acos(std::min(1.0, b.dot(c))), s1 = std::acos(std::min(1.0, a.dot(c))),
                  s2 = std::acos(std::min(1.0, a.dot(b)));
@@ -515,7 +546,36 @@ SolverCatalog LoadSolverCatalog(const std::string& dir) {
     t.ratio_a = static_cast<float>(s0 / s2);
     t.ratio_b = static_cast<float>(s1 / s2);
   }
+  cat.index = v3 ? std::make_shared<const CatalogIndex>(cat)
+                 : std::make_shared<const CatalogIndex>(cat, bin.data() + pos, bin.size() - pos, path);
   return cat;
+}
+
+[[noreturn]] void ThrowDamaged(const std::string& dir, const std::string& why) {
+  throw InputError(dir, "damaged catalog: " + why + "; delete it or rebuild it with `ssiu catalog build --out DIR`");
+}
+
+}  // namespace
+
+CatalogDirState CheckCatalogDir(const std::string& dir, std::string* why) {
+  std::string bin;
+  Json meta;
+  return CheckCatalogDirKeep(dir, why, &bin, &meta);
+}
+
+SolverCatalog LoadSolverCatalog(const std::string& dir) {
+  std::string why, bin;
+  Json meta;
+  switch (CheckCatalogDirKeep(dir, &why, &bin, &meta)) {
+    case CatalogDirState::kAbsent:
+      throw InputError(dir + "/catalog.bin", "cannot open built catalog (run `ssiu catalog build`)");
+    case CatalogDirState::kIncomplete:
+    case CatalogDirState::kDamaged:
+      ThrowDamaged(dir, why);
+    case CatalogDirState::kOk:
+      break;
+  }
+  return ParseCatalog(bin, meta, dir);
 }
 
 std::string CatalogCacheDir() {
@@ -531,7 +591,7 @@ SolverCatalog LoadOrBuildCatalog(const std::string& source_path, const CatalogBu
   for (char& c : base)
     if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
   char key[256];
-  std::snprintf(key, sizeof key, "%s_fov%.2f_mag%.2f_ep%.1f_dbl%.1f_p%d_s%.0f_k%d_v3", base.c_str(), o.fov_deg,
+  std::snprintf(key, sizeof key, "%s_fov%.2f_mag%.2f_ep%.1f_dbl%.1f_p%d_s%.0f_k%d_v4", base.c_str(), o.fov_deg,
                 o.mag_max, o.epoch_year, o.double_star_arcsec, o.pattern_stars_per_fov, o.stars_per_fov,
                 o.pattern_neighbours);
   std::string dir_key = key;
@@ -563,10 +623,11 @@ SolverCatalog LoadOrBuildCatalogIn(const std::string& dir, const std::string& so
     int fd;
     ~Unlock() { ::close(fd); }  // closing releases the flock
   } unlock{fd};
-  std::string why;
-  const CatalogDirState state = CheckCatalogDir(dir, &why);
+  std::string why, bin;
+  Json meta;
+  const CatalogDirState state = CheckCatalogDirKeep(dir, &why, &bin, &meta);
   if (state == CatalogDirState::kOk) {
-    SolverCatalog cat = LoadSolverCatalog(dir);
+    SolverCatalog cat = ParseCatalog(bin, meta, dir);
     // A pattern index for another field of view finds few or wrong triangles (issue 16).
     if (!(std::abs(cat.fov_deg / o.fov_deg - 1) <= kCatalogFovTolerance)) {
       char msg[256];
@@ -585,9 +646,7 @@ SolverCatalog LoadOrBuildCatalogIn(const std::string& dir, const std::string& so
     }
     return cat;
   }
-  if (state == CatalogDirState::kDamaged && !rebuild_damaged) {
-    throw InputError(dir, "damaged catalog: " + why + "; delete it or rebuild it with `ssiu catalog build --out DIR`");
-  }
+  if (state == CatalogDirState::kDamaged && !rebuild_damaged) ThrowDamaged(dir, why);
   SolverCatalog cat = BuildSolverCatalog(LoadSourceCatalog(source_path), o);
   SaveSolverCatalog(cat, dir);
   return cat;

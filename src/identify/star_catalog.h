@@ -12,6 +12,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -50,6 +51,8 @@ struct CatalogTriangle {
   float ratio_a = 0, ratio_b = 0;   // shortest / longest, middle / longest
 };
 
+class CatalogIndex;  // identify/catalog_index.h
+
 struct SolverCatalog {
   std::string source;
   double epoch_year = 2000.0;
@@ -62,9 +65,13 @@ struct SolverCatalog {
   int num_pattern_stars = 0;
   int pattern_neighbours = 0;       // CatalogBuildOptions::pattern_neighbours the index was built with
   double build_time_s = 0;
+  // The search structures (triangles by feature, stars in a kd-tree): made by BuildSolverCatalog,
+  // stored in catalog.bin and read back by LoadSolverCatalog; null = StarIdentifier builds them.
+  // Shared by copies: whoever changes `stars` or `triangles` must reset it.
+  std::shared_ptr<const CatalogIndex> index;
 
-  // Pattern index on disk: three star indices per triangle (the features are recomputed at load).
-  size_t IndexBytes() const { return triangles.size() * sizeof(CatalogTriangle::v); }
+  // Pattern index on disk: per triangle its vertices and features, its key and its place in key order.
+  size_t IndexBytes() const { return triangles.size() * (sizeof(CatalogTriangle) + sizeof(uint64_t) + sizeof(int32_t)); }
 };
 
 // A source catalog with proper motions (rad/yr; pm_ra is mu_alpha * cos(dec)).
@@ -98,13 +105,14 @@ SolverCatalog BuildSolverCatalog(const SourceCatalog& source, const CatalogBuild
 // From a plain star table already at its epoch (e.g. the simulator's catalog): no proper motion.
 SolverCatalog BuildSolverCatalog(const StarCatalog& stars, const CatalogBuildOptions& options);
 
-// DIR/stars.csv (human-readable table), DIR/catalog.bin (stars and triangle vertices, loaded back;
-// triangle features are recomputed from the star positions), DIR/meta.json (the parameters it was
-// built for, and catalog.bin's size and CRC-32). Every file is written atomically and meta.json last,
+// DIR/stars.csv (human-readable table), DIR/catalog.bin (stars with their unit vectors, triangles with
+// their features, and the search index, all as used: read back with one read and no rebuilding),
+// DIR/meta.json (the parameters it was built for, and catalog.bin's size and CRC-32). Every file is written atomically and meta.json last,
 // so a directory without meta.json is a build that did not finish.
 void SaveSolverCatalog(const SolverCatalog& catalog, const std::string& dir);
 // InputError naming the file; a damaged directory (size or checksum differing from meta.json, or no
-// meta.json) is refused with the reason.
+// meta.json) is refused with the reason. catalog.bin of format 3 (before the stored index) still
+// loads, its index rebuilt in memory (slower: `ssiu catalog build` anew to store it).
 SolverCatalog LoadSolverCatalog(const std::string& dir);
 
 enum class CatalogDirState { kAbsent, kIncomplete, kDamaged, kOk };

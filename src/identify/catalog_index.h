@@ -1,0 +1,89 @@
+// The search structures of a SolverCatalog: its triangles sorted by a key of their features, and its
+// stars in a FLANN kd-tree. Built once with the catalog and stored in catalog.bin (Write / Read), so
+// that a process that loads a catalog does not sort 10^5 triangles and rebuild the tree each time
+// (issue 17: the load went from ~13 to ~2 ms, docs/results.md "Fast start, step 3").
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/types.h"
+#include "identify/star_catalog.h"
+
+namespace ssiu {
+
+class CatalogIndex {
+ public:
+  // Triangles sorted by a key of their features: (ratio_a cell, ratio_b cell, ln longest_rad in fine
+  // steps), ln the least significant. A box query (ratio tolerance, ln-size tolerance) visits the few
+  // (ratio_a, ratio_b) cells it overlaps and, in each, one contiguous run of ln sizes found by binary
+  // search. This replaced a FLANN kd-tree radius search, which took 43% of a deep search's time and
+  // whose isotropic sphere admitted ratio errors as large as the focal-length range.
+  static constexpr double kRatioCell = 0.004;
+  static constexpr int kRatioCells = 251;  // ratios in [0, 1]
+  static constexpr double kLnStep = 1e-4, kLnMin = -14.0;
+  static constexpr int kLnBits = 20;
+  static int RatioCell(double r) { return std::clamp(static_cast<int>(std::floor(r / kRatioCell)), 0, kRatioCells - 1); }
+  static int64_t LnCell(double ln_l) {
+    const double c = std::floor((ln_l - kLnMin) / kLnStep);
+    return static_cast<int64_t>(std::clamp(c, 0.0, static_cast<double>((1 << kLnBits) - 1)));
+  }
+  static uint64_t Key(int ia, int ib, int64_t il) {
+    return ((static_cast<uint64_t>(ia) * kRatioCells + static_cast<uint64_t>(ib)) << kLnBits) | static_cast<uint64_t>(il);
+  }
+
+  // Built from the catalog's stars and triangles.
+  explicit CatalogIndex(const SolverCatalog& cat);
+  // Restored from Write's bytes for `cat` (the same stars and triangles); InputError naming `path`
+  // when they do not fit it.
+  CatalogIndex(const SolverCatalog& cat, const char* data, size_t bytes, const std::string& path);
+  ~CatalogIndex();
+  CatalogIndex(const CatalogIndex&) = delete;
+  CatalogIndex& operator=(const CatalogIndex&) = delete;
+
+  // Appends the index to `out` (keys, triangle order, cells, the kd-tree in FLANN's own format).
+  void Write(std::string* out) const;
+  // True when built for a catalog of this many stars and triangles.
+  bool Fits(const SolverCatalog& cat) const {
+    return stars_ == cat.stars.size() && triangle_.size() == cat.triangles.size();
+  }
+  bool Empty() const { return keys_.empty(); }
+
+  // Calls fn(triangle index) for every triangle with |ratio_a - qa| <= tol_r, |ratio_b - qb| <= tol_r
+  // and |ln longest - ql| <= tol_l (the cells overlapping the box; the caller checks the sides).
+  template <typename Fn>
+  void ForEachInBox(double qa, double qb, double ql, double tol_r, double tol_l, const SolverCatalog& cat, Fn&& fn) const {
+    const int64_t l0 = LnCell(ql - tol_l), l1 = LnCell(ql + tol_l);
+    for (int ia = RatioCell(qa - tol_r); ia <= RatioCell(qa + tol_r); ++ia) {
+      for (int ib = RatioCell(qb - tol_r); ib <= RatioCell(qb + tol_r); ++ib) {
+        const uint64_t hi = Key(ia, ib, l1);
+        const size_t cell = static_cast<size_t>(ia) * kRatioCells + ib;
+        const auto end = keys_.begin() + cell_start_[cell + 1];
+        for (auto it = std::lower_bound(keys_.begin() + cell_start_[cell], end, Key(ia, ib, l0)); it != end && *it <= hi; ++it) {
+          const int32_t ti = triangle_[it - keys_.begin()];
+          const CatalogTriangle& t = cat.triangles[ti];
+          if (std::abs(t.ratio_a - qa) <= tol_r && std::abs(t.ratio_b - qb) <= tol_r) fn(ti);
+        }
+      }
+    }
+  }
+
+  // Indices of catalog stars within radius_rad of the unit vector u, brightest first (catalog order).
+  std::vector<int> StarsWithin(const Vec3& u, double radius_rad) const;
+
+ private:
+  void IndexCells();
+  std::vector<uint64_t> keys_;        // sorted
+  std::vector<int32_t> triangle_;     // triangle index per key
+  std::vector<uint32_t> cell_start_;  // first key of each (ratio_a, ratio_b) cell; one past the end last
+  size_t stars_ = 0;
+  std::vector<double> units_;         // star unit vectors, the kd-tree's points
+  struct StarTree;
+  std::unique_ptr<StarTree> tree_;
+};
+
+}  // namespace ssiu

@@ -1,0 +1,161 @@
+// The catalog stored ready to use (issue 17, fast start): catalog.bin carries the stars' unit vectors,
+// the triangles' features and the search index, and a loaded catalog is the built one bit for bit, its
+// index answering every query as one built anew; a catalog.bin of the format before (3: vertices only,
+// features and index rebuilt at load) still loads and solves the same; a stored index that does not
+// fit its catalog is refused.
+#include "identify/catalog_index.h"
+
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include "core/attitude.h"
+#include "core/catalog.h"
+#include "core/error.h"
+#include "core/json.h"
+#include "core/output.h"
+#include "core/rng.h"
+#include "identify/identify.h"
+#include "identify/synthetic.h"
+#include "testing/testing.h"
+
+namespace ssiu {
+namespace {
+
+using ::testing::HasSubstr;
+
+const SolverCatalog& Built20() {
+  static const SolverCatalog cat = [] {
+    CatalogBuildOptions o;
+    o.fov_deg = 20;
+    return BuildSolverCatalog(LoadSourceCatalog(DefaultBscPath()), o);
+  }();
+  return cat;
+}
+
+// Writes `bin` as DIR/catalog.bin with a meta.json recording its size and CRC-32 (what the integrity
+// check compares), so that a damaged or old-format file reaches the parser.
+void WriteCatalogDir(const std::string& dir, const std::string& bin, double fov_deg) {
+  WriteFileAtomic(dir + "/catalog.bin", bin);
+  WriteJsonFile(dir + "/meta.json", Json{{"fov_deg", fov_deg},
+                                         {"catalog_bin_bytes", bin.size()},
+                                         {"catalog_bin_crc32", Crc32(bin.data(), bin.size())}});
+}
+
+// catalog.bin of format 3 (before issue 17): header, per star id + ra, dec, mag, pm_ra, pm_dec,
+// per triangle its three vertices.
+std::string FormatThree(const SolverCatalog& c) {
+  std::string out;
+  auto put = [&](const void* p, size_t n) { out.append(static_cast<const char*>(p), n); };
+  put("SSIUCAT3", 8);
+  const double hdr[5] = {c.epoch_year, c.fov_deg, c.mag_max, c.double_star_arcsec, c.build_time_s};
+  put(hdr, sizeof hdr);
+  const int64_t counts[5] = {static_cast<int64_t>(c.stars.size()), static_cast<int64_t>(c.triangles.size()),
+                             c.num_pattern_stars, c.pattern_neighbours, static_cast<int64_t>(c.source.size())};
+  put(counts, sizeof counts);
+  put(c.source.data(), c.source.size());
+  for (const auto& s : c.stars) {
+    const double d[5] = {s.ra_rad, s.dec_rad, s.mag, s.pm_ra_rad_per_yr, s.pm_dec_rad_per_yr};
+    put(&s.id, sizeof s.id);
+    put(d, sizeof d);
+  }
+  for (const auto& t : c.triangles) put(t.v.data(), sizeof t.v);
+  return out;
+}
+
+// Stars and triangles equal to the last bit (the index is compared by its answers).
+void ExpectSameCatalog(const SolverCatalog& a, const SolverCatalog& b) {
+  ASSERT_EQ(a.stars.size(), b.stars.size());
+  ASSERT_EQ(a.triangles.size(), b.triangles.size());
+  for (size_t i = 0; i < a.stars.size(); ++i) {
+    ASSERT_EQ(a.stars[i].id, b.stars[i].id) << i;
+    ASSERT_EQ(a.stars[i].unit, b.stars[i].unit) << "star " << i;
+  }
+  for (size_t i = 0; i < a.triangles.size(); ++i) {
+    const CatalogTriangle &s = a.triangles[i], &t = b.triangles[i];
+    ASSERT_TRUE(s.v == t.v && s.longest_rad == t.longest_rad && s.ratio_a == t.ratio_a && s.ratio_b == t.ratio_b)
+        << "triangle " << i;
+  }
+}
+
+TEST(CatalogIndex, LoadedCatalogIsTheBuiltOneAndItsStoredIndexAnswersAsANewOne) {
+  const SolverCatalog& built = Built20();
+  ASSERT_TRUE(built.index);
+  const std::string dir = testing::TempDir("catalog_index_stored");
+  SaveSolverCatalog(built, dir);
+  const SolverCatalog back = LoadSolverCatalog(dir);
+  ExpectSameCatalog(built, back);
+  ASSERT_TRUE(back.index && back.index->Fits(back));
+  const CatalogIndex fresh(back);
+  Rng rng(17);
+  for (int i = 0; i < 200; ++i) {
+    // Star cones around random directions; triangle boxes around real triangles' features.
+    const Vec3 u = QuatFromUniform(rng.Uniform(), rng.Uniform(), rng.Uniform()).toRotationMatrix().col(2);
+    const double r = rng.Uniform(0.01, 0.3);
+    const std::vector<int> got = back.index->StarsWithin(u, r), want = fresh.StarsWithin(u, r);
+    EXPECT_EQ(got, want) << "query " << i;
+    for (int s : want) EXPECT_GT(u.dot(back.stars[s].unit), std::cos(r) - 1e-12);
+    const CatalogTriangle& t = back.triangles[static_cast<size_t>(rng.Uniform(0, back.triangles.size() - 1))];
+    std::vector<int> tg, tw;
+    back.index->ForEachInBox(t.ratio_a, t.ratio_b, std::log(t.longest_rad), 0.01, 0.02, back, [&](int k) { tg.push_back(k); });
+    fresh.ForEachInBox(t.ratio_a, t.ratio_b, std::log(t.longest_rad), 0.01, 0.02, back, [&](int k) { tw.push_back(k); });
+    EXPECT_EQ(tg, tw) << "query " << i;
+    EXPECT_FALSE(tw.empty());  // the triangle itself at least
+  }
+}
+
+TEST(CatalogIndex, FormatThreeCatalogStillLoadsAndSolvesTheSame) {
+  const SolverCatalog& built = Built20();
+  const std::string dir = testing::TempDir("catalog_index_v3");
+  WriteCatalogDir(dir, FormatThree(built), built.fov_deg);
+  const SolverCatalog old = LoadSolverCatalog(dir);
+  ExpectSameCatalog(built, old);
+  ASSERT_TRUE(old.index);
+  const StarIdentifier a(built), b(old);
+  const Camera cam = MakeCamera(1024, 1024, 20);
+  for (int i = 0; i < 5; ++i) {
+    Rng rng(300 + i);
+    const Quat q = QuatFromUniform(rng.Uniform(), rng.Uniform(), rng.Uniform());
+    const auto f = testing::MakeSyntheticFrame(built, cam, q, testing::SyntheticOptions{}, &rng);
+    const Identification ra = a.Identify(f.centroids, cam, IdentifyOptions{}), rb = b.Identify(f.centroids, cam, IdentifyOptions{});
+    EXPECT_EQ(ra.status, "solved");
+    EXPECT_LT(AttitudeErrorRad(ra.q_inertial_from_sensor, q) * kRadToArcsec, 60);  // 0.2 px of 70"
+    EXPECT_EQ(ra.status, rb.status);
+    EXPECT_EQ(ra.q_inertial_from_sensor.coeffs(), rb.q_inertial_from_sensor.coeffs());
+    EXPECT_EQ(ra.matches.size(), rb.matches.size());
+  }
+}
+
+TEST(CatalogIndex, StoredIndexThatDoesNotFitIsRefused) {
+  const SolverCatalog& built = Built20();
+  const std::string dir = testing::TempDir("catalog_index_bad");
+  SaveSolverCatalog(built, dir);
+  std::ifstream in(dir + "/catalog.bin", std::ios::binary);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  const std::string good = ss.str();
+  // The index follows the triangles; its first field is its version, then the triangle count.
+  const size_t at = 8 + 5 * 8 + 5 * 8 + built.source.size() + built.stars.size() * 68 + built.triangles.size() * 24;
+  int64_t head[2];
+  std::memcpy(head, good.data() + at, sizeof head);
+  ASSERT_EQ(head[1], static_cast<int64_t>(built.triangles.size()));
+  std::string bad = good;
+  const int64_t other_version = head[0] + 1;
+  std::memcpy(bad.data() + at, &other_version, 8);
+  WriteCatalogDir(dir, bad, built.fov_deg);
+  EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("catalog index of another version"));
+  bad = good.substr(0, good.size() - 100);  // the star tree cut short (size and CRC made to agree)
+  WriteCatalogDir(dir, bad, built.fov_deg);
+  EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("does not fit its stars"));
+  // Two keys swapped: no longer sorted.
+  bad = good;
+  std::memcpy(bad.data() + at + 16, good.data() + at + 24, 8);
+  std::memcpy(bad.data() + at + 24, good.data() + at + 16, 8);
+  if (bad != good) {
+    WriteCatalogDir(dir, bad, built.fov_deg);
+    EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("keys unsorted"));
+  }
+}
+
+}  // namespace
+}  // namespace ssiu
