@@ -4,7 +4,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PKGS="build-essential cmake ninja-build pkg-config libopencv-dev libpng-dev libtiff-dev libeigen3-dev libflann-dev \
-libapriltag-dev libcfitsio-dev libdeflate-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev nlohmann-json3-dev liberfa-dev xplanet \
+libapriltag-dev libboost-dev libcfitsio-dev libdeflate-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev nlohmann-json3-dev liberfa-dev xplanet \
 python3-dev python3-pybind11 python3-numpy python3-pytest python3-dask python3-distributed \
 clang libclang-rt-dev"
 missing=""

@@ -2,6 +2,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <boost/math/distributions/normal.hpp>
 #include <cmath>
 #include <limits>
 
@@ -52,7 +53,8 @@ struct GeoFit {
   double cam[kCam] = {0, 0, 0, 0, 0, 0, 0, 0};
   double rss = 0;                 // weighted
   MatrixXd cov_cam;               // unscaled covariance of the active camera parameters
-  VectorXd res;                   // 2 per star (px)
+  VectorXd res;                   // 2 per star, measured - model over the centroid sigma
+  MatrixXd jac;                   // d res / d parameters at the last iteration (rotations, then camera)
 };
 
 // Predicted pixel of star s (nullopt-free: behind the camera gives a huge residual).
@@ -124,6 +126,7 @@ GeoFit FitGeometry(const SolvedFrameSet& set, const Camera& cam0, const std::vec
     }
     // r = measured - model: d r / d p = -d model / d p, so the step is -(J^T J)^-1 J^T r.
     jtj = j.transpose() * j;
+    g.jac = j;
     const VectorXd step = -jtj.ldlt().solve(j.transpose() * r);
     if (!step.allFinite()) break;
     for (int f = 0; f < nf; ++f) {
@@ -150,20 +153,24 @@ double ChiSq1or2Survival(double w, int dof) {
   return dof == 1 ? std::erfc(std::sqrt(w / 2)) : std::exp(-w / 2);
 }
 
-// Unweighted pixel residual RMS of the stars of `use_frame` under camera offsets `cam`, rotations refitted.
-double HeldOutRms(const SolvedFrameSet& set, const Camera& cam0, const std::vector<bool>& use_frame, const double* cam,
-                  const FrameDiscoverOptions& o) {
-  const GeoFit g = FitGeometry(set, cam0, use_frame, kNoCam, cam, o);
-  double ss = 0;
-  int n = 0;
-  for (const auto& s : set.stars) {
-    if (!use_frame[s.frame]) continue;
-    const Camera c = Apply(cam0, cam, set.q[s.frame] * Vec3::UnitZ());
-    const Vec2 p = Predict(c, Perturbed(set.q[s.frame], &g.rot[3 * s.frame]), s);
-    ss += (Vec2(s.x_px, s.y_px) - p).squaredNorm();
-    n += 2;
-  }
-  return n ? std::sqrt(ss / n) : 0.0;
+// Held-out residuals of the stars of `use_frame` under camera offsets `cam`, rotations refitted with the
+// camera held: 2 per star (measured - model over the centroid sigma), as GeoFit::res.
+VectorXd HeldOutResiduals(const SolvedFrameSet& set, const Camera& cam0, const std::vector<bool>& use_frame,
+                          const double* cam, const FrameDiscoverOptions& o) {
+  return FitGeometry(set, cam0, use_frame, kNoCam, cam, o).res;
+}
+
+// A held-out figure before and after a fix, its gain and the z of the improvement (0 when undefined).
+struct HeldOut {
+  double before = 0, after = 0, gain = 1, z = 0;
+  bool z_defined = false;
+};
+
+// z of a held-out improvement (docs/discrepancy.md, as for the gyro): with e the held-out residual of
+// the base and p the held-out prediction of the cause (fitted on other data), e.p / sqrt(p' S p) is
+// N(0, 1) when the cause has no effect and e is noise of covariance S = s2 I, independent of p.
+double HeldOutZ(double e_dot_p, double p_dot_p, double s2) {
+  return p_dot_p > 0 && s2 > 0 ? e_dot_p / std::sqrt(s2 * p_dot_p) : 0.0;
 }
 
 void Fail(const std::string& what) { throw InputError("options", what); }
@@ -179,6 +186,9 @@ void FrameDiscoverOptions::Check() const {
   if (!std::isfinite(psf_angle_deg)) Fail("psf_angle_deg must be finite");
   if (!(psf_width_floor_pct >= 0 && psf_width_floor_pct < 100)) Fail("psf_width_floor_pct must be in [0, 100)");
   if (!(psf_ellipticity_floor >= 0 && psf_ellipticity_floor < 1)) Fail("psf_ellipticity_floor must be in [0, 1)");
+  if (!(gain_alpha > 0 && gain_alpha < 0.5)) Fail("gain_alpha must be in (0, 0.5)");
+  if (!(residual_alpha > 0 && residual_alpha < 0.5)) Fail("residual_alpha must be in (0, 0.5)");
+  if (residual_min_stars_per_cell < 3) Fail("residual_min_stars_per_cell must be >= 3");
 }
 
 SolvedFrameSet SolveFrameSet(const StarIdentifier& id, const std::vector<ImageView>& images,
@@ -231,6 +241,7 @@ SolvedFrameSet SolveFrameSet(const StarIdentifier& id, const std::vector<ImageVi
       if (m.centroid >= 0 && m.centroid < static_cast<int>(dets.size())) {
         const StarDetection& det = dets[m.centroid];  // centroids are the detections in order
         s.psf_sigma_px = det.sigma_px;
+        s.saturated = det.saturated;
         // Stamp for the PSF analysis: unsaturated, inside the image, no other source within it.
         const int cx = static_cast<int>(std::lround(det.x_px)), cy = static_cast<int>(std::lround(det.y_px));
         const int x0 = cx - kStampHalf, y0 = cy - kStampHalf, wd = 2 * kStampHalf + 1, guard = kStampHalf + 2;
@@ -339,11 +350,9 @@ FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, c
   double vig_slope = 0, vig_se = 0, vig_s = 0;
   std::vector<double> vu, vy;
   {
-    const double rc2 = std::pow(std::max(camera.cx_px, camera.width - 1 - camera.cx_px), 2) +
-                       std::pow(std::max(camera.cy_px, camera.height - 1 - camera.cy_px), 2);
     for (const auto& s : set.stars) {
       if (!(s.flux > 0)) continue;
-      vu.push_back((std::pow(s.x_px - camera.cx_px, 2) + std::pow(s.y_px - camera.cy_px, 2)) / rc2);
+      vu.push_back(discover_internal::FieldRadius2(camera, s.x_px, s.y_px));
       vy.push_back(std::log(s.flux) + 0.4 * std::log(10.0) * s.mag);
     }
     FrameCandidate c;
@@ -393,63 +402,69 @@ FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, c
     d.candidates.push_back(c->candidate);
     d.candidates.back().significant = c->candidate.p_value < alpha_each;
   }
-  const FrameCandidate* chosen = nullptr;
-  for (const auto& c : d.candidates) {
-    if (c.significant && (!chosen || c.delta_bic > chosen->delta_bic)) chosen = &c;
+  // Gates, in BIC order until one candidate passes: its parameters lie within the physical bounds
+  // and its held-out improvement is significant (one-sided z above the normal quantile of gain_alpha).
+  d.gain_z_min = boost::math::quantile(boost::math::complement(boost::math::normal(), o.gain_alpha));
+  std::vector<int> order;
+  for (int i = 0; i < static_cast<int>(d.candidates.size()); ++i) {
+    if (d.candidates[i].significant) order.push_back(i);
   }
-  // Residuals before (base) for the plot.
-  const GeoFit* after = &base;
-  if (chosen && fits.count(chosen->cause)) after = &fits[chosen->cause];
-  for (int i = 0; i < d.stars; ++i) {
-    const auto& s = set.stars[i];
-    const double w = std::max(s.sigma_px, o.min_sigma_px);
-    d.x_px.push_back(s.x_px);
-    d.y_px.push_back(s.y_px);
-    d.dx_before_px.push_back(base.res(2 * i) * w);
-    d.dy_before_px.push_back(base.res(2 * i + 1) * w);
-    d.dx_after_px.push_back(after->res(2 * i) * w);
-    d.dy_after_px.push_back(after->res(2 * i + 1) * w);
-  }
-  auto rms_of = [&](const std::vector<double>& a, const std::vector<double>& b) {
-    double ss = 0;
-    for (size_t i = 0; i < a.size(); ++i) ss += a[i] * a[i] + b[i] * b[i];
-    return std::sqrt(ss / std::max<size_t>(1, 2 * a.size())) * arcsec_per_px;
-  };
-  d.residual_rms_before_arcsec = rms_of(d.dx_before_px, d.dy_before_px);
-  d.residual_rms_after_arcsec = d.residual_rms_before_arcsec;
-  if (!chosen) return d;
-  if (chosen->cause == "hot_pixels" || chosen->cause == "psf_shape") {
-    name_other(chosen->cause == "hot_pixels" ? hot : psf);
-    return d;
-  }
-  d.cause = chosen->cause;
-  if (d.cause == "vignetting") {
-    // The law itself, y = c + ln(1 - v u), by a 1-D search over v (c is the mean for each v);
-    // sigma from the curvature of the sum of squares with the residual scale.
-    auto ss_of = [&](double v) {
-      const int n = static_cast<int>(vu.size());
-      double c = 0;
-      for (int i = 0; i < n; ++i) c += (vy[i] - std::log(1 - v * vu[i])) / n;
-      double ss = 0;
-      for (int i = 0; i < n; ++i) ss += std::pow(vy[i] - c - std::log(1 - v * vu[i]), 2);
-      return ss;
-    };
-    double lo = -1.0, hi = 0.95;
-    for (int it = 0; it < 100; ++it) {  // golden section
-      const double a = hi - 0.618 * (hi - lo), b = lo + 0.618 * (hi - lo);
-      (ss_of(a) < ss_of(b) ? hi : lo) = ss_of(a) < ss_of(b) ? b : a;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int a, int b) { return d.candidates[a].delta_bic > d.candidates[b].delta_bic; });
+  const double sc2 = s2;  // residual variance of the fullest model (whitened units)
+  auto spec_of = [&](const std::string& cause) -> const Spec* {
+    for (const auto& sp : specs) {
+      if (sp.cause == cause) return &sp;
     }
-    const double v = 0.5 * (lo + hi), h = 1e-3;
-    const double curv = (ss_of(v + h) - 2 * ss_of(v) + ss_of(v - h)) / (h * h);
-    const double s2v = ss_of(v) / std::max<size_t>(1, vu.size() - 2);
-    d.parameters["vignetting"] = v;
-    d.sigmas["vignetting"] = curv > 0 ? std::sqrt(2 * s2v / curv) : 1.0;
-    // Held-out flux scatter (mag): slope from even frames, scored on odd ones and vice versa.
-    double ssb = 0, ssa = 0;
+    return nullptr;
+  };
+  // Geometric: the camera fitted on the even frames scored on the odd ones and vice versa (rotations
+  // refitted there with the camera held); RMS in px, z over both folds.
+  auto geometric_held_out = [&](const Spec& sp) {
+    HeldOut h;
+    if (nf < 2) {  // one frame: the fitted figures stand (no held-out frames)
+      double sb = 0, sa = 0;
+      for (int i = 0; i < d.stars; ++i) {
+        const double w = std::max(set.stars[i].sigma_px, o.min_sigma_px);
+        sb += (std::pow(base.res(2 * i), 2) + std::pow(base.res(2 * i + 1), 2)) * w * w;
+        sa += (std::pow(fits[sp.cause].res(2 * i), 2) + std::pow(fits[sp.cause].res(2 * i + 1), 2)) * w * w;
+      }
+      h.before = std::sqrt(sb / (2 * d.stars)), h.after = std::sqrt(sa / (2 * d.stars));
+      h.gain = h.after > 0 ? h.before / h.after : 1.0;
+      return h;
+    }
+    double ssb = 0, ssa = 0, ep = 0, pp = 0;
+    int cnt = 0;
+    const double zero[kCam] = {0, 0, 0, 0, 0, 0, 0, 0};
+    for (int fold = 0; fold < 2; ++fold) {
+      std::vector<bool> train(nf), test(nf);
+      for (int f = 0; f < nf; ++f) train[f] = f % 2 == fold, test[f] = !train[f];
+      const GeoFit gt = FitGeometry(set, camera, train, sp.mask, nullptr, o);
+      const VectorXd e = HeldOutResiduals(set, camera, test, zero, o), r = HeldOutResiduals(set, camera, test, gt.cam, o);
+      int k = 0;
+      for (const auto& st : set.stars) {
+        if (!test[st.frame]) continue;
+        const double w2 = std::pow(std::max(st.sigma_px, o.min_sigma_px), 2);
+        for (int c = 0; c < 2; ++c, ++k) ssb += e(k) * e(k) * w2, ssa += r(k) * r(k) * w2;
+        cnt += 2;
+      }
+      ep += e.dot(e - r), pp += (e - r).squaredNorm();
+    }
+    if (cnt == 0) return h;
+    h.before = std::sqrt(ssb / cnt), h.after = std::sqrt(ssa / cnt);
+    h.gain = h.after > 0 ? h.before / h.after : 1.0;
+    h.z = HeldOutZ(ep, pp, sc2), h.z_defined = true;
+    return h;
+  };
+  // Vignetting: the slope fitted on the even frames scored on the odd ones and vice versa (mag).
+  const double to_mag = 2.5 / std::log(10.0);
+  auto vignetting_held_out = [&] {
+    HeldOut h;
+    double ssb = 0, ssa = 0, ep = 0, pp = 0;
     int n = 0;
     std::vector<int> frame_of;
-    for (const auto& s : set.stars) {
-      if (s.flux > 0) frame_of.push_back(s.frame);
+    for (const auto& st : set.stars) {
+      if (st.flux > 0) frame_of.push_back(st.frame);
     }
     for (int fold = 0; fold < 2; ++fold) {
       double mu = 0, my = 0, cnt = 0;
@@ -470,28 +485,125 @@ FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, c
       yb /= cnt;
       for (size_t i = 0; i < vu.size(); ++i) {
         if (frame_of[i] % 2 == fold) continue;
-        ssb += std::pow(vy[i] - my, 2);
-        ssa += std::pow(vy[i] - yb - b * vu[i], 2);
+        const double e = vy[i] - my, r = vy[i] - yb - b * vu[i];
+        ssb += e * e, ssa += r * r, ep += e * (e - r), pp += (e - r) * (e - r);
         ++n;
       }
     }
-    const double to_mag = 2.5 / std::log(10.0);
-    if (n > 0) {
-      d.flux_rms_before_mag = std::sqrt(ssb / n) * to_mag;
-      d.flux_rms_after_mag = std::sqrt(ssa / n) * to_mag;
-      d.gain = d.flux_rms_after_mag > 0 ? d.flux_rms_before_mag / d.flux_rms_after_mag : 1.0;
+    if (n == 0) return h;
+    h.before = std::sqrt(ssb / n) * to_mag, h.after = std::sqrt(ssa / n) * to_mag;
+    h.gain = h.after > 0 ? h.before / h.after : 1.0;
+    if (nf >= 2) h.z = HeldOutZ(ep, pp, vig_s * vig_s), h.z_defined = true;
+    return h;
+  };
+  double vig_sigma = 0;
+  const double vig_v = vu.size() >= 10 ? discover_internal::FitVignettingLaw(vu, vy, &vig_sigma) : 0.0;
+  // Physical bounds (docs/discrepancy.md): wide on purpose, they catch fits that explain noise or
+  // each other, not unusual cameras.
+  auto out_of_bounds = [&](const std::string& cause) -> std::string {
+    if (cause == "vignetting") return vig_v >= 0 && vig_v <= 0.95 ? "" : "vignetting outside [0, 0.95]";
+    if (cause == "hot_pixels") return hot.parameters.count("hot_pixel_count") && hot.parameters.at("hot_pixel_count") >= 1 ? "" : "no pixel";
+    if (cause == "psf_shape") {
+      const double sg = psf.parameters.count("psf_sigma_px") ? psf.parameters.at("psf_sigma_px") : 0;
+      const double el = psf.parameters.count("psf_ellipticity") ? psf.parameters.at("psf_ellipticity") : 0;
+      return sg >= 0.1 && sg <= 10 && el < 0.9 ? "" : "PSF sigma outside [0.1, 10] px or ellipticity >= 0.9";
+    }
+    const double* g = fits[cause].cam;
+    if (cause == "focal_length") return std::abs(g[0] / camera.focal_length_px) <= 0.05 ? "" : "focal length off by > 5 %";
+    if (cause == "principal_point")
+      return std::abs(g[1]) <= 0.2 * camera.width && std::abs(g[2]) <= 0.2 * camera.height
+                 ? ""
+                 : "principal point moved by > 20 % of the frame";
+    if (cause == "lens_distortion") {
+      // k1 r^2 at the corner (normalised coordinates): the relative displacement there.
+      const double rc2 = std::pow(std::max(camera.cx_px, camera.width - 1 - camera.cx_px) / camera.focal_length_px, 2) +
+                         std::pow(std::max(camera.cy_px, camera.height - 1 - camera.cy_px) / camera.FocalYPx(), 2);
+      return std::abs((camera.distortion.k1 + g[3]) * rc2) <= 0.3 ? "" : "k1 moves the corners by > 30 %";
+    }
+    if (cause == "pixel_aspect") return std::abs(g[4]) <= 0.05 ? "" : "aspect off by > 5 %";
+    if (cause == "aberration")
+      return Vec3(g[5], g[6], g[7]).norm() * kSpeedOfLightMS / 1000 <= 100 ? "" : "speed > 100 km/s";
+    return "";
+  };
+  const FrameCandidate* chosen = nullptr;
+  HeldOut chosen_ho;
+  for (int i : order) {
+    FrameCandidate& c = d.candidates[i];
+    c.evaluated = true;
+    const std::string why = out_of_bounds(c.cause);
+    if (!why.empty()) {
+      c.verdict = "outside bounds: " + why;
+      continue;
+    }
+    HeldOut h;
+    if (const Spec* sp = spec_of(c.cause)) {
+      h = geometric_held_out(*sp);
+    } else if (c.cause == "vignetting") {
+      h = vignetting_held_out();
+    } else {  // hot_pixels, psf_shape: their own held-out figures (no z)
+      const auto& r = c.cause == "hot_pixels" ? hot : psf;
+      h.before = r.before, h.after = r.after, h.gain = r.gain;
+    }
+    c.gain = h.gain, c.gain_z = h.z;
+    if (!(h.gain > 1) || (h.z_defined && !(h.z > d.gain_z_min))) {
+      c.verdict = "held-out gain not significant";
+      continue;
+    }
+    c.verdict = nf >= 2 || !spec_of(c.cause) ? "named" : "named (one frame: gain on the fitted frame)";
+    chosen = &c;
+    chosen_ho = h;
+    break;
+  }
+  // Residuals before (base) and after (the named geometric cause) for the plot.
+  const GeoFit* after = &base;
+  if (chosen && fits.count(chosen->cause)) after = &fits[chosen->cause];
+  for (int i = 0; i < d.stars; ++i) {
+    const auto& s = set.stars[i];
+    const double w = std::max(s.sigma_px, o.min_sigma_px);
+    d.x_px.push_back(s.x_px);
+    d.y_px.push_back(s.y_px);
+    d.dx_before_px.push_back(base.res(2 * i) * w);
+    d.dy_before_px.push_back(base.res(2 * i + 1) * w);
+    d.dx_after_px.push_back(after->res(2 * i) * w);
+    d.dy_after_px.push_back(after->res(2 * i + 1) * w);
+  }
+  auto rms_of = [&](const std::vector<double>& a, const std::vector<double>& b) {
+    double ss = 0;
+    for (size_t i = 0; i < a.size(); ++i) ss += a[i] * a[i] + b[i] * b[i];
+    return std::sqrt(ss / std::max<size_t>(1, 2 * a.size())) * arcsec_per_px;
+  };
+  d.residual_rms_before_arcsec = rms_of(d.dx_before_px, d.dy_before_px);
+  d.residual_rms_after_arcsec = d.residual_rms_before_arcsec;
+  // `unexplained`: the residual of the fullest model of the vocabulary (every geometric cause, the
+  // vignetting law), whatever was named: structure that no cause explains.
+  d.residual = discover_internal::TestFrameResidual(set, camera, fullest.jac, fullest.res, o);
+  auto finish = [&] {
+    if (d.residual.structured) {
+      d.partial_cause = d.cause == "none" ? "" : d.cause;
+      d.cause = "unexplained";
     }
     return d;
+  };
+  if (!chosen) return finish();
+  d.gain_z = chosen_ho.z;
+  if (chosen->cause == "hot_pixels" || chosen->cause == "psf_shape") {
+    name_other(chosen->cause == "hot_pixels" ? hot : psf);
+    return finish();
+  }
+  d.cause = chosen->cause;
+  if (d.cause == "vignetting") {
+    d.parameters["vignetting"] = vig_v;
+    d.sigmas["vignetting"] = vig_sigma;
+    d.flux_rms_before_mag = chosen_ho.before, d.flux_rms_after_mag = chosen_ho.after;
+    d.gain = chosen_ho.gain;
+    return finish();
   }
   const GeoFit& g = fits[d.cause];
   d.fitted_camera = Apply(camera, g.cam);
   const double sc = std::sqrt(s2);
   std::vector<int> idx;
-  for (const auto& sp : specs) {
-    if (sp.cause != d.cause) continue;
-    for (int k = 0; k < kCam; ++k) {
-      if (sp.mask[k]) idx.push_back(k);
-    }
+  for (int k = 0; k < kCam; ++k) {
+    if (spec_of(d.cause)->mask[k]) idx.push_back(k);
   }
   // aberration: the uncorrected observer velocity v = b c (km/s, ICRS).
   constexpr double kc_kms = kSpeedOfLightMS / 1000;
@@ -517,32 +629,42 @@ FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, c
     d.parameters["focal_length_ppm"] = g.cam[0] / camera.focal_length_px * 1e6;
     d.sigmas["focal_length_ppm"] = d.sigmas["focal_length_px"] / camera.focal_length_px * 1e6;
   }
-  d.residual_rms_after_arcsec = rms_of(d.dx_after_px, d.dy_after_px);
-  // Held-out gain over frames (even/odd); with a single frame, the fitted figures stand.
-  if (nf >= 2) {
-    double ssb = 0, ssa = 0;
-    int cnt = 0;
-    for (int fold = 0; fold < 2; ++fold) {
-      std::vector<bool> train(nf), test(nf);
-      int ntest = 0;
-      for (int f = 0; f < nf; ++f) train[f] = f % 2 == fold, test[f] = !train[f], ntest += test[f];
-      if (ntest == 0) continue;
-      const Spec* sp = nullptr;
-      for (const auto& s : specs) {
-        if (s.cause == d.cause) sp = &s;
-      }
-      const GeoFit gt = FitGeometry(set, camera, train, sp->mask, nullptr, o);
-      const double zero[kCam] = {0, 0, 0, 0, 0, 0, 0, 0};
-      const double b = HeldOutRms(set, camera, test, zero, o), a = HeldOutRms(set, camera, test, gt.cam, o);
-      ssb += b * b * ntest, ssa += a * a * ntest, cnt += ntest;
-    }
-    d.residual_rms_before_arcsec = std::sqrt(ssb / cnt) * arcsec_per_px;
-    d.residual_rms_after_arcsec = std::sqrt(ssa / cnt) * arcsec_per_px;
-    d.gain = d.residual_rms_after_arcsec > 0 ? d.residual_rms_before_arcsec / d.residual_rms_after_arcsec : 1.0;
-  } else {
-    d.gain = d.residual_rms_after_arcsec > 0 ? d.residual_rms_before_arcsec / d.residual_rms_after_arcsec : 1.0;
+  // Held-out RMS (even/odd frames); with a single frame, the fitted figures.
+  d.residual_rms_before_arcsec = chosen_ho.before * arcsec_per_px;
+  d.residual_rms_after_arcsec = chosen_ho.after * arcsec_per_px;
+  d.gain = chosen_ho.gain;
+  return finish();
+}
+
+double discover_internal::FitVignettingLaw(const std::vector<double>& vu, const std::vector<double>& vy, double* sigma) {
+  // y = c + ln(1 - v u) by a 1-D search over v (c is the mean for each v); sigma from the curvature of
+  // the sum of squares with the residual scale.
+  auto ss_of = [&](double v) {
+    const int n = static_cast<int>(vu.size());
+    double c = 0;
+    for (int i = 0; i < n; ++i) c += (vy[i] - std::log(1 - v * vu[i])) / n;
+    double ss = 0;
+    for (int i = 0; i < n; ++i) ss += std::pow(vy[i] - c - std::log(1 - v * vu[i]), 2);
+    return ss;
+  };
+  double lo = -1.0, hi = 0.95;
+  for (int it = 0; it < 100; ++it) {  // golden section
+    const double a = hi - 0.618 * (hi - lo), b = lo + 0.618 * (hi - lo);
+    (ss_of(a) < ss_of(b) ? hi : lo) = ss_of(a) < ss_of(b) ? b : a;
   }
-  return d;
+  const double v = 0.5 * (lo + hi), h = 1e-3;
+  if (sigma) {
+    const double curv = (ss_of(v + h) - 2 * ss_of(v) + ss_of(v - h)) / (h * h);
+    const double s2v = ss_of(v) / std::max<size_t>(1, vu.size() - 2);
+    *sigma = curv > 0 ? std::sqrt(2 * s2v / curv) : 1.0;
+  }
+  return v;
+}
+
+double discover_internal::FieldRadius2(const Camera& camera, double x_px, double y_px) {
+  const double rc2 = std::pow(std::max(camera.cx_px, camera.width - 1 - camera.cx_px), 2) +
+                     std::pow(std::max(camera.cy_px, camera.height - 1 - camera.cy_px), 2);
+  return (std::pow(x_px - camera.cx_px, 2) + std::pow(y_px - camera.cy_px, 2)) / rc2;
 }
 
 Json FrameDiscoveryToJson(const FrameDiscovery& d) {
@@ -556,6 +678,37 @@ Json FrameDiscoveryToJson(const FrameDiscovery& d) {
   j["residual_rms_before_arcsec"] = d.residual_rms_before_arcsec;
   j["residual_rms_after_arcsec"] = d.residual_rms_after_arcsec;
   j["gain"] = d.gain;
+  j["gain_z"] = d.gain_z;
+  j["gain_z_min"] = d.gain_z_min;
+  if (!d.partial_cause.empty()) j["partial_cause"] = d.partial_cause;
+  {
+    const FrameResidual& r = d.residual;
+    Json rj = {{"structured", r.structured},
+               {"p_value", r.p_value},
+               {"finding", r.finding},
+               {"position_rms_px", r.position_rms_px},
+               {"position_rms_arcsec", r.position_rms_arcsec},
+               {"position_max_px", r.position_max_px},
+               {"position_max_arcsec", r.position_max_arcsec},
+               {"position_max_at_px", {r.position_max_x_px, r.position_max_y_px}},
+               {"position_max_angle_deg", r.position_max_angle_deg},
+               {"position_per_mag_px", r.position_per_mag_px},
+               {"photometry_rms_mag", r.photometry_rms_mag},
+               {"photometry_max_mag", r.photometry_max_mag},
+               {"photometry_max_at_px", {r.photometry_max_x_px, r.photometry_max_y_px}},
+               {"photometry_per_mag", r.photometry_per_mag},
+               {"grid", r.grid},
+               {"worst_cell", {{"centre_px", {r.cell_x_px, r.cell_y_px}},
+                               {"stars", r.cell_stars},
+                               {"mean_dx_px", r.cell_dx_px},
+                               {"mean_dy_px", r.cell_dy_px},
+                               {"chi2", r.cell_chi2}}}};
+    rj["tests"] = Json::array();
+    for (const auto& t : r.tests) {
+      rj["tests"].push_back({{"test", t.name}, {"f", t.f}, {"dof", t.dof}, {"dof_residual", t.dof_resid}, {"p_value", t.p_value}});
+    }
+    j["residual"] = rj;
+  }
   j["gain_method"] = d.frames_solved >= 2 ? "held-out frames (even/odd)" : "fitted frame (one frame solved)";
   if (d.cause == "psf_shape") {
     j["gain_method"] = std::string(d.frames_solved >= 2 ? "held-out frames (even/odd)" : "fitted frame") +
@@ -601,11 +754,17 @@ Json FrameDiscoveryToJson(const FrameDiscovery& d) {
   j["stars"] = d.stars;
   j["candidates"] = Json::array();
   for (const auto& c : d.candidates) {
-    j["candidates"].push_back({{"cause", c.cause},
-                               {"statistic", c.statistic},
-                               {"p_value", c.p_value},
-                               {"delta_bic", c.delta_bic},
-                               {"significant", c.significant}});
+    Json cj = {{"cause", c.cause},
+               {"statistic", c.statistic},
+               {"p_value", c.p_value},
+               {"delta_bic", c.delta_bic},
+               {"significant", c.significant}};
+    if (c.evaluated) {
+      cj["gain"] = c.gain;
+      cj["gain_z"] = c.gain_z;
+      cj["verdict"] = c.verdict;
+    }
+    j["candidates"].push_back(cj);
   }
   j["not_tested"] = d.not_tested;
   return j;

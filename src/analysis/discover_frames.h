@@ -53,6 +53,7 @@ struct FrameStar {
   int stamp_x0 = 0, stamp_y0 = 0, stamp_half = 0;
   std::vector<float> stamp;
   double noise_adu = 0;  // the frame's background noise
+  bool saturated = false;  // its flux is clipped: left out of the photometric residual test
 };
 
 // A single-pixel source (the detector's hot_pixel rejection) at an integer pixel.
@@ -106,6 +107,14 @@ struct FrameDiscoverOptions {
   // fit's own systematic floor), so that thousands of stars do not call a 1 % departure a cause.
   double psf_width_floor_pct = 1.0;
   double psf_ellipticity_floor = 0.01;
+  // Gates (docs/discrepancy.md): a candidate is named only when its parameters lie within the
+  // physical bounds and its held-out improvement is significant at gain_alpha (one-sided).
+  double gain_alpha = 0.01;
+  // `unexplained`: after every cause of the vocabulary is fitted, the star position residuals (a map
+  // over the focal plane) and the photometric residuals are tested for structure (F tests of a
+  // cubic field, of cell means and of a magnitude dependence); family-wise false-alarm probability.
+  double residual_alpha = 0.01;
+  int residual_min_stars_per_cell = 8;  // the grid of the cell-mean tests: 2x2 .. 4x4 cells
   void Check() const;
 };
 
@@ -114,6 +123,37 @@ struct FrameCandidate {
   double statistic = 0, p_value = 1, delta_bic = 0;
   int dof = 0;
   bool significant = false;
+  // Gates, for the significant candidates tried in BIC order until one passes.
+  bool evaluated = false;
+  double gain = 0, gain_z = 0;  // held-out gain and the z of the held-out improvement (0: not defined)
+  std::string verdict;          // "named", "held-out gain not significant", "outside bounds: ..."
+};
+
+// One residual test of `unexplained`: F test of `dof` extra columns against the fitted model.
+struct FrameResidualTest {
+  std::string name;  // position_polynomial, position_cells, position_magnitude, photometry_*
+  double f = 0, p_value = 1;
+  int dof = 0, dof_resid = 0;
+  bool tested = false;
+};
+
+// The residual after every cause of the vocabulary is fitted, against the noise (the scatter the
+// extra columns do not explain).
+struct FrameResidual {
+  bool structured = false;
+  double p_value = 1;   // family-wise (Bonferroni over the tests run)
+  std::string finding;  // the most significant test
+  std::vector<FrameResidualTest> tests;
+  // The structure of the most significant position test (the fitted extra field, px) and photometric
+  // test (mag): RMS over the stars, the largest, where (pixel of that star) and its direction.
+  double position_rms_px = 0, position_rms_arcsec = 0, position_max_px = 0, position_max_arcsec = 0;
+  double position_max_x_px = 0, position_max_y_px = 0, position_max_angle_deg = 0;
+  double position_per_mag_px = 0;  // magnitude test: largest shift per magnitude (px/mag)
+  double photometry_rms_mag = 0, photometry_max_mag = 0, photometry_max_x_px = 0, photometry_max_y_px = 0;
+  double photometry_per_mag = 0;  // magnitude test: slope of the flux residual (mag per mag)
+  // The cell of the largest mean position residual (cells test): its centre, stars, mean (px) and chi^2.
+  double cell_x_px = 0, cell_y_px = 0, cell_dx_px = 0, cell_dy_px = 0, cell_chi2 = 0;
+  int cell_stars = 0, grid = 0;
 };
 
 struct FrameDiscovery {
@@ -128,6 +168,10 @@ struct FrameDiscovery {
   std::vector<int> hot_pixel_frames;                 // in how many frames each was flagged
   std::vector<std::string> not_tested;
   std::vector<FrameCandidate> candidates;
+  double gain_z = 0, gain_z_min = 0;  // the named cause's held-out z and the gate on it
+  // `unexplained`: the cause that was named before the residual test found structure left.
+  std::string partial_cause;
+  FrameResidual residual;
   int frames = 0, frames_solved = 0, stars = 0;
   // Measured figures to compare with the simulator (docs/discrepancy.md): flux of a V = 0 star
   // (ADU, geometric mean over the stars), the scatter of flux about it (mag), median spot sigma,

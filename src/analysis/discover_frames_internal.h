@@ -2,6 +2,7 @@
 // combined with the geometric and photometric ones in DiscoverFrames.
 #pragma once
 
+#include <Eigen/Dense>
 #include <map>
 #include <string>
 #include <vector>
@@ -24,5 +25,19 @@ CauseResult AnalysePsfShape(const SolvedFrameSet& set, const Camera& camera, con
 
 // hot_pixels: persistent single-pixel spikes. Fills d->hot_pixels / hot_pixel_frames.
 CauseResult AnalyseHotPixels(const SolvedFrameSet& set, const FrameDiscoverOptions& o, FrameDiscovery* d);
+
+// The vignetting law y = c + ln(1 - v u) fitted to y = ln(flux) + 0.4 ln(10) V against u = (r / r_corner)^2
+// by a 1-D search over v in [-1, 0.95] (c is the mean for each v). Returns v; *sigma (if non-null): its
+// sigma from the curvature of the sum of squares with the residual scale.
+double FitVignettingLaw(const std::vector<double>& u, const std::vector<double>& y, double* sigma);
+
+// (r / r_corner)^2 of a pixel, r_corner the distance from the principal point to the farthest corner.
+double FieldRadius2(const Camera& camera, double x_px, double y_px);
+
+// `unexplained`: the star position residuals res_w (2 per star of set.stars, measured - model divided
+// by max(sigma, min_sigma_px)) of the fullest model of the vocabulary, whose whitened Jacobian is jac,
+// and the stars' photometric residuals about the fitted vignetting law, tested for structure.
+FrameResidual TestFrameResidual(const SolvedFrameSet& set, const Camera& camera, const Eigen::MatrixXd& jac,
+                                const Eigen::VectorXd& res_w, const FrameDiscoverOptions& o);
 
 }  // namespace ssiu::discover_internal

@@ -98,7 +98,9 @@ SSIU_REGISTER_COMMAND(discover_allan, [](CLI::App& root) {
 SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
   auto* discover = ssiu::cli::GetOrAddSubcommand(root, "discover", "Find what the model gets wrong in measured data");
   auto* cmd = discover->add_subcommand(
-      "frames", "Solve every frame, fit star residual and flux patterns, name the camera-model cause");
+      "frames", "Solve every frame, fit star residual and flux patterns, name the camera-model cause (a cause is "
+                "named only within physical bounds and with a significant held-out gain; `unexplained` when the star "
+                "positions or fluxes keep structure over the field that no cause explains)");
   auto o = std::make_shared<FrameOpts>();
   cmd->add_option("frames", o->frames, "Frames (PNG/TIFF/FITS)")->required();
   cmd->add_option("--camera", o->camera, "camera.json (the model under test)")->required();
@@ -109,6 +111,12 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
   cmd->add_option("--fov-tolerance-pct", o->fov_tolerance_pct, "Focal length known to +/- this percent")
       ->capture_default_str();
   cmd->add_option("--alpha", o->opt.alpha, "Family-wise false-alarm probability")->capture_default_str();
+  cmd->add_option("--gain-alpha", o->opt.gain_alpha,
+                  "One-sided false-alarm probability of the held-out gain a named cause must show")
+      ->capture_default_str();
+  cmd->add_option("--residual-alpha", o->opt.residual_alpha,
+                  "False-alarm probability of the residual tests behind `unexplained` (position and flux maps)")
+      ->capture_default_str();
   o->psf_flag = cmd->add_option("--psf-sigma-px", o->psf_sigma_px,
                   "The model's PSF sigma, px (default: camera.json \"psf_sigma_px\"; absent: psf_shape not tested)");
   cmd->add_option("--defects", o->defects, "Known defect map PNG (0 good): repaired before detection, not a cause");
@@ -160,6 +168,14 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
     for (const auto& [k, v] : d.parameters) summary << " " << k << "=" << v << "+-" << d.sigmas.at(k);
     summary << "; residual rms " << d.residual_rms_before_arcsec << " -> " << d.residual_rms_after_arcsec
             << " arcsec (gain " << d.gain << ")\n";
+    if (d.cause == "unexplained") {
+      const ssiu::FrameResidual& r = d.residual;
+      summary << "  residual structure (" << r.finding << ", p " << r.p_value << ")"
+              << (d.partial_cause.empty() ? "" : " after " + d.partial_cause) << ": positions rms "
+              << r.position_rms_arcsec << " arcsec, largest " << r.position_max_arcsec << " arcsec at (" << r.position_max_x_px
+              << ", " << r.position_max_y_px << ") px; fluxes rms " << r.photometry_rms_mag << " mag, largest "
+              << r.photometry_max_mag << " mag at (" << r.photometry_max_x_px << ", " << r.photometry_max_y_px << ") px\n";
+    }
     ssiu::Json j = ssiu::FrameDiscoveryToJson(d);
     j["frame_status"] = ssiu::Json::object();
     for (size_t i = 0; i < set.status.size(); ++i) j["frame_status"][o->frames[i]] = set.status[i];

@@ -2,7 +2,11 @@
 // hidden camera effect (distortion, focal length, principal point, vignetting, persistent hot
 // pixels, PSF width) or none; the right cause in >= 90 %, `none` never confused with the transient
 // hot pixels and cosmic rays, the fitted camera reduces residuals, held-out gain of the others > 1.
+#include <algorithm>
+#include <cstdio>
+
 #include "discover_frames_mc.h"
+#include "discover_frames_oov.h"
 #include "testing/testing.h"
 
 namespace ssiu {
@@ -27,6 +31,36 @@ TEST(DiscoverFramesLong, TwentyCleanSetsStayNone) {
   const auto s = testing::RunFrameMonteCarlo(20, 4, 4242, true, {"none"});
   std::cout << "clean sets named none: " << s.none_right << "/" << s.none_sets << "\n";
   EXPECT_GE(s.none_right, 19);
+}
+
+}  // namespace
+}  // namespace ssiu
+
+namespace ssiu {
+namespace {
+
+// Issue 18: `unexplained` for frames. Synthetic frame sets (discover_frames_oov.h), 8 per effect:
+// the vocabulary's causes named right, clean sets `none`, effects outside the vocabulary
+// `unexplained` >= 90 % with a wrongly named cause <= 5 %.
+TEST(DiscoverFramesLong, OutOfVocabularyIsUnexplained) {
+  std::vector<std::string> effects = testing::SyntheticFrameCauses();
+  for (const auto& e : testing::OutOfVocabularyFrameEffects()) effects.push_back(e);
+  const auto r = testing::RunSyntheticFrames(effects, 8, 9100, true);
+  int in_sets = 0, in_right = 0, out_sets = 0, out_unexplained = 0, out_wrong = 0;
+  for (const auto& [effect, s] : r) {
+    std::printf("%-16s right %d/%d, unexplained %d, none %d, wrong cause %d\n", effect.c_str(), s.right, s.sets,
+                s.unexplained, s.none, s.wrong);
+    const bool inside = std::find(testing::SyntheticFrameCauses().begin(), testing::SyntheticFrameCauses().end(),
+                                  effect) != testing::SyntheticFrameCauses().end();
+    (inside ? in_sets : out_sets) += s.sets;
+    (inside ? in_right : out_unexplained) += s.right;
+    if (!inside) out_wrong += s.wrong;
+  }
+  std::printf("inside the vocabulary (and none): right %d/%d; outside: unexplained %d/%d, wrong cause %d/%d\n", in_right,
+              in_sets, out_unexplained, out_sets, out_wrong, out_sets);
+  EXPECT_GE(in_right, 0.9 * in_sets);
+  EXPECT_GE(out_unexplained, 0.9 * out_sets);
+  EXPECT_LE(out_wrong, 0.05 * out_sets);
 }
 
 }  // namespace

@@ -193,7 +193,12 @@ inline FrameMcSummary RunFrameMonteCarlo(int n, int frames, uint64_t seed0, bool
                 << " stars), background " << d.background_median_adu << " noise " << d.noise_median_adu
                 << " ADU, persistent pixels " << d.hot_pixels.size() << "\n";
       for (const auto& cd : d.candidates)
-        std::cout << "   " << cd.cause << " stat " << cd.statistic << " p " << cd.p_value << " dbic " << cd.delta_bic << "\n";
+        std::cout << "   " << cd.cause << " stat " << cd.statistic << " p " << cd.p_value << " dbic " << cd.delta_bic
+                  << (cd.evaluated ? " gain " + std::to_string(cd.gain) + " z " + std::to_string(cd.gain_z) + " " + cd.verdict : "")
+                  << "\n";
+      std::cout << "   residual p " << d.residual.p_value << " (" << d.residual.finding << "):";
+      for (const auto& t : d.residual.tests) std::cout << " " << t.name << " F " << t.f << " (" << t.dof << ", " << t.dof_resid << ") p " << t.p_value << ";";
+      std::cout << "\n";
     }
   }
   return s;
