@@ -84,6 +84,33 @@ Mat3 QuestCovariance(const std::vector<WahbaObservation>& obs) {
   return f.inverse();
 }
 
+Mat3 AttitudeInformation(const std::vector<WahbaObservation>& obs, bool free_scale) {
+  // Linearised measurement b_i(theta, e) with the error rotation theta (sensor frame) and a relative
+  // focal-length error e: d b_i / d theta = [b_i]x (Shuster 1989), and since a pinhole direction is
+  // (t, 1) / |(t, 1)| with tangent-plane coordinates t = pixel offset / f, scaling f by 1 + e moves t
+  // by -e t, so d b_i / d e = -(I - b_i b_i^T) (b_x, b_y, 0) (distortion neglected). The marginal
+  // information of theta is the Schur complement F_tt - F_te F_te^T / F_ee.
+  Mat3 f_tt = Mat3::Zero();
+  Vec3 f_te = Vec3::Zero();
+  double f_ee = 0;
+  for (const auto& o : obs) {
+    const double w = 1.0 / (o.sigma_rad * o.sigma_rad);
+    const Mat3 perp = Mat3::Identity() - o.b_sensor * o.b_sensor.transpose();
+    const Vec3 g = -perp * Vec3(o.b_sensor.x(), o.b_sensor.y(), 0);
+    f_tt += w * perp;
+    f_te += w * o.b_sensor.cross(g);
+    f_ee += w * g.squaredNorm();
+  }
+  return free_scale && f_ee > 0 ? Mat3(f_tt - f_te * f_te.transpose() / f_ee) : f_tt;
+}
+
+namespace {
+void SetSigmas(AttitudeSolution* s) {
+  s->sigma_cross_rad = std::sqrt((s->covariance_rad2(0, 0) + s->covariance_rad2(1, 1)) / 2);
+  s->sigma_roll_rad = std::sqrt(s->covariance_rad2(2, 2));
+}
+}  // namespace
+
 AttitudeSolution SolveQuest(const std::vector<WahbaObservation>& obs) {
   AttitudeSolution out;
   out.num_observations = static_cast<int>(obs.size());
@@ -112,8 +139,7 @@ AttitudeSolution SolveQuest(const std::vector<WahbaObservation>& obs) {
   out.status = "solved";
   out.q_inertial_from_sensor = FromSensorToInertial(a);
   out.covariance_rad2 = QuestCovariance(obs);
-  out.sigma_cross_rad = std::sqrt((out.covariance_rad2(0, 0) + out.covariance_rad2(1, 1)) / 2);
-  out.sigma_roll_rad = std::sqrt(out.covariance_rad2(2, 2));
+  SetSigmas(&out);
   for (const auto& o : obs) out.loss += 0.5 * (o.b_sensor - a * o.r_inertial).squaredNorm() / (o.sigma_rad * o.sigma_rad);
   return out;
 }
@@ -141,7 +167,13 @@ AttitudeSolution SolveAttitude(const Identification& id) {
   }
   std::vector<WahbaObservation> obs;
   for (const auto& m : id.matches) obs.push_back({m.b_sensor, m.r_inertial, m.sigma_rad});
-  return SolveQuest(obs);
+  AttitudeSolution out = SolveQuest(obs);
+  if (id.focal_length_fitted && out.status == "solved") {
+    // The focal length was fitted from the same stars: its uncertainty is part of the attitude's.
+    out.covariance_rad2 = AttitudeInformation(obs, true).inverse();
+    SetSigmas(&out);
+  }
+  return out;
 }
 
 void MultiHeadOptions::Check() const {
@@ -210,6 +242,8 @@ MultiHeadSolution SolveMultiHeadChecked(const std::vector<Identification>& heads
   std::vector<WahbaObservation> obs;
   out.false_match_probability = 0;
   int used = 0;
+  bool any_scale = false;
+  Mat3 info = Mat3::Zero();  // sum of the heads' information in body axes (each with its own focal length)
   for (int k = 0; k < ns; ++k) {
     const size_t h = static_cast<size_t>(solved[k]);
     if (!(best >> k & 1u)) {
@@ -220,7 +254,14 @@ MultiHeadSolution SolveMultiHeadChecked(const std::vector<Identification>& heads
     ++used;
     out.false_match_probability += heads[h].false_match_probability;
     const Mat3 r = q_body_from_sensor[h].normalized().toRotationMatrix();
-    for (const auto& m : heads[h].matches) obs.push_back({r * m.b_sensor, m.r_inertial, m.sigma_rad});
+    std::vector<WahbaObservation> head_obs;
+    for (const auto& m : heads[h].matches) {
+      obs.push_back({r * m.b_sensor, m.r_inertial, m.sigma_rad});
+      head_obs.push_back({m.b_sensor, m.r_inertial, m.sigma_rad});
+    }
+    any_scale |= heads[h].focal_length_fitted;
+    const Mat3 f = AttitudeInformation(head_obs, heads[h].focal_length_fitted);
+    info += r * f * r.transpose();
   }
   out.false_match_probability = std::min(1.0, out.false_match_probability);
   if (used == 0 || obs.size() < 3) {
@@ -232,6 +273,10 @@ MultiHeadSolution SolveMultiHeadChecked(const std::vector<Identification>& heads
     return out;
   }
   out.attitude = SolveQuest(obs);
+  if (any_scale) {
+    out.attitude.covariance_rad2 = info.inverse();
+    SetSigmas(&out.attitude);
+  }
   out.message = std::to_string(used) + " of " + std::to_string(n) + " heads fused, " + std::to_string(obs.size()) + " stars";
   if (used < ns) out.message += "; " + std::to_string(ns - used) + " solved head(s) disagree with the others (wrong solve or mount)";
   return out;

@@ -41,7 +41,15 @@ Quat SolveDavenport(const std::vector<WahbaObservation>& obs);
 // Shuster's covariance of the rotation error, sensor frame.
 Mat3 QuestCovariance(const std::vector<WahbaObservation>& obs);
 
-// QUEST on the matches of a solved identification (status copied; no_match gives no attitude).
+// Information matrix (inverse covariance) of the rotation error, sensor frame: Shuster's
+// sum sigma^-2 (I - b b^T); with free_scale (the focal length fitted from the same stars) a common
+// scale of the pinhole tangent-plane coordinates is a nuisance parameter, marginalised (distortion
+// neglected).
+Mat3 AttitudeInformation(const std::vector<WahbaObservation>& obs, bool free_scale);
+
+// QUEST on the matches of a solved identification (status copied; no_match gives no attitude); when
+// the focal length was fitted (Identification::focal_length_fitted) the covariance includes its
+// uncertainty (AttitudeInformation).
 AttitudeSolution SolveAttitude(const Identification& id);
 
 // Several optical heads: matches of head i (sensor frame) rotated to the body frame by

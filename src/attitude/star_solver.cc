@@ -175,6 +175,8 @@ Json SolveResultToJson(const SolveResult& r) {
   j["sigma_roll_arcsec"] = NumOrNull(ok ? r.attitude.sigma_roll_rad * kRadToArcsec : nan);
   j["focal_length_px"] = NumOrNull(r.identification.focal_length_px);
   j["focal_length_y_px"] = NumOrNull(r.identification.focal_length_y_px);
+  j["focal_length_sigma_px"] = NumOrNull(ok && r.identification.focal_length_fitted ? r.identification.focal_length_sigma_px : nan);
+  j["outliers_rejected"] = r.identification.outliers_rejected;
   j["false_match_probability"] = r.identification.false_match_probability;
   Json m = Json::array();
   if (ok) {

@@ -19,6 +19,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 constexpr double kMinTrackedFraction = 0.3;  // tracking: matched / min(predicted, centroids)
 constexpr int kMinTrackedMatches = 5;        // tracking: its chance probability is calibrated for >= 5
+constexpr int kMaxOutliers = 5;              // more inconsistent matches than this: the hypothesis is dropped
 double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 // CPU time of the calling thread: the search deadline counts the work done for this frame, so the
 // result does not depend on how busy the machine is (or on other threads of a batch).
@@ -53,7 +54,9 @@ struct Verification {
 
 // Predicts all catalog stars in the field with R (sensor -> inertial) and the camera, and matches
 // the first ctx.m centroids to them one-to-one, nearest pairs first, within radius_px.
-Verification Verify(const Context& ctx, const Camera& cam, const Mat3& r, double radius_px) {
+// Centroids flagged in `excluded` (rejected as outliers of this hypothesis) are left out.
+Verification Verify(const Context& ctx, const Camera& cam, const Mat3& r, double radius_px,
+                    const std::vector<char>* excluded = nullptr) {
   Verification v;
   const SolverCatalog& cat = ctx.id->catalog();
   const std::vector<int> near = ctx.id->StarsWithin(r.col(2), cam.FovDiagRad() / 2 * 1.05 + 0.002);
@@ -77,6 +80,7 @@ Verification Verify(const Context& ctx, const Camera& cam, const Mat3& r, double
   const double r2 = radius_px * radius_px;
   for (int i = 0; i < ctx.m; ++i) {
     const int ci = ctx.order[i];
+    if (excluded && (*excluded)[ci]) continue;
     const Vec2 xy((*ctx.c)[ci].x_px, (*ctx.c)[ci].y_px);
     for (size_t p = 0; p < proj.size(); ++p) {
       const double d2 = (proj[p].px - xy).squaredNorm();
@@ -240,43 +244,117 @@ Mat3 SvdFromMatches(const std::vector<StarMatch>& ms) {
   return SolveWahbaSvd(pairs).toRotationMatrix();
 }
 
+// Pixel residuals (centroid - prediction) of the matches under (cam, r) and their Jacobians over
+// x = (small rotation in the sensor frame, r -> r Exp(x[0..2]); common scale of fx and fy, 1 + x[3]),
+// numerical, with the weights 1 / sigma_px^2 and the normal equations H = sum w J^T J, g = sum w J^T e.
+struct PixelFit {
+  std::vector<Eigen::Matrix<double, 2, 4>> j;
+  std::vector<Vec2> e;
+  std::vector<double> w;
+  std::vector<char> ok;  // projected (a star behind the camera has no residual)
+  Eigen::Matrix4d h = Eigen::Matrix4d::Zero();
+  Vec4 g = Vec4::Zero();
+};
+
+PixelFit Linearize(const Context& ctx, const std::vector<StarMatch>& ms, const Camera& cam, const Mat3& r) {
+  PixelFit f;
+  auto residual = [&](const StarMatch& m, const Vec4& x, Vec2* out) {
+    Camera c2 = cam;
+    c2.ScaleFocal(1 + x[3]);
+    const auto p = c2.Project((r * ExpSo3(x.head<3>())).transpose() * m.r_inertial);
+    if (!p) return false;
+    *out = Vec2(m.x_px, m.y_px) - *p;
+    return true;
+  };
+  for (const auto& m : ms) {
+    Vec2 e0 = Vec2::Zero();
+    Eigen::Matrix<double, 2, 4> j = Eigen::Matrix<double, 2, 4>::Zero();
+    const bool ok = residual(m, Vec4::Zero(), &e0);
+    if (ok) {
+      for (int k = 0; k < 4; ++k) {
+        Vec4 dx = Vec4::Zero();
+        dx[k] = 1e-7;
+        Vec2 e1;
+        if (!residual(m, dx, &e1)) e1 = e0;
+        j.col(k) = -(e1 - e0) / 1e-7;  // of the prediction
+      }
+    }
+    const double w = ok ? 1.0 / std::pow(ctx.sigma_px[m.centroid], 2) : 0.0;
+    f.j.push_back(j);
+    f.e.push_back(e0);
+    f.w.push_back(w);
+    f.ok.push_back(ok);
+    f.h += w * j.transpose() * j;
+    f.g += w * j.transpose() * e0;
+  }
+  return f;
+}
+
 // Gauss-Newton on pixel residuals over a small rotation (sensor frame) and a common scale of fx and fy
 // (the pixel aspect fy/fx is the camera's).
 void RefineFocal(const Context& ctx, const std::vector<StarMatch>& ms, Camera* cam, Mat3* r) {
   if (ms.size() < 4) return;
   for (int iter = 0; iter < 4; ++iter) {
-    Eigen::Matrix4d h = Eigen::Matrix4d::Zero();
-    Vec4 g = Vec4::Zero();
-    auto residual = [&](const StarMatch& m, const Vec4& x, Vec2* out) {
-      Camera c2 = *cam;
-      c2.ScaleFocal(1 + x[3]);
-      const Mat3 rr = *r * ExpSo3(x.head<3>());
-      const auto p = c2.Project(rr.transpose() * m.r_inertial);
-      if (!p) return false;
-      *out = *p - Vec2(m.x_px, m.y_px);
-      return true;
-    };
-    for (const auto& m : ms) {
-      Vec2 r0;
-      if (!residual(m, Vec4::Zero(), &r0)) continue;
-      Eigen::Matrix<double, 2, 4> j;
-      for (int k = 0; k < 4; ++k) {
-        Vec4 dx = Vec4::Zero();
-        dx[k] = 1e-7;
-        Vec2 r1;
-        if (!residual(m, dx, &r1)) r1 = r0;
-        j.col(k) = (r1 - r0) / 1e-7;
-      }
-      const double w = 1.0 / std::pow(ctx.sigma_px[m.centroid], 2);
-      h += w * j.transpose() * j;
-      g += w * j.transpose() * r0;
-    }
-    const Vec4 dx = -h.ldlt().solve(g);
+    const PixelFit f = Linearize(ctx, ms, *cam, *r);
+    const Vec4 dx = f.h.ldlt().solve(f.g);
     if (!dx.allFinite()) return;
     cam->ScaleFocal(1 + dx[3]);
     *r = *r * ExpSo3(dx.head<3>());
     if (dx.head<3>().norm() < 1e-10 && std::abs(dx[3]) < 1e-10) break;
   }
+}
+
+// The match least consistent with the others, if it is an outlier. For each match i, d_i = the drop
+// of the fit's chi-square when i is left out: with the residual e_i at the least-squares optimum and
+// its covariance S_i = sigma_i^2 I - J_i H^-1 J_i^T, d_i = e_i^T S_i^-1 e_i (the deleted residual of
+// linear least squares: Cook & Weisberg 1982, "Residuals and Influence in Regression", ch. 2.2),
+// chi-square with 2 degrees of freedom for a consistent match. Unlike the largest residual, it finds
+// a wrong match with leverage (a false object at a corner that turns the fit of a small clump of stars
+// fits itself and leaves its residual on the clump). The sigmas are scaled by the scatter of the
+// others, s^2 = max(1, (chi^2 - d_i) / dof without i) (the externally studentised residual, ibid.):
+// a camera model that is knowingly off (tolerance mode before calibration: aspect, distortion) makes
+// every residual large, and only a match inconsistent with the rest is an outlier. Parameters: the
+// rotation, and the scale when the focal length is fitted. Returns the index into ms, or -1 when
+// every d_i / s^2 <= outlier_sigmas^2 (or too few degrees of freedom are left to tell). A match whose
+// removal leaves a direction of the fit undetermined cannot be tested.
+int WorstOutlier(const Context& ctx, const IdentifyOptions& o, const std::vector<StarMatch>& ms, const Camera& cam,
+                 const Mat3& r, bool fit_scale) {
+  const int np = fit_scale ? 4 : 3;
+  const int dof_without = 2 * (static_cast<int>(ms.size()) - 1) - np;
+  if (dof_without < 2) return -1;
+  const PixelFit f = Linearize(ctx, ms, cam, r);
+  const Eigen::MatrixXd h = f.h.topLeftCorner(np, np);
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(h);
+  const Eigen::VectorXd dx = ldlt.solve(f.g.head(np));  // to the linearised optimum (r may be an SVD fit)
+  if (!dx.allFinite()) return -1;
+  std::vector<Vec2> e(ms.size(), Vec2::Zero());
+  double chi2 = 0;
+  for (size_t i = 0; i < ms.size(); ++i) {
+    if (!f.ok[i]) continue;
+    e[i] = f.e[i] - f.j[i].leftCols(np) * dx;
+    chi2 += f.w[i] * e[i].squaredNorm();
+  }
+  int worst = -1;
+  double worst_t = o.outlier_sigmas * o.outlier_sigmas;
+  for (size_t i = 0; i < ms.size(); ++i) {
+    if (!f.ok[i]) continue;
+    // From the others alone (H without i): the prediction error of match i, e_(i) = (I + w J H_(i)^-1 J^T) e_i,
+    // and its covariance sigma^2 I + J H_(i)^-1 J^T. This form stays exact when i has a leverage near
+    // 1 (its own residual near 0): then it is the only match that fixes a direction of the fit.
+    const Eigen::Matrix<double, 2, Eigen::Dynamic> j = f.j[i].leftCols(np);
+    const Eigen::MatrixXd h_i = h - f.w[i] * j.transpose() * j;
+    const Eigen::LDLT<Eigen::MatrixXd> ldlt_i(h_i);
+    // The others must fix every direction (else match i cannot be tested).
+    if (ldlt_i.info() != Eigen::Success || !(ldlt_i.vectorD().minCoeff() > 1e-9 * ldlt_i.vectorD().maxCoeff())) continue;
+    const Eigen::Matrix<double, Eigen::Dynamic, 2> hj = ldlt_i.solve(j.transpose());
+    const Mat2 jhj = j * hj;
+    const Vec2 e_del = e[i] + f.w[i] * jhj * e[i];
+    const Mat2 cov = Mat2::Identity() / f.w[i] + jhj;
+    const double d = e_del.dot(cov.ldlt().solve(e_del));
+    const double t = d / std::max(1.0, (chi2 - d) / dof_without);
+    if (t > worst_t) worst_t = t, worst = static_cast<int>(i);
+  }
+  return worst;
 }
 
 struct Refined {
@@ -286,7 +364,8 @@ struct Refined {
 };
 
 // Fit the attitude (and the focal length when it is uncertain) to the matches and re-match, twice.
-Refined Refine(const Context& ctx, const IdentifyOptions& o, Camera cam, Mat3 r, Verification v) {
+Refined Refine(const Context& ctx, const IdentifyOptions& o, Camera cam, Mat3 r, Verification v,
+               const std::vector<char>* excluded = nullptr) {
   for (int pass = 0; pass < 3; ++pass) {
     if (o.FocalSearched()) {
       RefineFocal(ctx, v.matches, &cam, &r);
@@ -294,7 +373,7 @@ Refined Refine(const Context& ctx, const IdentifyOptions& o, Camera cam, Mat3 r,
     } else {
       r = SvdFromMatches(v.matches);
     }
-    Verification v2 = Verify(ctx, cam, r, ctx.match_radius_px);
+    Verification v2 = Verify(ctx, cam, r, ctx.match_radius_px, excluded);
     if (v2.matches.size() < 3) break;
     v = std::move(v2);
   }
@@ -367,6 +446,7 @@ void IdentifyOptions::Check() const {
   if (min_matches < 4) bad("min_matches", "must be >= 4");
   if (max_hypotheses < 1) bad("max_hypotheses", "must be >= 1");
   if (!(verify_sigmas >= 1 && verify_sigmas <= 10)) bad("verify_sigmas", "must be in [1, 10]");
+  if (!(outlier_sigmas >= 3 && outlier_sigmas <= 100)) bad("outlier_sigmas", "must be in [3, 100]");
   if (!(timeout_ms >= 0 && timeout_ms <= 3.6e6)) bad("timeout_ms", "must be in [0, 3600000] (0 = no limit)");
 }
 
@@ -563,18 +643,53 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
             const double prob = std::min(1.0, BinomialTail(ctx.m - 3, u, ht.extra) * j_factor * hyp * seq_factor);
             if (prob < best_prob) best_prob = prob, best_k = k;
             if (prob >= o.max_false_match_prob) continue;
-            // Accepted: refine the attitude (and focal length) on the matches and re-match.
+            // Accepted: refine the attitude (and focal length) on the matches and re-match. Then
+            // leave out the match least consistent with the others while it is an outlier, refit and
+            // re-match without it: one wrong match (or a star far from its catalog position) can
+            // turn a refit, and with a free scale the roll of a small clump of stars, by far more
+            // than the reported sigma.
+            std::vector<int> test_extras;  // centroids of the test's extra matches (its evidence)
+            for (size_t i = 3; i < ht.v.matches.size(); ++i) test_extras.push_back(ht.v.matches[i].centroid);
             Refined rf = Refine(ctx, o, cam, rot, std::move(ht.v));
+            std::vector<char> excluded(centroids.size(), 0);
+            int rejected = 0, lost_evidence = 0;
+            for (int worst; (worst = WorstOutlier(ctx, o, rf.v.matches, rf.cam, rf.r, focal_searched)) >= 0;) {
+              if (++rejected > kMaxOutliers || rf.v.matches.size() <= 3) break;
+              const int ci = rf.v.matches[worst].centroid;
+              excluded[ci] = 1;
+              lost_evidence += static_cast<int>(std::count(test_extras.begin(), test_extras.end(), ci));
+              rf.v.matches.erase(rf.v.matches.begin() + worst);
+              rf = Refine(ctx, o, rf.cam, rf.r, std::move(rf.v), &excluded);
+            }
+            if (rejected > kMaxOutliers || static_cast<int>(rf.v.matches.size()) < o.min_matches) continue;
+            double prob_final = prob;
+            if (lost_evidence > 0) {
+              // A rejected extra match is no evidence: the test again without it (u kept: an upper bound).
+              const int j = ht.extra - lost_evidence;
+              if (j + 3 < o.min_matches) continue;
+              prob_final = std::min(1.0, BinomialTail(ctx.m - 3, u, j) * j * (j + 1.0) * hyp * seq_factor);
+              if (prob_final >= o.max_false_match_prob) continue;
+            }
             out.status = "solved";
             out.q_inertial_from_sensor = Quat(rf.r).normalized();
             if (out.q_inertial_from_sensor.w() < 0) out.q_inertial_from_sensor.coeffs() *= -1;
             out.focal_length_px = rf.cam.focal_length_px;
             out.focal_length_y_px = rf.cam.FocalYPx();
-            out.false_match_probability = prob;
+            out.false_match_probability = prob_final;
+            out.focal_length_fitted = focal_searched;
+            if (focal_searched) {
+              // The scale's 1-sigma from the pixel fit's normal equations (rotation and scale jointly).
+              const Eigen::Matrix4d h = Linearize(ctx, rf.v.matches, rf.cam, rf.r).h;
+              const double var = h.ldlt().solve(Vec4::UnitW())[3];
+              out.focal_length_sigma_px = var > 0 ? std::sqrt(var) * rf.cam.focal_length_px : std::nan("");
+            }
+            out.outliers_rejected = rejected;
             out.matches = std::move(rf.v.matches);
             out.hypotheses = hyp;
             out.catalog_stars_in_field = rf.v.n_cat;
-            out.message = std::to_string(out.matches.size()) + " stars matched (" + std::to_string(k) + " in the test)";
+            out.message = std::to_string(out.matches.size()) + " stars matched (" + std::to_string(k) + " in the test";
+            if (rejected > 0) out.message += ", " + std::to_string(rejected) + " left out as inconsistent";
+            out.message += ")";
             out.timing_ms["identify"] = MsSince(t0);
             return out;
           }

@@ -47,6 +47,9 @@ struct IdentifyOptions {
   // the error the triangle's own noise puts into the hypothesis there); the chance probability is
   // computed for exactly this radius.
   double verify_sigmas = 3.5;
+  // A refined match whose deleted residual (the drop of the fit's chi-square without it, 2 degrees of
+  // freedom) exceeds outlier_sigmas^2 is left out and the rest refit (docs/identify.md, step 6).
+  double outlier_sigmas = 5.0;
   double fov_tolerance_pct = 0.0;      // focal length known to +/- this percent: search and refine it
   // Unknown field of view (`--fov-range-deg MIN,MAX`): the horizontal FOV is searched in [min, max]
   // deg and the focal length found and refined; the camera's own focal length is ignored (its pixel
@@ -83,6 +86,9 @@ struct Identification {
   Quat q_inertial_from_sensor = Quat::Identity();  // from the matches (SVD); QUEST refines it
   double focal_length_px = 0;       // fx used (fitted when the focal length is searched)
   double focal_length_y_px = 0;     // fy used (the camera's aspect fy/fx is kept)
+  bool focal_length_fitted = false;  // the focal length was searched and fitted (tolerance or unknown FOV)
+  double focal_length_sigma_px = 0;  // its 1-sigma from the fit (jointly with the attitude); 0 when not fitted
+  int outliers_rejected = 0;         // refined matches left out as inconsistent with the others
   double false_match_probability = 1.0;
   std::vector<StarMatch> matches;
   int hypotheses = 0;               // hypotheses verified

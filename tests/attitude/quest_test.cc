@@ -1,6 +1,8 @@
 #include "attitude/quest.h"
 
 #include <cmath>
+#include <cstdio>
+#include <functional>
 #include <memory>
 
 #include "core/attitude.h"
@@ -111,33 +113,104 @@ TEST(MultiHead, TwoOrthogonalHeadsRemoveTheRollWeakness) {
   EXPECT_LT(both.sigma_roll_rad, one.sigma_roll_rad / 4);
 }
 
-TEST(SolveAttitude, SyntheticFrameErrorsAgreeWithReportedCovariance) {
+// AttitudeInformation with a free scale against a numerical Jacobian of the pinhole model: directions
+// b_i(e) of pixel offsets scaled by 1 / (f (1 + e)), predicted by Exp(theta)^T b_i(0); the Schur
+// complement of the 4 x 4 information over (theta, e). A clump off the boresight couples the scale
+// to the cross-boresight axes (not to roll), so their sigma grows.
+TEST(AttitudeInformation, FreeScaleMatchesNumericalJacobianOfThePinholeModel) {
+  Rng rng(7);
+  const double f = 3000, sigma = 1e-4;
+  std::vector<Vec2> px;
+  for (int i = 0; i < 6; ++i) px.push_back(Vec2(300 + 80 * rng.Uniform(), -200 + 80 * rng.Uniform()));
+  auto dir = [&](const Vec2& p, double e) { return Vec3(p.x() / (f * (1 + e)), p.y() / (f * (1 + e)), 1).normalized(); };
+  std::vector<WahbaObservation> obs;
+  Eigen::Matrix4d info = Eigen::Matrix4d::Zero();
+  for (const auto& p : px) {
+    obs.push_back({dir(p, 0), dir(p, 0), sigma});
+    auto y = [&](const Vec4& x) {
+      const Mat3 r = Eigen::AngleAxisd(x.head<3>().norm(), x.head<3>().norm() > 0 ? Vec3(x.head<3>().normalized()) : Vec3::UnitZ())
+                         .toRotationMatrix();
+      return Vec3(dir(p, x[3]) - r.transpose() * dir(p, 0));
+    };
+    Eigen::Matrix<double, 3, 4> j;
+    for (int k = 0; k < 4; ++k) {
+      Vec4 dx = Vec4::Zero();
+      dx[k] = 1e-6;
+      j.col(k) = (y(dx) - y(-dx)) / 2e-6;
+    }
+    info += j.transpose() * j / (sigma * sigma);
+  }
+  const Mat3 want = info.topLeftCorner<3, 3>() - info.topRightCorner<3, 1>() * info.bottomLeftCorner<1, 3>() / info(3, 3);
+  const Mat3 got = AttitudeInformation(obs, true);
+  EXPECT_LT((got - want).norm(), 1e-5 * want.norm()) << got << "\n" << want;
+  const Mat3 p_free = got.inverse(), p_fixed = AttitudeInformation(obs, false).inverse();
+  EXPECT_LT((p_fixed - QuestCovariance(obs)).norm(), 1e-9 * p_fixed.norm());
+  EXPECT_GT(p_free(0, 0) + p_free(1, 1), 2 * (p_fixed(0, 0) + p_fixed(1, 1)));
+  EXPECT_NEAR(p_free(2, 2), p_fixed(2, 2), 0.05 * p_fixed(2, 2));
+}
+
+// Mean NEES of the QUEST solutions of 100 synthetic 16.6-deg frames (0.1 px noise) of `cam`
+// identified with the camera `given`; `check` sees each solved identification.
+struct Nees {
+  double mean = 0;
+  int solved = 0;
+};
+Nees MeanNees(double catalog_fov_deg, const Camera& cam, const Camera& given, const IdentifyOptions& io, uint64_t seed0,
+              const std::function<void(const Identification&)>& check = {}) {
   CatalogBuildOptions co;
-  co.fov_deg = 16.6;
+  co.fov_deg = catalog_fov_deg;
   const StarIdentifier id(BuildSolverCatalog(LoadSourceCatalog(DefaultBscPath()), co));
-  const Camera cam = MakeCamera(1024, 1024, 16.6);
-  IdentifyOptions io;
-  io.systematic_px = 0;
-  double nees = 0;
-  int n = 0;
+  Nees out;
   for (int i = 0; i < 100; ++i) {
-    Rng rng(300 + i);
+    Rng rng(seed0 + i);
     const Quat q = QuatFromUniform(rng.Uniform(), rng.Uniform(), rng.Uniform());
     testing::SyntheticOptions so;
     so.sigma_px = 0.1;
     const auto f = testing::MakeSyntheticFrame(id.catalog(), cam, q, so, &rng);
-    const AttitudeSolution s = SolveAttitude(id.Identify(f.centroids, cam, io));
+    const Identification idf = id.Identify(f.centroids, given, io);
+    const AttitudeSolution s = SolveAttitude(idf);
     if (s.status != "solved") continue;
+    if (check) check(idf);
     const Vec3 e = SensorError(s.q_inertial_from_sensor, q);
-    nees += e.dot(s.covariance_rad2.inverse() * e);
-    ++n;
+    out.mean += e.dot(s.covariance_rad2.inverse() * e);
+    ++out.solved;
   }
-  ASSERT_GE(n, 99);
+  out.mean /= std::max(1, out.solved);
+  return out;
+}
+
+TEST(SolveAttitude, SyntheticFrameErrorsAgreeWithReportedCovariance) {
+  const Camera cam = MakeCamera(1024, 1024, 16.6);
+  IdentifyOptions io;
+  io.systematic_px = 0;
+  const Nees r = MeanNees(16.6, cam, cam, io, 300);
+  ASSERT_GE(r.solved, 99);
   // Mean NEES of n frames: chi-square with 3n dof / n; two-sided 99% bounds for n = 100:
   // 3 +/- 2.576 sqrt(6 / 100) = [2.37, 3.63] (over 400 such frames we measured mean 3.10,
   // median 2.36, 95th percentile 8.4 against chi-square(3)'s 3, 2.37, 7.8).
-  EXPECT_GT(nees / n, 2.37);
-  EXPECT_LT(nees / n, 3.63);
+  EXPECT_GT(r.mean, 2.37);
+  EXPECT_LT(r.mean, 3.63);
+}
+
+// Tolerance mode (focal length given 3 % long, searched +/- 5 %): the attitude's covariance includes
+// the fitted focal length's uncertainty, the errors agree with it (bounds as above) and the fitted
+// focal length is within 5 of its sigmas.
+TEST(SolveAttitude, FittedFocalLengthErrorsAgreeWithReportedCovariance) {
+  const Camera cam = MakeCamera(1024, 1024, 16.6);
+  Camera guess = cam;
+  guess.ScaleFocal(1.03);
+  IdentifyOptions io;
+  io.systematic_px = 0;
+  io.fov_tolerance_pct = 5;
+  io.timeout_ms = 0;
+  const Nees r = MeanNees(16.6 * 1.05, cam, guess, io, 700, [&](const Identification& idf) {
+    EXPECT_TRUE(idf.focal_length_fitted);
+    EXPECT_LT(std::abs(idf.focal_length_px - cam.focal_length_px), 5 * idf.focal_length_sigma_px);
+  });
+  ASSERT_GE(r.solved, 95);
+  std::printf("tolerance mode: mean NEES %.2f over %d frames\n", r.mean, r.solved);
+  EXPECT_GT(r.mean, 2.37);
+  EXPECT_LT(r.mean, 3.63);
 }
 
 }  // namespace

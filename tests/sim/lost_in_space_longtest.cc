@@ -1,7 +1,7 @@
 // Issue 14 acceptance and calibration at full size (label long; figures in docs/results.md):
 // 1000 Kelvins-style scenes, and >= 10^4 trials each of random centroid sets, star-free rendered
 // frames and frames with the focal length 5-15 % wrong in tolerance mode, at max-false-prob 1e-2,
-// 1e-3 and the default. LIS_TRIALS overrides the trial count (e.g. for a quick look).
+// 1e-3 and the default. LIS_TRIALS overrides the trial count (e.g. for a quick look), LIS_SEED the first seed.
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -15,12 +15,14 @@ namespace {
 using namespace testing;
 
 int Trials(int n) { return std::getenv("LIS_TRIALS") ? std::atoi(std::getenv("LIS_TRIALS")) : n; }
+// LIS_SEED overrides the first trial's seed (with LIS_TRIALS=1: one printed case alone).
+uint64_t Seed0(uint64_t seed0) { return std::getenv("LIS_SEED") ? std::strtoull(std::getenv("LIS_SEED"), nullptr, 10) : seed0; }
 
 TEST(LostInSpaceLong, KelvinsScenes1000) {
   for (double alpha : {1e-5, 1e-3}) {
     IdentifyOptions io = KelvinsIdentifyOptions();
     io.max_false_match_prob = alpha;
-    SceneCampaign c = RunKelvinsScenes(Trials(1000), 1, io);
+    SceneCampaign c = RunKelvinsScenes(Trials(1000), Seed0(1), io);
     std::printf("Kelvins scenes at %g: %d scenes, >= 4 stars %d/%d (%.1f%%), 3 stars %d/%d, wrong %d\n", alpha, c.scenes,
                 c.solved4, c.with4, 100.0 * c.solved4 / std::max(1, c.with4), c.solved3, c.with3, c.wrong);
     for (const auto& [k, v] : c.by_stars) std::printf("  %d stars: %d/%d\n", k, v.second, v.first);
@@ -38,7 +40,7 @@ TEST(LostInSpaceLong, CalibrationRandomCentroids) {
     io.timeout_ms = 0;
     io.pattern_centroids = 40;
     io.max_false_match_prob = alpha;
-    const Calibration c = RunRandomCentroids(Trials(10000), 100000, io);
+    const Calibration c = RunRandomCentroids(Trials(10000), Seed0(100000), io);
     std::printf("random centroids at %g: %d false of %d (rate %.2g)\n", alpha, c.false_solves, c.trials,
                 static_cast<double>(c.false_solves) / c.trials);
     EXPECT_LE(c.false_solves, Allowed(c.trials, alpha));
@@ -75,7 +77,7 @@ TEST(LostInSpaceLong, CalibrationWrongFocalLength) {
     IdentifyOptions io = KelvinsIdentifyOptions();
     io.timeout_ms = 50;  // a tolerance-mode search of 15 % is long; the deadline keeps 10^4 trials feasible
     io.max_false_match_prob = alpha;
-    const Calibration c = RunWrongFocal(Trials(10000), 200000, 15.0, io);
+    const Calibration c = RunWrongFocal(Trials(10000), Seed0(200000), 15.0, io);
     std::printf("focal length 5-15 %% wrong, tolerance 15 %%, at %g: %d wrong of %d (%d solved)\n", alpha, c.false_solves,
                 c.trials, c.solved);
     EXPECT_LE(c.false_solves, Allowed(c.trials, alpha));
