@@ -1,7 +1,8 @@
 // Lost-in-space solve from centroids (median and 99th percentile over 500 frames at 16.6 deg, 200 at
-// 8 deg; wrong = boresight more than 1 arcmin from the truth, or roll beyond 1 arcmin and 5 sigma), tracking update,
-// catalog build time and index size. Frames: SimulateFrame + Detect at random attitudes, 16.6 deg,
-// 1024x1024, default simulator noise (the detector's centroids, as a real pipeline would see).
+// 8 deg; wrong = boresight more than 1 arcmin from the truth, or roll beyond 1 arcmin and 5 sigma),
+// Kelvins-style scenes among false objects, unknown-FOV scenes, tracking update, catalog build time
+// and index size. Frames: SimulateFrame + Detect at random attitudes, 16.6 deg, 1024x1024, default
+// simulator noise (the detector's centroids, as a real pipeline would see).
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -17,6 +18,7 @@
 #include "attitude/star_solver.h"
 #include "core/attitude.h"
 #include "core/catalog.h"
+#include "core/rng.h"
 #include "sim/frame_sim.h"
 #include "sim/scene_sim.h"
 
@@ -28,6 +30,13 @@ double CpuMs() {
   timespec ts;
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
   return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
+
+// A boresight more than 1 arcmin off, or a roll off by more than 1 arcmin and 5 of its reported sigmas.
+bool IsWrong(const SolveResult& r, const Quat& truth) {
+  const AttitudeErrorSplit e = SplitAttitudeError(r.attitude.q_inertial_from_sensor, truth);
+  const double roll_limit = std::max(60.0, 5 * r.attitude.sigma_roll_rad * kRadToArcsec);
+  return e.cross_rad * kRadToArcsec > 60 || std::abs(e.roll_rad) * kRadToArcsec > roll_limit;
 }
 
 struct Fixture {
@@ -158,9 +167,7 @@ void BM_LostInSpaceFalseObjects(benchmark::State& state) {
     const bool ok = r.status == "solved";
     if (sc.true_stars >= 4) ++with4, solved4 += ok;
     if (sc.true_stars == 3) ++with3, solved3 += ok;
-    const AttitudeErrorSplit e = SplitAttitudeError(r.attitude.q_inertial_from_sensor, sc.q_inertial_from_sensor);
-    const double roll_limit = std::max(60.0, 5 * r.attitude.sigma_roll_rad * kRadToArcsec);
-    if (ok && (e.cross_rad * kRadToArcsec > 60 || std::abs(e.roll_rad) * kRadToArcsec > roll_limit)) ++wrong;
+    if (ok && IsWrong(r, sc.q_inertial_from_sensor)) ++wrong;
   }
   std::sort(ms.begin(), ms.end());
   state.counters["median_cpu_ms"] = ms[ms.size() / 2];
@@ -172,6 +179,53 @@ void BM_LostInSpaceFalseObjects(benchmark::State& state) {
   state.counters["wrong"] = wrong;
 }
 BENCHMARK(BM_LostInSpaceFalseObjects)->Iterations(1000)->Unit(benchmark::kMillisecond);
+
+// Unknown field of view (`ssiu solve --fov-range-deg 8,25`): centroid scenes of 1024 x 768 px with a
+// horizontal FOV uniform in 10-20 deg, BSC stars to V 6 (0.2 px noise, with its sigma), 0 to
+// range(0) false objects as bright as the stars; the solver gets the width and height only and the
+// BSC 8-25 deg catalog (multi-level index). Default options but no systematic error. Wrong: as above;
+// focal_err_max_pct: the largest |f_fit / f_true - 1| of the solved scenes.
+void BM_UnknownFov(benchmark::State& state) {
+  static const StarCatalog sky = LoadXplanetBsc(DefaultBscPath());
+  static const StarIdentifier id = [] {
+    CatalogBuildOptions co;
+    co.fov_deg = 25.0;
+    co.fov_min_deg = 8.0;
+    return StarIdentifier(BuildSolverCatalog(LoadSourceCatalog(DefaultBscPath()), co));
+  }();
+  SceneSimOptions so;
+  so.centroid_noise_px = 0.2;
+  so.false_objects_max = static_cast<int>(state.range(0));
+  SolveOptions opt;
+  opt.identify.systematic_px = 0;
+  opt.identify.fov_min_deg = 8.0;
+  opt.identify.fov_max_deg = 25.0;
+  const Camera given = MakeCamera(1024, 768, 60.0);  // its focal length is ignored
+  std::vector<double> ms;
+  int solved = 0, wrong = 0;
+  double focal_err_max = 0;
+  uint64_t seed = 1;
+  for (auto _ : state) {
+    Rng rng(seed);
+    const Camera cam = MakeCamera(1024, 768, rng.Uniform(10.0, 20.0));
+    const SimulatedScene sc = SimulateScene(cam, sky, RandomAttitude(seed), so, seed);
+    ++seed;
+    const double t0 = CpuMs();
+    const SolveResult r = SolveCentroids(id, sc.centroids, given, opt);
+    ms.push_back(CpuMs() - t0);
+    if (r.status != "solved") continue;
+    ++solved;
+    focal_err_max = std::max(focal_err_max, std::abs(r.identification.focal_length_px / cam.focal_length_px - 1) * 100);
+    wrong += IsWrong(r, sc.q_inertial_from_sensor);
+  }
+  std::sort(ms.begin(), ms.end());
+  state.counters["median_cpu_ms"] = ms[ms.size() / 2];
+  state.counters["p99_cpu_ms"] = ms[std::min(ms.size() - 1, ms.size() * 99 / 100)];
+  state.counters["solved_frac"] = static_cast<double>(solved) / ms.size();
+  state.counters["wrong"] = wrong;
+  state.counters["focal_err_max_pct"] = focal_err_max;
+}
+BENCHMARK(BM_UnknownFov)->Arg(0)->Arg(40)->Iterations(300)->Unit(benchmark::kMillisecond);
 
 void BM_TrackingUpdate(benchmark::State& state) {
   Fixture& f = F();
