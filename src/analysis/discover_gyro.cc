@@ -233,7 +233,8 @@ struct NoiseMle {
   NoiseModel model;
   double nll = 0, ln_q_sigma = 0;
 };
-NoiseMle FitNoiseMle(const VectorXd& v, double bin_s, double tau_max_s, const NoiseModel& start, bool with_walk) {
+NoiseMle FitNoiseMle(const VectorXd& v, double bin_s, double tau_max_s, const NoiseModel& start, bool with_walk,
+                     int iters = 600) {
   const int m = static_cast<int>(v.size());
   const double g0 = std::max(v.squaredNorm() / m, 1e-30);
   auto make = [&](const VectorXd& p) {
@@ -260,8 +261,8 @@ NoiseMle FitNoiseMle(const VectorXd& v, double bin_s, double tau_max_s, const No
   if (with_walk) {
     p0(3) = std::log(std::max(start.q_rw, 1e-8) / g0);
   }
-  VectorXd p = NelderMead(fn, p0, 1.0, 600);
-  p = NelderMead(fn, p, 0.3, 300);  // restart: the simplex may have collapsed early
+  VectorXd p = NelderMead(fn, p0, iters >= 600 ? 1.0 : 0.3, iters);
+  p = NelderMead(fn, p, 0.3, iters / 2);  // restart: the simplex may have collapsed early
   NoiseMle res;
   res.model = make(p);
   res.nll = fn(p);
@@ -529,6 +530,79 @@ CvResult CrossValidate(const Design& d, const std::vector<NoiseModel>& nm, const
   return cv;
 }
 
+// Change points of v by binary segmentation (greedy: each time the split, over all current segments,
+// with the largest white-noise CUSUM statistic n1 n2 / n (mean1 - mean2)^2; Vostrikova 1981), in the
+// order found, up to kmax; change points on a grid of `grid` bins, every segment at least min_seg bins.
+std::vector<int> BinarySegmentation(const VectorXd& v, int kmax, int min_seg, int grid) {
+  const int m = static_cast<int>(v.size());
+  std::vector<double> cum(m + 1, 0.0);
+  for (int i = 0; i < m; ++i) cum[i + 1] = cum[i] + v(i);
+  std::vector<int> cuts = {0, m}, found;
+  for (int k = 0; k < kmax; ++k) {
+    double best = 0;
+    int best_pos = -1;
+    for (size_t s = 0; s + 1 < cuts.size(); ++s) {
+      const int a = cuts[s], b = cuts[s + 1];
+      for (int c = (a + min_seg + grid - 1) / grid * grid; c <= b - min_seg; c += grid) {
+        const double n1 = c - a, n2 = b - c;
+        const double d = (cum[c] - cum[a]) / n1 - (cum[b] - cum[c]) / n2;
+        const double stat = n1 * n2 / (n1 + n2) * d * d;
+        if (stat > best) best = stat, best_pos = c;
+      }
+    }
+    if (best_pos < 0) break;
+    found.push_back(best_pos);
+    cuts.insert(std::upper_bound(cuts.begin(), cuts.end(), best_pos), best_pos);
+  }
+  return found;
+}
+
+// Levels of residual v (TestResidual): binary segmentation into up to 17 pieces (change points on a grid
+// of kJumpGrid bins, pieces >= 2 grid steps), each piece's mean level; the levels split into two groups
+// (sorted, every threshold tried) to the smallest within-group variance. Returns that variance over the
+// total (both weighted by the pieces' lengths): about 1 - 2/pi = 0.36 for the levels of a Gaussian
+// wander, near 0 for a level switching between two values. *split: the threshold level.
+constexpr int kJumpGrid = 4;
+struct LevelSplit {
+  double ratio = 1, threshold = 0, low = 0, high = 0;
+  std::vector<int> cuts;  // sorted change points, with 0 and m
+  std::vector<double> level;
+};
+LevelSplit SplitLevels(const VectorXd& v) {
+  const int m = static_cast<int>(v.size());
+  LevelSplit out;
+  std::vector<int> cps = BinarySegmentation(v, std::min(16, m / 40), 2 * kJumpGrid, kJumpGrid);
+  cps.push_back(0);
+  cps.push_back(m);
+  std::sort(cps.begin(), cps.end());
+  out.cuts = cps;
+  const int k = static_cast<int>(cps.size()) - 1;
+  if (k < 3) return out;
+  std::vector<std::pair<double, double>> lw;  // level, length
+  for (int s = 0; s < k; ++s) {
+    const int len = cps[s + 1] - cps[s];
+    out.level.push_back(v.segment(cps[s], len).mean());
+    lw.emplace_back(out.level.back(), len);
+  }
+  std::sort(lw.begin(), lw.end());
+  double sw = 0, s1 = 0, s2 = 0;
+  for (const auto& [x, w] : lw) sw += w, s1 += w * x, s2 += w * x * x;
+  const double total = s2 - s1 * s1 / sw;
+  if (!(total > 0)) return out;
+  double aw = 0, a1 = 0, a2 = 0;
+  for (int i = 0; i + 1 < k; ++i) {
+    aw += lw[i].second, a1 += lw[i].second * lw[i].first, a2 += lw[i].second * lw[i].first * lw[i].first;
+    const double bw = sw - aw, b1 = s1 - a1, b2 = s2 - a2;
+    const double within = (a2 - a1 * a1 / aw) + (b2 - b1 * b1 / bw);
+    if (within / total < out.ratio) {
+      out.ratio = within / total;
+      out.threshold = 0.5 * (lw[i].first + lw[i + 1].first);
+      out.low = a1 / aw, out.high = b1 / bw;
+    }
+  }
+  return out;
+}
+
 // `unexplained`: the residual e of the fitted model (raw units) against the noise model it was
 // whitened with (docs/discrepancy.md). Four tests on the whitened residual, each combined over logs
 // (Bonferroni) and then over the four: the strongest sinusoid (GLS periodogram, as periodic_drift);
@@ -615,7 +689,6 @@ GyroResidual TestResidual(const Design& d, const std::vector<NoiseModel>& nm, co
   double harm_p = 1;
   int n_tests = 4;
   if (fundamental_hz > 0) {
-    n_tests = 5;
     const int r = fundamental_log, m = static_cast<int>(d.bins[r].t_s.size());
     for (int k = 2; k <= 3; ++k) {
       const double fk = k * fundamental_hz;
@@ -626,7 +699,94 @@ GyroResidual TestResidual(const Design& d, const std::vector<NoiseModel>& nm, co
       if (p < harm_p) harm_p = p, res.harmonic_period_s = 1 / fr;
     }
   }
+  // Shape of the periodic drift: the whitened residual folded at the fundamental into phase bins (their
+  // means, with the bias and the fitted sinusoid's sin/cos projected out: chi^2 with bins - 1 dof). A
+  // sawtooth or a square wave leaves its harmonics there, spread over the bins' dof rather than two.
+  if (fundamental_hz > 0) {
+    const int r = fundamental_log, m = static_cast<int>(d.bins[r].t_s.size());
+    // Phase bins of at least 4 bins per cycle, at most 12.
+    const int nb = std::clamp(static_cast<int>(0.25 / (fundamental_hz * d.bins[r].bin_s)), 0, 12);
+    if (nb >= 6) {
+      MatrixXd x = MatrixXd::Zero(d.n, nb + 3);
+      VectorXd sn, cs;
+      BinSinusoid(d.bins[r], fundamental_hz, &sn, &cs);
+      for (int i = 0; i < m; ++i) {
+        const double ph = d.bins[r].t_s[i] * fundamental_hz;
+        const int k = std::clamp(static_cast<int>((ph - std::floor(ph)) * nb), 0, nb - 1);
+        x(d.offset[r] + i, k) = 1;
+        x(d.offset[r] + i, nb) = sn(i);
+        x(d.offset[r] + i, nb + 1) = cs(i);
+      }
+      x.col(nb + 2) = d.base.col(r);
+      const MatrixXd xw = WhitenRows(d, nm, x);
+      const MatrixXd xs = xw.middleRows(d.offset[r], m);
+      const VectorXd ys = wr.segment(d.offset[r], m);
+      const LsFit full = SolveLs(xs, ys), null = SolveLs(xs.rightCols(3), ys);
+      if (full.ok && null.ok) {
+        const double gain = (ys - xs.rightCols(3) * null.beta).squaredNorm() - (ys - xs * full.beta).squaredNorm();
+        res.periodic_shape_dof = nb - 1;  // the bins span the constant; the sinusoid varies within them
+        res.periodic_shape_chi2 = std::max(0.0, gain) / s2[r];
+        res.periodic_shape_p = ChiSquaredSurvival(res.periodic_shape_chi2, res.periodic_shape_dof);
+        harm_p = std::min(1.0, 2 * std::min(harm_p, res.periodic_shape_p));  // either of the two tests
+      }
+    }
+  }
   res.harmonics_p = harm_p;
+  // Jumps of the level between a few values. A level that switches between two values (a random
+  // telegraph bias, e.g. a light source hopping between modes) has to second order the autocovariance
+  // of a Gauss-Markov wander, so the tests above, on data whitened with that wander, miss it; what tells
+  // them apart is that its levels take two values. Statistic (SplitLevels): the residual cut into pieces
+  // of constant level by binary segmentation, the pieces' levels split into two groups; the within-group
+  // share of their variance. Its null distribution is simulated (parametric bootstrap) from the log's
+  // maximum-likelihood white + Gauss-Markov noise (and walk, when the walk is the cause), with the
+  // sequential stopping of Besag & Clifford (1991): stop at 10 replicates at least as bimodal, else after
+  // 9999 (p >= 1e-4; a clean log stops after a few dozen). Bonferroni over logs. The report: the switches between the two groups, their times
+  // and the levels' difference.
+  double jump_p = 1;
+  for (int r = 0; r < l; ++r) {
+    const LogBins& b = d.bins[r];
+    const int m = static_cast<int>(b.t_s.size());
+    if (m < 100) continue;
+    VectorXd v = e.segment(d.offset[r], m);
+    v.array() -= v.mean();
+    const LevelSplit obs = SplitLevels(v);
+    if (obs.level.empty()) continue;
+    const NoiseMle f0 = FitNoiseMle(v, b.bin_s, o.wander_tau_max_s, nm[r], nm[r].q_rw > 0);
+    Rng rng(0x5eed0000ULL + static_cast<uint64_t>(r));
+    const NoiseModel& g = f0.model;
+    const double sd_w = std::sqrt(g.var_w), sd_g = std::sqrt(g.var_g), sd_x = std::sqrt(g.var_g * (1 - g.phi * g.phi));
+    const double sd_rw = std::sqrt(g.q_rw);
+    int exceed = 0, done = 0;
+    constexpr int kReplicates = 9999, kExceed = 10;
+    VectorXd z(m);
+    while (done < kReplicates && exceed < kExceed) {
+      double x = sd_g * rng.Normal(), walk = 0;
+      for (int i = 0; i < m; ++i) {
+        if (i > 0) x = g.phi * x + sd_x * rng.Normal(), walk += sd_rw * rng.Normal();
+        z(i) = x + walk + sd_w * rng.Normal();
+      }
+      z.array() -= z.mean();
+      exceed += SplitLevels(z).ratio <= obs.ratio;
+      ++done;
+    }
+    const double p = exceed >= kExceed ? exceed / static_cast<double>(done) : (exceed + 1.0) / (done + 1.0);
+    if (p < jump_p || res.jumps == 0) {
+      jump_p = p;
+      res.levels_within_ratio = obs.ratio;
+      res.jump_size_dph = obs.high - obs.low;
+      res.jumps = 0;
+      res.jump_times_s.clear();
+      for (size_t s = 1; s < obs.level.size(); ++s) {
+        if ((obs.level[s] > obs.threshold) != (obs.level[s - 1] > obs.threshold)) {
+          ++res.jumps;
+          const int c = obs.cuts[s];
+          res.jump_times_s.push_back(0.5 * (b.t_s[c - 1] + b.t_s[c]));
+        }
+      }
+    }
+  }
+  res.jumps_p = std::min(1.0, l * jump_p);
+  ++n_tests;
   res.spectral_chi2 = best_stat;
   res.spectral_p = std::min(1.0, std::max(positions, 1.0) * ChiSquaredSurvival(best_stat, 2));
   res.ljung_box_p = std::min(1.0, l * lb_p);
@@ -678,13 +838,18 @@ GyroResidual TestResidual(const Design& d, const std::vector<NoiseModel>& nm, co
                                                   {res.ljung_box_p, "autocorrelation"},
                                                   {res.runs_p, "runs"},
                                                   {res.column_p, "column"},
-                                                  {res.harmonics_p, "harmonics"}};
-  double p_min = 1;
+                                                  {res.jumps_p, "jumps"}};
+  double p_family = 1;
   for (const auto& [p, name] : tests) {
-    if (p < p_min || res.finding.empty()) p_min = p, res.finding = name;
+    if (p < p_family || res.finding.empty()) p_family = p, res.finding = name;
   }
-  res.p_value = std::min(1.0, n_tests * p_min);
-  res.structured = res.p_value < o.residual_alpha;
+  // The harmonics / shape test checks the fitted sinusoid itself (a sawtooth is not one): it is not one of
+  // the family's tests but a test of periodic_drift's adequacy at residual_alpha of its own.
+  res.p_value = std::min(1.0, n_tests * p_family);
+  res.structured = res.p_value < o.residual_alpha || (fundamental_hz > 0 && res.harmonics_p < o.residual_alpha);
+  if (fundamental_hz > 0 && res.harmonics_p < o.residual_alpha && res.harmonics_p < res.p_value) {
+    res.p_value = res.harmonics_p, res.finding = "harmonics";
+  }
   return res;
 }
 
@@ -1455,7 +1620,15 @@ Json GyroDiscoveryToJson(const GyroDiscovery& d) {
                {"column_correlation", r.column_correlation},
                {"column_p", r.column_p},
                {"harmonics_p", r.harmonics_p},
-               {"harmonic_period_s", r.harmonic_period_s}};
+               {"harmonic_period_s", r.harmonic_period_s},
+               {"periodic_shape_chi2", r.periodic_shape_chi2},
+               {"periodic_shape_dof", r.periodic_shape_dof},
+               {"periodic_shape_p", r.periodic_shape_p},
+               {"jumps", r.jumps},
+               {"levels_within_ratio", r.levels_within_ratio},
+               {"jumps_p", r.jumps_p},
+               {"jump_size_dph", r.jump_size_dph},
+               {"jump_times_s", r.jump_times_s}};
     rj["columns"] = Json::array();
     for (const auto& c : r.columns) {
       rj["columns"].push_back({{"column", c.column},

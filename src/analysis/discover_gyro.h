@@ -31,9 +31,11 @@
 //     and the held-out improvement is significant: z = e.p / sqrt(p' S p) (e held-out base residual,
 //     p held-out prediction, S the fitted noise covariance) above the one-sided quantile of gain_alpha.
 //  4c. `unexplained`: the residual of the named cause (or of the base) is whitened with a noise model
-//     refitted on it and tested (spectral peak, Ljung-Box, runs, regression on every logged column;
-//     Bonferroni over the four at residual_alpha); structure left -> `unexplained`, the residual
-//     described (period, amplitude, the column it follows) and the first cause kept as partial_cause.
+//     refitted on it and tested (spectral peak, Ljung-Box, runs, regression on every logged column, and
+//     jumps: levels that take two values, against a bootstrap of the wander; Bonferroni over the five at
+//     residual_alpha; after periodic_drift also its harmonics / folded shape, a test of the sinusoid of
+//     its own); structure left -> `unexplained`, the residual described (period, amplitude, the column
+//     it follows, the jumps) and the first cause kept as partial_cause.
 //  5. Gain: each log is cut into cv_blocks blocks; the model is fitted on the even blocks and scored
 //     on the odd ones and vice versa (bin RMS of the drift after a bias-only fit / after the cause).
 //     For rate_random_walk: one-step prediction of the bins of the second half of each log by a
@@ -109,8 +111,8 @@ struct GyroResidualColumn {
 // The residual after the best cause (or the base model) against the fitted noise model.
 struct GyroResidual {
   bool structured = false;  // significant at residual_alpha over the four tests
-  double p_value = 1;       // family-wise (Bonferroni over the four tests)
-  std::string finding;      // the most significant test: spectral_peak, autocorrelation, runs, column
+  double p_value = 1;       // family-wise (Bonferroni over the five tests; or the harmonics test's own)
+  std::string finding;      // the most significant test: spectral_peak, autocorrelation, runs, column, jumps, harmonics
   double rms_dph = 0;
   double period_s = 0, amplitude_dph = 0, spectral_chi2 = 0, spectral_p = 1;  // strongest sinusoid
   double ljung_box_q = 0, ljung_box_p = 1;
@@ -120,6 +122,15 @@ struct GyroResidual {
   double column_coefficient = 0, column_correlation = 0, column_p = 1;
   std::vector<GyroResidualColumn> columns;
   double harmonics_p = 1, harmonic_period_s = 0;  // periodic_drift's 2nd/3rd harmonics (when it was fitted)
+  // periodic_drift's shape: the residual folded at its period into phase bins (a sawtooth is not a sinusoid).
+  double periodic_shape_chi2 = 0, periodic_shape_p = 1;
+  int periodic_shape_dof = 0;
+  // Jumps of the level between two values (a telegraph bias): the levels of the pieces of constant level
+  // (binary segmentation) split into two groups; the within-group share of their variance against the
+  // wander's (bootstrap), in the log where it is most significant.
+  int jumps = 0;                     // switches between the two groups
+  double levels_within_ratio = 1, jumps_p = 1, jump_size_dph = 0;  // statistic, p-value, levels' difference
+  std::vector<double> jump_times_s;
 };
 
 struct GyroDiscovery {

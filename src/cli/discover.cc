@@ -232,7 +232,8 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
       "Test candidate causes (temperature, magnetic_field, scale_factor, bias_step, periodic_drift, ...) against the "
       "base gyro model; a cause is named only when its held-out gain is significant and its parameters are within "
       "physical bounds; `unexplained` when the residual keeps structure (spectral peak, autocorrelation, runs, a "
-      "logged column) that no cause explains (docs/discrepancy.md)");
+      "logged column, jumps between two levels, a periodic drift that is not a sinusoid) that no cause explains "
+      "(docs/discrepancy.md)");
   auto o = std::make_shared<GyroOpts>();
   cmd->add_option("logs", o->logs,
                   "Bench logs t_s,w_dph,ref_dph,temp_c[,azimuth_deg][,bn_ut,be_ut,bh_ut] (other numeric columns "

@@ -35,7 +35,7 @@ TEST(DiscoverGyroLong, NewCausesEightEach) {
 // Effects outside the vocabulary: 8 cases each. The drift following a logged column and the chirp must
 // be `unexplained` (>= 90 %, a wrongly named cause <= 5 %); the telegraph bias and the sawtooth are measured
 // and printed (docs/discrepancy.md: a telegraph with 40 min dwells is Gauss-Markov-like wander to second
-// order, and a weak sawtooth's harmonics stay below the noise, so it is named periodic_drift).
+// order, found by the jumps test 4/8; the sawtooth by the folded shape after periodic_drift, 7/8).
 TEST(DiscoverGyroLong, OutOfVocabularyIsUnexplained) {
   const auto s = testing::RunGyroMonteCarlo(testing::UnexplainedGyroEffects(), 8, 272727, true);
   std::cout << "unexplained " << s.right_cause << "/" << s.with_cause << "\n";

@@ -55,7 +55,9 @@ inline void ScoreGyroCase(const std::string& variant, const GyroCase& c, const G
     std::cout << "case " << variant << " found " << d.cause << " gain " << d.gain << " z " << d.gain_z << params
               << "\n   residual p " << d.residual.p_value << " " << d.residual.finding << " period "
               << d.residual.period_s << " column " << d.residual.follows_column << " partial " << d.partial_cause
-              << "\n";
+              << " jumps " << d.residual.jumps << " (within " << d.residual.levels_within_ratio << ", p " << d.residual.jumps_p
+              << ", levels differ " << d.residual.jump_size_dph << " deg/h) shape p " << d.residual.periodic_shape_p
+              << " harmonics p " << d.residual.harmonics_p << "\n";
     for (const auto& cand : d.candidates) {
       if (!cand.applicable) continue;
       std::cout << "   " << cand.cause << " stat " << cand.statistic << " p " << cand.p_value;

@@ -1,3 +1,4 @@
+#include <cstdio>
 #include <fstream>
 
 #include "analysis/discover_gyro.h"
@@ -87,6 +88,29 @@ TEST(DiscoverGyro, DriftFollowingAnUnrelatedColumnIsUnexplained) {
   const Json j = GyroDiscoveryToJson(d);
   EXPECT_EQ(j["residual"]["follows_column"], "heater_on");
   EXPECT_GT(std::abs(j["residual"]["column_coefficient_dph_per_unit"].get<double>()), 0.01);
+}
+
+// Issue 18's two hard effects outside the vocabulary (seeds of DiscoverGyroLong.OutOfVocabularyIsUnexplained
+// where they are found): a random telegraph bias, whose levels take two values (the jumps test, with the
+// switches and the levels' difference it reports), and a sawtooth, which is not the sinusoid that
+// periodic_drift fits (the harmonics / folded-shape test).
+TEST(DiscoverGyro, TelegraphAndSawtoothAreUnexplained) {
+  const auto t = testing::MakeGyroCase("telegraph", 272727 + 7919 * 14);
+  const GyroDiscovery dt = DiscoverGyro(t.logs, GyroDiscoverOptions{});
+  ASSERT_EQ(dt.cause, "unexplained") << GyroDiscoveryToJson(dt).dump(1);
+  EXPECT_EQ(dt.residual.finding, "jumps");
+  EXPECT_GE(dt.residual.jumps, 8);                 // ~18 switches in 12 h, 40 min apart on average
+  EXPECT_NEAR(dt.residual.jump_size_dph, 0.055, 0.03);  // 0.04-0.07 deg/h peak to peak
+  const auto s = testing::MakeGyroCase("sawtooth", 272727 + 7919 * 15);
+  const GyroDiscovery ds = DiscoverGyro(s.logs, GyroDiscoverOptions{});
+  ASSERT_EQ(ds.cause, "unexplained") << GyroDiscoveryToJson(ds).dump(1);
+  EXPECT_EQ(ds.partial_cause, "periodic_drift");
+  EXPECT_EQ(ds.residual.finding, "harmonics");
+  EXPECT_LT(ds.residual.periodic_shape_p, 0.01);
+  std::printf("telegraph: %d switches, levels %.3f deg/h apart, p %.2g; sawtooth after periodic_drift: shape chi2 %.1f "
+              "(%d dof), p %.2g\n",
+              dt.residual.jumps, dt.residual.jump_size_dph, dt.residual.jumps_p, ds.residual.periodic_shape_chi2,
+              ds.residual.periodic_shape_dof, ds.residual.periodic_shape_p);
 }
 
 // The held-out gate: with the significance demanded of the held-out improvement out of reach, a cause
