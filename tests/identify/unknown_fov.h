@@ -54,6 +54,7 @@ struct UnknownFovCampaign {
   int frames = 0, solved = 0, wrong = 0;
   int misidentified = 0;       // solved frames with at least one match to another catalog star
   double worst_focal_pct = 0;  // largest |f_fit / f_true - 1| of the solved frames, percent
+  double worst_focal_z = 0;    // largest |f_fit - f_true| / the reported sigma of f_fit
   std::vector<double> ms;      // identify wall time per frame
   std::vector<double> cpu_ms;  // identify CPU time of the thread per frame
   int hypotheses_max = 0;
@@ -110,6 +111,7 @@ inline UnknownFovCampaign RunUnknownFov(int n, uint64_t seed0, const IdentifyOpt
     const double fe = 100 * (r.focal_length_px / truth.focal_length_px - 1);
     c.focal_pct.push_back(fe);
     c.worst_focal_pct = std::max(c.worst_focal_pct, std::abs(fe));
+    c.worst_focal_z = std::max(c.worst_focal_z, std::abs(r.focal_length_px - truth.focal_length_px) / r.focal_length_sigma_px);
     for (const auto& m : r.matches) {
       if (f.truth_id[m.centroid] != m.star_id) {
         ++c.misidentified;  // e.g. a faint catalog neighbour taken for the simulated star

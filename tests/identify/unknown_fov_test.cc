@@ -30,15 +30,16 @@ TEST(UnknownFov, CatalogSpansTheRange) {
 }
 
 // Frames of 10-20 deg (1024 x 768, stars to V 6, 10% missing, 3 false), the focal length unknown:
-// all solved, none wrong, focal length within 0.2 %.
+// all solved, none wrong, focal length within 0.2 % and within 5 of its reported sigmas.
 TEST(UnknownFov, SolvesFramesOfUnknownFocalLength) {
   const UnknownFovCampaign c = RunUnknownFov(16, 300, UnknownFovOptions());
-  std::printf("unknown FOV 8-25 deg, 10-20 deg frames: %d/%d solved, %d wrong, worst focal error %.4f %%, median %.1f ms\n",
-              c.solved, c.frames, c.wrong, c.worst_focal_pct, c.MedianMs());
+  std::printf("unknown FOV 8-25 deg, 10-20 deg frames: %d/%d solved, %d wrong, worst focal error %.4f %% (%.1f sigma), "
+              "median %.1f ms\n", c.solved, c.frames, c.wrong, c.worst_focal_pct, c.worst_focal_z, c.MedianMs());
   EXPECT_GE(c.solved, 15);
   EXPECT_EQ(c.wrong, 0);
   EXPECT_EQ(c.misidentified, 0);
   EXPECT_LT(c.worst_focal_pct, 0.2);
+  EXPECT_LT(c.worst_focal_z, 5.0);
 }
 
 // Random centroids: every solve is false. At a loose threshold the observed rate stays below it.
