@@ -59,6 +59,7 @@ ExtraFit FTestExtra(const std::string& name, const MatrixXd& nuisance, const Mat
   out.test.dof = q;
   out.test.dof_resid = dof;
   out.test.f = std::max(0.0, (ss0 - ss1) / q / (ss1 / dof));
+  if (!std::isfinite(out.test.f)) return ExtraFit{};  // boost's distributions throw on a non-finite statistic
   out.test.p_value = boost::math::cdf(boost::math::complement(boost::math::fisher_f(q, dof), out.test.f));
   out.fitted = e0 - e1;
   out.scale2 = ss1 / dof;
@@ -110,8 +111,12 @@ FrameResidual TestFrameResidual(const SolvedFrameSet& set, const Camera& camera,
   // Grid of the cell tests: as many cells as the stars fill with residual_min_stars_per_cell each.
   const int grid = std::clamp(static_cast<int>(std::sqrt(ns / static_cast<double>(o.residual_min_stars_per_cell))), 2, 4);
   auto cell_of = [&](double x, double y) {
-    const int cx = std::clamp(static_cast<int>((x + 0.5) / camera.width * grid), 0, grid - 1);
-    const int cy = std::clamp(static_cast<int>((y + 0.5) / camera.height * grid), 0, grid - 1);
+    // (clamped as doubles: a star the model puts far outside must not overflow the cast)
+    auto index = [&](double t, int size) {
+      const double u = (t + 0.5) / size * grid;
+      return std::isfinite(u) ? static_cast<int>(std::clamp(u, 0.0, grid - 1.0)) : 0;
+    };
+    const int cx = index(x, camera.width), cy = index(y, camera.height);
     return cy * grid + cx;
   };
   double mean_mag = 0;

@@ -705,7 +705,7 @@ GyroResidual TestResidual(const Design& d, const std::vector<NoiseModel>& nm, co
   if (fundamental_hz > 0) {
     const int r = fundamental_log, m = static_cast<int>(d.bins[r].t_s.size());
     // Phase bins of at least 4 bins per cycle, at most 12.
-    const int nb = std::clamp(static_cast<int>(0.25 / (fundamental_hz * d.bins[r].bin_s)), 0, 12);
+    const int nb = static_cast<int>(std::clamp(0.25 / (fundamental_hz * d.bins[r].bin_s), 0.0, 12.0));
     if (nb >= 6) {
       MatrixXd x = MatrixXd::Zero(d.n, nb + 3);
       VectorXd sn, cs;
