@@ -84,5 +84,44 @@ TEST(LostInSpaceLong, CalibrationWrongFocalLength) {
   }
 }
 
+// Tolerance mode's attitude covariance (focal scale marginalised) against Shuster's with the focal
+// length taken as known: mean NEES over the solved Kelvins-style scenes (focal length 5-15 % wrong,
+// tolerance 15 %, 0-40 false objects, deterministic budget). Figures in docs/results.md.
+TEST(LostInSpaceLong, ToleranceModeNees) {
+  const Camera truth = KelvinsCamera();
+  const StarIdentifier& id = BscIdentifier(10.0);
+  SolveOptions so;
+  so.identify = KelvinsIdentifyOptions();
+  so.identify.max_hypotheses = 20000;
+  so.identify.fov_tolerance_pct = 15;
+  SceneSimOptions sc;
+  sc.centroid_noise_px = KelvinsNoisePx();
+  sc.false_objects_max = 40;
+  double with_scale = 0, without = 0;
+  int n = 0;
+  for (int k = 0; k < Trials(300); ++k) {
+    const uint64_t seed = Seed0(300000) + k;
+    Rng rng(seed);
+    Camera guess = truth;
+    guess.focal_length_px *= (rng.Uniform() < 0.5 ? 1 - rng.Uniform(0.05, 0.15) : 1 + rng.Uniform(0.05, 0.15));
+    const SimulatedScene s = SimulateScene(truth, Bsc(), RandomAttitude(seed), sc, seed);
+    const SolveResult r = SolveCentroids(id, s.centroids, guess, so);
+    if (r.status != "solved") continue;
+    Quat d = s.q_inertial_from_sensor.conjugate() * r.attitude.q_inertial_from_sensor;
+    if (d.w() < 0) d.coeffs() = -d.coeffs();
+    const Vec3 e = 2 * d.vec();  // sensor-frame error rotation
+    std::vector<WahbaObservation> obs;
+    for (const auto& m : r.identification.matches) obs.push_back({m.b_sensor, m.r_inertial, m.sigma_rad});
+    with_scale += e.dot(r.attitude.covariance_rad2.inverse() * e);
+    without += e.dot(AttitudeInformation(obs, false) * e);
+    ++n;
+  }
+  std::printf("tolerance mode: %d solved, mean NEES %.2f (focal scale marginalised), %.2f (focal length as known)\n", n,
+              with_scale / std::max(1, n), without / std::max(1, n));
+  ASSERT_GT(n, 0);
+  // chi-square(3) mean over n solves: 3 +/- 2.576 sqrt(6 / n) (two-sided 99%).
+  EXPECT_LT(std::abs(with_scale / n - 3), 2.576 * std::sqrt(6.0 / n));
+}
+
 }  // namespace
 }  // namespace ssiu
