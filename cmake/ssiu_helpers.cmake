@@ -15,6 +15,7 @@ function(ssiu_add_test)
   add_executable(${A_NAME} ${A_SOURCES})
   target_compile_options(${A_NAME} PRIVATE ${SSIU_WARNINGS})
   target_link_libraries(${A_NAME} PRIVATE ${A_DEPS} ssiu_testing GTest::gtest GTest::gmock GTest::gtest_main)
+  add_dependencies(${A_NAME} ssiu_opencv)  # loaded on first use by the stubs (core/opencv_edge.h)
   add_test(NAME ${A_NAME} COMMAND ${A_NAME})
   set_tests_properties(${A_NAME} PROPERTIES
     ENVIRONMENT "SSIU_SHARED_DIR=${SSIU_SHARED_DIR};SSIU_SOURCE_DIR=${CMAKE_SOURCE_DIR};SSIU_BINARY_DIR=${CMAKE_BINARY_DIR}")
@@ -29,13 +30,20 @@ function(ssiu_add_bench)
   add_executable(${A_NAME} ${A_SOURCES})
   target_compile_options(${A_NAME} PRIVATE ${SSIU_WARNINGS})
   target_link_libraries(${A_NAME} PRIVATE ${A_DEPS} benchmark::benchmark)
+  add_dependencies(${A_NAME} ssiu_opencv)
 endfunction()
 
-# ssiu_add_stage(NAME stage DEPS lower stages/libraries): the stage library from every .cc in its
-# folder (so parallel work on one stage never edits this file); header-only until it has a .cc.
+# ssiu_add_stage(NAME stage DEPS lower stages/libraries [OPENCV_EDGE a.cc ...]): the stage library
+# from every .cc in its folder (so parallel work on one stage never edits this file); header-only until
+# it has a .cc. OPENCV_EDGE files go to the module libssiu_opencv.so instead (core/opencv_edge.h), so
+# that the stage library, and `ssiu`, do not link OpenCV.
 function(ssiu_add_stage)
-  cmake_parse_arguments(A "" "NAME" "DEPS" ${ARGN})
+  cmake_parse_arguments(A "" "NAME" "DEPS;OPENCV_EDGE" ${ARGN})
   file(GLOB _src CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*.cc)
+  foreach(f ${A_OPENCV_EDGE})
+    list(REMOVE_ITEM _src ${CMAKE_CURRENT_SOURCE_DIR}/${f})
+    set_property(GLOBAL APPEND PROPERTY SSIU_OPENCV_EDGE_SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/${f})
+  endforeach()
   if(_src)
     ssiu_add_library(NAME ${A_NAME} SOURCES ${_src} DEPS ${A_DEPS})
   else()

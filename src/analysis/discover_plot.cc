@@ -1,5 +1,4 @@
 // Residual quiver plots of `ssiu discover frames --plot DIR` (OpenCV stays in this file).
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
@@ -8,7 +7,7 @@
 
 #include "analysis/discover_frames.h"
 #include "core/error.h"
-#include "core/image.h"
+#include "core/image_cv.h"
 
 namespace ssiu {
 

@@ -3,11 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/error.h"
-#include "core/image.h"
+#include "core/image_cv.h"
 
 namespace ssiu {
 namespace {

@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "core/error.h"
-#include "core/image.h"
+#include "core/image_cv.h"
 
 namespace ssiu {
 

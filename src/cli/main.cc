@@ -2,7 +2,6 @@
 // exit status (conventions.md): 0 done, 1 bad input or usage (one line naming file/field), 2 internal.
 #include <iostream>
 #include <map>
-#include <opencv2/core.hpp>
 
 #include "cli/command.h"
 #include "core/error.h"
@@ -47,9 +46,6 @@ int main(int argc, char** argv) {
   } catch (const ssiu::InputError& e) {
     std::cerr << "ssiu: error: " << e.what() << "\n";
     return 1;
-  } catch (const cv::Exception& e) {
-    std::cerr << "ssiu: internal error (OpenCV): " << e.err << "\n";
-    return 2;
   } catch (const std::exception& e) {
     std::cerr << "ssiu: internal error: " << e.what() << "\n";
     return 2;

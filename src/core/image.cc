@@ -5,9 +5,9 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <opencv2/core.hpp>
 
 #include "core/error.h"
 #include "core/fits_lazy.h"
@@ -332,37 +332,39 @@ void CheckPngOutputName(const std::string& path) {
   }
 }
 
-std::string PngBytes(const cv::Mat& m, int level) {
-  const int depth = m.depth() == CV_8U ? 8 : m.depth() == CV_16U ? 16 : 0;
-  const int ch = m.channels();
-  if (depth == 0 || ch < 1 || ch > 4 || m.dims != 2 || m.empty()) {
+std::string PngBytes(const void* pixels, int width, int height, int channels, int depth, size_t stride_bytes, int level) {
+  if ((depth != 8 && depth != 16) || channels < 1 || channels > 4 || width < 1 || height < 1 ||
+      stride_bytes < static_cast<size_t>(width) * channels * (depth / 8)) {
     throw std::invalid_argument("PngBytes: only 8/16-bit images of 1-4 channels");
   }
   // Rows packed, and OpenCV's colour order BGR(A) turned into PNG's RGB(A).
-  const size_t row = static_cast<size_t>(m.cols) * ch;
+  const size_t row = static_cast<size_t>(width) * channels;
   std::vector<uint16_t> wide;
   std::vector<uint8_t> narrow;
-  (depth == 8 ? narrow.resize(row * m.rows) : wide.resize(row * m.rows));
-  for (int y = 0; y < m.rows; ++y) {
+  (depth == 8 ? narrow.resize(row * height) : wide.resize(row * height));
+  for (int y = 0; y < height; ++y) {
+    const char* line = static_cast<const char*>(pixels) + y * stride_bytes;
     for (size_t i = 0; i < row; ++i) {
-      const size_t c = i % ch, src = ch >= 3 && c < 3 ? i - c + (2 - c) : i;  // B <-> R
+      const size_t c = i % channels, src = channels >= 3 && c < 3 ? i - c + (2 - c) : i;  // B <-> R
       if (depth == 8) {
-        narrow[y * row + i] = m.ptr<uint8_t>(y)[src];
+        narrow[y * row + i] = reinterpret_cast<const uint8_t*>(line)[src];
       } else {
-        wide[y * row + i] = m.ptr<uint16_t>(y)[src];
+        uint16_t v;
+        std::memcpy(&v, line + 2 * src, 2);
+        wide[y * row + i] = v;
       }
     }
   }
-  return EncodePng(depth == 8 ? static_cast<const void*>(narrow.data()) : wide.data(), m.cols, m.rows, ch, depth, level);
+  return EncodePng(depth == 8 ? static_cast<const void*>(narrow.data()) : wide.data(), width, height, channels, depth, level);
 }
 
-void WritePng(const std::string& path, const cv::Mat& m) {
+void WritePng(const std::string& path, const void* pixels, int width, int height, int channels, int depth, size_t stride_bytes) {
   // The format is PNG whatever the name says: a name with another extension is a usage error (once an
   // OpenCV exception, exit 2), a name without one (or a device such as /dev/stdout) is fine.
   CheckPngOutputName(path);
   std::string png;
   try {
-    png = PngBytes(m);
+    png = PngBytes(pixels, width, height, channels, depth, stride_bytes);
   } catch (const std::invalid_argument&) {
     throw InputError(path, "cannot encode PNG");
   }
@@ -370,11 +372,11 @@ void WritePng(const std::string& path, const cv::Mat& m) {
 }
 
 void WritePng16(const std::string& path, const Image16& image) {
-  WritePng(path, cv::Mat(image.height, image.width, CV_16UC1, const_cast<uint16_t*>(image.pixels.data())));
+  WritePng(path, image.pixels.data(), image.width, image.height, 1, 16, static_cast<size_t>(image.width) * 2);
 }
 
 void WritePng8(const std::string& path, int width, int height, const std::vector<uint8_t>& pixels) {
-  WritePng(path, cv::Mat(height, width, CV_8UC1, const_cast<uint8_t*>(pixels.data())));
+  WritePng(path, pixels.data(), width, height, 1, 8, static_cast<size_t>(width));
 }
 
 void WriteFits16(const std::string& path, const Image16& image) {

@@ -8,10 +8,6 @@
 #include <string>
 #include <vector>
 
-namespace cv {
-class Mat;
-}
-
 namespace ssiu {
 
 // Non-owning view of a 16-bit single-channel image (AprilTag's image_u8 idea). stride in pixels.
@@ -79,10 +75,12 @@ Frame SubtractDark(const Frame& frame, const Frame& dark, double pedestal_adu = 
 
 // PNG outputs, written atomically (core/output.h); InputError naming the file when it cannot be
 // written or its name has an extension other than .png.
-void WritePng(const std::string& path, const cv::Mat& image);
-// The PNG file of an 8/16-bit image of 1-4 channels (OpenCV order: grey, BGR, BGRA), deflated at
-// `level` (libdeflate, 1-12); std::invalid_argument for another type. No OpenCV codec involved.
-std::string PngBytes(const cv::Mat& image, int level = 6);
+// Pixels: `channels` (1-4, OpenCV's order: grey, BGR, BGRA) of `depth` bits (8 or 16, native
+// order) each, rows stride_bytes apart (core/image_cv.h takes a cv::Mat).
+void WritePng(const std::string& path, const void* pixels, int width, int height, int channels, int depth, size_t stride_bytes);
+// The PNG file of such an image, deflated at `level` (libdeflate, 1-12); std::invalid_argument for
+// another type. No OpenCV codec involved.
+std::string PngBytes(const void* pixels, int width, int height, int channels, int depth, size_t stride_bytes, int level = 6);
 // InputError unless `path` names a PNG (extension .png, or none): checked before work is done.
 void CheckPngOutputName(const std::string& path);
 void WritePng16(const std::string& path, const Image16& image);

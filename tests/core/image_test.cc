@@ -1,4 +1,5 @@
 #include "core/image.h"
+#include "core/image_cv.h"
 
 #include <libdeflate.h>
 
