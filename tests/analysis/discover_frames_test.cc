@@ -222,6 +222,13 @@ TEST(DiscoverFramesCli, HotPixelsDefectMapAndCompareSim) {
   EXPECT_EQ(d["cause"], "hot_pixels");
   EXPECT_GE(d["hot_pixels"].size(), 25u);
   EXPECT_GT(d["gain"].get<double>(), 2.0);
+  // Issue 18's gates and residual block in the JSON: the named cause's verdict, nothing left unexplained.
+  bool named = false;
+  for (const auto& c : d["candidates"]) named = named || (c["cause"] == "hot_pixels" && c["verdict"] == "named");
+  EXPECT_TRUE(named) << d["candidates"].dump();
+  EXPECT_FALSE(d["residual"]["structured"].get<bool>()) << d["residual"].dump();
+  EXPECT_GE(d["residual"]["tests"].size(), 4u);
+  EXPECT_FALSE(d.contains("partial_cause"));
   const DefectMap map = LoadDefectMap(dir + "/defects.png");
   EXPECT_EQ(static_cast<size_t>(std::count_if(map.mask.begin(), map.mask.end(), [](uint8_t v) { return v != 0; })),
             d["hot_pixels"].size());
