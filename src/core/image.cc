@@ -179,11 +179,11 @@ Frame ReadRaster(const std::string& path, int64_t max_side_px) {
     in.read(reinterpret_cast<char*>(bytes.data()), n);
     if (!in) throw InputError(path, "read failed");
   }
-  // The common case, non-interlaced 8/16-bit grey PNG, has its own fast decoder (png_decode.h);
-  // it packs the IDAT chunks in place, so libpng gets a fresh copy of the file.
-  std::vector<uint8_t> copy = bytes;
+  // The common case, non-interlaced 8/16-bit grey PNG, has its own fast decoder (png_decode.h). It
+  // packs the IDAT chunks in place, but declines (returns false) only before the first IDAT, so libpng
+  // gets the file as read (no copy of it: ~0.5 ms of a 1 Mpx frame's start, issue 17).
   Frame fast;
-  if (DecodeGreyPng(copy, path, &fast)) return fast;
+  if (DecodeGreyPng(bytes, path, &fast)) return fast;
   return FrameFromSamples(DecodePngLibpng(bytes, path, max_side_px), path);
 }
 

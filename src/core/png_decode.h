@@ -13,8 +13,9 @@
 namespace ssiu {
 
 // Decodes `bytes` (a whole PNG file; modified in place: the IDAT payloads are packed together).
-// Returns false, leaving `out` alone, when the PNG is of another kind (colour, palette, grey+alpha,
-// interlaced, 1/2/4-bit, transparency chunk) so the caller can fall back; throws InputError naming
+// Returns false, leaving `out` and `bytes` alone (it decides before the first IDAT), when the PNG is of
+// another kind (colour, palette, grey+alpha, interlaced, 1/2/4-bit, transparency chunk) so the caller
+// can fall back; throws InputError naming
 // `path` and the failing chunk or field for a corrupt or truncated file (CRC, zlib, sizes).
 bool DecodeGreyPng(std::vector<uint8_t>& bytes, const std::string& path, Frame* out);
 

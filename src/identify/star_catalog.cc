@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <sys/file.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -14,6 +15,7 @@
 #include <cstring>
 #include <fstream>
 #include <iomanip>
+#include <memory>
 #include <sstream>
 #include <unordered_set>
 
@@ -439,29 +441,39 @@ void SaveSolverCatalog(const SolverCatalog& cat, const std::string& dir) {
 
 namespace {
 
-// The whole file in one read (catalog.bin is read once: checked against meta.json, then parsed).
-std::string ReadWhole(const std::string& path) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) throw InputError(path, "missing");
-  struct Close {
-    int fd;
-    ~Close() { ::close(fd); }
-  } close_fd{fd};
-  struct stat st;
-  if (::fstat(fd, &st) != 0) throw InputError(path, "cannot stat");
-  std::string bytes(static_cast<size_t>(st.st_size), '\0');
-  size_t got = 0;
-  while (got < bytes.size()) {
-    const ssize_t n = ::read(fd, bytes.data() + got, bytes.size() - got);
-    if (n <= 0) break;
-    got += static_cast<size_t>(n);
+// catalog.bin mapped read-only: the CRC and the parse read the page cache itself (no zeroed buffer,
+// no copy: ~1 ms of a 3 MB catalog's load). A writer replaces the file by rename (core/output.h), so the
+// mapped bytes cannot change under us.
+class MappedFile {
+ public:
+  explicit MappedFile(const std::string& path) {
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) throw InputError(path, "missing");
+    struct stat st;
+    if (::fstat(fd, &st) != 0) {
+      ::close(fd);
+      throw InputError(path, "cannot stat");
+    }
+    size_ = static_cast<size_t>(st.st_size);
+    if (size_ > 0) map_ = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
+    ::close(fd);
+    if (map_ == MAP_FAILED) throw InputError(path, "cannot map");
   }
-  bytes.resize(got);
-  return bytes;
-}
+  ~MappedFile() {
+    if (map_ && map_ != MAP_FAILED) ::munmap(map_, size_);
+  }
+  MappedFile(const MappedFile&) = delete;
+  MappedFile& operator=(const MappedFile&) = delete;
+  const char* data() const { return static_cast<const char*>(map_); }
+  size_t size() const { return size_; }
+
+ private:
+  void* map_ = nullptr;
+  size_t size_ = 0;
+};
 
 // CheckCatalogDir, keeping what it read: catalog.bin's bytes and meta.json (when kOk).
-CatalogDirState CheckCatalogDirKeep(const std::string& dir, std::string* why, std::string* bin, Json* meta) {
+CatalogDirState CheckCatalogDirKeep(const std::string& dir, std::string* why, std::unique_ptr<MappedFile>* bin, Json* meta) {
   const std::string bin_path = dir + "/catalog.bin", meta_path = dir + "/meta.json";
   if (!FileExists(meta_path)) {
     if (why) *why = FileExists(bin_path) ? "no meta.json (a build that did not finish)" : "no catalog";
@@ -471,11 +483,12 @@ CatalogDirState CheckCatalogDirKeep(const std::string& dir, std::string* why, st
     *meta = ReadJsonFile(meta_path);
     const int64_t bytes = JsonInt(*meta, "catalog_bin_bytes", 0, int64_t{1} << 40, meta_path);
     const int64_t crc = JsonInt(*meta, "catalog_bin_crc32", 0, 0xffffffffLL, meta_path);
-    *bin = ReadWhole(bin_path);
-    if (static_cast<int64_t>(bin->size()) != bytes) {
-      throw InputError(bin_path, "damaged: " + std::to_string(bin->size()) + " bytes, meta.json records " + std::to_string(bytes));
+    *bin = std::make_unique<MappedFile>(bin_path);
+    const MappedFile& f = **bin;
+    if (static_cast<int64_t>(f.size()) != bytes) {
+      throw InputError(bin_path, "damaged: " + std::to_string(f.size()) + " bytes, meta.json records " + std::to_string(bytes));
     }
-    if (Crc32(bin->data(), bin->size()) != static_cast<uint32_t>(crc)) {
+    if (Crc32(f.data(), f.size()) != static_cast<uint32_t>(crc)) {
       throw InputError(bin_path, "damaged: its CRC-32 differs from the one meta.json records");
     }
   } catch (const InputError& e) {
@@ -486,7 +499,7 @@ CatalogDirState CheckCatalogDirKeep(const std::string& dir, std::string* why, st
 }
 
 // Parses catalog.bin (format 4, or 3 whose features and index are recomputed) checked by CheckCatalogDirKeep.
-SolverCatalog ParseCatalog(const std::string& bin, const Json& meta, const std::string& dir) {
+SolverCatalog ParseCatalog(const MappedFile& bin, const Json& meta, const std::string& dir) {
   const std::string path = dir + "/catalog.bin";
   size_t pos = 0;
   auto get = [&](void* p, size_t n) {
@@ -558,13 +571,14 @@ SolverCatalog ParseCatalog(const std::string& bin, const Json& meta, const std::
 }  // namespace
 
 CatalogDirState CheckCatalogDir(const std::string& dir, std::string* why) {
-  std::string bin;
+  std::unique_ptr<MappedFile> bin;
   Json meta;
   return CheckCatalogDirKeep(dir, why, &bin, &meta);
 }
 
 SolverCatalog LoadSolverCatalog(const std::string& dir) {
-  std::string why, bin;
+  std::string why;
+  std::unique_ptr<MappedFile> bin;
   Json meta;
   switch (CheckCatalogDirKeep(dir, &why, &bin, &meta)) {
     case CatalogDirState::kAbsent:
@@ -575,7 +589,7 @@ SolverCatalog LoadSolverCatalog(const std::string& dir) {
     case CatalogDirState::kOk:
       break;
   }
-  return ParseCatalog(bin, meta, dir);
+  return ParseCatalog(*bin, meta, dir);
 }
 
 std::string CatalogCacheDir() {
@@ -623,11 +637,12 @@ SolverCatalog LoadOrBuildCatalogIn(const std::string& dir, const std::string& so
     int fd;
     ~Unlock() { ::close(fd); }  // closing releases the flock
   } unlock{fd};
-  std::string why, bin;
+  std::string why;
+  std::unique_ptr<MappedFile> bin;
   Json meta;
   const CatalogDirState state = CheckCatalogDirKeep(dir, &why, &bin, &meta);
   if (state == CatalogDirState::kOk) {
-    SolverCatalog cat = ParseCatalog(bin, meta, dir);
+    SolverCatalog cat = ParseCatalog(*bin, meta, dir);
     // A pattern index for another field of view finds few or wrong triangles (issue 16).
     if (!(std::abs(cat.fov_deg / o.fov_deg - 1) <= kCatalogFovTolerance)) {
       char msg[256];
