@@ -14,6 +14,7 @@
 #include <stdexcept>
 
 #include "core/error.h"
+#include "core/lazy_library.h"
 
 namespace ssiu {
 namespace {
@@ -90,6 +91,49 @@ bool ReadPng(png_structp png, png_infop info, PngSource* src, int64_t max_side_p
 }
 
 // ---- libtiff ----
+
+// libtiff is loaded on first use: it links libjpeg, libwebp, libzstd, liblzma, libLerc and libjbig
+// (7 libraries, ~0.3 ms at every start of `ssiu`, issue 17), and most runs read no TIFF.
+struct TiffApi {
+  decltype(&TIFFOpenOptionsAlloc) OpenOptionsAlloc;
+  decltype(&TIFFOpenOptionsSetErrorHandlerExtR) OpenOptionsSetErrorHandlerExtR;
+  decltype(&TIFFOpenOptionsSetWarningHandlerExtR) OpenOptionsSetWarningHandlerExtR;
+  decltype(&TIFFOpenExt) OpenExt;
+  decltype(&TIFFOpenOptionsFree) OpenOptionsFree;
+  decltype(&TIFFClose) Close;
+  decltype(&TIFFGetField) GetField;
+  decltype(&TIFFGetFieldDefaulted) GetFieldDefaulted;
+  decltype(&TIFFIsTiled) IsTiled;
+  decltype(&TIFFTileSize) TileSize;
+  decltype(&TIFFReadTile) ReadTile;
+  decltype(&TIFFScanlineSize) ScanlineSize;
+  decltype(&TIFFReadScanline) ReadScanline;
+  decltype(&TIFFReadRGBAImageOriented) ReadRGBAImageOriented;
+};
+
+const TiffApi& Tiff() {
+  static const TiffApi api = [] {  // C++11: initialised once, thread-safe; retried if it threw
+    constexpr const char* so = SSIU_LIBTIFF_SONAME;
+    void* lib = internal::OpenLazyLibrary(so, "TIFF support");
+    TiffApi a{};
+    internal::Resolve(lib, so, "TIFFOpenOptionsAlloc", &a.OpenOptionsAlloc);
+    internal::Resolve(lib, so, "TIFFOpenOptionsSetErrorHandlerExtR", &a.OpenOptionsSetErrorHandlerExtR);
+    internal::Resolve(lib, so, "TIFFOpenOptionsSetWarningHandlerExtR", &a.OpenOptionsSetWarningHandlerExtR);
+    internal::Resolve(lib, so, "TIFFOpenExt", &a.OpenExt);
+    internal::Resolve(lib, so, "TIFFOpenOptionsFree", &a.OpenOptionsFree);
+    internal::Resolve(lib, so, "TIFFClose", &a.Close);
+    internal::Resolve(lib, so, "TIFFGetField", &a.GetField);
+    internal::Resolve(lib, so, "TIFFGetFieldDefaulted", &a.GetFieldDefaulted);
+    internal::Resolve(lib, so, "TIFFIsTiled", &a.IsTiled);
+    internal::Resolve(lib, so, "TIFFTileSize", &a.TileSize);
+    internal::Resolve(lib, so, "TIFFReadTile", &a.ReadTile);
+    internal::Resolve(lib, so, "TIFFScanlineSize", &a.ScanlineSize);
+    internal::Resolve(lib, so, "TIFFReadScanline", &a.ReadScanline);
+    internal::Resolve(lib, so, "TIFFReadRGBAImageOriented", &a.ReadRGBAImageOriented);
+    return a;
+  }();
+  return api;
+}
 
 int TiffError(TIFF*, void* user, const char* module, const char* fmt, va_list ap) {
   auto* msg = static_cast<std::string*>(user);
@@ -179,24 +223,25 @@ bool IsTiff(const std::vector<uint8_t>& b) {
 }
 
 RasterSamples DecodeTiff(const std::string& path, int64_t max_side_px) {
+  const TiffApi& tiff = Tiff();
   std::string err;
-  TIFFOpenOptions* opts = TIFFOpenOptionsAlloc();
+  TIFFOpenOptions* opts = tiff.OpenOptionsAlloc();
   if (!opts) throw InputError(path, "out of memory decoding TIFF");
-  TIFFOpenOptionsSetErrorHandlerExtR(opts, TiffError, &err);
-  TIFFOpenOptionsSetWarningHandlerExtR(opts, TiffWarning, nullptr);
-  TIFF* t = TIFFOpenExt(path.c_str(), "r", opts);
-  TIFFOpenOptionsFree(opts);
+  tiff.OpenOptionsSetErrorHandlerExtR(opts, TiffError, &err);
+  tiff.OpenOptionsSetWarningHandlerExtR(opts, TiffWarning, nullptr);
+  TIFF* t = tiff.OpenExt(path.c_str(), "r", opts);
+  tiff.OpenOptionsFree(opts);
   if (!t) throw Undecodable(path, err);
-  std::unique_ptr<TIFF, void (*)(TIFF*)> close(t, TIFFClose);
+  std::unique_ptr<TIFF, void (*)(TIFF*)> close(t, tiff.Close);
   uint32_t w = 0, h = 0;
   uint16_t bits = 1, spp = 1, planar = PLANARCONFIG_CONTIG, format = SAMPLEFORMAT_UINT, photo = PHOTOMETRIC_MINISBLACK;
-  TIFFGetField(t, TIFFTAG_IMAGEWIDTH, &w);
-  TIFFGetField(t, TIFFTAG_IMAGELENGTH, &h);
-  TIFFGetFieldDefaulted(t, TIFFTAG_BITSPERSAMPLE, &bits);
-  TIFFGetFieldDefaulted(t, TIFFTAG_SAMPLESPERPIXEL, &spp);
-  TIFFGetFieldDefaulted(t, TIFFTAG_PLANARCONFIG, &planar);
-  TIFFGetFieldDefaulted(t, TIFFTAG_SAMPLEFORMAT, &format);
-  TIFFGetField(t, TIFFTAG_PHOTOMETRIC, &photo);
+  tiff.GetField(t, TIFFTAG_IMAGEWIDTH, &w);
+  tiff.GetField(t, TIFFTAG_IMAGELENGTH, &h);
+  tiff.GetFieldDefaulted(t, TIFFTAG_BITSPERSAMPLE, &bits);
+  tiff.GetFieldDefaulted(t, TIFFTAG_SAMPLESPERPIXEL, &spp);
+  tiff.GetFieldDefaulted(t, TIFFTAG_PLANARCONFIG, &planar);
+  tiff.GetFieldDefaulted(t, TIFFTAG_SAMPLEFORMAT, &format);
+  tiff.GetField(t, TIFFTAG_PHOTOMETRIC, &photo);
   if (w == 0 || h == 0) throw InputError(path, "image has zero size");
   if (w > max_side_px || h > max_side_px) {
     throw InputError(path, "image is larger than the limit of " + std::to_string(max_side_px) +
@@ -212,17 +257,17 @@ RasterSamples DecodeTiff(const std::string& path, int64_t max_side_px) {
     out.depth = bits;
     const size_t row_samples = static_cast<size_t>(w) * spp;
     out.samples.resize(row_samples * h);
-    if (TIFFIsTiled(t)) {
+    if (tiff.IsTiled(t)) {
       uint32_t tw = 0, th = 0;
-      TIFFGetField(t, TIFFTAG_TILEWIDTH, &tw);
-      TIFFGetField(t, TIFFTAG_TILELENGTH, &th);
+      tiff.GetField(t, TIFFTAG_TILEWIDTH, &tw);
+      tiff.GetField(t, TIFFTAG_TILELENGTH, &th);
       if (tw == 0 || th == 0) throw Undecodable(path, "tile size is zero");
-      std::vector<uint8_t> tile(static_cast<size_t>(TIFFTileSize(t)));
+      std::vector<uint8_t> tile(static_cast<size_t>(tiff.TileSize(t)));
       const size_t tile_row = static_cast<size_t>(tw) * spp;
       if (tile.size() < tile_row * th * (bits / 8)) throw Undecodable(path, "tile size does not match the tile's pixels");
       for (uint32_t ty = 0; ty < h; ty += th)
         for (uint32_t tx = 0; tx < w; tx += tw) {
-          if (TIFFReadTile(t, tile.data(), tx, ty, 0, 0) < 0) throw Undecodable(path, err);
+          if (tiff.ReadTile(t, tile.data(), tx, ty, 0, 0) < 0) throw Undecodable(path, err);
           const uint32_t cols = std::min(tw, w - tx), rows = std::min(th, h - ty);
           for (uint32_t y = 0; y < rows; ++y) {
             CopySamples(tile.data() + y * tile_row * (bits / 8), bits, static_cast<size_t>(cols) * spp,
@@ -230,10 +275,10 @@ RasterSamples DecodeTiff(const std::string& path, int64_t max_side_px) {
           }
         }
     } else {
-      std::vector<uint8_t> line(static_cast<size_t>(TIFFScanlineSize(t)));
+      std::vector<uint8_t> line(static_cast<size_t>(tiff.ScanlineSize(t)));
       if (line.size() < row_samples * (bits / 8)) throw Undecodable(path, "scanline size does not match the width");
       for (uint32_t y = 0; y < h; ++y) {
-        if (TIFFReadScanline(t, line.data(), y, 0) < 0) throw Undecodable(path, err);
+        if (tiff.ReadScanline(t, line.data(), y, 0) < 0) throw Undecodable(path, err);
         CopySamples(line.data(), bits, row_samples, out.samples.data() + y * row_samples);
       }
     }
@@ -244,7 +289,7 @@ RasterSamples DecodeTiff(const std::string& path, int64_t max_side_px) {
   }
   // Palette, YCbCr, CMYK, 1-4 bit, separate planes: libtiff's RGBA reader (8-bit RGBA).
   std::vector<uint32_t> rgba(static_cast<size_t>(w) * h);
-  if (!TIFFReadRGBAImageOriented(t, w, h, rgba.data(), ORIENTATION_TOPLEFT, 0)) throw Undecodable(path, err);
+  if (!tiff.ReadRGBAImageOriented(t, w, h, rgba.data(), ORIENTATION_TOPLEFT, 0)) throw Undecodable(path, err);
   out.channels = 4;
   out.depth = 8;
   out.samples.resize(rgba.size() * 4);

@@ -1,6 +1,7 @@
 // A fast start (issue 17): `ssiu` loads OpenCV only when it draws or needs OpenCV's geometry, from the
-// module libssiu_opencv.so (core/opencv_edge.h); the common path (--help, detect, solve) loads neither,
-// and a solve with --overlay loads both and writes the same overlay as before (checked by its pixels).
+// module libssiu_opencv.so (core/opencv_edge.h), and libtiff only for a TIFF (core/lazy_library.h); the
+// common path (--help, detect, solve of a PNG) loads none of them, and a solve with --overlay loads the
+// module and OpenCV and writes an overlay.
 #include <opencv2/imgcodecs.hpp>
 
 #include <filesystem>
@@ -29,6 +30,7 @@ TEST(StartupCli, CommonPathLoadsNoOpenCvAndAnOverlayLoadsItOnUse) {
   EXPECT_EQ(status, 0);
   EXPECT_THAT(out, HasSubstr("calling init: "));  // the loader did report (else the checks below prove nothing)
   EXPECT_THAT(out, Not(HasSubstr("libopencv")));
+  EXPECT_THAT(out, Not(HasSubstr("libtiff")));
   out = LoadedBy("detect " + d + "/f/frame_0000.png --camera " + d + "/f/camera.json --json " + d + "/d.json", &status);
   EXPECT_EQ(status, 0) << out;
   EXPECT_THAT(out, Not(HasSubstr("libopencv")));
@@ -37,6 +39,7 @@ TEST(StartupCli, CommonPathLoadsNoOpenCvAndAnOverlayLoadsItOnUse) {
   EXPECT_EQ(status, 0) << out;
   EXPECT_THAT(out, Not(HasSubstr("libopencv")));
   EXPECT_THAT(out, Not(HasSubstr("libssiu_opencv")));
+  EXPECT_THAT(out, Not(HasSubstr("libtiff")));
   out = LoadedBy(solve + " --overlay " + d + "/o.png", &status);
   EXPECT_EQ(status, 0) << out;
   EXPECT_THAT(out, HasSubstr("libssiu_opencv.so"));
