@@ -1,3 +1,5 @@
+include(GoogleTest)
+
 # One-line helpers for a stage library, a test and a benchmark (after COLMAP's COLMAP_ADD_LIBRARY).
 
 # ssiu_add_library(NAME stage SOURCES a.cc b.cc DEPS ssiu_core ...)
@@ -10,18 +12,22 @@ function(ssiu_add_library)
 endfunction()
 
 # ssiu_add_test(NAME detect_test SOURCES detect_test.cc DEPS ssiu_detect [LABELS long])
+# Every GoogleTest test becomes its own ctest entry (listed at ctest time, so the program is not run
+# at build time): `ctest -R Suite.Name` runs one, and ctest -j balances them across cores.
 function(ssiu_add_test)
   cmake_parse_arguments(A "" "NAME" "SOURCES;DEPS;LABELS" ${ARGN})
   add_executable(${A_NAME} ${A_SOURCES})
   target_compile_options(${A_NAME} PRIVATE ${SSIU_WARNINGS})
   target_link_libraries(${A_NAME} PRIVATE ${A_DEPS} ssiu_testing GTest::gtest GTest::gmock GTest::gtest_main)
   add_dependencies(${A_NAME} ssiu_opencv)  # loaded on first use by the stubs (core/opencv_edge.h)
-  add_test(NAME ${A_NAME} COMMAND ${A_NAME})
-  set_tests_properties(${A_NAME} PROPERTIES
-    ENVIRONMENT "SSIU_SHARED_DIR=${SSIU_SHARED_DIR};SSIU_SOURCE_DIR=${CMAKE_SOURCE_DIR};SSIU_BINARY_DIR=${CMAKE_BINARY_DIR}")
+  # One label: `long` for the Monte-Carlo programs (kept out of CI by -LE long), else the program's
+  # name (ctest -L core_test). The data paths are compiled into ssiu_testing (tests/CMakeLists.txt).
   if(A_LABELS)
-    set_tests_properties(${A_NAME} PROPERTIES LABELS "${A_LABELS}")
+    set(_label ${A_LABELS})
+  else()
+    set(_label ${A_NAME})
   endif()
+  gtest_discover_tests(${A_NAME} DISCOVERY_MODE PRE_TEST DISCOVERY_TIMEOUT 60 PROPERTIES LABELS ${_label})
 endfunction()
 
 # ssiu_add_bench(NAME detect_bench SOURCES detect_bench.cc DEPS ssiu_detect)

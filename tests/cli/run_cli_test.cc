@@ -73,9 +73,7 @@ TEST_F(RunCli, PrintConfigWritesTheBuiltInDefault) {
 
 // examples/ssiu_mission.json is the built-in default written out (kept in step with the code).
 TEST_F(RunCli, ExampleConfigIsTheBuiltInDefault) {
-  const char* src = std::getenv("SSIU_SOURCE_DIR");
-  if (!src || !*src) GTEST_SKIP() << "SSIU_SOURCE_DIR not set (run through ctest)";
-  const auto ex = testing::RunSsiu("run --print-config --config " + std::string(src) + "/examples/ssiu_mission.json");
+  const auto ex = testing::RunSsiu("run --print-config --config " + testing::SourceDir() + "/examples/ssiu_mission.json");
   ASSERT_EQ(ex.status, 0) << ex.output;
   const auto def = testing::RunSsiu("run --print-config");
   ASSERT_EQ(def.status, 0) << def.output;

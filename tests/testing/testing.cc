@@ -12,12 +12,21 @@
 namespace ssiu::testing {
 namespace fs = std::filesystem;
 
-std::string SharedDir() {
-  const char* env = std::getenv("SSIU_SHARED_DIR");
-  if (!env || !*env) return "";
-  std::error_code ec;
-  return fs::is_directory(env, ec) ? std::string(env) : "";
+namespace {
+// The environment variable when it is set, else the path CMake compiled in.
+std::string EnvOr(const char* name, const char* compiled) {
+  const char* env = std::getenv(name);
+  return env && *env ? std::string(env) : std::string(compiled);
 }
+}  // namespace
+
+std::string SharedDir() {
+  const std::string dir = EnvOr("SSIU_SHARED_DIR", SSIU_TEST_SHARED_DIR);
+  std::error_code ec;
+  return !dir.empty() && fs::is_directory(dir, ec) ? dir : "";
+}
+
+std::string SourceDir() { return EnvOr("SSIU_SOURCE_DIR", SSIU_TEST_SOURCE_DIR); }
 
 std::string SharedData(const std::string& relative) {
   const std::string dir = SharedDir();
@@ -27,10 +36,7 @@ std::string SharedData(const std::string& relative) {
   return fs::exists(p, ec) ? p : "";
 }
 
-std::string SsiuProgram() {
-  const char* env = std::getenv("SSIU_BINARY_DIR");
-  return std::string(env ? env : ".") + "/ssiu";
-}
+std::string SsiuProgram() { return EnvOr("SSIU_BINARY_DIR", SSIU_TEST_BINARY_DIR) + "/ssiu"; }
 
 std::string TempDir(const std::string& name) {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();

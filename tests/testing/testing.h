@@ -13,11 +13,13 @@
 
 namespace ssiu::testing {
 
-// ../shared (from $SSIU_SHARED_DIR, set by ctest); empty when absent.
+// ../shared ($SSIU_SHARED_DIR, else the path CMake was configured with); empty when absent.
 std::string SharedDir();
+// The source tree ($SSIU_SOURCE_DIR, else the configured one).
+std::string SourceDir();
 // Path of a file under shared/data, or "" (and the test should skip) when it is absent.
 std::string SharedData(const std::string& relative);
-// The built `ssiu` program.
+// The built `ssiu` program ($SSIU_BINARY_DIR/ssiu, else the configured build's).
 std::string SsiuProgram();
 // A fresh temporary directory for one test.
 std::string TempDir(const std::string& name);
