@@ -6,6 +6,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include "core/error.h"
+
 namespace ssiu {
 namespace {
 
@@ -76,20 +78,20 @@ const char* AllanNoiseName(AllanNoise noise) {
 
 void AllanOptions::Check() const {
   if (points_per_decade < 1 || points_per_decade > 1000) {
-    throw std::invalid_argument("AllanOptions.points_per_decade must be in 1..1000");
+    throw InputError("AllanOptions.points_per_decade must be in 1..1000");
   }
-  if (!(confidence > 0 && confidence < 1)) throw std::invalid_argument("AllanOptions.confidence must be in (0, 1)");
-  if (min_samples < 4) throw std::invalid_argument("AllanOptions.min_samples must be at least 4");
+  if (!(confidence > 0 && confidence < 1)) throw InputError("AllanOptions.confidence must be in (0, 1)");
+  if (min_samples < 4) throw InputError("AllanOptions.min_samples must be at least 4");
 }
 
 void NoiseFitOptions::Check() const {
-  if (!(tau_min_s >= 0) || !(tau_max_s >= 0)) throw std::invalid_argument("NoiseFitOptions: tau limits must be >= 0");
-  if (tau_max_s > 0 && tau_max_s <= tau_min_s) throw std::invalid_argument("NoiseFitOptions: tau_max_s <= tau_min_s");
-  if (!(dominance > 0 && dominance <= 1)) throw std::invalid_argument("NoiseFitOptions.dominance must be in (0, 1]");
-  if (iterations < 1 || iterations > 100) throw std::invalid_argument("NoiseFitOptions.iterations must be in 1..100");
-  if (!(model_error >= 0 && model_error < 1)) throw std::invalid_argument("NoiseFitOptions.model_error must be in [0, 1)");
-  if (!(floor_min_edf >= 0)) throw std::invalid_argument("NoiseFitOptions.floor_min_edf must be >= 0");
-  if (!std::isfinite(term_penalty)) throw std::invalid_argument("NoiseFitOptions.term_penalty must be finite");
+  if (!(tau_min_s >= 0) || !(tau_max_s >= 0)) throw InputError("NoiseFitOptions: tau limits must be >= 0");
+  if (tau_max_s > 0 && tau_max_s <= tau_min_s) throw InputError("NoiseFitOptions: tau_max_s <= tau_min_s");
+  if (!(dominance > 0 && dominance <= 1)) throw InputError("NoiseFitOptions.dominance must be in (0, 1]");
+  if (iterations < 1 || iterations > 100) throw InputError("NoiseFitOptions.iterations must be in 1..100");
+  if (!(model_error >= 0 && model_error < 1)) throw InputError("NoiseFitOptions.model_error must be in [0, 1)");
+  if (!(floor_min_edf >= 0)) throw InputError("NoiseFitOptions.floor_min_edf must be >= 0");
+  if (!std::isfinite(term_penalty)) throw InputError("NoiseFitOptions.term_penalty must be finite");
 }
 
 double ChiSquaredSurvival(double x, double dof) {
@@ -174,10 +176,10 @@ void SetConfidenceIntervals(AllanCurve* c, double confidence) {
 
 AllanCurve OverlappingAllanDeviation(const std::vector<double>& rate, double fs, const AllanOptions& options) {
   options.Check();
-  if (!(fs > 0) || !std::isfinite(fs)) throw std::invalid_argument("OverlappingAllanDeviation: sample rate must be > 0");
+  if (!(fs > 0) || !std::isfinite(fs)) throw InputError("OverlappingAllanDeviation: sample rate must be > 0");
   const size_t n = rate.size();
   if (n < options.min_samples) {
-    throw std::invalid_argument("too few samples for an Allan deviation: " + std::to_string(n) + " < " +
+    throw InputError("too few samples for an Allan deviation: " + std::to_string(n) + " < " +
                                 std::to_string(options.min_samples));
   }
   const double tau0 = 1 / fs;
@@ -185,7 +187,7 @@ AllanCurve OverlappingAllanDeviation(const std::vector<double>& rate, double fs,
   // removing it keeps the second differences of the phase free of cancellation.
   long double mean = 0;
   for (double r : rate) {
-    if (!std::isfinite(r)) throw std::invalid_argument("OverlappingAllanDeviation: non-finite sample");
+    if (!std::isfinite(r)) throw InputError("OverlappingAllanDeviation: non-finite sample");
     mean += r;
   }
   mean /= n;

@@ -26,7 +26,7 @@ struct AllanOptions {
   int points_per_decade = 10;  // density of the log-spaced tau grid (averaging factors m are integers)
   double confidence = 0.683;   // two-sided confidence level of adev_lo..adev_hi (0.683 = 1 sigma)
   size_t min_samples = 16;     // fewer rate samples than this is bad input
-  void Check() const;          // std::invalid_argument on a bad value
+  void Check() const;          // InputError on a bad value
 };
 
 // An Allan-deviation curve, computed from a log or read from a file.
@@ -46,7 +46,7 @@ struct AllanCurve {
 // rate samples, with chi-squared confidence intervals from the equivalent degrees of freedom of
 // Howe, Allan & Barnes (1981) as tabulated in NIST SP 1065 Table 5. The noise type at each tau is
 // identified from the local log-log slope of the curve. The caller validates input files;
-// std::invalid_argument on too few samples, a non-finite sample or a bad rate.
+// InputError on too few samples, a non-finite sample or a bad rate.
 AllanCurve OverlappingAllanDeviation(const std::vector<double>& rate, double sample_rate_hz,
                                      const AllanOptions& options = {});
 

@@ -17,7 +17,7 @@ bool Drawable(double v, bool log) { return std::isfinite(v) && (!log || v > 0); 
 
 void PlotOptions::Check() const {
   if (width_px < 200 || height_px < 150 || width_px > 8000 || height_px > 8000) {
-    throw std::invalid_argument("PlotOptions: size must be 200x150 .. 8000x8000 px");
+    throw InputError("PlotOptions: size must be 200x150 .. 8000x8000 px");
   }
 }
 

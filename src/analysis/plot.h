@@ -31,7 +31,7 @@ struct PlotOptions {
   bool log_y = false;
   std::string title, x_label, y_label;
   bool legend_bottom_left = false;  // default top right; bottom left suits falling curves (ADEV)
-  void Check() const;  // std::invalid_argument on a bad value
+  void Check() const;  // InputError on a bad value
 };
 
 // Maps data to pixels for a given set of series and options (exposed so tests can find a point).

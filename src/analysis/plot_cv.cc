@@ -66,9 +66,9 @@ void DashedLine(cv::Mat& img, cv::Point2d a, cv::Point2d b, cv::Scalar color, in
 void WritePlotPng(const std::string& path, const std::vector<PlotSeries>& series, const PlotOptions& o) {
   o.Check();
   for (const auto& s : series) {
-    if (s.x.size() != s.y.size()) throw std::invalid_argument("PlotSeries '" + s.label + "': x and y differ in size");
+    if (s.x.size() != s.y.size()) throw InputError("PlotSeries '" + s.label + "': x and y differ in size");
     if ((!s.y_lo.empty() || !s.y_hi.empty()) && (s.y_lo.size() != s.y.size() || s.y_hi.size() != s.y.size())) {
-      throw std::invalid_argument("PlotSeries '" + s.label + "': error bars must match y in size");
+      throw InputError("PlotSeries '" + s.label + "': error bars must match y in size");
     }
   }
   const PlotFrame f(series, o);

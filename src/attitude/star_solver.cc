@@ -39,11 +39,7 @@ void Finish(const StarIdentifier& id, const SkyCorrections& sky, SolveResult* r)
 void SolveOptions::Check() const {
   identify.Check();
   sky.Check();
-  try {
-    detect.Check();
-  } catch (const std::invalid_argument& e) {
-    throw InputError("detect options", e.what());
-  }
+  detect.Check();
   if (!(detector_sigma_scale > 0 && detector_sigma_scale < 100))
     throw InputError("solve options", "detector_sigma_scale must be in (0, 100)");
   if (!(track_search_radius_px > 0 && track_search_radius_px < 1000))

@@ -27,11 +27,7 @@ void Run(const Opts& o) {
   for (const auto& f : frames) views.push_back(f.image.view());
   DefectMapOptions opt;
   opt.sigma = o.sigma;
-  try {
-    opt.Check();
-  } catch (const std::invalid_argument& e) {
-    throw InputError(e.what());
-  }
+  opt.Check();
   const DefectMap m = BuildDefectMap(views, opt);
   size_t hot = 0, dead = 0;
   for (uint8_t v : m.mask) {

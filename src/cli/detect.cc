@@ -77,11 +77,7 @@ Json DetectOne(const Opts& o, const Setup& s, const std::string& path, Detection
   // No cap: a frame cannot hold more sources than a quarter of its pixels (each is a local maximum).
   const long long no_cap = static_cast<long long>(fr.image.width) * fr.image.height / 4 + 1;
   opt.max_stars = o.max_stars > 0 ? o.max_stars : static_cast<int>(std::min<long long>(no_cap, 100000000));
-  try {
-    opt.Check();
-  } catch (const std::invalid_argument& e) {
-    throw InputError(e.what());
-  }
+  opt.Check();
   *d = Detect(fr.image.view(), opt, s.map.empty() ? nullptr : &s.map);
   Json j = DetectionsToJson(*d, path, fr.value_scale, fr.value_offset);
   j["grey_conversion"] = fr.grey_conversion;

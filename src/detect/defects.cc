@@ -10,16 +10,16 @@
 namespace ssiu {
 
 void DefectMapOptions::Check() const {
-  if (!std::isfinite(sigma) || sigma < 3) throw std::invalid_argument("DefectMapOptions: sigma must be >= 3");
-  if (tile_px < 8) throw std::invalid_argument("DefectMapOptions: tile_px must be >= 8");
+  if (!std::isfinite(sigma) || sigma < 3) throw InputError("DefectMapOptions: sigma must be >= 3");
+  if (tile_px < 8) throw InputError("DefectMapOptions: tile_px must be >= 8");
 }
 
 DefectMap BuildDefectMap(const std::vector<ImageView>& frames, const DefectMapOptions& o) {
   o.Check();
-  if (frames.empty()) throw std::invalid_argument("BuildDefectMap: no frames");
+  if (frames.empty()) throw InputError("BuildDefectMap: no frames");
   const int w = frames[0].width, h = frames[0].height;
   for (const auto& f : frames) {
-    if (f.width != w || f.height != h) throw std::invalid_argument("BuildDefectMap: frames differ in size");
+    if (f.width != w || f.height != h) throw InputError("BuildDefectMap: frames differ in size");
   }
   // Votes per pixel: a defect stands out from the local background in most frames (a star or a
   // cosmic ray does so in one frame only; with a single median frame, one vote decides).

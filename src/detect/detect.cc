@@ -10,6 +10,7 @@
 
 #include <Eigen/Dense>
 
+#include "core/error.h"
 #include "detect/background.h"
 #include "detect/psf_fit.h"
 #include "detect/row_kernels.h"
@@ -92,7 +93,7 @@ const char* RejectReasonName(RejectReason r) {
 
 void DetectOptions::Check() const {
   auto need = [](bool ok, const char* what) {
-    if (!ok) throw std::invalid_argument(std::string("DetectOptions: ") + what);
+    if (!ok) throw InputError(std::string("DetectOptions: ") + what);
   };
   need(std::isfinite(threshold_sigma) && threshold_sigma >= 2 && threshold_sigma <= 100, "threshold_sigma must be in [2, 100]");
   need(std::isfinite(min_snr) && min_snr >= 0, "min_snr must be >= 0");
@@ -109,12 +110,12 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
   opt.Check();
   const auto t_start = Clock::now();
   const int w = view.width, h = view.height;
-  if (w < 16 || h < 16 || view.data == nullptr) throw std::invalid_argument("Detect: image smaller than 16x16");
+  if (w < 16 || h < 16 || view.data == nullptr) throw InputError("Detect: image smaller than 16x16");
   if (defects && !defects->empty() && (defects->width != w || defects->height != h)) {
-    throw std::invalid_argument("Detect: defect map size differs from the image");
+    throw InputError("Detect: defect map size differs from the image");
   }
   if (opt.smear.active() && (opt.smear.camera.width != w || opt.smear.camera.height != h)) {
-    throw std::invalid_argument("Detect: smear.camera size differs from the image");
+    throw InputError("Detect: smear.camera size differs from the image");
   }
   Detections out;
   out.width = w;

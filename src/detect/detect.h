@@ -34,7 +34,7 @@ struct DetectOptions {
   // active, each star is fitted as the PSF smeared along its predicted path (detect/smear.h) and the
   // shape tests allow that smear, not more: cosmic rays and streaks that do not match stay rejected.
   ExpectedSmear smear;
-  void Check() const;             // throws std::invalid_argument naming the field
+  void Check() const;             // throws InputError naming the field
 };
 
 struct StarDetection {

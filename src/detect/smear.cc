@@ -9,17 +9,13 @@
 namespace ssiu {
 
 void ExpectedSmear::Check() const {
-  if (!rate_rad_s.allFinite()) throw std::invalid_argument("DetectOptions: smear.rate_rad_s must be finite");
+  if (!rate_rad_s.allFinite()) throw InputError("DetectOptions: smear.rate_rad_s must be finite");
   if (!(std::isfinite(exposure_s) && exposure_s >= 0 && exposure_s < 100)) {
-    throw std::invalid_argument("DetectOptions: smear.exposure_s must be in [0, 100)");
+    throw InputError("DetectOptions: smear.exposure_s must be in [0, 100)");
   }
-  if (!(std::isfinite(min_px) && min_px >= 0)) throw std::invalid_argument("DetectOptions: smear.min_px must be >= 0");
+  if (!(std::isfinite(min_px) && min_px >= 0)) throw InputError("DetectOptions: smear.min_px must be >= 0");
   if (!active()) return;
-  try {
-    camera.Check("DetectOptions: smear.camera");
-  } catch (const InputError& e) {
-    throw std::invalid_argument(e.what());
-  }
+  camera.Check("DetectOptions: smear.camera");
 }
 
 std::optional<Vec2> ExpectedSmear::PathAt(const Vec2& pixel, double t_s) const {

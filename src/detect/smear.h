@@ -25,7 +25,7 @@ struct ExpectedSmear {
   double min_px = 1.0;
 
   bool active() const { return exposure_s > 0 && rate_rad_s.squaredNorm() > 0; }
-  // Throws std::invalid_argument naming the field (a non-finite rate, exposure < 0, a bad camera).
+  // Throws InputError naming the field (a non-finite rate, exposure < 0, a bad camera).
   void Check() const;
   // Pixel of the direction seen at `pixel` at mid-exposure, `t_s` later (nullopt when behind the camera).
   std::optional<Vec2> PathAt(const Vec2& pixel, double t_s) const;

@@ -348,11 +348,7 @@ py::object DetectPy(const py::object& image, const py::object& camera, const py:
     CheckFrameMatchesCamera(f.view, cam);
     if (!kwargs.contains("gain_e_per_adu")) o.gain_e_per_adu = cam.gain_e_per_adu;
   }
-  try {
-    o.Check();
-  } catch (const std::invalid_argument& e) {
-    throw InputError(e.what());
-  }
+  o.Check();
   Detections d;
   {
     py::gil_scoped_release nogil;
@@ -457,12 +453,8 @@ py::object AllanPy(const py::array_t<double, py::array::c_style | py::array::for
   if (r.size() < ao.min_samples)
     throw py::value_error("too few samples (" + std::to_string(r.size()) + ", need " + std::to_string(ao.min_samples) +
                           ")");
-  try {
-    ao.Check();
-    fo.Check();
-  } catch (const std::invalid_argument& e) {
-    throw InputError(e.what());
-  }
+  ao.Check();
+  fo.Check();
   AllanCurve curve;
   NoiseFit fit;
   {

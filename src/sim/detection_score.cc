@@ -4,6 +4,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "core/error.h"
+
 namespace ssiu {
 namespace {
 
@@ -18,7 +20,7 @@ double DistanceToArtefactPx(double x, double y, const SimArtefact& a) {
 
 void ScoreOptions::Check() const {
   if (!(match_radius_px > 0) || !std::isfinite(match_radius_px)) {
-    throw std::invalid_argument("ScoreOptions: match_radius_px must be positive and finite");
+    throw InputError("ScoreOptions: match_radius_px must be positive and finite");
   }
 }
 

@@ -17,7 +17,7 @@ struct ScoreOptions {
   // under a cosmic-ray track or a satellite streak (within 4 px plus its smear) is not counted either:
   // overlapping images are one blob, correctly merged or rejected, not a miss. Off: 4 px, tracks ignored.
   bool smear_aware = false;
-  void Check() const;  // throws std::invalid_argument
+  void Check() const;  // throws InputError
 };
 
 struct DetectionScore {

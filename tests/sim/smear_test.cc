@@ -117,15 +117,15 @@ TEST(Smear, RatesAreOptionsOfTheJsonAndFlagTable) {
   // The detector's side: a non-finite rate or a negative exposure is refused.
   DetectOptions d;
   d.smear.exposure_s = -1;
-  EXPECT_THROW(d.Check(), std::invalid_argument);
+  EXPECT_THROW(d.Check(), InputError);
   d.smear.exposure_s = 0.1;
   d.smear.rate_rad_s = Vec3(std::nan(""), 0, 0);
-  EXPECT_THROW(d.Check(), std::invalid_argument);
+  EXPECT_THROW(d.Check(), InputError);
   // ... and a camera that is not the frame's.
   d.smear.rate_rad_s = Vec3(0.01, 0, 0);
   d.smear.camera = MakeCamera(512, 512, 16.6);
   const Image16 frame(1024, 1024, 200);
-  EXPECT_THROW(Detect(frame.view(), d), std::invalid_argument);
+  EXPECT_THROW(Detect(frame.view(), d), InputError);
 }
 
 // `ssiu simulate frame` takes the rates as flags (the option table) and writes each star's smear.
@@ -205,7 +205,7 @@ TEST(SmearScore, SmearAwareBlendAndTrackRulesAgainstAHandMadeTruth) {
   EXPECT_NEAR(total.centroid_rms_px, 0.1 / std::sqrt(2.0), 1e-12);
   EXPECT_NEAR(total.recall_snr10(), 6.0 / 9, 1e-12);
   o.match_radius_px = std::nan("");
-  EXPECT_THROW(ScoreDetections(f, d, o), std::invalid_argument);
+  EXPECT_THROW(ScoreDetections(f, d, o), InputError);
 }
 
 // The simulator's rates are handed to the detector as a smear only when asked.
