@@ -29,7 +29,8 @@
 //  4b. Gates, in BIC order until one passes: the parameters lie within physical bounds (temperature
 //     and field must move; K, ppm, delay, amplitude limits; no cancelling terms; a walk needs >= 1 h)
 //     and the held-out improvement is significant: z = e.p / sqrt(p' S p) (e held-out base residual,
-//     p held-out prediction, S the fitted noise covariance) above the one-sided quantile of gain_alpha.
+//     p held-out prediction, S the fitted noise covariance) above the one-sided quantile of gain_alpha,
+//     and seen in the held-out blocks' own scatter too (paired block z > min_block_z).
 //  4c. `unexplained`: the residual of the named cause (or of the base) is whitened with a noise model
 //     refitted on it and tested (spectral peak, Ljung-Box, runs, regression on every logged column, and
 //     jumps: levels that take two values, against a bootstrap of the wander; Bonferroni over the five at
@@ -74,6 +75,10 @@ struct GyroDiscoverOptions {
   // Gates (docs/discrepancy.md): a cause is named only when its held-out improvement is significant
   // at gain_alpha (one-sided, Bonferroni over logs) and its parameters lie within the physical bounds.
   double gain_alpha = 0.01;
+  // ... and the same improvement judged by the scatter of the held-out blocks themselves (paired over
+  // the cv_blocks blocks, no noise model) must exceed this many of its standard errors: a consistency
+  // check of the modelled z, not a second test (docs/discrepancy.md).
+  double min_block_z = 0.5;
   double min_temp_span_c = 1.0;    // temperature terms are tested only when T moves at least this much
   double min_field_span_ut = 1.0;  // a logged field component is a regressor only when it moves this much
   double rrw_min_log_s = 3600;     // a random walk is tested only on logs at least this long
@@ -98,6 +103,7 @@ struct GyroCandidate {
   // Gates, for the significant candidates tried in BIC order until one passes.
   bool evaluated = false;
   double gain = 0, gain_z = 0;  // held-out gain and its significance (z of the improvement)
+  double gain_z_blocks = 0;     // the same z from the held-out blocks' own scatter (no noise model)
   std::string verdict;          // "named", "gain not significant", "outside bounds: ...", ...
 };
 

@@ -248,6 +248,10 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
   cmd->add_option("--gain-alpha", o->opt.gain_alpha,
                   "One-sided false-alarm probability of the held-out gain's significance gate")
       ->capture_default_str();
+  cmd->add_option("--min-block-z", o->opt.min_block_z,
+                  "The held-out improvement judged by the held-out blocks' own scatter must exceed this many "
+                  "standard errors (consistency check of the modelled gain z)")
+      ->capture_default_str();
   cmd->add_option("--min-temp-span-c", o->opt.min_temp_span_c, "Temperature terms tested only when T moves this much")
       ->capture_default_str();
   cmd->add_option("--rrw-min-log-s", o->opt.rrw_min_log_s, "Random walk tested only on logs this long")

@@ -61,7 +61,8 @@ inline void ScoreGyroCase(const std::string& variant, const GyroCase& c, const G
     for (const auto& cand : d.candidates) {
       if (!cand.applicable) continue;
       std::cout << "   " << cand.cause << " stat " << cand.statistic << " p " << cand.p_value;
-      if (cand.evaluated) std::cout << " gain " << cand.gain << " z " << cand.gain_z << " " << cand.verdict;
+      if (cand.evaluated)
+        std::cout << " gain " << cand.gain << " z " << cand.gain_z << " zb " << cand.gain_z_blocks << " " << cand.verdict;
       std::cout << "\n";
     }
   }

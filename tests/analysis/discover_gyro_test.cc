@@ -131,6 +131,15 @@ TEST(DiscoverGyro, HeldOutGateRefusesWhatItCannotConfirm) {
     }
   }
   EXPECT_TRUE(refused);
+  // The block consistency check (issue 18): an improvement the held-out blocks' own scatter cannot show
+  // is not named either.
+  GyroDiscoverOptions ob;
+  ob.min_block_z = 1e9;
+  const GyroDiscovery db = DiscoverGyro(c.logs, ob);
+  EXPECT_EQ(db.cause, "none");
+  bool not_seen = false;
+  for (const auto& cand : db.candidates) not_seen = not_seen || cand.verdict == "held-out gain not seen in the blocks";
+  EXPECT_TRUE(not_seen);
 }
 
 }  // namespace
