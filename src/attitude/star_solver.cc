@@ -174,6 +174,7 @@ Json SolveResultToJson(const SolveResult& r) {
   j["focal_length_sigma_px"] = NumOrNull(ok && r.identification.focal_length_fitted ? r.identification.focal_length_sigma_px : nan);
   j["outliers_rejected"] = r.identification.outliers_rejected;
   j["false_match_probability"] = r.identification.false_match_probability;
+  j["photometric_factor"] = r.identification.photometric_factor;
   Json m = Json::array();
   if (ok) {
     for (const auto& s : r.identification.matches) {

@@ -45,6 +45,8 @@ void AddSolverFlags(CLI::App* cmd, Opts* o) {
       ->delimiter(',');
   cmd->add_option("--max-false-prob", o->solve.identify.max_false_match_prob, "Accept below this chance probability")
       ->capture_default_str();
+  cmd->add_flag_callback("--no-photometry", [o] { o->solve.identify.use_photometry = false; },
+                         "Lost in space: leave the centroids' fluxes out of the chance probability (geometry only)");
   cmd->add_option("--timeout-ms", o->solve.identify.timeout_ms,
                   "Lost in space: stop the hypothesis search after this much CPU time, no_match (0 = no limit)")
       ->capture_default_str();

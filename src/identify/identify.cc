@@ -45,6 +45,7 @@ struct Context {
   int m = 0;                     // verification centroids
   double median_sigma_px = 0;    // typical centroid sigma (with the systematic part)
   double match_radius_px = 0;
+  bool photometry = false;       // fluxes usable as photometric evidence (all > 0, not all equal)
 };
 
 struct Verification {
@@ -317,6 +318,33 @@ void RefineFocal(const Context& ctx, const std::vector<StarMatch>& ms, Camera* c
 // rotation, and the scale when the focal length is fitted. Returns the index into ms, or -1 when
 // every d_i / s^2 <= outlier_sigmas^2 (or too few degrees of freedom are left to tell). A match whose
 // removal leaves a direction of the fit undetermined cannot be tested.
+// Photometric evidence (docs/identify.md, step 5). Under the null hypothesis (a chance match) the
+// fluxes are independent of the positions, so given the positions (which alone chose the hypothesis
+// and its matches) the fluxes of the verification centroids are exchangeable. Two conditionally
+// exact tests, each turned into an e-value (a statistic with mean 1 under the null):
+// - the triangle: the rank order of its three fluxes against its three catalog magnitudes is one of
+//   3! equally likely ones; p = P(D <= d) for d discordant pairs (ties count as discordant), exact
+//   values 1/6, 3/6, 5/6, 1, and e = 1 / (p C), C = sum over the atoms of P(p = t) / t = 67/30;
+// - each extra match in the test's (geometric) order: given the pairs before it, its flux is a
+//   uniform draw from the N centroids not yet used. Its flux predicted from their zero point (median
+//   of ln f + 0.4 ln(10) V) ranks K-th closest among those N (ties counted in), p = K / N and
+//   e = 1 / (p H_N), H_N the N-th harmonic number (= E[1/p]).
+// The product E of these has mean 1 (each factor's mean is 1 given the ones before), and so has the
+// mixture (1 + E) / 2, which bounds the cost of photometry that disagrees (a colour term, a saturated
+// star) to a factor 2. Returned: 2 / (1 + E), the factor on the geometric p-value. With p_g valid and
+// E's null distribution not depending on the positions, P(p_g * 2 / (1 + E) <= x) <= x E[(1 + E) / 2] = x.
+// `ms`: the triangle's three pairs first, then the extra matches in the order they were tested.
+double PhotometricFactor(const Context& ctx, const std::vector<StarMatch>& ms) {
+  if (!ctx.photometry || ms.size() < 3) return 1.0;
+  const auto& c = *ctx.c;
+  std::vector<double> flux, mag, other;
+  std::vector<char> used(c.size(), 0);
+  for (const auto& m : ms) flux.push_back(c[m.centroid].flux), mag.push_back(m.mag), used[m.centroid] = 1;
+  for (int q = 0; q < ctx.m; ++q)
+    if (!used[ctx.order[q]]) other.push_back(c[ctx.order[q]].flux);
+  return 2.0 / (1.0 + PhotometricEvidence(flux, mag, other));
+}
+
 int WorstOutlier(const Context& ctx, const IdentifyOptions& o, const std::vector<StarMatch>& ms, const Camera& cam,
                  const Mat3& r, bool fit_scale) {
   const int np = fit_scale ? 4 : 3;
@@ -406,6 +434,11 @@ Context MakeContext(const StarIdentifier* id, const std::vector<Centroid>& c, co
     med = s[s.size() / 2];
   }
   ctx.median_sigma_px = med;
+  // Photometry needs a flux on every centroid; equal fluxes (e.g. all 1) carry no evidence.
+  ctx.photometry = o.use_photometry && !c.empty();
+  for (const auto& x : c) ctx.photometry = ctx.photometry && x.flux > 0 && std::isfinite(std::log(x.flux));
+  if (ctx.photometry)
+    ctx.photometry = std::any_of(c.begin(), c.end(), [&](const Centroid& x) { return x.flux != c[0].flux; });
   ctx.match_radius_px = o.match_radius_px > 0 ? o.match_radius_px : std::max(2.0, 5.0 * med);
   return ctx;
 }
@@ -448,6 +481,38 @@ void IdentifyOptions::Check() const {
   if (!(verify_sigmas >= 1 && verify_sigmas <= 10)) bad("verify_sigmas", "must be in [1, 10]");
   if (!(outlier_sigmas >= 3 && outlier_sigmas <= 100)) bad("outlier_sigmas", "must be in [3, 100]");
   if (!(timeout_ms >= 0 && timeout_ms <= 3.6e6)) bad("timeout_ms", "must be in [0, 3600000] (0 = no limit)");
+}
+
+double PhotometricEvidence(const std::vector<double>& pair_flux, const std::vector<double>& pair_mag,
+                           const std::vector<double>& other_flux) {
+  if (pair_flux.size() < 3 || pair_flux.size() != pair_mag.size()) throw InputError("photometry", "need >= 3 pairs with a magnitude each");
+  int disc = 0;
+  for (int i = 0; i < 3; ++i)
+    for (int j = i + 1; j < 3; ++j) disc += !((pair_flux[i] - pair_flux[j]) * (pair_mag[i] - pair_mag[j]) < 0);
+  static constexpr double kTriP[4] = {1.0 / 6, 3.0 / 6, 5.0 / 6, 1.0};
+  static constexpr double kTriC = 1.0 + 2.0 / 3 + 2.0 / 5 + 1.0 / 6;  // sum over the atoms of P(p = t) / t
+  double e = 1.0 / (kTriP[disc] * kTriC);
+  const double k_mag = 0.4 * std::log(10.0);
+  std::vector<double> zp;  // ln f + 0.4 ln(10) V of the pairs so far: the zero point
+  for (int i = 0; i < 3; ++i) zp.push_back(std::log(pair_flux[i]) + k_mag * pair_mag[i]);
+  for (size_t i = 3; i < pair_flux.size(); ++i) {
+    std::vector<double> z = zp;
+    std::sort(z.begin(), z.end());
+    const size_t h = z.size() / 2;
+    const double ln_k = z.size() % 2 ? z[h] : 0.5 * (z[h - 1] + z[h]);
+    const double pred = ln_k - k_mag * pair_mag[i];
+    const double d = std::abs(std::log(pair_flux[i]) - pred);
+    // The pool: this match and the later ones, and the centroids in no pair (K counts ties in).
+    int pool = 0, within = 0;
+    auto count = [&](double f) { ++pool, within += std::abs(std::log(f) - pred) <= d; };
+    for (size_t q = i; q < pair_flux.size(); ++q) count(pair_flux[q]);
+    for (double f : other_flux) count(f);
+    double h_n = 0;
+    for (int k = 1; k <= pool; ++k) h_n += 1.0 / k;
+    e *= pool / (std::max(1, within) * h_n);
+    zp.push_back(std::log(pair_flux[i]) + k_mag * pair_mag[i]);
+  }
+  return e;
 }
 
 double BinomialTail(int n, double p, int k) {
@@ -640,7 +705,9 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
             // the factor j (j + 1) is 2 for four stars, 6 for five.
             const double u = ht.p_hit * ht.worst;
             const double j_factor = static_cast<double>(ht.extra) * (ht.extra + 1);
-            const double prob = std::min(1.0, BinomialTail(ctx.m - 3, u, ht.extra) * j_factor * hyp * seq_factor);
+            // Photometry (PhotometricFactor): an independent test of the same null, <= 2.
+            const double phot = PhotometricFactor(ctx, ht.v.matches);
+            const double prob = std::min(1.0, BinomialTail(ctx.m - 3, u, ht.extra) * j_factor * phot * hyp * seq_factor);
             if (prob < best_prob) best_prob = prob, best_k = k;
             if (prob >= o.max_false_match_prob) continue;
             // Accepted: refine the attitude (and focal length) on the matches and re-match. Then
@@ -650,6 +717,7 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
             // than the reported sigma.
             std::vector<int> test_extras;  // centroids of the test's extra matches (its evidence)
             for (size_t i = 3; i < ht.v.matches.size(); ++i) test_extras.push_back(ht.v.matches[i].centroid);
+            const std::vector<StarMatch> ht_matches = ht.v.matches;
             Refined rf = Refine(ctx, o, cam, rot, std::move(ht.v));
             std::vector<char> excluded(centroids.size(), 0);
             int rejected = 0, lost_evidence = 0;
@@ -662,12 +730,16 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
               rf = Refine(ctx, o, rf.cam, rf.r, std::move(rf.v), &excluded);
             }
             if (rejected > kMaxOutliers || static_cast<int>(rf.v.matches.size()) < o.min_matches) continue;
-            double prob_final = prob;
+            double prob_final = prob, phot_final = phot;
             if (lost_evidence > 0) {
               // A rejected extra match is no evidence: the test again without it (u kept: an upper bound).
               const int j = ht.extra - lost_evidence;
               if (j + 3 < o.min_matches) continue;
-              prob_final = std::min(1.0, BinomialTail(ctx.m - 3, u, j) * j * (j + 1.0) * hyp * seq_factor);
+              std::vector<StarMatch> kept(ht_matches.begin(), ht_matches.begin() + 3);
+              for (size_t i = 3; i < ht_matches.size(); ++i)
+                if (!excluded[ht_matches[i].centroid]) kept.push_back(ht_matches[i]);
+              phot_final = PhotometricFactor(ctx, kept);
+              prob_final = std::min(1.0, BinomialTail(ctx.m - 3, u, j) * j * (j + 1.0) * phot_final * hyp * seq_factor);
               if (prob_final >= o.max_false_match_prob) continue;
             }
             out.status = "solved";
@@ -676,6 +748,7 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
             out.focal_length_px = rf.cam.focal_length_px;
             out.focal_length_y_px = rf.cam.FocalYPx();
             out.false_match_probability = prob_final;
+            out.photometric_factor = phot_final;
             out.focal_length_fitted = focal_searched;
             if (focal_searched) {
               // The scale's 1-sigma from the pixel fit's normal equations (rotation and scale jointly).

@@ -63,6 +63,11 @@ struct IdentifyOptions {
   // clock, so that a loaded machine or a batch on many threads gives the same answers). 50 ms: on 300 Kelvins-style scenes
   // (docs/results.md) 99% of the solved ones needed less, and the 10-deg p99 budget is 50 ms.
   double timeout_ms = 50.0;
+  // Photometric evidence (docs/identify.md, step 5): under a chance match the matched centroids'
+  // fluxes are independent of the catalog magnitudes, so their agreement multiplies the chance
+  // probability by a calibrated factor (at most 2 when the photometry disagrees). Off when the
+  // centroids carry no usable flux (any <= 0, or all equal).
+  bool use_photometry = true;
   void Check() const;                  // throws InputError naming the field
   bool FovRange() const { return fov_max_deg > 0; }
   bool FocalSearched() const { return fov_tolerance_pct > 0 || FovRange(); }
@@ -90,6 +95,8 @@ struct Identification {
   double focal_length_sigma_px = 0;  // its 1-sigma from the fit (jointly with the attitude); 0 when not fitted
   int outliers_rejected = 0;         // refined matches left out as inconsistent with the others
   double false_match_probability = 1.0;
+  // The photometric factor in false_match_probability (2 / (1 + E), docs/identify.md step 5); 1 = not used.
+  double photometric_factor = 1.0;
   std::vector<StarMatch> matches;
   int hypotheses = 0;               // hypotheses verified
   int catalog_stars_in_field = 0;
@@ -123,6 +130,13 @@ class StarIdentifier {
   SolverCatalog catalog_;
   std::shared_ptr<const CatalogIndex> index_;  // the catalog's own (star_catalog.h), or built here
 };
+
+// Photometric e-value of a hypothesis (docs/identify.md, step 5): pairs are the triangle's three
+// (centroid flux > 0, catalog V) first, then the extra matches in the order they were tested;
+// other_flux the fluxes of the verification centroids in no pair. Under a chance match (fluxes
+// exchangeable given the positions) its mean is exactly 1; large when the fluxes follow the magnitudes.
+double PhotometricEvidence(const std::vector<double>& pair_flux, const std::vector<double>& pair_mag,
+                           const std::vector<double>& other_flux);
 
 // P(X >= k) for X ~ Binomial(n, p).
 double BinomialTail(int n, double p, int k);

@@ -34,6 +34,41 @@ TEST(BinomialTail, MatchesDirectSums) {
   EXPECT_NEAR(BinomialTail(5, 0.2, 5), std::pow(0.2, 5), 1e-15);
 }
 
+// The photometric e-value under the null (docs/identify.md, step 5): every assignment of eight
+// distinct fluxes to the triangle's three pairs, two extra matches and three other centroids is
+// equally likely, and the mean of E over all 8! of them must be exactly 1 (a larger mean would make
+// chance matches pass more often than --max-false-prob says).
+TEST(Photometry, EvidenceHasMeanOneOverEveryPermutation) {
+  const std::vector<double> mags = {3.1, 4.7, 2.2, 5.0, 3.9};  // triangle, then the extras in test order
+  std::vector<double> f = {1, 2, 3, 5, 8, 13, 21, 34};
+  std::sort(f.begin(), f.end());
+  double sum = 0, max_e = 0;
+  int n = 0;
+  do {
+    const double e = PhotometricEvidence({f[0], f[1], f[2], f[3], f[4]}, mags, {f[5], f[6], f[7]});
+    sum += e, max_e = std::max(max_e, e), ++n;
+  } while (std::next_permutation(f.begin(), f.end()));
+  EXPECT_EQ(n, 40320);
+  EXPECT_NEAR(sum / n, 1.0, 1e-12);
+  EXPECT_GT(max_e, 10.0);  // and it can be large: the test has power
+}
+
+// Analytic cases: a triangle in perfect rank order has p = 1/3! and E = 1 / (p C), C = 1 + 2/3 + 2/5
+// + 1/6 = 67/30; reversed order p = 1; a tie in magnitude counts as discordant. An extra match whose
+// flux is exactly the predicted one among N candidates: e = N / H_N.
+TEST(Photometry, EvidenceAnalyticCases) {
+  const std::vector<double> mags = {2.0, 3.0, 4.0};
+  auto flux = [](double v) { return std::pow(10.0, -0.4 * v); };
+  EXPECT_NEAR(PhotometricEvidence({flux(2), flux(3), flux(4)}, mags, {}), 6 * 30.0 / 67, 1e-12);
+  EXPECT_NEAR(PhotometricEvidence({flux(4), flux(3), flux(2)}, mags, {}), 30.0 / 67, 1e-12);
+  EXPECT_NEAR(PhotometricEvidence({flux(2), flux(3), flux(4)}, {2.0, 3.0, 3.0}, {}), 2 * 30.0 / 67, 1e-12);
+  // Fourth pair at V 5 with its exact flux, four other centroids far from it: K = 1 of N = 5.
+  const double h5 = 1 + 1 / 2.0 + 1 / 3.0 + 1 / 4.0 + 1 / 5.0;
+  EXPECT_NEAR(PhotometricEvidence({flux(2), flux(3), flux(4), flux(5)}, {2, 3, 4, 5}, {flux(0), flux(1), flux(8), flux(9)}),
+              6 * 30.0 / 67 * 5 / h5, 1e-9);
+  EXPECT_THROW(PhotometricEvidence({1, 2}, {1, 2}, {}), InputError);
+}
+
 TEST(Identify, SolvesSyntheticFramesWithFalseAndMissingStars) {
   const StarIdentifier& id = Bsc166();
   const Camera cam = MakeCamera(1024, 1024, 16.6);

@@ -71,5 +71,21 @@ TEST(LostInSpace, ToleranceModeOutlierDoesNotPullTheRefit) {
   EXPECT_GE(solved, 1) << "the 10-star scene (seed 209153) is solved without its outlier";
 }
 
+// Photometry (docs/identify.md, step 5): three Kelvins scenes (seed 116: 4 stars among 3 false
+// objects; 870 and 152: 5 stars among 45 and 54) that the geometric chance probability alone leaves
+// at no_match at the default threshold and that the fluxes' agreement with the catalog magnitudes
+// solves, right. Found among the 1000 scenes of LostInSpaceLong.KelvinsScenes1000.
+TEST(LostInSpace, PhotometrySolvesFewStarScenesGeometryAloneCannot) {
+  IdentifyOptions with = KelvinsIdentifyOptions(), without = KelvinsIdentifyOptions();
+  without.use_photometry = false;
+  for (uint64_t seed : {116, 870, 152}) {
+    const SceneCampaign a = RunKelvinsScenes(1, seed, with), b = RunKelvinsScenes(1, seed, without);
+    EXPECT_EQ(a.with4, 1) << "seed " << seed;
+    EXPECT_EQ(a.solved4, 1) << "seed " << seed << ": solved with photometry";
+    EXPECT_EQ(a.wrong, 0) << "seed " << seed;
+    EXPECT_EQ(b.solved4, 0) << "seed " << seed << ": not solved by geometry alone";
+  }
+}
+
 }  // namespace
 }  // namespace ssiu
