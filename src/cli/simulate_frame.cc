@@ -131,6 +131,9 @@ SSIU_REGISTER_COMMAND(simulate_frame, [](CLI::App& root) {
   cmd->add_option("--centroid-noise-px", o->scene.centroid_noise_px, "Centroid lists: 1-sigma noise per axis")
       ->capture_default_str();
   cmd->add_option("--scene-mag-max", o->scene.mag_max, "Centroid lists: faintest star seen")->capture_default_str();
+  cmd->add_option("--flux-noise-mag", o->scene.flux_noise_mag,
+                  "Centroid lists: 1-sigma scatter (mag) of every flux about 10^(-0.4 V) (photometric noise)")
+      ->capture_default_str();
   cmd->add_option("--time", o->time,
                   "Frame UTC time, ISO 8601: stars drawn with proper motion to that date and aberration (docs/simulator.md)");
   cmd->add_flag("--no-proper-motion", o->no_proper_motion, "With --time: no proper motion");

@@ -15,6 +15,7 @@ void SceneSimOptions::Check() const {
   if (!(mag_max > -2 && mag_max < 20)) bad("mag_max", "must be in (-2, 20)");
   if (!(centroid_noise_px >= 0 && centroid_noise_px < 50)) bad("centroid_noise_px", "must be in [0, 50)");
   if (!(missing_fraction >= 0 && missing_fraction <= 1)) bad("missing_fraction", "must be in [0, 1]");
+  if (!(flux_noise_mag >= 0 && flux_noise_mag <= 5)) bad("flux_noise_mag", "must be in [0, 5]");
   if (false_objects_min < 0 || false_objects_min > 10000) bad("false_objects_min", "must be in [0, 10000]");
   if (false_objects_max < false_objects_min || false_objects_max > 10000)
     bad("false_objects_max", "must be in [false_objects_min, 10000]");
@@ -25,6 +26,7 @@ SimulatedScene SimulateScene(const Camera& camera, const StarCatalog& catalog, c
   o.Check();
   camera.Check();
   Rng rng(seed);
+  Rng rng_flux(seed ^ 0x9e3779b97f4a7c15ULL);  // photometric noise: its own stream
   SimulatedScene s;
   s.q_inertial_from_sensor = q_inertial_from_sensor.normalized();
   const Mat3 r = s.q_inertial_from_sensor.toRotationMatrix();
@@ -35,7 +37,7 @@ SimulatedScene SimulateScene(const Camera& camera, const StarCatalog& catalog, c
     Centroid c;
     c.x_px = x + o.centroid_noise_px * rng.Normal();
     c.y_px = y + o.centroid_noise_px * rng.Normal();
-    c.flux = std::pow(10.0, -0.4 * mag);
+    c.flux = std::pow(10.0, -0.4 * (mag + (o.flux_noise_mag > 0 ? o.flux_noise_mag * rng_flux.Normal() : 0.0)));
     c.sigma_px = o.centroid_noise_px;
     s.centroids.push_back(c);
     s.star_id.push_back(id);

@@ -72,13 +72,14 @@ inline IdentifyOptions KelvinsIdentifyOptions() {
   return io;
 }
 
-inline SceneCampaign RunKelvinsScenes(int n, uint64_t seed0, const IdentifyOptions& io) {
+inline SceneCampaign RunKelvinsScenes(int n, uint64_t seed0, const IdentifyOptions& io, double flux_noise_mag = 0.0) {
   const Camera cam = KelvinsCamera();
   const StarIdentifier& id = BscIdentifier(10.0);
   SceneSimOptions so;
   so.centroid_noise_px = KelvinsNoisePx();
   so.false_objects_min = 0;
   so.false_objects_max = 80;
+  so.flux_noise_mag = flux_noise_mag;
   SceneCampaign c;
   for (int k = 0; k < n; ++k) {
     const uint64_t seed = seed0 + k;

@@ -30,6 +30,26 @@ TEST(LostInSpaceLong, KelvinsScenes1000) {
   }
 }
 
+// The same scenes with photometric noise on every centroid's flux (0.2 and 0.5 mag, 1 sigma): the
+// photometric factor (docs/identify.md, step 5) with realistic rather than exact fluxes.
+TEST(LostInSpaceLong, KelvinsScenesFluxNoise) {
+  for (double noise : {0.2, 0.5})
+    for (bool photometry : {true, false}) {
+    for (double alpha : {1e-5, 1e-3}) {
+      IdentifyOptions io = KelvinsIdentifyOptions();
+      io.max_false_match_prob = alpha;
+      io.use_photometry = photometry;
+      const SceneCampaign c = RunKelvinsScenes(Trials(1000), Seed0(1), io, noise);
+      std::printf("Kelvins scenes, flux noise %.1f mag, photometry %s, at %g: >= 4 stars %d/%d (%.1f%%), wrong %d; by stars:",
+                  noise, photometry ? "on" : "off", alpha, c.solved4, c.with4, 100.0 * c.solved4 / std::max(1, c.with4), c.wrong);
+      for (const auto& [k, v] : c.by_stars)
+        if (k >= 4 && k <= 6) std::printf(" %d: %d/%d", k, v.second, v.first);
+      std::printf("\n");
+      EXPECT_EQ(c.wrong, 0);
+    }
+  }
+}
+
 // Upper 1e-3 bound on the number of successes of Binomial(n, p) (normal approximation, +3 for
 // small counts): a rate "at or below the threshold" allows this many.
 int Allowed(int n, double p) { return static_cast<int>(n * p + 3.1 * std::sqrt(n * p) + 3); }

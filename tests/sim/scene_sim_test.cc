@@ -104,6 +104,34 @@ TEST(SceneSim, FalseObjectsAndMissingStars) {
   }
 }
 
+// Photometric noise: the same positions as without it (its own random stream), and the fluxes'
+// magnitude residuals against the truth have the requested sigma.
+TEST(SceneSim, FluxNoiseKeepsPositionsAndHasItsSigma) {
+  SceneSimOptions o;
+  o.false_objects_max = 40;
+  SceneSimOptions noisy = o;
+  noisy.flux_noise_mag = 0.3;
+  double sum = 0, sum_sq = 0;
+  int n = 0;
+  for (uint64_t seed = 1; seed <= 20; ++seed) {
+    const SimulatedScene a = SimulateScene(Kelvins(), Bsc(), RandomAttitude(seed), o, seed);
+    const SimulatedScene b = SimulateScene(Kelvins(), Bsc(), RandomAttitude(seed), noisy, seed);
+    ASSERT_EQ(a.centroids.size(), b.centroids.size());
+    for (size_t i = 0; i < a.centroids.size(); ++i) {
+      EXPECT_EQ(a.centroids[i].x_px, b.centroids[i].x_px);
+      EXPECT_EQ(a.centroids[i].y_px, b.centroids[i].y_px);
+      EXPECT_NEAR(a.centroids[i].flux, std::pow(10.0, -0.4 * a.mag[i]), 1e-12);
+      const double dm = -2.5 * std::log10(b.centroids[i].flux) - b.mag[i];
+      sum += dm, sum_sq += dm * dm, ++n;
+    }
+  }
+  ASSERT_GT(n, 300);
+  EXPECT_NEAR(sum / n, 0.0, 0.06);
+  EXPECT_NEAR(std::sqrt(sum_sq / n), 0.3, 0.04);
+  noisy.flux_noise_mag = -1;
+  EXPECT_THROW(SimulateScene(Kelvins(), Bsc(), RandomAttitude(1), noisy, 1), InputError);
+}
+
 TEST(SceneSim, CsvRoundTripsThroughTheSolverReader) {
   SceneSimOptions o;
   o.false_objects_min = o.false_objects_max = 12;
