@@ -2,6 +2,7 @@
 // contract, the attitude against the simulator's truth, side outputs, and bad input.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -40,6 +41,32 @@ TEST_F(SolveCli, CatalogBuildWritesACatalog) {
   ASSERT_EQ(build_->status, 0) << build_->output;
   EXPECT_TRUE(std::filesystem::is_directory(Path("cat")));
   EXPECT_FALSE(std::filesystem::is_empty(Path("cat")));
+}
+
+// Photometric evidence (docs/identify.md, step 5) through the CLI: a simulated centroid list whose
+// fluxes follow the catalog magnitudes is solved with photometric_factor < 1 (evidence for the match);
+// --no-photometry reports 1 and a chance probability larger by the same factor (same hypothesis).
+TEST_F(SolveCli, PhotometricFactorAndNoPhotometry) {
+  ASSERT_EQ(Ssiu("simulate frame --random --seed 78 --centroids-only --scene-csv --false-objects 5 --out " + Path("p"))
+                .status,
+            0);
+  const std::string base = "solve --centroids " + Path("p/frame_0000_centroids.csv") + " --camera " +
+                           Path("p/camera.json") + " --catalog " + Path("cat") + " --timeout-ms 0 --json ";
+  ASSERT_EQ(Ssiu(base + Path("with.json")).status, 0);
+  ASSERT_EQ(Ssiu(base + Path("without.json") + " --no-photometry").status, 0);
+  const Json a = ReadJsonFile(Path("with.json")), b = ReadJsonFile(Path("without.json"));
+  ASSERT_EQ(a["status"], "solved") << a["message"];
+  ASSERT_EQ(b["status"], "solved") << b["message"];
+  const double fa = a["photometric_factor"].get<double>();
+  std::printf("photometric_factor %g; chance %g with, %g without; hypotheses %d, %d\n", fa,
+              a["false_match_probability"].get<double>(), b["false_match_probability"].get<double>(),
+              a["hypotheses"].get<int>(), b["hypotheses"].get<int>());
+  EXPECT_GT(fa, 0.0);
+  EXPECT_LT(fa, 1.0);
+  EXPECT_EQ(b["photometric_factor"].get<double>(), 1.0);
+  if (a["hypotheses"] == b["hypotheses"] && a["matches"].size() == b["matches"].size()) {
+    EXPECT_NEAR(a["false_match_probability"].get<double>() / b["false_match_probability"].get<double>(), fa, 1e-6 * fa);
+  }
 }
 
 TEST_F(SolveCli, SolveFrameMatchesTruthAndWritesOverlayAndWcs) {
