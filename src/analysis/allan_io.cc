@@ -12,13 +12,10 @@
 #include "analysis/plot.h"
 #include "core/csv.h"
 #include "core/error.h"
+#include "core/types.h"
 
 namespace ssiu {
 namespace {
-
-constexpr double kPi = 3.14159265358979324;
-constexpr double kRadToDeg = 180.0 / kPi;
-constexpr double kRadToArcsec = kRadToDeg * 3600.0;
 
 bool EndsWith(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
@@ -396,12 +393,12 @@ GyroNoiseTerms ToGyroUnits(const NoiseFit& f) {
   GyroNoiseTerms g;
   g.quantization_arcsec = Scaled(f.quantization, kRadToArcsec);
   g.arw_deg_per_sqrt_h = Scaled(f.arw, kRadToDeg * 60.0);
-  g.bias_instability_dph = Scaled(f.bias_instability, kRadToDeg * 3600.0);
-  g.rrw_deg_per_h_per_sqrt_h = Scaled(f.rrw, kRadToDeg * 3600.0 * 60.0);
-  g.rate_ramp_deg_per_h2 = Scaled(f.rate_ramp, kRadToDeg * 3600.0 * 3600.0);
+  g.bias_instability_dph = Scaled(f.bias_instability, kRadSToDph);
+  g.rrw_deg_per_h_per_sqrt_h = Scaled(f.rrw, kRadSToDph * 60.0);
+  g.rate_ramp_deg_per_h2 = Scaled(f.rate_ramp, kRadSToDph * 3600.0);
   // Bias instability read from the curve's floor (IEEE 952 Annex C: B = floor / 0.664), as datasheets
   // quote it; an upper bound when random walk or ramp rise before a flat region appears.
-  const double k_floor = kRadToDeg * 3600.0 / std::sqrt(2 * std::log(2.0) / kPi);
+  const double k_floor = kRadSToDph / std::sqrt(2 * std::log(2.0) / kPi);
   NoiseTerm& fl = g.bias_instability_floor_dph;
   fl.value = f.adev_min * k_floor;
   fl.sigma = f.adev_min_sigma * k_floor;
@@ -412,7 +409,7 @@ GyroNoiseTerms ToGyroUnits(const NoiseFit& f) {
 
 Json AllanReportJson(const AllanCurve& c, const NoiseFit& fit, const Json& provenance, double confidence) {
   Json j = provenance.is_object() ? provenance : Json::object();
-  const double to_dph = kRadToDeg * 3600.0;
+  const double to_dph = kRadSToDph;
   auto dph = [&](const std::vector<double>& v) {
     std::vector<double> out;
     out.reserve(v.size());
@@ -455,7 +452,7 @@ Json AllanReportJson(const AllanCurve& c, const NoiseFit& fit, const Json& prove
 }
 
 void WriteAllanPlot(const std::string& path, const AllanCurve& c, const NoiseFit& fit, const std::string& title) {
-  const double to_dph = kRadToDeg * 3600.0;
+  const double to_dph = kRadSToDph;
   std::vector<PlotSeries> series;
   PlotSeries data;
   data.label = "overlapping ADEV";

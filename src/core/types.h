@@ -19,5 +19,7 @@ constexpr double kDegToRad = kPi / 180.0;
 constexpr double kRadToDeg = 180.0 / kPi;
 constexpr double kArcsecToRad = kDegToRad / 3600.0;
 constexpr double kRadToArcsec = 1.0 / kArcsecToRad;
+constexpr double kDphToRadS = kDegToRad / 3600.0;  // gyro rates and biases: deg/h -> rad/s
+constexpr double kRadSToDph = 1.0 / kDphToRadS;
 
 }  // namespace ssiu

@@ -265,8 +265,7 @@ StarRateIsolator::StarRateIsolator(const GyroAxes& axes, const std::vector<bool>
 }
 
 void StarRateIsolator::AddGyro(const GyroVec& g_dph, double dt_s) {
-  const double k = kDegToRad / 3600.0;
-  pending_rad_ += (g_dph - correction_dph_) * (k * dt_s);
+  pending_rad_ += (g_dph - correction_dph_) * (kDphToRadS * dt_s);
   pending_s_ += dt_s;
 }
 
@@ -304,7 +303,7 @@ GyroVec StarRateIsolator::ResidualDph() const {
   GyroVec r = GyroVec::Zero(residual_rad_.size());
   if (covered_s_ <= 0) return r;
   for (int i = 0; i < r.size(); ++i) {
-    if (use_[i]) r[i] = residual_rad_[i] / covered_s_ * kRadToDeg * 3600.0;
+    if (use_[i]) r[i] = residual_rad_[i] / covered_s_ * kRadSToDph;
   }
   return r;
 }
@@ -315,7 +314,7 @@ GyroVec StarRateIsolator::ResidualSigmaDph() const {
   const Mat3 c = end_cov_ + (chain_open_ ? r_prev_ : Mat3::Zero());
   for (int i = 0; i < s.size(); ++i) {
     const Vec3 a = axes_.row(i).transpose();
-    s[i] = std::sqrt(a.dot(c * a)) / covered_s_ * kRadToDeg * 3600.0;
+    s[i] = std::sqrt(a.dot(c * a)) / covered_s_ * kRadSToDph;
   }
   return s;
 }

@@ -14,12 +14,6 @@
 #include "inertial/propagate.h"
 
 namespace ssiu {
-namespace {
-
-constexpr double kDphToRadS = kDegToRad / 3600.0;
-constexpr double kRadSToDph = 1.0 / kDphToRadS;
-
-}  // namespace
 
 GyroLog ReadGyroLog(const std::string& path, int n_gyros) {
   const CsvTable t = ReadCsv(path);

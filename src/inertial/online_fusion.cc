@@ -9,9 +9,6 @@
 namespace ssiu {
 namespace {
 
-constexpr double kDphToRadS = kDegToRad / 3600.0;
-constexpr double kRadSToDph = 1.0 / kDphToRadS;
-
 // Shape from the parity fit since onset: a noise burst leaves the residual about the step + ramp fit
 // well above the warm-up noise; a ramp has a trend over the span comparable with its step.
 std::string FaultShape(const GyroVec& step, const GyroVec& ramp_per_s, double span_s, double variance_ratio) {

@@ -28,8 +28,6 @@ Mat3 FloorCovariance(const Mat3& p, const Mat3& floor) {
 using Clock = std::chrono::steady_clock;
 double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
-constexpr double kRadSToDph = 3600.0 * kRadToDeg;
-
 }  // namespace
 
 void UnitProcessorOptions::Check() const {

@@ -13,9 +13,6 @@
 namespace ssiu {
 namespace {
 
-constexpr double kDphToRadS = kDegToRad / 3600.0;
-constexpr double kRadSToDph = 1.0 / kDphToRadS;
-
 std::vector<double> Numbers(const Json& j, const std::string& key, size_t n, const std::string& file) {
   const Json& a = j.at(key);
   if (!a.is_array() || (n > 0 && a.size() != n)) {
