@@ -379,7 +379,8 @@ SimulatedFrame SimulateFrame(const Camera& cam, const StarCatalog& catalog, cons
   }
   for (int k = 0; k < o.false_stars; ++k) {
     const double mag = rng.Uniform(2.0, std::max(2.5, o.mag_max - 0.5));
-    const Vec2 p(rng.Uniform(5, w - 6), rng.Uniform(5, h - 6));
+    const double y = rng.Uniform(5, h - 6);  // y first, in its own statement (see scene_sim.cc)
+    const Vec2 p(rng.Uniform(5, w - 6), y);
     add_star(kInvalidStarId, mag, p, moving ? cam.Unproject(p) : Vec3::UnitZ());
   }
 

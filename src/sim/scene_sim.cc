@@ -60,7 +60,11 @@ SimulatedScene SimulateScene(const Camera& camera, const StarCatalog& catalog, c
     // A magnitude drawn from the catalog's stars (all sky, to mag_max): the false objects are as
     // bright as the stars are, in distribution.
     const size_t k = std::min(mags.size() - 1, static_cast<size_t>(rng.Uniform() * mags.size()));
-    add(rng.Uniform(-0.5, camera.width - 0.5), rng.Uniform(-0.5, camera.height - 0.5), mags[k], kInvalidStarId);
+    // y before x, one statement each: the order of a call's arguments is unspecified (GCC and clang
+    // differ), and the same seed must give the same scene whatever compiled it.
+    const double y = rng.Uniform(-0.5, camera.height - 0.5);
+    const double x = rng.Uniform(-0.5, camera.width - 0.5);
+    add(x, y, mags[k], kInvalidStarId);
   }
   // Shuffle (Fisher-Yates with our Rng): the list order tells nothing.
   std::vector<size_t> perm(s.centroids.size());

@@ -70,7 +70,8 @@ inline SyntheticFrameSet MakeSyntheticFrameSet(const std::string& effect, uint64
     for (int i = 0; i < stars; ++i) {
       FrameStar s;
       s.frame = f;
-      s.r_inertial = q * cam.Unproject(Vec2(rng.Uniform(10, cam.width - 11), rng.Uniform(10, cam.height - 11)));
+      const double y_draw = rng.Uniform(10, cam.height - 11);  // y first: argument order is the compiler's
+      s.r_inertial = q * cam.Unproject(Vec2(rng.Uniform(10, cam.width - 11), y_draw));
       const Vec3 v = q.conjugate() * s.r_inertial;
       const auto p = truth.Project(v);
       if (!p || !cam.InImage(*p, -5)) continue;
