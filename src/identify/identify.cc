@@ -305,19 +305,6 @@ void RefineFocal(const Context& ctx, const std::vector<StarMatch>& ms, Camera* c
   }
 }
 
-// The match least consistent with the others, if it is an outlier. For each match i, d_i = the drop
-// of the fit's chi-square when i is left out: with the residual e_i at the least-squares optimum and
-// its covariance S_i = sigma_i^2 I - J_i H^-1 J_i^T, d_i = e_i^T S_i^-1 e_i (the deleted residual of
-// linear least squares: Cook & Weisberg 1982, "Residuals and Influence in Regression", ch. 2.2),
-// chi-square with 2 degrees of freedom for a consistent match. Unlike the largest residual, it finds
-// a wrong match with leverage (a false object at a corner that turns the fit of a small clump of stars
-// fits itself and leaves its residual on the clump). The sigmas are scaled by the scatter of the
-// others, s^2 = max(1, (chi^2 - d_i) / dof without i) (the externally studentised residual, ibid.):
-// a camera model that is knowingly off (tolerance mode before calibration: aspect, distortion) makes
-// every residual large, and only a match inconsistent with the rest is an outlier. Parameters: the
-// rotation, and the scale when the focal length is fitted. Returns the index into ms, or -1 when
-// every d_i / s^2 <= outlier_sigmas^2 (or too few degrees of freedom are left to tell). A match whose
-// removal leaves a direction of the fit undetermined cannot be tested.
 // Photometric evidence (docs/identify.md, step 5). Under the null hypothesis (a chance match) the
 // fluxes are independent of the positions, so given the positions (which alone chose the hypothesis
 // and its matches) the fluxes of the verification centroids are exchangeable. Two conditionally
@@ -345,6 +332,19 @@ double PhotometricFactor(const Context& ctx, const std::vector<StarMatch>& ms) {
   return 2.0 / (1.0 + PhotometricEvidence(flux, mag, other));
 }
 
+// The match least consistent with the others, if it is an outlier. For each match i, d_i = the drop
+// of the fit's chi-square when i is left out: with the residual e_i at the least-squares optimum and
+// its covariance S_i = sigma_i^2 I - J_i H^-1 J_i^T, d_i = e_i^T S_i^-1 e_i (the deleted residual of
+// linear least squares: Cook & Weisberg 1982, "Residuals and Influence in Regression", ch. 2.2),
+// chi-square with 2 degrees of freedom for a consistent match. Unlike the largest residual, it finds
+// a wrong match with leverage (a false object at a corner that turns the fit of a small clump of stars
+// fits itself and leaves its residual on the clump). The sigmas are scaled by the scatter of the
+// others, s^2 = max(1, (chi^2 - d_i) / dof without i) (the externally studentised residual, ibid.):
+// a camera model that is knowingly off (tolerance mode before calibration: aspect, distortion) makes
+// every residual large, and only a match inconsistent with the rest is an outlier. Parameters: the
+// rotation, and the scale when the focal length is fitted. Returns the index into ms, or -1 when
+// every d_i / s^2 <= outlier_sigmas^2 (or too few degrees of freedom are left to tell). A match whose
+// removal leaves a direction of the fit undetermined cannot be tested.
 int WorstOutlier(const Context& ctx, const IdentifyOptions& o, const std::vector<StarMatch>& ms, const Camera& cam,
                  const Mat3& r, bool fit_scale) {
   const int np = fit_scale ? 4 : 3;
