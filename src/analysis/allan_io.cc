@@ -409,11 +409,10 @@ GyroNoiseTerms ToGyroUnits(const NoiseFit& f) {
 
 Json AllanReportJson(const AllanCurve& c, const NoiseFit& fit, const Json& provenance, double confidence) {
   Json j = provenance.is_object() ? provenance : Json::object();
-  const double to_dph = kRadSToDph;
   auto dph = [&](const std::vector<double>& v) {
     std::vector<double> out;
     out.reserve(v.size());
-    for (double x : v) out.push_back(x * to_dph);
+    for (double x : v) out.push_back(x * kRadSToDph);
     return out;
   };
   j["sample_rate_hz"] = c.sample_rate_hz;
@@ -435,7 +434,7 @@ Json AllanReportJson(const AllanCurve& c, const NoiseFit& fit, const Json& prove
   f["message"] = fit.message;
   f["chi2_per_dof"] = fit.chi2_per_dof;
   f["points_used"] = fit.points_used;
-  f["adev_min_dph"] = fit.adev_min * to_dph;
+  f["adev_min_dph"] = fit.adev_min * kRadSToDph;
   f["tau_at_min_s"] = fit.tau_at_min_s;
   j["fit"] = f;
   const GyroNoiseTerms g = ToGyroUnits(fit);
@@ -452,16 +451,15 @@ Json AllanReportJson(const AllanCurve& c, const NoiseFit& fit, const Json& prove
 }
 
 void WriteAllanPlot(const std::string& path, const AllanCurve& c, const NoiseFit& fit, const std::string& title) {
-  const double to_dph = kRadSToDph;
   std::vector<PlotSeries> series;
   PlotSeries data;
   data.label = "overlapping ADEV";
   data.x = c.tau_s;
   for (size_t i = 0; i < c.adev.size(); ++i) {
-    data.y.push_back(c.adev[i] * to_dph);
+    data.y.push_back(c.adev[i] * kRadSToDph);
     if (c.adev_lo.size() == c.adev.size() && c.adev_hi.size() == c.adev.size()) {
-      data.y_lo.push_back(c.adev_lo[i] * to_dph);
-      data.y_hi.push_back(c.adev_hi[i] * to_dph);
+      data.y_lo.push_back(c.adev_lo[i] * kRadSToDph);
+      data.y_hi.push_back(c.adev_hi[i] * kRadSToDph);
     }
   }
   data.color = {20, 60, 200};
@@ -477,7 +475,7 @@ void WriteAllanPlot(const std::string& path, const AllanCurve& c, const NoiseFit
     model.label = "fitted model";
     model.color = {200, 30, 30};
     model.x = grid;
-    for (double t : grid) model.y.push_back(fit.ModelAdev(t) * to_dph);
+    for (double t : grid) model.y.push_back(fit.ModelAdev(t) * kRadSToDph);
     series.push_back(model);
     struct Part {
       const NoiseTerm* term;
@@ -505,7 +503,7 @@ void WriteAllanPlot(const std::string& path, const AllanCurve& c, const NoiseFit
                             : p.j == 2 ? 2 * std::log(2.0) / kPi * v * v
                             : p.j == 3 ? v * v * t / 3
                                        : v * v * t * t / 2;
-        s.y.push_back(std::sqrt(avar) * to_dph);
+        s.y.push_back(std::sqrt(avar) * kRadSToDph);
       }
       series.push_back(s);
     }
