@@ -21,6 +21,10 @@ constexpr double kMinTrackedFraction = 0.3;  // tracking: matched / min(predicte
 constexpr int kMinTrackedMatches = 5;        // tracking: its chance probability is calibrated for >= 5
 constexpr int kMaxOutliers = 5;              // more inconsistent matches than this: the hypothesis is dropped
 double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+#ifndef SSIU_DEADLINE_SCALE
+#define SSIU_DEADLINE_SCALE 1  // src/identify/CMakeLists.txt: 10 in sanitizer builds
+#endif
+constexpr double kDeadlineScale = SSIU_DEADLINE_SCALE;
 // CPU time of the calling thread: the search deadline counts the work done for this frame, so the
 // result does not depend on how busy the machine is (or on other threads of a batch).
 double ThreadCpuMs() {
@@ -609,7 +613,7 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
   // that the chance of accepting any chance pattern over the whole search is at most
   // sum_h alpha / (h H) <= alpha (a union bound with weights 1/(h H)).
   const double seq_factor = 1.0 + std::log(static_cast<double>(o.max_hypotheses));
-  const double deadline_cpu_ms = ThreadCpuMs() + o.timeout_ms;
+  const double deadline_cpu_ms = ThreadCpuMs() + o.timeout_ms * kDeadlineScale;
 
   std::vector<std::vector<int>> idx(1);
   int hyp = 0;
