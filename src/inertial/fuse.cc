@@ -69,6 +69,21 @@ StarTrackerLog ReadStarTrackerLog(const std::string& path) {
   return log;
 }
 
+void FusionPolicy::Check() const {
+  auto pos = [](double v, const char* name) {
+    if (!(v > 0) || !std::isfinite(v)) {
+      throw InputError("fuse options", "policy." + std::string(name) + " must be a finite number > 0");
+    }
+  };
+  if (accept_after_rejections < 1) throw InputError("fuse options", "policy.accept_after_rejections must be >= 1");
+  pos(isolation_chain_gap_s, "isolation_chain_gap_s");
+  pos(failed_after_s, "failed_after_s");
+  if (!(settle_after_isolation_s >= 0) || !std::isfinite(settle_after_isolation_s)) {
+    throw InputError("fuse options", "policy.settle_after_isolation_s must be a finite number >= 0");
+  }
+  pos(bias_history_s, "bias_history_s");
+}
+
 void FuseOptions::Check() const {
   auto pos = [](double v, const char* name) {
     if (!(v > 0) || !std::isfinite(v)) throw InputError("fuse options", std::string(name) + " must be positive");
@@ -82,6 +97,7 @@ void FuseOptions::Check() const {
   }
   if (output_every < 1) throw InputError("fuse options", "output_every must be >= 1");
   fdi_options.Check();
+  policy.Check();
 }
 
 int StatusCode(const std::string& status) {
@@ -259,11 +275,8 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
       FusedSample s;
       s.t_s = t_k;
       s.q_inertial_from_body = fusion.q();
-      const Mat6& p = fusion.P();
-      for (int a = 0; a < 3; ++a) {
-        s.sigma_rad[a] = std::sqrt(p(MekfIndex::kAttitude + a, MekfIndex::kAttitude + a));
-        s.bias_sigma_dph[a] = std::sqrt(p(MekfIndex::kBias + a, MekfIndex::kBias + a)) * kRadSToDph;
-      }
+      s.sigma_rad = fusion.attitude_sigma_rad();
+      s.bias_sigma_dph = fusion.bias_sigma_dph();
       s.bias_dph = fusion.bias_rad_s() * kRadSToDph;
       s.status = status;
       res.samples.push_back(s);
@@ -277,9 +290,7 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
   res.gyros_in_use = fusion.GyrosInUse();
   res.status = worst == 0 ? "fused" : (worst == 1 ? "degraded" : "failed");
   res.bias_dph = fusion.bias_rad_s() * kRadSToDph;
-  for (int a = 0; a < 3; ++a) {
-    res.bias_sigma_dph[a] = std::sqrt(fusion.P()(MekfIndex::kBias + a, MekfIndex::kBias + a)) * kRadSToDph;
-  }
+  res.bias_sigma_dph = fusion.bias_sigma_dph();
   res.st_residual_rms_arcsec = resid_n > 0 ? std::sqrt(resid_sum2 / (3.0 * resid_n)) * kRadToArcsec : 0.0;
   res.longest_st_gap_s = std::max(res.longest_st_gap_s, gyro.t_s.back() - t_last_st);
   res.message = std::to_string(res.n_st_used) + " star samples used, " + std::to_string(res.n_st_rejected) +

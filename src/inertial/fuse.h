@@ -39,6 +39,27 @@ struct StarTrackerLog {
 GyroLog ReadGyroLog(const std::string& path, int n_gyros = 0);
 StarTrackerLog ReadStarTrackerLog(const std::string& path);
 
+// The estimator's policies (OnlineFusion, the one MEKF + fault detection core behind both Fuse and
+// the unit processor): the defaults are the values the filter was tuned and measured with
+// (docs/inertial.md "The filter" and "Gyro faults").
+struct FusionPolicy {
+  // After this many consecutive NIS rejections the next star fix is taken ungated: a run of
+  // rejections means the filter, not the star tracker, is wrong, and it must not lock itself out.
+  int accept_after_rejections = 5;
+  // A star gap longer than this breaks the star-rate isolator's chain of consecutive samples (a rate
+  // across a long gap would mix the fault with the attitude drift).
+  double isolation_chain_gap_s = 5.0;
+  // Status "failed" when degraded and no star fix has been accepted for this long.
+  double failed_after_s = 30.0;
+  // Status "degraded" this long after an isolation (the bias re-converging on the remaining gyros).
+  double settle_after_isolation_s = 10.0;
+  // The bias estimates at accepted fixes are kept this long: an isolation restores the bias from
+  // before the fault's onset.
+  double bias_history_s = 120.0;
+
+  void Check() const;  // InputError naming the field
+};
+
 struct FuseOptions {
   // Star-tracker noise when the log has no sigma columns (1 sigma; cross-boresight about body x, y,
   // roll about body z: the tracker's boresight is taken along body +Z).
@@ -49,6 +70,7 @@ struct FuseOptions {
   double nis_gate = 50.0;              // reject star samples with NIS above this (chi^2, 3 dof)
   bool fdi = true;                     // fault detection/isolation (needs 4+ gyros)
   FdiOptions fdi_options;
+  FusionPolicy policy;                 // rejection, gap, status and history policies
   int output_every = 1;                // write every n-th gyro sample
 
   void Check() const;

@@ -59,7 +59,19 @@ std::string OnlineFusion::Status() const {
   bool unresolved = isolating_ || compensated_ || t_cur_ < t_settled_;
   for (const auto& f : faults_) unresolved |= f.status != "isolated";
   if (!unresolved) return "ok";
-  return t_cur_ - t_last_accepted_ > kFailedAfterS ? "failed" : "degraded";
+  return t_cur_ - t_last_accepted_ > opt_.policy.failed_after_s ? "failed" : "degraded";
+}
+
+Vec3 OnlineFusion::attitude_sigma_rad() const {
+  Vec3 s;
+  for (int a = 0; a < 3; ++a) s[a] = std::sqrt(P()(MekfIndex::kAttitude + a, MekfIndex::kAttitude + a));
+  return s;
+}
+
+Vec3 OnlineFusion::bias_sigma_dph() const {
+  Vec3 s;
+  for (int a = 0; a < 3; ++a) s[a] = std::sqrt(P()(MekfIndex::kBias + a, MekfIndex::kBias + a)) * kRadSToDph;
+  return s;
 }
 
 Vec3 OnlineFusion::BiasAt(double t_s) const {
@@ -112,7 +124,7 @@ void OnlineFusion::Isolate(int gi, double t, const char* method, const GyroVec& 
     }
   }
   isolating_ = false;
-  t_settled_ = t + kSettleS;
+  t_settled_ = t + opt_.policy.settle_after_isolation_s;
   const Vec3 b_before = BiasAt(ev.t_onset_s);
   if (static_cast<int>(GyrosInUse().size()) <= 3) {
     correction_[gi] += ev.fault_dph;
@@ -245,7 +257,7 @@ MekfUpdate OnlineFusion::AddAttitude(double t_j, const Quat& q_meas, const Mat3&
   t_last_st_ = t_j;
   // Star rates for isolation do not depend on the filter: every measurement counts.
   if (isolating_) {
-    if (gap > 5.0) isolator_.BreakChain();
+    if (gap > opt_.policy.isolation_chain_gap_s) isolator_.BreakChain();
     isolator_.AddStar(t_j, q_meas, r_body);
   }
   // Without parity (three gyros left) a fault shows only in the star innovations: while one is
@@ -256,7 +268,9 @@ MekfUpdate OnlineFusion::AddAttitude(double t_j, const Quat& q_meas, const Mat3&
     FloorBias(resid.norm() / gap);
   }
   // A run of rejections means the filter, not the star tracker, is wrong: accept the next one.
-  const double gate = consecutive_rejects_ >= 5 ? std::numeric_limits<double>::infinity() : opt_.nis_gate;
+  const double gate = consecutive_rejects_ >= opt_.policy.accept_after_rejections
+                          ? std::numeric_limits<double>::infinity()
+                          : opt_.nis_gate;
   u = filter_.UpdateAttitude(q_meas, r_body, gate);
   if (!u.accepted) {
     ++n_rejected_;
@@ -266,7 +280,9 @@ MekfUpdate OnlineFusion::AddAttitude(double t_j, const Quat& q_meas, const Mat3&
     ++n_used_;
     t_last_accepted_ = t_j;
     bias_history_.emplace_back(t_j, filter_.bias());
-    while (bias_history_.size() > 2 && bias_history_.front().first < t_j - 120.0) bias_history_.pop_front();
+    while (bias_history_.size() > 2 && bias_history_.front().first < t_j - opt_.policy.bias_history_s) {
+      bias_history_.pop_front();
+    }
   }
   if (no_parity && !isolating_) {
     // CUSUM on the innovations: their covariance grown noise_ratio times (chi^2, 3 dof; the same

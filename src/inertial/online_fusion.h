@@ -44,14 +44,18 @@ class OnlineFusion {
   const Mat6& P() const { return filter_.P(); }
   const Vec3& bias_rad_s() const { return filter_.bias(); }
   const std::vector<FaultEvent>& faults() const { return faults_; }
+  // 1 sigma of the attitude error about body x, y, z (rad) and of the body bias (deg/h), from P().
+  Vec3 attitude_sigma_rad() const;
+  Vec3 bias_sigma_dph() const;
   // Whether the attitude can be trusted now: "ok"; "degraded" while a fault is detected but not
-  // isolated (the covariance is opened to cover it) and for kSettleS after its isolation (the bias
-  // re-converging on the remaining gyros), or once a faulty gyro had to stay in use
-  // (three left, its fault compensated); "failed" when degraded and no star measurement has been
-  // accepted for failed_after_s (nothing bounds the drift); "failed" before the first measurement.
+  // isolated (the covariance is opened to cover it) and for policy.settle_after_isolation_s after its
+  // isolation (the bias re-converging on the remaining gyros), or once a faulty gyro had to stay in
+  // use (three left, its fault compensated); "failed" when degraded and no star measurement has been
+  // accepted for policy.failed_after_s (nothing bounds the drift); "failed" before the first measurement.
   std::string Status() const;
-  static constexpr double kFailedAfterS = 30.0;
-  static constexpr double kSettleS = 10.0;  // after an isolation, degraded this long
+  // The default policies (FusionPolicy in fuse.h holds them and the options may change them).
+  static constexpr double kFailedAfterS = FusionPolicy{}.failed_after_s;
+  static constexpr double kSettleS = FusionPolicy{}.settle_after_isolation_s;
   std::vector<int> GyrosInUse() const;  // 1-based
   long n_gyro_samples() const { return n_gyro_; }
   long n_updates() const { return n_used_; }

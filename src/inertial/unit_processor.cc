@@ -187,11 +187,10 @@ UnitAttitude UnitProcessor::Attitude() const {
   a.valid = fusion_.initialised();
   a.t_s = fusion_.t_s();
   a.q_inertial_from_body = fusion_.q();
-  const Mat6& p = fusion_.P();
-  a.covariance_rad2 = FloorCovariance(p.block<3, 3>(MekfIndex::kAttitude, MekfIndex::kAttitude),
+  a.covariance_rad2 = FloorCovariance(fusion_.P().block<3, 3>(MekfIndex::kAttitude, MekfIndex::kAttitude),
                                       options_.correlated_fraction * last_fix_covariance_);
   a.bias_dph = fusion_.bias_rad_s() * kRadSToDph;
-  for (int i = 0; i < 3; ++i) a.bias_sigma_dph[i] = std::sqrt(p(MekfIndex::kBias + i, MekfIndex::kBias + i)) * kRadSToDph;
+  a.bias_sigma_dph = fusion_.bias_sigma_dph();
   a.faults = fusion_.faults();
   a.gyros_in_use = fusion_.GyrosInUse();
   a.status = fusion_.Status();
