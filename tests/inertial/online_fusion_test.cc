@@ -1,18 +1,36 @@
-// The estimator core (inertial/online_fusion.h) on hand-made inputs: the policies of FuseOptions::policy.
+// The estimator core (inertial/online_fusion.h) and the unit processor (inertial/unit_processor.h) on
+// hand-made inputs: the policies of FuseOptions::policy, a late measurement, missing and wrong frames.
+// Their runs on simulated missions and gyro logs are in tests/sim/ (mission_test.cc: they need the
+// simulator, a stage above this one).
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <memory>
 
 #include "core/attitude.h"
+#include "core/camera.h"
 #include "core/error.h"
 #include "inertial/online_fusion.h"
 #include "inertial/propagate.h"
+#include "inertial/unit_processor.h"
 #include "testing/testing.h"
 
 namespace ssiu {
 namespace {
 
 using ::testing::HasSubstr;
+
+// A measurement older than the filter's time is refused, not applied at the wrong time.
+TEST(OnlineFusion, RefusesALateMeasurement) {
+  const GyroUnit unit = DefaultFourFogUnit();
+  OnlineFusion f(unit, FuseOptions{});
+  const Mat3 r = Mat3::Identity() * 1e-10;
+  EXPECT_TRUE(f.AddAttitude(0.0, Quat::Identity(), r).accepted);
+  for (int k = 1; k <= 10; ++k) f.AddGyro(k * 0.01, GyroVec::Zero(4));
+  EXPECT_FALSE(f.AddAttitude(0.05, Quat::Identity(), r).accepted);
+  EXPECT_EQ(f.n_late(), 1);
+  EXPECT_TRUE(f.AddAttitude(0.1, Quat::Identity(), r).accepted);
+}
 
 // A filter started at the identity with a 5 arcsec fix sees fixes 0.01 rad (2,063 arcsec) away: NIS
 // about 8e4, far over the gate. They are refused policy.accept_after_rejections times in a row, then
@@ -62,6 +80,30 @@ TEST(OnlineFusion, BadPolicyIsAnInputErrorNamingTheField) {
   EXPECT_THAT(PolicyError([](FusionPolicy* p) { p->settle_after_isolation_s = -1; }),
               HasSubstr("policy.settle_after_isolation_s"));
   EXPECT_THAT(PolicyError([&](FusionPolicy* p) { p->bias_history_s = inf; }), HasSubstr("policy.bias_history_s"));
+}
+
+// The on-board API directly: no frame from any head is a result, not an error; before the first
+// solved frame there is no attitude; a frame of the wrong size is an input error. (Two 512x512
+// heads of 16.6 deg 90 deg apart, as the default mission's.)
+TEST(UnitProcessor, ReportsMissingFramesAndRefusesAWrongSize) {
+  OpticalHead h1;
+  h1.camera = MakeCamera(512, 512, 16.6);
+  OpticalHead h2 = h1;
+  h2.q_body_from_sensor = Quat(Eigen::AngleAxisd(90 * kDegToRad, Vec3::UnitX()));
+  const std::vector<OpticalHead> heads = {h1, h2};
+  const GyroUnit unit = DefaultFourFogUnit();
+  const UnitProcessorOptions options;
+  const auto id = std::make_shared<const StarIdentifier>(MakeIdentifierForCamera("", h1.camera, 0.0));
+  UnitProcessor p(heads, {id, id}, unit, options);
+  EXPECT_FALSE(p.Attitude().valid);
+  const FrameReport none = p.OnFrames(0.0, {ImageView{}, ImageView{}});
+  EXPECT_EQ(none.status, "no_frame");
+  EXPECT_EQ(none.heads_solved, 0);
+  EXPECT_FALSE(p.Attitude().valid);
+  const Image16 small(64, 64, 100);
+  EXPECT_THROW(p.OnFrames(1.0, {small.view(), ImageView{}}), InputError);
+  EXPECT_THROW(p.OnFrames(1.0, {ImageView{}}), InputError);
+  EXPECT_THROW(UnitProcessor(std::vector<OpticalHead>(4, h1), {id, id, id, id}, unit, options), InputError);
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 // The whole unit (issue 5, "The whole unit"): the on-board processing API (inertial/unit_processor.h,
 // inertial/online_fusion.h) on simulated missions (sim/mission.h), scored against the simulator's
-// truth. Small missions (512x512 frames, a few dozen frames) to stay lean under the sanitizers.
+// truth. Small missions (512x512 frames, a few dozen frames) to stay lean under the sanitizers. The
+// same APIs on hand-made inputs: tests/inertial/online_fusion_test.cc.
 #include <cmath>
 #include <cstdio>
 
@@ -71,18 +72,6 @@ TEST(OnlineFusion, ReproducesBatchFuseIncludingAFault) {
   EXPECT_EQ(on.faults[0].status, "isolated");
   EXPECT_DOUBLE_EQ(on.faults[0].t_detect_s, s.fused.faults[0].t_detect_s);
   EXPECT_DOUBLE_EQ(on.faults[0].t_isolate_s, s.fused.faults[0].t_isolate_s);
-}
-
-// A measurement older than the filter's time is refused, not applied at the wrong time.
-TEST(OnlineFusion, RefusesALateMeasurement) {
-  const GyroUnit unit = DefaultFourFogUnit();
-  OnlineFusion f(unit, FuseOptions{});
-  const Mat3 r = Mat3::Identity() * 1e-10;
-  EXPECT_TRUE(f.AddAttitude(0.0, Quat::Identity(), r).accepted);
-  for (int k = 1; k <= 10; ++k) f.AddGyro(k * 0.01, GyroVec::Zero(4));
-  EXPECT_FALSE(f.AddAttitude(0.05, Quat::Identity(), r).accepted);
-  EXPECT_EQ(f.n_late(), 1);
-  EXPECT_TRUE(f.AddAttitude(0.1, Quat::Identity(), r).accepted);
 }
 
 MissionConfig SmallMission(int heads) {
@@ -297,23 +286,6 @@ TEST(Mission, TwoHeadsMakeTheRollErrorSmall) {
   EXPECT_LT(two.star_only.roll_rms_arcsec, 0.5 * one.star_only.roll_rms_arcsec);
   EXPECT_GT(two.within_3sigma_fraction, 0.97);
   EXPECT_LT(two.bias_error_end_dph, 0.1 * two.bias_error_start_dph);
-}
-
-// The on-board API directly: no frame from any head is a result, not an error; before the first
-// solved frame there is no attitude; a frame of the wrong size is an input error.
-TEST(UnitProcessor, ReportsMissingFramesAndRefusesAWrongSize) {
-  MissionConfig c = SmallMission(2);
-  const auto id = std::make_shared<const StarIdentifier>(MakeIdentifierForCamera("", c.heads[0].camera, 0.0));
-  UnitProcessor p(c.heads, {id, id}, c.unit, c.processor);
-  EXPECT_FALSE(p.Attitude().valid);
-  const FrameReport none = p.OnFrames(0.0, {ImageView{}, ImageView{}});
-  EXPECT_EQ(none.status, "no_frame");
-  EXPECT_EQ(none.heads_solved, 0);
-  EXPECT_FALSE(p.Attitude().valid);
-  const Image16 small(64, 64, 100);
-  EXPECT_THROW(p.OnFrames(1.0, {small.view(), ImageView{}}), InputError);
-  EXPECT_THROW(p.OnFrames(1.0, {ImageView{}}), InputError);
-  EXPECT_THROW(UnitProcessor(std::vector<OpticalHead>(4, c.heads[0]), {id, id, id, id}, c.unit, c.processor), InputError);
 }
 
 std::string ConfigError(const std::string& text) {
