@@ -9,6 +9,7 @@
 #include "analysis/discover_frames_internal.h"
 #include "core/astrometry.h"
 #include "core/error.h"
+#include "core/stats.h"
 #include "core/types.h"
 
 namespace ssiu {
@@ -175,6 +176,408 @@ double HeldOutZ(double e_dot_p, double p_dot_p, double s2) {
 
 void Fail(const std::string& what) { throw InputError("options", what); }
 
+// The steps of DiscoverFrames (docs/discrepancy.md): the candidates' tests, the measured figures,
+// the gates (bounds, held-out gain) in BIC order, the named cause's parameters and the residual test.
+class FrameCauseSearch {
+ public:
+  FrameCauseSearch(const SolvedFrameSet& set, const Camera& camera, const FrameDiscoverOptions& o)
+      : set_(set), camera_(camera), o_(o), nf_(static_cast<int>(set.q.size())) {}
+
+  FrameDiscovery Run() {
+    d_.frames = static_cast<int>(set_.status.size());
+    d_.frames_solved = nf_;
+    d_.stars = static_cast<int>(set_.stars.size());
+    d_.fitted_camera = camera_;
+    hot_ = discover_internal::AnalyseHotPixels(set_, o_, &d_);
+    psf_ = discover_internal::AnalysePsfShape(set_, camera_, o_, &d_);
+    if (!hot_.tested) d_.not_tested.push_back("hot_pixels");
+    if (!psf_.tested) d_.not_tested.push_back("psf_shape");
+    aberration_testable_ = AberrationTestable();
+    if (!aberration_testable_) d_.not_tested.push_back("aberration");
+    // Bonferroni over the candidates actually tested (5 geometric/photometric + these).
+    alpha_each_ = o_.alpha / (5 + aberration_testable_ + hot_.tested + psf_.tested);
+    if (nf_ == 0 || d_.stars < 10) {
+      d_.cause = "none";
+      if (hot_.tested && hot_.candidate.p_value < alpha_each_) NameOther(hot_);
+      return d_;
+    }
+    GeometricCandidates();
+    VignettingCandidate();
+    MeasuredFigures();
+    for (const auto* c : {&hot_, &psf_}) {
+      if (!c->tested) continue;
+      d_.candidates.push_back(c->candidate);
+      d_.candidates.back().significant = c->candidate.p_value < alpha_each_;
+    }
+    HeldOut chosen_ho;
+    const FrameCandidate* chosen = ChooseCause(&chosen_ho);
+    PlotResiduals(chosen);
+    // `unexplained`: the residual of the fullest model of the vocabulary (every geometric cause, the
+    // vignetting law), whatever was named: structure that no cause explains.
+    d_.residual = discover_internal::TestFrameResidual(set_, camera_, fullest_.jac, fullest_.res, o_);
+    if (chosen) NameCause(*chosen, chosen_ho);
+    if (d_.residual.structured) {
+      d_.partial_cause = d_.cause == "none" ? "" : d_.cause;
+      d_.cause = "unexplained";
+    }
+    return d_;
+  }
+
+ private:
+  struct Spec {
+    std::string cause;
+    CamMask mask;
+  };
+
+  // aberration needs frames pointing in several directions (else it is a focal length): the
+  // boresights' scatter matrix must have no small eigenvalue, and more frames than its 3 parameters
+  // plus a focal length (with 3 frames it fits any per-frame scale).
+  bool AberrationTestable() const {
+    if (set_.q.size() < 6) return false;
+    Mat3 scatter = Mat3::Zero();
+    for (const auto& q : set_.q) scatter += (q * Vec3::UnitZ()) * (q * Vec3::UnitZ()).transpose() / set_.q.size();
+    return Eigen::SelfAdjointEigenSolver<Mat3>(scatter).eigenvalues().minCoeff() > 0.02;
+  }
+
+  // Names a cause found without the geometric fits (hot_pixels, psf_shape).
+  void NameOther(const discover_internal::CauseResult& c) {
+    d_.cause = c.candidate.cause;
+    d_.parameters = c.parameters;
+    d_.sigmas = c.sigmas;
+    d_.gain = c.gain;
+    if (d_.cause == "hot_pixels") {
+      d_.spikes_before = c.before, d_.spikes_after = c.after;
+    } else {
+      d_.stamp_rms_before = c.before, d_.stamp_rms_after = c.after;
+    }
+  }
+
+  // The camera causes: each block of camera parameters fitted with every frame's rotation, its
+  // chi-square against the base (camera as given) scaled by the fullest model's residual variance.
+  void GeometricCandidates() {
+    specs_ = {{"focal_length", {true, false, false, false, false, false, false, false}},
+              {"principal_point", {false, true, true, false, false, false, false, false}},
+              {"lens_distortion", {false, false, false, true, false, false, false, false}},
+              {"pixel_aspect", {false, false, false, false, true, false, false, false}}};
+    const bool ab = aberration_testable_;
+    if (ab) specs_.push_back({"aberration", {false, false, false, false, false, true, true, true}});
+    const std::vector<bool> all(nf_, true);
+    base_ = FitGeometry(set_, camera_, all, kNoCam, nullptr, o_);
+    fullest_ = FitGeometry(set_, camera_, all, {true, true, true, true, true, ab, ab, ab}, nullptr, o_);
+    const int nobs = 2 * d_.stars;
+    const int npar = 3 * nf_ + kCam;
+    s2_ = fullest_.rss / std::max(1, nobs - npar);
+    for (const auto& sp : specs_) {
+      FrameCandidate c;
+      c.cause = sp.cause;
+      c.dof = static_cast<int>(std::count(sp.mask.begin(), sp.mask.end(), true));
+      const GeoFit g = FitGeometry(set_, camera_, all, sp.mask, nullptr, o_);
+      c.statistic = std::max(0.0, (base_.rss - g.rss) / s2_);
+      c.p_value = ChiSq1or2Survival(c.statistic, c.dof);
+      c.delta_bic = c.statistic - c.dof * std::log(static_cast<double>(nobs));
+      c.significant = c.p_value < alpha_each_;
+      fits_[sp.cause] = g;
+      d_.candidates.push_back(c);
+    }
+  }
+
+  // Vignetting: y = ln(flux) + 0.4 ln(10) V against u = (r / r_corner)^2.
+  void VignettingCandidate() {
+    for (const auto& s : set_.stars) {
+      if (!(s.flux > 0)) continue;
+      vu_.push_back(discover_internal::FieldRadius2(camera_, s.x_px, s.y_px));
+      vy_.push_back(std::log(s.flux) + 0.4 * std::log(10.0) * s.mag);
+    }
+    FrameCandidate c;
+    c.cause = "vignetting";
+    c.dof = 1;
+    const int n = static_cast<int>(vu_.size());
+    if (n >= 10) {
+      double mu = 0, my = 0;
+      for (int i = 0; i < n; ++i) mu += vu_[i] / n, my += vy_[i] / n;
+      double suu = 0, suy = 0;
+      for (int i = 0; i < n; ++i) suu += (vu_[i] - mu) * (vu_[i] - mu), suy += (vu_[i] - mu) * (vy_[i] - my);
+      const double slope = suy / suu;
+      double ss = 0;
+      for (int i = 0; i < n; ++i) ss += std::pow(vy_[i] - my - slope * (vu_[i] - mu), 2);
+      vig_s_ = std::sqrt(ss / (n - 2));
+      const double se = vig_s_ / std::sqrt(suu);
+      c.statistic = std::pow(slope / se, 2);
+      c.p_value = ChiSq1or2Survival(c.statistic, 1);
+      c.delta_bic = c.statistic - std::log(static_cast<double>(n));
+      c.significant = c.p_value < alpha_each_;
+    }
+    d_.candidates.push_back(c);
+    vig_v_ = vu_.size() >= 10 ? discover_internal::FitVignettingLaw(vu_, vy_, &vig_sigma_) : 0.0;
+  }
+
+  // Measured figures for the comparison with the simulator.
+  void MeasuredFigures() {
+    if (!vy_.empty()) {
+      double m = 0, ss = 0;
+      for (double v : vy_) m += v / vy_.size();
+      for (double v : vy_) ss += (v - m) * (v - m);
+      d_.zero_point_adu = std::exp(m);
+      d_.photometric_scatter_mag = std::sqrt(ss / vy_.size()) * 2.5 / std::log(10.0);
+    }
+    std::vector<double> ps;
+    for (const auto& s : set_.stars) {
+      if (s.psf_sigma_px > 0) ps.push_back(s.psf_sigma_px);
+    }
+    d_.psf_sigma_median_px = Median(ps);
+    d_.background_median_adu = Median(set_.background_adu);
+    d_.noise_median_adu = Median(set_.noise_adu);
+  }
+
+  const Spec* SpecOf(const std::string& cause) const {
+    for (const auto& sp : specs_) {
+      if (sp.cause == cause) return &sp;
+    }
+    return nullptr;
+  }
+
+  // Geometric: the camera fitted on the even frames scored on the odd ones and vice versa (rotations
+  // refitted there with the camera held); RMS in px, z over both folds.
+  HeldOut GeometricHeldOut(const Spec& sp) {
+    HeldOut h;
+    if (nf_ < 2) {  // one frame: the fitted figures stand (no held-out frames)
+      double sb = 0, sa = 0;
+      for (int i = 0; i < d_.stars; ++i) {
+        const double w = std::max(set_.stars[i].sigma_px, o_.min_sigma_px);
+        sb += (std::pow(base_.res(2 * i), 2) + std::pow(base_.res(2 * i + 1), 2)) * w * w;
+        sa += (std::pow(fits_[sp.cause].res(2 * i), 2) + std::pow(fits_[sp.cause].res(2 * i + 1), 2)) * w * w;
+      }
+      h.before = std::sqrt(sb / (2 * d_.stars)), h.after = std::sqrt(sa / (2 * d_.stars));
+      h.gain = h.after > 0 ? h.before / h.after : 1.0;
+      return h;
+    }
+    double ssb = 0, ssa = 0, ep = 0, pp = 0;
+    int cnt = 0;
+    const double zero[kCam] = {0, 0, 0, 0, 0, 0, 0, 0};
+    for (int fold = 0; fold < 2; ++fold) {
+      std::vector<bool> train(nf_), test(nf_);
+      for (int f = 0; f < nf_; ++f) train[f] = f % 2 == fold, test[f] = !train[f];
+      const GeoFit gt = FitGeometry(set_, camera_, train, sp.mask, nullptr, o_);
+      const VectorXd e = HeldOutResiduals(set_, camera_, test, zero, o_),
+                     r = HeldOutResiduals(set_, camera_, test, gt.cam, o_);
+      int k = 0;
+      for (const auto& st : set_.stars) {
+        if (!test[st.frame]) continue;
+        const double w2 = std::pow(std::max(st.sigma_px, o_.min_sigma_px), 2);
+        for (int c = 0; c < 2; ++c, ++k) ssb += e(k) * e(k) * w2, ssa += r(k) * r(k) * w2;
+        cnt += 2;
+      }
+      ep += e.dot(e - r), pp += (e - r).squaredNorm();
+    }
+    if (cnt == 0) return h;
+    h.before = std::sqrt(ssb / cnt), h.after = std::sqrt(ssa / cnt);
+    h.gain = h.after > 0 ? h.before / h.after : 1.0;
+    h.z = HeldOutZ(ep, pp, s2_), h.z_defined = true;
+    return h;
+  }
+
+  // Vignetting: the slope fitted on the even frames scored on the odd ones and vice versa (mag).
+  HeldOut VignettingHeldOut() const {
+    const double to_mag = 2.5 / std::log(10.0);
+    HeldOut h;
+    double ssb = 0, ssa = 0, ep = 0, pp = 0;
+    int n = 0;
+    std::vector<int> frame_of;
+    for (const auto& st : set_.stars) {
+      if (st.flux > 0) frame_of.push_back(st.frame);
+    }
+    for (int fold = 0; fold < 2; ++fold) {
+      double mu = 0, my = 0, cnt = 0;
+      for (size_t i = 0; i < vu_.size(); ++i) {
+        if (frame_of[i] % 2 == fold) mu += vu_[i], my += vy_[i], cnt += 1;
+      }
+      if (cnt < 3) continue;
+      mu /= cnt, my /= cnt;
+      double suu = 0, suy = 0;
+      for (size_t i = 0; i < vu_.size(); ++i) {
+        if (frame_of[i] % 2 == fold) suu += (vu_[i] - mu) * (vu_[i] - mu), suy += (vu_[i] - mu) * (vy_[i] - my);
+      }
+      const double b = suu > 0 ? suy / suu : 0.0;
+      double yb = 0;
+      for (size_t i = 0; i < vu_.size(); ++i) {
+        if (frame_of[i] % 2 == fold) yb += vy_[i] - b * vu_[i];
+      }
+      yb /= cnt;
+      for (size_t i = 0; i < vu_.size(); ++i) {
+        if (frame_of[i] % 2 == fold) continue;
+        const double e = vy_[i] - my, r = vy_[i] - yb - b * vu_[i];
+        ssb += e * e, ssa += r * r, ep += e * (e - r), pp += (e - r) * (e - r);
+        ++n;
+      }
+    }
+    if (n == 0) return h;
+    h.before = std::sqrt(ssb / n) * to_mag, h.after = std::sqrt(ssa / n) * to_mag;
+    h.gain = h.after > 0 ? h.before / h.after : 1.0;
+    if (nf_ >= 2) h.z = HeldOutZ(ep, pp, vig_s_ * vig_s_), h.z_defined = true;
+    return h;
+  }
+
+  // Physical bounds (docs/discrepancy.md): wide on purpose, they catch fits that explain noise or
+  // each other, not unusual cameras. Empty when within them, else why not.
+  std::string OutOfBounds(const std::string& cause) {
+    if (cause == "vignetting") return vig_v_ >= 0 && vig_v_ <= 0.95 ? "" : "vignetting outside [0, 0.95]";
+    if (cause == "hot_pixels") return hot_.parameters.count("hot_pixel_count") && hot_.parameters.at("hot_pixel_count") >= 1 ? "" : "no pixel";
+    if (cause == "psf_shape") {
+      const double sg = psf_.parameters.count("psf_sigma_px") ? psf_.parameters.at("psf_sigma_px") : 0;
+      const double el = psf_.parameters.count("psf_ellipticity") ? psf_.parameters.at("psf_ellipticity") : 0;
+      return sg >= 0.1 && sg <= 10 && el < 0.9 ? "" : "PSF sigma outside [0.1, 10] px or ellipticity >= 0.9";
+    }
+    const double* g = fits_[cause].cam;
+    if (cause == "focal_length") return std::abs(g[0] / camera_.focal_length_px) <= 0.05 ? "" : "focal length off by > 5 %";
+    if (cause == "principal_point")
+      return std::abs(g[1]) <= 0.2 * camera_.width && std::abs(g[2]) <= 0.2 * camera_.height
+                 ? ""
+                 : "principal point moved by > 20 % of the frame";
+    if (cause == "lens_distortion") {
+      // k1 r^2 at the corner (normalised coordinates): the relative displacement there.
+      const double rc2 = std::pow(std::max(camera_.cx_px, camera_.width - 1 - camera_.cx_px) / camera_.focal_length_px, 2) +
+                         std::pow(std::max(camera_.cy_px, camera_.height - 1 - camera_.cy_px) / camera_.FocalYPx(), 2);
+      return std::abs((camera_.distortion.k1 + g[3]) * rc2) <= 0.3 ? "" : "k1 moves the corners by > 30 %";
+    }
+    if (cause == "pixel_aspect") return std::abs(g[4]) <= 0.05 ? "" : "aspect off by > 5 %";
+    if (cause == "aberration")
+      return Vec3(g[5], g[6], g[7]).norm() * kSpeedOfLightMS / 1000 <= 100 ? "" : "speed > 100 km/s";
+    return "";
+  }
+
+  // Gates, in BIC order until one candidate passes: its parameters lie within the physical bounds and
+  // its held-out improvement is significant (one-sided z above the normal quantile of gain_alpha).
+  // Returns the named candidate (nullptr: none) and its held-out figures.
+  const FrameCandidate* ChooseCause(HeldOut* chosen_ho) {
+    d_.gain_z_min = boost::math::quantile(boost::math::complement(boost::math::normal(), o_.gain_alpha));
+    std::vector<int> order;
+    for (int i = 0; i < static_cast<int>(d_.candidates.size()); ++i) {
+      if (d_.candidates[i].significant) order.push_back(i);
+    }
+    std::stable_sort(order.begin(), order.end(),
+                     [&](int a, int b) { return d_.candidates[a].delta_bic > d_.candidates[b].delta_bic; });
+    for (int i : order) {
+      FrameCandidate& c = d_.candidates[i];
+      c.evaluated = true;
+      const std::string why = OutOfBounds(c.cause);
+      if (!why.empty()) {
+        c.verdict = "outside bounds: " + why;
+        continue;
+      }
+      HeldOut h;
+      if (const Spec* sp = SpecOf(c.cause)) {
+        h = GeometricHeldOut(*sp);
+      } else if (c.cause == "vignetting") {
+        h = VignettingHeldOut();
+      } else {  // hot_pixels, psf_shape: their own held-out figures (no z)
+        const auto& r = c.cause == "hot_pixels" ? hot_ : psf_;
+        h.before = r.before, h.after = r.after, h.gain = r.gain;
+      }
+      c.gain = h.gain, c.gain_z = h.z;
+      if (!(h.gain > 1) || (h.z_defined && !(h.z > d_.gain_z_min))) {
+        c.verdict = "held-out gain not significant";
+        continue;
+      }
+      c.verdict = nf_ >= 2 || !SpecOf(c.cause) ? "named" : "named (one frame: gain on the fitted frame)";
+      *chosen_ho = h;
+      return &c;
+    }
+    return nullptr;
+  }
+
+  // Residuals before (base) and after (the named geometric cause) for the plot, and their RMS.
+  void PlotResiduals(const FrameCandidate* chosen) {
+    const GeoFit* after = &base_;
+    if (chosen && fits_.count(chosen->cause)) after = &fits_[chosen->cause];
+    for (int i = 0; i < d_.stars; ++i) {
+      const auto& s = set_.stars[i];
+      const double w = std::max(s.sigma_px, o_.min_sigma_px);
+      d_.x_px.push_back(s.x_px);
+      d_.y_px.push_back(s.y_px);
+      d_.dx_before_px.push_back(base_.res(2 * i) * w);
+      d_.dy_before_px.push_back(base_.res(2 * i + 1) * w);
+      d_.dx_after_px.push_back(after->res(2 * i) * w);
+      d_.dy_after_px.push_back(after->res(2 * i + 1) * w);
+    }
+    double ss = 0;
+    for (size_t i = 0; i < d_.dx_before_px.size(); ++i) {
+      ss += d_.dx_before_px[i] * d_.dx_before_px[i] + d_.dy_before_px[i] * d_.dy_before_px[i];
+    }
+    d_.residual_rms_before_arcsec = std::sqrt(ss / std::max<size_t>(1, 2 * d_.dx_before_px.size())) * ArcsecPerPx();
+    d_.residual_rms_after_arcsec = d_.residual_rms_before_arcsec;
+  }
+
+  double ArcsecPerPx() const { return kRadToArcsec / camera_.FocalMeanPx(); }
+
+  // The named cause's parameters, sigmas and held-out figures.
+  void NameCause(const FrameCandidate& chosen, const HeldOut& ho) {
+    d_.gain_z = ho.z;
+    if (chosen.cause == "hot_pixels" || chosen.cause == "psf_shape") {
+      NameOther(chosen.cause == "hot_pixels" ? hot_ : psf_);
+      return;
+    }
+    d_.cause = chosen.cause;
+    if (d_.cause == "vignetting") {
+      d_.parameters["vignetting"] = vig_v_;
+      d_.sigmas["vignetting"] = vig_sigma_;
+      d_.flux_rms_before_mag = ho.before, d_.flux_rms_after_mag = ho.after;
+      d_.gain = ho.gain;
+      return;
+    }
+    const GeoFit& g = fits_[d_.cause];
+    d_.fitted_camera = Apply(camera_, g.cam);
+    const double sc = std::sqrt(s2_);
+    std::vector<int> idx;
+    for (int k = 0; k < kCam; ++k) {
+      if (SpecOf(d_.cause)->mask[k]) idx.push_back(k);
+    }
+    // aberration: the uncorrected observer velocity v = b c (km/s, ICRS).
+    constexpr double kc_kms = kSpeedOfLightMS / 1000;
+    const char* names[kCam] = {"focal_length_px", "cx_px", "cy_px", "k1", "pixel_aspect",
+                               "velocity_x_kms", "velocity_y_kms", "velocity_z_kms"};
+    // pixel_aspect is fy / fx: the nominal aspect times (1 + da).
+    const double aspect0 = camera_.FocalYPx() / camera_.focal_length_px;
+    const double nominal[kCam] = {camera_.focal_length_px, camera_.cx_px, camera_.cy_px, camera_.distortion.k1, aspect0, 0, 0, 0};
+    const double unit[kCam] = {1, 1, 1, 1, aspect0, kc_kms, kc_kms, kc_kms};
+    for (size_t k = 0; k < idx.size(); ++k) {
+      d_.parameters[names[idx[k]]] = nominal[idx[k]] + unit[idx[k]] * g.cam[idx[k]];
+      d_.sigmas[names[idx[k]]] = unit[idx[k]] * std::sqrt(g.cov_cam(k, k)) * sc;
+    }
+    if (d_.cause == "aberration") {
+      d_.fitted_camera = camera_;  // not a camera property: the frames' time and velocity were not given
+      d_.parameters["speed_kms"] = Vec3(g.cam[5], g.cam[6], g.cam[7]).norm() * kc_kms;
+    }
+    if (d_.cause == "pixel_aspect") {
+      d_.parameters["focal_length_y_px"] = d_.fitted_camera.FocalYPx();
+      d_.sigmas["focal_length_y_px"] = d_.sigmas["pixel_aspect"] * camera_.focal_length_px;
+    }
+    if (d_.cause == "focal_length") {
+      d_.parameters["focal_length_ppm"] = g.cam[0] / camera_.focal_length_px * 1e6;
+      d_.sigmas["focal_length_ppm"] = d_.sigmas["focal_length_px"] / camera_.focal_length_px * 1e6;
+    }
+    // Held-out RMS (even/odd frames); with a single frame, the fitted figures.
+    d_.residual_rms_before_arcsec = ho.before * ArcsecPerPx();
+    d_.residual_rms_after_arcsec = ho.after * ArcsecPerPx();
+    d_.gain = ho.gain;
+  }
+
+  const SolvedFrameSet& set_;
+  const Camera& camera_;
+  const FrameDiscoverOptions& o_;
+  const int nf_;
+  FrameDiscovery d_;
+  discover_internal::CauseResult hot_, psf_;
+  bool aberration_testable_ = false;
+  double alpha_each_ = 0;
+  std::vector<Spec> specs_;
+  GeoFit base_, fullest_;
+  double s2_ = 0;  // residual variance of the fullest model (whitened units)
+  std::map<std::string, GeoFit> fits_;
+  std::vector<double> vu_, vy_;  // vignetting: squared field radius and flux-magnitude residual
+  double vig_s_ = 0, vig_v_ = 0, vig_sigma_ = 0;
+};
+
+
 }  // namespace
 
 void FrameDiscoverOptions::Check() const {
@@ -277,363 +680,7 @@ SolvedFrameSet SolveFrameSet(const StarIdentifier& id, const std::vector<ImageVi
 
 FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, const FrameDiscoverOptions& o) {
   o.Check();
-  FrameDiscovery d;
-  d.frames = static_cast<int>(set.status.size());
-  d.frames_solved = static_cast<int>(set.q.size());
-  d.stars = static_cast<int>(set.stars.size());
-  d.fitted_camera = camera;
-  const int nf = d.frames_solved;
-  const discover_internal::CauseResult hot = discover_internal::AnalyseHotPixels(set, o, &d);
-  const discover_internal::CauseResult psf = discover_internal::AnalysePsfShape(set, camera, o, &d);
-  if (!hot.tested) d.not_tested.push_back("hot_pixels");
-  if (!psf.tested) d.not_tested.push_back("psf_shape");
-  // aberration needs frames pointing in several directions (else it is a focal length): the
-  // boresights' scatter matrix must have no small eigenvalue, and more frames than its 3 parameters
-  // plus a focal length (with 3 frames it fits any per-frame scale).
-  bool aberration_testable = false;
-  if (set.q.size() >= 6) {
-    Mat3 scatter = Mat3::Zero();
-    for (const auto& q : set.q) scatter += (q * Vec3::UnitZ()) * (q * Vec3::UnitZ()).transpose() / set.q.size();
-    aberration_testable = Eigen::SelfAdjointEigenSolver<Mat3>(scatter).eigenvalues().minCoeff() > 0.02;
-  }
-  if (!aberration_testable) d.not_tested.push_back("aberration");
-  // Bonferroni over the candidates actually tested (5 geometric/photometric + these).
-  const double alpha_each = o.alpha / (5 + aberration_testable + hot.tested + psf.tested);
-  // Names a cause found without the geometric fits (hot_pixels, psf_shape).
-  auto name_other = [&](const discover_internal::CauseResult& c) {
-    d.cause = c.candidate.cause;
-    d.parameters = c.parameters;
-    d.sigmas = c.sigmas;
-    d.gain = c.gain;
-    if (d.cause == "hot_pixels") {
-      d.spikes_before = c.before, d.spikes_after = c.after;
-    } else {
-      d.stamp_rms_before = c.before, d.stamp_rms_after = c.after;
-    }
-  };
-  if (nf == 0 || d.stars < 10) {
-    d.cause = "none";
-    if (hot.tested && hot.candidate.p_value < alpha_each) name_other(hot);
-    return d;
-  }
-  const std::vector<bool> all(nf, true);
-  const double arcsec_per_px = kRadToArcsec / camera.FocalMeanPx();
-  struct Spec {
-    std::string cause;
-    CamMask mask;
-  };
-  std::vector<Spec> specs = {{"focal_length", {true, false, false, false, false, false, false, false}},
-                             {"principal_point", {false, true, true, false, false, false, false, false}},
-                             {"lens_distortion", {false, false, false, true, false, false, false, false}},
-                             {"pixel_aspect", {false, false, false, false, true, false, false, false}}};
-  const bool ab = aberration_testable;
-  if (ab) specs.push_back({"aberration", {false, false, false, false, false, true, true, true}});
-  const GeoFit base = FitGeometry(set, camera, all, kNoCam, nullptr, o);
-  const GeoFit fullest = FitGeometry(set, camera, all, {true, true, true, true, true, ab, ab, ab}, nullptr, o);
-  const int nobs = 2 * d.stars;
-  const int npar = 3 * nf + kCam;
-  const double s2 = fullest.rss / std::max(1, nobs - npar);
-  std::map<std::string, GeoFit> fits;
-  for (const auto& sp : specs) {
-    FrameCandidate c;
-    c.cause = sp.cause;
-    c.dof = static_cast<int>(std::count(sp.mask.begin(), sp.mask.end(), true));
-    const GeoFit g = FitGeometry(set, camera, all, sp.mask, nullptr, o);
-    c.statistic = std::max(0.0, (base.rss - g.rss) / s2);
-    c.p_value = ChiSq1or2Survival(c.statistic, c.dof);
-    c.delta_bic = c.statistic - c.dof * std::log(static_cast<double>(nobs));
-    c.significant = c.p_value < alpha_each;
-    fits[sp.cause] = g;
-    d.candidates.push_back(c);
-  }
-  // Vignetting: y = ln(flux) + 0.4 ln(10) V against u = (r / r_corner)^2.
-  double vig_slope = 0, vig_se = 0, vig_s = 0;
-  std::vector<double> vu, vy;
-  {
-    for (const auto& s : set.stars) {
-      if (!(s.flux > 0)) continue;
-      vu.push_back(discover_internal::FieldRadius2(camera, s.x_px, s.y_px));
-      vy.push_back(std::log(s.flux) + 0.4 * std::log(10.0) * s.mag);
-    }
-    FrameCandidate c;
-    c.cause = "vignetting";
-    c.dof = 1;
-    const int n = static_cast<int>(vu.size());
-    if (n >= 10) {
-      double mu = 0, my = 0;
-      for (int i = 0; i < n; ++i) mu += vu[i] / n, my += vy[i] / n;
-      double suu = 0, suy = 0;
-      for (int i = 0; i < n; ++i) suu += (vu[i] - mu) * (vu[i] - mu), suy += (vu[i] - mu) * (vy[i] - my);
-      vig_slope = suy / suu;
-      double ss = 0;
-      for (int i = 0; i < n; ++i) ss += std::pow(vy[i] - my - vig_slope * (vu[i] - mu), 2);
-      vig_s = std::sqrt(ss / (n - 2));
-      vig_se = vig_s / std::sqrt(suu);
-      c.statistic = std::pow(vig_slope / vig_se, 2);
-      c.p_value = ChiSq1or2Survival(c.statistic, 1);
-      c.delta_bic = c.statistic - std::log(static_cast<double>(n));
-      c.significant = c.p_value < alpha_each;
-    }
-    d.candidates.push_back(c);
-  }
-  {  // measured figures for the comparison with the simulator
-    auto median = [](std::vector<double> v) {
-      if (v.empty()) return 0.0;
-      std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-      return v[v.size() / 2];
-    };
-    if (!vy.empty()) {
-      double m = 0, ss = 0;
-      for (double v : vy) m += v / vy.size();
-      for (double v : vy) ss += (v - m) * (v - m);
-      d.zero_point_adu = std::exp(m);
-      d.photometric_scatter_mag = std::sqrt(ss / vy.size()) * 2.5 / std::log(10.0);
-    }
-    std::vector<double> ps;
-    for (const auto& s : set.stars) {
-      if (s.psf_sigma_px > 0) ps.push_back(s.psf_sigma_px);
-    }
-    d.psf_sigma_median_px = median(ps);
-    d.background_median_adu = median(set.background_adu);
-    d.noise_median_adu = median(set.noise_adu);
-  }
-  for (const auto* c : {&hot, &psf}) {
-    if (!c->tested) continue;
-    d.candidates.push_back(c->candidate);
-    d.candidates.back().significant = c->candidate.p_value < alpha_each;
-  }
-  // Gates, in BIC order until one candidate passes: its parameters lie within the physical bounds
-  // and its held-out improvement is significant (one-sided z above the normal quantile of gain_alpha).
-  d.gain_z_min = boost::math::quantile(boost::math::complement(boost::math::normal(), o.gain_alpha));
-  std::vector<int> order;
-  for (int i = 0; i < static_cast<int>(d.candidates.size()); ++i) {
-    if (d.candidates[i].significant) order.push_back(i);
-  }
-  std::stable_sort(order.begin(), order.end(),
-                   [&](int a, int b) { return d.candidates[a].delta_bic > d.candidates[b].delta_bic; });
-  const double sc2 = s2;  // residual variance of the fullest model (whitened units)
-  auto spec_of = [&](const std::string& cause) -> const Spec* {
-    for (const auto& sp : specs) {
-      if (sp.cause == cause) return &sp;
-    }
-    return nullptr;
-  };
-  // Geometric: the camera fitted on the even frames scored on the odd ones and vice versa (rotations
-  // refitted there with the camera held); RMS in px, z over both folds.
-  auto geometric_held_out = [&](const Spec& sp) {
-    HeldOut h;
-    if (nf < 2) {  // one frame: the fitted figures stand (no held-out frames)
-      double sb = 0, sa = 0;
-      for (int i = 0; i < d.stars; ++i) {
-        const double w = std::max(set.stars[i].sigma_px, o.min_sigma_px);
-        sb += (std::pow(base.res(2 * i), 2) + std::pow(base.res(2 * i + 1), 2)) * w * w;
-        sa += (std::pow(fits[sp.cause].res(2 * i), 2) + std::pow(fits[sp.cause].res(2 * i + 1), 2)) * w * w;
-      }
-      h.before = std::sqrt(sb / (2 * d.stars)), h.after = std::sqrt(sa / (2 * d.stars));
-      h.gain = h.after > 0 ? h.before / h.after : 1.0;
-      return h;
-    }
-    double ssb = 0, ssa = 0, ep = 0, pp = 0;
-    int cnt = 0;
-    const double zero[kCam] = {0, 0, 0, 0, 0, 0, 0, 0};
-    for (int fold = 0; fold < 2; ++fold) {
-      std::vector<bool> train(nf), test(nf);
-      for (int f = 0; f < nf; ++f) train[f] = f % 2 == fold, test[f] = !train[f];
-      const GeoFit gt = FitGeometry(set, camera, train, sp.mask, nullptr, o);
-      const VectorXd e = HeldOutResiduals(set, camera, test, zero, o), r = HeldOutResiduals(set, camera, test, gt.cam, o);
-      int k = 0;
-      for (const auto& st : set.stars) {
-        if (!test[st.frame]) continue;
-        const double w2 = std::pow(std::max(st.sigma_px, o.min_sigma_px), 2);
-        for (int c = 0; c < 2; ++c, ++k) ssb += e(k) * e(k) * w2, ssa += r(k) * r(k) * w2;
-        cnt += 2;
-      }
-      ep += e.dot(e - r), pp += (e - r).squaredNorm();
-    }
-    if (cnt == 0) return h;
-    h.before = std::sqrt(ssb / cnt), h.after = std::sqrt(ssa / cnt);
-    h.gain = h.after > 0 ? h.before / h.after : 1.0;
-    h.z = HeldOutZ(ep, pp, sc2), h.z_defined = true;
-    return h;
-  };
-  // Vignetting: the slope fitted on the even frames scored on the odd ones and vice versa (mag).
-  const double to_mag = 2.5 / std::log(10.0);
-  auto vignetting_held_out = [&] {
-    HeldOut h;
-    double ssb = 0, ssa = 0, ep = 0, pp = 0;
-    int n = 0;
-    std::vector<int> frame_of;
-    for (const auto& st : set.stars) {
-      if (st.flux > 0) frame_of.push_back(st.frame);
-    }
-    for (int fold = 0; fold < 2; ++fold) {
-      double mu = 0, my = 0, cnt = 0;
-      for (size_t i = 0; i < vu.size(); ++i) {
-        if (frame_of[i] % 2 == fold) mu += vu[i], my += vy[i], cnt += 1;
-      }
-      if (cnt < 3) continue;
-      mu /= cnt, my /= cnt;
-      double suu = 0, suy = 0;
-      for (size_t i = 0; i < vu.size(); ++i) {
-        if (frame_of[i] % 2 == fold) suu += (vu[i] - mu) * (vu[i] - mu), suy += (vu[i] - mu) * (vy[i] - my);
-      }
-      const double b = suu > 0 ? suy / suu : 0.0;
-      double yb = 0;
-      for (size_t i = 0; i < vu.size(); ++i) {
-        if (frame_of[i] % 2 == fold) yb += vy[i] - b * vu[i];
-      }
-      yb /= cnt;
-      for (size_t i = 0; i < vu.size(); ++i) {
-        if (frame_of[i] % 2 == fold) continue;
-        const double e = vy[i] - my, r = vy[i] - yb - b * vu[i];
-        ssb += e * e, ssa += r * r, ep += e * (e - r), pp += (e - r) * (e - r);
-        ++n;
-      }
-    }
-    if (n == 0) return h;
-    h.before = std::sqrt(ssb / n) * to_mag, h.after = std::sqrt(ssa / n) * to_mag;
-    h.gain = h.after > 0 ? h.before / h.after : 1.0;
-    if (nf >= 2) h.z = HeldOutZ(ep, pp, vig_s * vig_s), h.z_defined = true;
-    return h;
-  };
-  double vig_sigma = 0;
-  const double vig_v = vu.size() >= 10 ? discover_internal::FitVignettingLaw(vu, vy, &vig_sigma) : 0.0;
-  // Physical bounds (docs/discrepancy.md): wide on purpose, they catch fits that explain noise or
-  // each other, not unusual cameras.
-  auto out_of_bounds = [&](const std::string& cause) -> std::string {
-    if (cause == "vignetting") return vig_v >= 0 && vig_v <= 0.95 ? "" : "vignetting outside [0, 0.95]";
-    if (cause == "hot_pixels") return hot.parameters.count("hot_pixel_count") && hot.parameters.at("hot_pixel_count") >= 1 ? "" : "no pixel";
-    if (cause == "psf_shape") {
-      const double sg = psf.parameters.count("psf_sigma_px") ? psf.parameters.at("psf_sigma_px") : 0;
-      const double el = psf.parameters.count("psf_ellipticity") ? psf.parameters.at("psf_ellipticity") : 0;
-      return sg >= 0.1 && sg <= 10 && el < 0.9 ? "" : "PSF sigma outside [0.1, 10] px or ellipticity >= 0.9";
-    }
-    const double* g = fits[cause].cam;
-    if (cause == "focal_length") return std::abs(g[0] / camera.focal_length_px) <= 0.05 ? "" : "focal length off by > 5 %";
-    if (cause == "principal_point")
-      return std::abs(g[1]) <= 0.2 * camera.width && std::abs(g[2]) <= 0.2 * camera.height
-                 ? ""
-                 : "principal point moved by > 20 % of the frame";
-    if (cause == "lens_distortion") {
-      // k1 r^2 at the corner (normalised coordinates): the relative displacement there.
-      const double rc2 = std::pow(std::max(camera.cx_px, camera.width - 1 - camera.cx_px) / camera.focal_length_px, 2) +
-                         std::pow(std::max(camera.cy_px, camera.height - 1 - camera.cy_px) / camera.FocalYPx(), 2);
-      return std::abs((camera.distortion.k1 + g[3]) * rc2) <= 0.3 ? "" : "k1 moves the corners by > 30 %";
-    }
-    if (cause == "pixel_aspect") return std::abs(g[4]) <= 0.05 ? "" : "aspect off by > 5 %";
-    if (cause == "aberration")
-      return Vec3(g[5], g[6], g[7]).norm() * kSpeedOfLightMS / 1000 <= 100 ? "" : "speed > 100 km/s";
-    return "";
-  };
-  const FrameCandidate* chosen = nullptr;
-  HeldOut chosen_ho;
-  for (int i : order) {
-    FrameCandidate& c = d.candidates[i];
-    c.evaluated = true;
-    const std::string why = out_of_bounds(c.cause);
-    if (!why.empty()) {
-      c.verdict = "outside bounds: " + why;
-      continue;
-    }
-    HeldOut h;
-    if (const Spec* sp = spec_of(c.cause)) {
-      h = geometric_held_out(*sp);
-    } else if (c.cause == "vignetting") {
-      h = vignetting_held_out();
-    } else {  // hot_pixels, psf_shape: their own held-out figures (no z)
-      const auto& r = c.cause == "hot_pixels" ? hot : psf;
-      h.before = r.before, h.after = r.after, h.gain = r.gain;
-    }
-    c.gain = h.gain, c.gain_z = h.z;
-    if (!(h.gain > 1) || (h.z_defined && !(h.z > d.gain_z_min))) {
-      c.verdict = "held-out gain not significant";
-      continue;
-    }
-    c.verdict = nf >= 2 || !spec_of(c.cause) ? "named" : "named (one frame: gain on the fitted frame)";
-    chosen = &c;
-    chosen_ho = h;
-    break;
-  }
-  // Residuals before (base) and after (the named geometric cause) for the plot.
-  const GeoFit* after = &base;
-  if (chosen && fits.count(chosen->cause)) after = &fits[chosen->cause];
-  for (int i = 0; i < d.stars; ++i) {
-    const auto& s = set.stars[i];
-    const double w = std::max(s.sigma_px, o.min_sigma_px);
-    d.x_px.push_back(s.x_px);
-    d.y_px.push_back(s.y_px);
-    d.dx_before_px.push_back(base.res(2 * i) * w);
-    d.dy_before_px.push_back(base.res(2 * i + 1) * w);
-    d.dx_after_px.push_back(after->res(2 * i) * w);
-    d.dy_after_px.push_back(after->res(2 * i + 1) * w);
-  }
-  auto rms_of = [&](const std::vector<double>& a, const std::vector<double>& b) {
-    double ss = 0;
-    for (size_t i = 0; i < a.size(); ++i) ss += a[i] * a[i] + b[i] * b[i];
-    return std::sqrt(ss / std::max<size_t>(1, 2 * a.size())) * arcsec_per_px;
-  };
-  d.residual_rms_before_arcsec = rms_of(d.dx_before_px, d.dy_before_px);
-  d.residual_rms_after_arcsec = d.residual_rms_before_arcsec;
-  // `unexplained`: the residual of the fullest model of the vocabulary (every geometric cause, the
-  // vignetting law), whatever was named: structure that no cause explains.
-  d.residual = discover_internal::TestFrameResidual(set, camera, fullest.jac, fullest.res, o);
-  auto finish = [&] {
-    if (d.residual.structured) {
-      d.partial_cause = d.cause == "none" ? "" : d.cause;
-      d.cause = "unexplained";
-    }
-    return d;
-  };
-  if (!chosen) return finish();
-  d.gain_z = chosen_ho.z;
-  if (chosen->cause == "hot_pixels" || chosen->cause == "psf_shape") {
-    name_other(chosen->cause == "hot_pixels" ? hot : psf);
-    return finish();
-  }
-  d.cause = chosen->cause;
-  if (d.cause == "vignetting") {
-    d.parameters["vignetting"] = vig_v;
-    d.sigmas["vignetting"] = vig_sigma;
-    d.flux_rms_before_mag = chosen_ho.before, d.flux_rms_after_mag = chosen_ho.after;
-    d.gain = chosen_ho.gain;
-    return finish();
-  }
-  const GeoFit& g = fits[d.cause];
-  d.fitted_camera = Apply(camera, g.cam);
-  const double sc = std::sqrt(s2);
-  std::vector<int> idx;
-  for (int k = 0; k < kCam; ++k) {
-    if (spec_of(d.cause)->mask[k]) idx.push_back(k);
-  }
-  // aberration: the uncorrected observer velocity v = b c (km/s, ICRS).
-  constexpr double kc_kms = kSpeedOfLightMS / 1000;
-  const char* names[kCam] = {"focal_length_px", "cx_px", "cy_px", "k1", "pixel_aspect",
-                             "velocity_x_kms", "velocity_y_kms", "velocity_z_kms"};
-  // pixel_aspect is fy / fx: the nominal aspect times (1 + da).
-  const double aspect0 = camera.FocalYPx() / camera.focal_length_px;
-  const double nominal[kCam] = {camera.focal_length_px, camera.cx_px, camera.cy_px, camera.distortion.k1, aspect0, 0, 0, 0};
-  const double unit[kCam] = {1, 1, 1, 1, aspect0, kc_kms, kc_kms, kc_kms};
-  for (size_t k = 0; k < idx.size(); ++k) {
-    d.parameters[names[idx[k]]] = nominal[idx[k]] + unit[idx[k]] * g.cam[idx[k]];
-    d.sigmas[names[idx[k]]] = unit[idx[k]] * std::sqrt(g.cov_cam(k, k)) * sc;
-  }
-  if (d.cause == "aberration") {
-    d.fitted_camera = camera;  // not a camera property: the frames' time and velocity were not given
-    d.parameters["speed_kms"] = Vec3(g.cam[5], g.cam[6], g.cam[7]).norm() * kc_kms;
-  }
-  if (d.cause == "pixel_aspect") {
-    d.parameters["focal_length_y_px"] = d.fitted_camera.FocalYPx();
-    d.sigmas["focal_length_y_px"] = d.sigmas["pixel_aspect"] * camera.focal_length_px;
-  }
-  if (d.cause == "focal_length") {
-    d.parameters["focal_length_ppm"] = g.cam[0] / camera.focal_length_px * 1e6;
-    d.sigmas["focal_length_ppm"] = d.sigmas["focal_length_px"] / camera.focal_length_px * 1e6;
-  }
-  // Held-out RMS (even/odd frames); with a single frame, the fitted figures.
-  d.residual_rms_before_arcsec = chosen_ho.before * arcsec_per_px;
-  d.residual_rms_after_arcsec = chosen_ho.after * arcsec_per_px;
-  d.gain = chosen_ho.gain;
-  return finish();
+  return FrameCauseSearch(set, camera, o).Run();
 }
 
 double discover_internal::FitVignettingLaw(const std::vector<double>& vu, const std::vector<double>& vy, double* sigma) {

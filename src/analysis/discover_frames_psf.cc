@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "analysis/discover_frames_internal.h"
+#include "core/stats.h"
 #include "core/types.h"
 
 namespace ssiu {
@@ -155,12 +156,6 @@ SpotFit FitSpot(const std::vector<float>& stamp, int half, double x_guess, doubl
 
 namespace discover_internal {
 namespace {
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
 
 struct ShapeStar {
   int frame = 0, index = 0;

@@ -8,27 +8,11 @@
 #include "analysis/plot.h"
 #include "core/attitude.h"
 #include "core/error.h"
+#include "core/stats.h"
 #include "core/types.h"
 #include "identify/star_catalog.h"
 
 namespace ssiu {
-namespace {
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
-
-// 1.4826 x median absolute deviation: the Gaussian sigma of a sample with outliers.
-double RobustSigma(const std::vector<double>& v) {
-  const double m = Median(v);
-  std::vector<double> a;
-  for (double x : v) a.push_back(std::abs(x - m));
-  return 1.4826 * Median(a);
-}
-
-}  // namespace
 
 void FrameCompareOptions::Check() const {
   sim.Check();
