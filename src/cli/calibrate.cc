@@ -9,6 +9,7 @@
 #include "cli/command.h"
 #include "core/attitude.h"
 #include "core/error.h"
+#include "core/heads.h"
 
 namespace ssiu::cli {
 namespace {
@@ -66,20 +67,17 @@ void RunSingle(const Opts& o) {
 }
 
 void RunHeads(const Opts& o) {
-  const Json hj = ReadJsonFile(o.heads);
-  if (!hj.is_array() || hj.empty() || hj.size() > 3) throw InputError(o.heads, "must be a list of 1 to 3 heads");
-  const size_t nh = hj.size();
+  const std::vector<OpticalHead> hs = ReadHeadsFile(o.heads);
+  const size_t nh = hs.size();
   if (o.frames.size() % nh != 0)
     throw InputError(o.heads, "lists " + std::to_string(nh) + " heads: give frames in groups of " + std::to_string(nh) +
                                   " (one per head, in heads.json order, epoch by epoch)");
   const size_t ne = o.frames.size() / nh;
   std::vector<Camera> cams;
   std::vector<Quat> mounts;
-  for (size_t h = 0; h < nh; ++h) {
-    const std::string where = o.heads + ": head " + std::to_string(h);
-    cams.emplace_back();
-    mounts.emplace_back();
-    HeadFromJson(hj[h], where, &cams.back(), &mounts.back());
+  for (const OpticalHead& h : hs) {
+    cams.push_back(h.camera);
+    mounts.push_back(h.q_body_from_sensor);
   }
   std::vector<CameraCalibration> cals;
   std::vector<std::vector<AttitudeSolution>> att(ne, std::vector<AttitudeSolution>(nh));

@@ -15,6 +15,7 @@
 #include "cli/smear_flags.h"
 #include "core/attitude.h"
 #include "core/error.h"
+#include "core/heads.h"
 #include "core/image.h"
 #include "core/output.h"
 
@@ -166,10 +167,9 @@ void RunBatchSolve(const Opts& o, const std::vector<std::string>& inputs) {
 }
 
 void RunHeads(const Opts& o) {
-  const Json hj = ReadJsonFile(o.heads);
-  if (!hj.is_array() || hj.empty() || hj.size() > 3) throw InputError(o.heads, "must be a list of 1 to 3 heads");
-  if (o.frames.size() != hj.size())
-    throw InputError(o.heads, "lists " + std::to_string(hj.size()) + " heads but " + std::to_string(o.frames.size()) + " frames were given");
+  const std::vector<OpticalHead> hs = ReadHeadsFile(o.heads);
+  if (o.frames.size() != hs.size())
+    throw InputError(o.heads, "lists " + std::to_string(hs.size()) + " heads but " + std::to_string(o.frames.size()) + " frames were given");
   // --rate-dps is the body's rate here: each head sees it in its own axes (as the unit's processor
   // hands the gyro rate to each head).
   const Vec3 w_body_rad_s = o.smear.given() ? SmearRateRadS(o.smear, true) : Vec3::Zero();
@@ -179,11 +179,9 @@ void RunHeads(const Opts& o) {
   std::vector<Quat> mounts;
   Json heads = Json::array();
   double heads_ms = 0;  // read excluded: detect + identify + attitude of every head
-  for (size_t h = 0; h < hj.size(); ++h) {
-    const std::string where = o.heads + ": head " + std::to_string(h);
-    Camera cam;
-    mounts.emplace_back();
-    HeadFromJson(hj[h], where, &cam, &mounts.back());
+  for (size_t h = 0; h < hs.size(); ++h) {
+    const Camera& cam = hs[h].camera;
+    mounts.push_back(hs[h].q_body_from_sensor);
     const StarIdentifier id = MakeIdentifier(o, cam);
     const Frame fr = ReadFrame(o.frames[h]);
     SolveOptions so = o.solve;

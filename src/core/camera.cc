@@ -146,7 +146,7 @@ Camera CameraFromJson(const Json& j, const std::string& source, double fov_x_deg
 void HeadFromJson(const Json& j, const std::string& where, Camera* camera, Quat* q_body_from_sensor) {
   CheckKeys(j, {"camera", "q_body_sensor"}, where);
   if (!j.contains("camera")) throw InputError(where, "missing field 'camera'");
-  *camera = CameraFromJson(j.at("camera"), where + ": camera");
+  *camera = CameraFromJson(j.at("camera"), where + ".camera");
   const std::vector<double> q = JsonNumbers(j, "q_body_sensor", 4, where);
   *q_body_from_sensor = FromWxyz(q[0], q[1], q[2], q[3], (where + ": q_body_sensor").c_str());
 }

@@ -17,6 +17,7 @@
 
 #include "attitude/star_solver.h"
 #include "core/camera.h"
+#include "core/heads.h"
 #include "core/image.h"
 #include "core/json.h"
 #include "core/types.h"
@@ -27,13 +28,6 @@
 
 namespace ssiu {
 
-// One optical head (conventions.md heads.json): its camera and q_body_from_sensor, which rotates
-// vectors from the head's sensor frame to the body frame.
-struct OpticalHead {
-  Camera camera;
-  Quat q_body_from_sensor = Quat::Identity();
-};
-constexpr int kMaxHeads = 3;
 
 struct UnitProcessorOptions {
   SolveOptions solve;  // detection threshold, identification, tracking search radius; with

@@ -21,20 +21,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double SecondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-Quat QuatFromJsonArray(const Json& j, const std::string& key, const std::string& file) {
-  if (!j.contains(key)) throw InputError(file, "missing field '" + key + "'");
-  const Json& a = j.at(key);
-  if (!a.is_array() || a.size() != 4) throw InputError(file, "field '" + key + "' must be [w, x, y, z]");
-  double v[4];
-  for (int i = 0; i < 4; ++i) {
-    if (!a[i].is_number() || !std::isfinite(a[i].get<double>())) {
-      throw InputError(file, "field '" + key + "' must hold 4 finite numbers");
-    }
-    v[i] = a[i].get<double>();
-  }
-  return FromWxyz(v[0], v[1], v[2], v[3], (file + ": " + key).c_str());
-}
-
 // Deterministic, well-mixed per-frame seeds (splitmix64 finaliser).
 uint64_t Mix(uint64_t x) {
   x += 0x9E3779B97F4A7C15ull;
@@ -162,22 +148,7 @@ MissionConfig MissionConfigFromJson(const Json& j, const std::string& file) {
   c.score_after_s = JsonNumberOr(j, "score_after_s", std::min(c.score_after_s, 0.5 * c.duration_s), file);
 
   if (!j.contains("heads")) throw InputError(file, "missing field 'heads'");
-  const Json& hs = j.at("heads");
-  if (!hs.is_array()) throw InputError(file, "field 'heads' must be a list of {camera, q_body_sensor}");
-  if (hs.empty() || hs.size() > static_cast<size_t>(kMaxHeads)) {
-    throw InputError(file, "field 'heads': " + std::to_string(hs.size()) + " heads given, the unit has 1 to 3");
-  }
-  c.heads.clear();
-  for (size_t h = 0; h < hs.size(); ++h) {
-    const std::string what = file + ": heads[" + std::to_string(h) + "]";
-    if (!hs[h].is_object()) throw InputError(what, "must be an object {camera, q_body_sensor}");
-    CheckKeys(hs[h], {"camera", "q_body_sensor"}, what);
-    if (!hs[h].contains("camera")) throw InputError(what, "missing field 'camera'");
-    OpticalHead head;
-    head.camera = CameraFromJson(hs[h].at("camera"), what + ".camera");
-    head.q_body_from_sensor = QuatFromJsonArray(hs[h], "q_body_sensor", what);
-    c.heads.push_back(head);
-  }
+  c.heads = HeadsFromJson(j.at("heads"), file, "heads");
   if (j.contains("gyro_unit")) c.unit = GyroUnitFromJson(j.at("gyro_unit"), file + ": gyro_unit");
   if (j.contains("motion")) c.motion = MotionProfileFromJson(j.at("motion"), file + ": motion");
   if (j.contains("frame_sim")) c.frame_sim = FrameSimOptionsFromJson(j.at("frame_sim"), file + ": frame_sim");
