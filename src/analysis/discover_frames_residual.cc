@@ -98,53 +98,83 @@ std::vector<double> Monomials(double a, double b, int lo) {
   return m;
 }
 
-}  // namespace
+// The steps of TestFrameResidual: F tests of extra columns on the position and photometry
+// residuals, descriptions of the strongest structure, and the combined (Bonferroni) verdict.
+class FrameResidualTester {
+ public:
+  FrameResidualTester(const SolvedFrameSet& set, const Camera& camera, const MatrixXd& jac, const VectorXd& res_w,
+                      const FrameDiscoverOptions& o)
+      : set_(set), camera_(camera), jac_(jac), res_w_(res_w), o_(o), ns_(static_cast<int>(set.stars.size())),
+        nf_(static_cast<int>(set.q.size())) {}
 
-FrameResidual TestFrameResidual(const SolvedFrameSet& set, const Camera& camera, const MatrixXd& jac,
-                                const VectorXd& res_w, const FrameDiscoverOptions& o) {
-  FrameResidual out;
-  const int ns = static_cast<int>(set.stars.size());
-  const int nf = static_cast<int>(set.q.size());
-  if (ns < 10 || nf == 0) return out;
-  const double half_diag = 0.5 * std::hypot(camera.width, camera.height);
-  const double arcsec_per_px = kRadToArcsec / camera.FocalMeanPx();
-  // Grid of the cell tests: as many cells as the stars fill with residual_min_stars_per_cell each.
-  const int grid = std::clamp(static_cast<int>(std::sqrt(ns / static_cast<double>(o.residual_min_stars_per_cell))), 2, 4);
-  auto cell_of = [&](double x, double y) {
+  FrameResidual Run() {
+    if (ns_ < 10 || nf_ == 0) return out_;
+    half_diag_ = 0.5 * std::hypot(camera_.width, camera_.height);
+    // Grid of the cell tests: as many cells as the stars fill with residual_min_stars_per_cell each.
+    grid_ = std::clamp(static_cast<int>(std::sqrt(ns_ / static_cast<double>(o_.residual_min_stars_per_cell))), 2, 4);
+    for (const auto& s : set_.stars) mean_mag_ += s.mag / ns_;
+    // Positions: rows 2i (x) and 2i + 1 (y), whitened as res_w.
+    const bool positions = res_w_.size() == 2 * ns_ && jac_.rows() == 2 * ns_;
+    sig_.resize(ns_);
+    for (int i = 0; i < ns_; ++i) sig_[i] = std::max(set_.stars[i].sigma_px, o_.min_sigma_px);
+    // Where the fitted model puts each star: the extra columns are functions of these, not of the
+    // measured positions (whose noise is the residual itself: a field linear in the measured x would
+    // contain it).
+    px_.resize(ns_), py_.resize(ns_);
+    for (int i = 0; i < ns_; ++i) {
+      px_[i] = set_.stars[i].x_px - (positions ? res_w_(2 * i) * sig_[i] : 0.0);
+      py_[i] = set_.stars[i].y_px - (positions ? res_w_(2 * i + 1) * sig_[i] : 0.0);
+    }
+    if (positions) PositionTests();
+    PhotometryTests();
+    DescribePositions();
+    int ntests = 0;
+    double pmin = 1;
+    for (const auto& f : fits_) {
+      if (!f.test.tested) continue;
+      out_.tests.push_back(f.test);
+      ++ntests;
+      if (f.test.p_value < pmin) pmin = f.test.p_value, out_.finding = f.test.name;
+    }
+    out_.p_value = std::min(1.0, ntests * pmin);
+    out_.structured = ntests > 0 && out_.p_value < o_.residual_alpha;
+    return out_;
+  }
+
+ private:
+  int CellOf(double x, double y) const {
     // (clamped as doubles: a star the model puts far outside must not overflow the cast)
     auto index = [&](double t, int size) {
-      const double u = (t + 0.5) / size * grid;
-      return std::isfinite(u) ? static_cast<int>(std::clamp(u, 0.0, grid - 1.0)) : 0;
+      const double u = (t + 0.5) / size * grid_;
+      return std::isfinite(u) ? static_cast<int>(std::clamp(u, 0.0, grid_ - 1.0)) : 0;
     };
-    const int cx = index(x, camera.width), cy = index(y, camera.height);
-    return cy * grid + cx;
-  };
-  double mean_mag = 0;
-  for (const auto& s : set.stars) mean_mag += s.mag / ns;
-  std::vector<ExtraFit> fits;
-  // Positions: rows 2i (x) and 2i + 1 (y), whitened as res_w.
-  const bool positions = res_w.size() == 2 * ns && jac.rows() == 2 * ns;
-  std::vector<double> sig(ns);
-  for (int i = 0; i < ns; ++i) sig[i] = std::max(set.stars[i].sigma_px, o.min_sigma_px);
-  // Where the fitted model puts each star: the extra columns are functions of these, not of the
-  // measured positions (whose noise is the residual itself: a field linear in the measured x would
-  // contain it).
-  std::vector<double> px(ns), py(ns);
-  for (int i = 0; i < ns; ++i) {
-    px[i] = set.stars[i].x_px - (positions ? res_w(2 * i) * sig[i] : 0.0);
-    py[i] = set.stars[i].y_px - (positions ? res_w(2 * i + 1) * sig[i] : 0.0);
+    const int cx = index(x, camera_.width), cy = index(y, camera_.height);
+    return cy * grid_ + cx;
   }
-  if (positions) {
+
+  // The strongest tested structure whose name starts with `prefix` (nullptr: none).
+  const ExtraFit* Strongest(const char* prefix) const {
+    const ExtraFit* best = nullptr;
+    for (const auto& f : fits_) {
+      if (f.test.tested && f.test.name.rfind(prefix, 0) == 0 && (!best || f.test.p_value < best->test.p_value))
+        best = &f;
+    }
+    return best;
+  }
+
+  // Position residual against a cubic polynomial field, per-cell offsets and magnitude terms.
+  void PositionTests() {
+    const int ns = ns_, grid = grid_;
     const int nm = static_cast<int>(Monomials(0, 0, 0).size());
     MatrixXd poly = MatrixXd::Zero(2 * ns, 2 * nm), cells = MatrixXd::Zero(2 * ns, 2 * grid * grid),
              mag = MatrixXd::Zero(2 * ns, 6);
     for (int i = 0; i < ns; ++i) {
-      const auto& s = set.stars[i];
-      const double w = 1 / sig[i], a = (px[i] - camera.cx_px) / half_diag, b = (py[i] - camera.cy_px) / half_diag;
+      const auto& s = set_.stars[i];
+      const double w = 1 / sig_[i], a = (px_[i] - camera_.cx_px) / half_diag_, b = (py_[i] - camera_.cy_px) / half_diag_;
       const auto m = Monomials(a, b, 0);
-      const int c = cell_of(px[i], py[i]);
+      const int c = CellOf(px_[i], py_[i]);
       // Saturated stars are left out of the magnitude columns: their clipped centroids are noise here.
-      const double dm = s.saturated ? 0.0 : s.mag - mean_mag, mm[3] = {dm, dm * a, dm * b};
+      const double dm = s.saturated ? 0.0 : s.mag - mean_mag_, mm[3] = {dm, dm * a, dm * b};
       for (int comp = 0; comp < 2; ++comp) {
         for (int k = 0; k < nm; ++k) poly(2 * i + comp, comp * nm + k) = m[k] * w;
         cells(2 * i + comp, comp * grid * grid + c) = w;
@@ -152,153 +182,159 @@ FrameResidual TestFrameResidual(const SolvedFrameSet& set, const Camera& camera,
       }
     }
     std::vector<double> row_mag(2 * ns);
-    for (int i = 0; i < 2 * ns; ++i) row_mag[i] = set.stars[i / 2].mag;
+    for (int i = 0; i < 2 * ns; ++i) row_mag[i] = set_.stars[i / 2].mag;
     int r0 = 0;
-    const VectorXd wq = MagnitudeWeights(row_mag, ResidualOn(jac, res_w, &r0));
-    const MatrixXd jq = wq.asDiagonal() * jac;
-    const VectorXd yq = wq.asDiagonal() * res_w;
-    fits.push_back(FTestExtra("position_polynomial", jq, wq.asDiagonal() * poly, yq));
-    if (ns >= 4 * o.residual_min_stars_per_cell) fits.push_back(FTestExtra("position_cells", jq, wq.asDiagonal() * cells, yq));
-    fits.push_back(FTestExtra("position_magnitude", jq, wq.asDiagonal() * mag, yq));
-    for (auto& f : fits) {
+    const VectorXd wq = MagnitudeWeights(row_mag, ResidualOn(jac_, res_w_, &r0));
+    const MatrixXd jq = wq.asDiagonal() * jac_;
+    const VectorXd yq = wq.asDiagonal() * res_w_;
+    fits_.push_back(FTestExtra("position_polynomial", jq, wq.asDiagonal() * poly, yq));
+    if (ns >= 4 * o_.residual_min_stars_per_cell) fits_.push_back(FTestExtra("position_cells", jq, wq.asDiagonal() * cells, yq));
+    fits_.push_back(FTestExtra("position_magnitude", jq, wq.asDiagonal() * mag, yq));
+    for (auto& f : fits_) {
       if (f.test.tested) f.fitted = f.fitted.cwiseQuotient(wq);  // back to res_w's units
     }
   }
+
   // Photometry: y = ln(flux) + 0.4 ln(10) V about the fitted vignetting law, per-frame zero points
-  // and the law's derivative in v as the fitted model; saturated stars left out.
-  std::vector<int> phot;
-  for (int i = 0; i < ns; ++i) {
-    if (set.stars[i].flux > 0 && !set.stars[i].saturated) phot.push_back(i);
-  }
-  const int np = static_cast<int>(phot.size());
-  if (np >= 10) {
+  // and the law's derivative in v as the fitted model; saturated stars left out. The strongest
+  // photometric structure is described (mag).
+  void PhotometryTests() {
+    std::vector<int> phot;
+    for (int i = 0; i < ns_; ++i) {
+      if (set_.stars[i].flux > 0 && !set_.stars[i].saturated) phot.push_back(i);
+    }
+    const int np = static_cast<int>(phot.size());
+    if (np < 10) return;
     std::vector<double> u(np), y(np);
     for (int k = 0; k < np; ++k) {
-      const auto& s = set.stars[phot[k]];
-      u[k] = FieldRadius2(camera, s.x_px, s.y_px);
+      const auto& s = set_.stars[phot[k]];
+      u[k] = FieldRadius2(camera_, s.x_px, s.y_px);
       y[k] = std::log(s.flux) + 0.4 * std::log(10.0) * s.mag;
     }
     const double v = FitVignettingLaw(u, y, nullptr);
     const int nm = static_cast<int>(Monomials(0, 0, 1).size());
     VectorXd yv(np);
-    MatrixXd nuis = MatrixXd::Zero(np, nf + 1), poly(np, nm), cells = MatrixXd::Zero(np, grid * grid), mag(np, 2);
+    MatrixXd nuis = MatrixXd::Zero(np, nf_ + 1), poly(np, nm), cells = MatrixXd::Zero(np, grid_ * grid_), mag(np, 2);
     for (int k = 0; k < np; ++k) {
-      const auto& s = set.stars[phot[k]];
+      const auto& s = set_.stars[phot[k]];
       yv(k) = y[k] - std::log(1 - v * u[k]);
       nuis(k, s.frame) = 1;
-      nuis(k, nf) = -u[k] / (1 - v * u[k]);
-      const auto m = Monomials((s.x_px - camera.cx_px) / half_diag, (s.y_px - camera.cy_px) / half_diag, 1);
+      nuis(k, nf_) = -u[k] / (1 - v * u[k]);
+      const auto m = Monomials((s.x_px - camera_.cx_px) / half_diag_, (s.y_px - camera_.cy_px) / half_diag_, 1);
       for (int j = 0; j < nm; ++j) poly(k, j) = m[j];
-      cells(k, cell_of(s.x_px, s.y_px)) = 1;
-      mag(k, 0) = s.mag - mean_mag;
-      mag(k, 1) = std::pow(s.mag - mean_mag, 2);
+      cells(k, CellOf(s.x_px, s.y_px)) = 1;
+      mag(k, 0) = s.mag - mean_mag_;
+      mag(k, 1) = std::pow(s.mag - mean_mag_, 2);
     }
     std::vector<double> row_mag(np);
-    for (int k = 0; k < np; ++k) row_mag[k] = set.stars[phot[k]].mag;
+    for (int k = 0; k < np; ++k) row_mag[k] = set_.stars[phot[k]].mag;
     int r0 = 0;
     const VectorXd wq = MagnitudeWeights(row_mag, ResidualOn(nuis, yv, &r0));
     nuis = wq.asDiagonal() * nuis;
     yv = wq.asDiagonal() * yv;
-    const size_t first = fits.size();
-    fits.push_back(FTestExtra("photometry_polynomial", nuis, wq.asDiagonal() * poly, yv));
-    if (np >= 4 * o.residual_min_stars_per_cell) fits.push_back(FTestExtra("photometry_cells", nuis, wq.asDiagonal() * cells, yv));
-    fits.push_back(FTestExtra("photometry_magnitude", nuis, wq.asDiagonal() * mag, yv));
-    for (size_t k = first; k < fits.size(); ++k) {
-      if (fits[k].test.tested) fits[k].fitted = fits[k].fitted.cwiseQuotient(wq);
+    const size_t first = fits_.size();
+    fits_.push_back(FTestExtra("photometry_polynomial", nuis, wq.asDiagonal() * poly, yv));
+    if (np >= 4 * o_.residual_min_stars_per_cell) fits_.push_back(FTestExtra("photometry_cells", nuis, wq.asDiagonal() * cells, yv));
+    fits_.push_back(FTestExtra("photometry_magnitude", nuis, wq.asDiagonal() * mag, yv));
+    for (size_t k = first; k < fits_.size(); ++k) {
+      if (fits_[k].test.tested) fits_[k].fitted = fits_[k].fitted.cwiseQuotient(wq);
     }
-    // Description of the strongest photometric structure (mag).
-    const ExtraFit* best = nullptr;
-    for (const auto& f : fits) {
-      if (f.test.tested && f.test.name.rfind("photometry", 0) == 0 && (!best || f.test.p_value < best->test.p_value))
-        best = &f;
-    }
-    if (best) {
-      const double to_mag = 2.5 / std::log(10.0);
-      double ss = 0;
-      for (int k = 0; k < np; ++k) {
-        const double a = std::abs(best->fitted(k)) * to_mag;
-        ss += a * a;
-        if (a > out.photometry_max_mag) {
-          out.photometry_max_mag = a;
-          out.photometry_max_x_px = set.stars[phot[k]].x_px;
-          out.photometry_max_y_px = set.stars[phot[k]].y_px;
-        }
-      }
-      out.photometry_rms_mag = std::sqrt(ss / np);
-      // Slope of the flux residual against V (mag per mag; > 0: faint stars measured too faint).
-      const ExtraFit m = FTestExtra("", nuis, wq.asDiagonal() * mag.leftCols(1), yv);
-      if (m.test.tested) {
-        const VectorXd col = mag.col(0), fitted = m.fitted.cwiseQuotient(wq);
-        out.photometry_per_mag = -fitted.dot(col) / col.squaredNorm() * to_mag;
+    const ExtraFit* best = Strongest("photometry");
+    if (!best) return;
+    const double to_mag = 2.5 / std::log(10.0);
+    double ss = 0;
+    for (int k = 0; k < np; ++k) {
+      const double a = std::abs(best->fitted(k)) * to_mag;
+      ss += a * a;
+      if (a > out_.photometry_max_mag) {
+        out_.photometry_max_mag = a;
+        out_.photometry_max_x_px = set_.stars[phot[k]].x_px;
+        out_.photometry_max_y_px = set_.stars[phot[k]].y_px;
       }
     }
+    out_.photometry_rms_mag = std::sqrt(ss / np);
+    // Slope of the flux residual against V (mag per mag; > 0: faint stars measured too faint).
+    const ExtraFit m = FTestExtra("", nuis, wq.asDiagonal() * mag.leftCols(1), yv);
+    if (m.test.tested) {
+      const VectorXd col = mag.col(0), fitted = m.fitted.cwiseQuotient(wq);
+      out_.photometry_per_mag = -fitted.dot(col) / col.squaredNorm() * to_mag;
+    }
   }
-  // Description of the strongest position structure (px).
-  const ExtraFit* best = nullptr;
-  for (const auto& f : fits) {
-    if (f.test.tested && f.test.name.rfind("position", 0) == 0 && (!best || f.test.p_value < best->test.p_value))
-      best = &f;
-  }
-  if (best) {
+
+  // Description of the strongest position structure (px): its RMS and largest shift, the shift per
+  // magnitude, and the cell of the largest mean residual.
+  void DescribePositions() {
+    const ExtraFit* best = Strongest("position");
+    if (!best) return;
+    const int ns = ns_, grid = grid_;
+    const double arcsec_per_px = kRadToArcsec / camera_.FocalMeanPx();
     double ss = 0;
     for (int i = 0; i < ns; ++i) {
-      const double dx = best->fitted(2 * i) * sig[i], dy = best->fitted(2 * i + 1) * sig[i];
+      const double dx = best->fitted(2 * i) * sig_[i], dy = best->fitted(2 * i + 1) * sig_[i];
       const double a = std::hypot(dx, dy);
       ss += a * a;
-      if (a > out.position_max_px) {
-        out.position_max_px = a;
-        out.position_max_x_px = set.stars[i].x_px;
-        out.position_max_y_px = set.stars[i].y_px;
-        out.position_max_angle_deg = std::atan2(dy, dx) * kRadToDeg;
+      if (a > out_.position_max_px) {
+        out_.position_max_px = a;
+        out_.position_max_x_px = set_.stars[i].x_px;
+        out_.position_max_y_px = set_.stars[i].y_px;
+        out_.position_max_angle_deg = std::atan2(dy, dx) * kRadToDeg;
       }
     }
-    out.position_rms_px = std::sqrt(ss / ns);
-    out.position_rms_arcsec = out.position_rms_px * arcsec_per_px;
-    out.position_max_arcsec = out.position_max_px * arcsec_per_px;
+    out_.position_rms_px = std::sqrt(ss / ns);
+    out_.position_rms_arcsec = out_.position_rms_px * arcsec_per_px;
+    out_.position_max_arcsec = out_.position_max_px * arcsec_per_px;
     // Largest shift per magnitude: the magnitude test's columns m' in x and in y.
-    for (const auto& f : fits) {
+    for (const auto& f : fits_) {
       if (f.test.name != "position_magnitude" || !f.test.tested) continue;
       double sdd = 0, sdx = 0, sdy = 0;
       for (int i = 0; i < ns; ++i) {
-        const double dm = set.stars[i].mag - mean_mag;
-        sdd += dm * dm, sdx += dm * f.fitted(2 * i) * sig[i], sdy += dm * f.fitted(2 * i + 1) * sig[i];
+        const double dm = set_.stars[i].mag - mean_mag_;
+        sdd += dm * dm, sdx += dm * f.fitted(2 * i) * sig_[i], sdy += dm * f.fitted(2 * i + 1) * sig_[i];
       }
-      if (sdd > 0) out.position_per_mag_px = std::hypot(sdx / sdd, sdy / sdd);
+      if (sdd > 0) out_.position_per_mag_px = std::hypot(sdx / sdd, sdy / sdd);
     }
     // The cell of the largest mean residual (weighted means of the px residual, chi^2 against the
     // scatter of the residual).
-    out.grid = grid;
+    out_.grid = grid;
     std::vector<double> sw(grid * grid, 0), sx(grid * grid, 0), sy(grid * grid, 0);
     std::vector<int> cnt(grid * grid, 0);
     for (int i = 0; i < ns; ++i) {
-      const int c = cell_of(px[i], py[i]);
-      const double w2 = 1 / (sig[i] * sig[i]);
-      sw[c] += w2, sx[c] += w2 * res_w(2 * i) * sig[i], sy[c] += w2 * res_w(2 * i + 1) * sig[i];
+      const int c = CellOf(px_[i], py_[i]);
+      const double w2 = 1 / (sig_[i] * sig_[i]);
+      sw[c] += w2, sx[c] += w2 * res_w_(2 * i) * sig_[i], sy[c] += w2 * res_w_(2 * i + 1) * sig_[i];
       ++cnt[c];
     }
-    const double s2 = std::max(1e-12, res_w.squaredNorm() / std::max<Eigen::Index>(1, res_w.size() - jac.cols()));
+    const double s2 = std::max(1e-12, res_w_.squaredNorm() / std::max<Eigen::Index>(1, res_w_.size() - jac_.cols()));
     for (int c = 0; c < grid * grid; ++c) {
       if (cnt[c] < 2) continue;
       const double mx = sx[c] / sw[c], my = sy[c] / sw[c], chi2 = (mx * mx + my * my) * sw[c] / s2;
-      if (chi2 > out.cell_chi2) {
-        out.cell_chi2 = chi2;
-        out.cell_dx_px = mx, out.cell_dy_px = my, out.cell_stars = cnt[c];
-        out.cell_x_px = ((c % grid) + 0.5) * camera.width / grid - 0.5;
-        out.cell_y_px = ((c / grid) + 0.5) * camera.height / grid - 0.5;
+      if (chi2 > out_.cell_chi2) {
+        out_.cell_chi2 = chi2;
+        out_.cell_dx_px = mx, out_.cell_dy_px = my, out_.cell_stars = cnt[c];
+        out_.cell_x_px = ((c % grid) + 0.5) * camera_.width / grid - 0.5;
+        out_.cell_y_px = ((c / grid) + 0.5) * camera_.height / grid - 0.5;
       }
     }
   }
-  int ntests = 0;
-  double pmin = 1;
-  for (const auto& f : fits) {
-    if (!f.test.tested) continue;
-    out.tests.push_back(f.test);
-    ++ntests;
-    if (f.test.p_value < pmin) pmin = f.test.p_value, out.finding = f.test.name;
-  }
-  out.p_value = std::min(1.0, ntests * pmin);
-  out.structured = ntests > 0 && out.p_value < o.residual_alpha;
-  return out;
+
+  const SolvedFrameSet& set_;
+  const Camera& camera_;
+  const MatrixXd& jac_;
+  const VectorXd& res_w_;
+  const FrameDiscoverOptions& o_;
+  const int ns_, nf_;
+  double half_diag_ = 0, mean_mag_ = 0;
+  int grid_ = 2;
+  std::vector<double> sig_, px_, py_;  // centroid sigma (px) and the fitted model's star positions
+  std::vector<ExtraFit> fits_;
+  FrameResidual out_;
+};
+
+}  // namespace
+
+FrameResidual TestFrameResidual(const SolvedFrameSet& set, const Camera& camera, const MatrixXd& jac,
+                                const VectorXd& res_w, const FrameDiscoverOptions& o) {
+  return FrameResidualTester(set, camera, jac, res_w, o).Run();
 }
 
 }  // namespace ssiu::discover_internal
