@@ -102,16 +102,20 @@ void StoreBe16(const uint8_t* c, uint16_t* dst, size_t w) {
   for (; x < w; ++x) dst[x] = static_cast<uint16_t>((c[2 * x] << 8) | c[2 * x + 1]);
 }
 
-}  // namespace
-
-bool DecodeGreyPng(std::vector<uint8_t>& bytes, const std::string& path, Frame* out) {
-  static const uint8_t kSig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
-  uint8_t* b = bytes.data();
-  const size_t size = bytes.size();
-  if (size < 8 || std::memcmp(b, kSig, 8) != 0) return false;
+// What the chunk walk finds: the image header and the IDAT payload, packed into one zlib stream.
+struct PngLayout {
   uint32_t w = 0, h = 0;
   int depth = 0;
-  size_t idat_begin = 0, idat_end = 0;  // packed IDAT payload [begin, end)
+  size_t idat_begin = 0, idat_end = 0;  // packed IDAT payload [begin, end) of the file's bytes
+};
+
+// Walks the chunks (checking the critical ones' CRC) and packs the IDAT payloads in place into one
+// zlib stream (libdeflate needs it contiguous). False: a PNG this decoder leaves to libpng (colour,
+// palette, alpha, interlaced, sub-byte depths, transparency).
+bool ReadChunks(uint8_t* b, size_t size, const std::string& path, PngLayout* png) {
+  uint32_t& w = png->w;
+  uint32_t& h = png->h;
+  int& depth = png->depth;
   bool idat_seen = false, idat_closed = false, iend = false;
   for (size_t pos = 8; !iend;) {
     if (pos + 12 > size) Corrupt(path, "file truncated (no IEND chunk)");
@@ -138,11 +142,10 @@ bool DecodeGreyPng(std::vector<uint8_t>& bytes, const std::string& path, Frame* 
       return false;  // transparency: left to libpng, which turns it into an alpha channel
     } else if (type == "IDAT") {
       if (idat_closed) Corrupt(path, "IDAT chunks are not consecutive");
-      if (!idat_seen) idat_begin = idat_end = pos + 8;
-      // Pack the payloads into one zlib stream in place (libdeflate needs it contiguous); the
-      // destination is already-read header and CRC bytes.
-      std::memmove(b + idat_end, data, len);
-      idat_end += len;
+      if (!idat_seen) png->idat_begin = png->idat_end = pos + 8;
+      // The destination is already-read header and CRC bytes.
+      std::memmove(b + png->idat_end, data, len);
+      png->idat_end += len;
       idat_seen = true;
     } else {
       if (idat_seen) idat_closed = true;
@@ -151,16 +154,58 @@ bool DecodeGreyPng(std::vector<uint8_t>& bytes, const std::string& path, Frame* 
     pos += 12 + static_cast<size_t>(len);
   }
   if (!idat_seen) Corrupt(path, "no IDAT chunk (no image data)");
+  return true;
+}
 
-  const int bpp = depth / 8;
-  const size_t row_bytes = static_cast<size_t>(w) * bpp;
+// Inflates the zlib stream into raw (raw_bytes: every row with its filter-type byte).
+void Inflate(const uint8_t* zlib, size_t zlib_bytes, uint8_t* raw, size_t raw_bytes, const std::string& path) {
+  libdeflate_decompressor* dec = libdeflate_alloc_decompressor();
+  if (!dec) throw InputError(path, "out of memory decoding PNG");
+  const libdeflate_result r = libdeflate_zlib_decompress(dec, zlib, zlib_bytes, raw, raw_bytes, nullptr);
+  libdeflate_free_decompressor(dec);
+  if (r == LIBDEFLATE_SHORT_OUTPUT) Corrupt(path, "IDAT holds fewer bytes than IHDR's size needs (truncated)");
+  if (r == LIBDEFLATE_INSUFFICIENT_SPACE) Corrupt(path, "IDAT holds more bytes than IHDR's size");
+  if (r != LIBDEFLATE_SUCCESS) Corrupt(path, "IDAT zlib stream is corrupt");
+}
+
+// Reverses each row's filter and stores the samples as uint16 (dst may overlap raw as DecodeGreyPng
+// lays them out: row y's output starts y + 1 bytes before its input, which is copied out first).
+void UnfilterRows(const uint8_t* raw, const PngLayout& png, uint16_t* dst, const std::string& path) {
+  const int bpp = png.depth / 8;
+  const size_t row_bytes = static_cast<size_t>(png.w) * bpp;
+  std::vector<uint8_t> prev(row_bytes, 0), cur(row_bytes);
+  for (uint32_t y = 0; y < png.h; ++y) {
+    const uint8_t* src = raw + static_cast<size_t>(y) * (row_bytes + 1);
+    std::memcpy(cur.data(), src + 1, row_bytes);
+    if (!Unfilter(src[0], cur.data(), prev.data(), row_bytes, bpp)) {
+      Corrupt(path, "row " + std::to_string(y) + " has unknown filter type " + std::to_string(src[0]));
+    }
+    uint16_t* row = dst + static_cast<size_t>(y) * png.w;
+    if (png.depth == 16) {
+      StoreBe16(cur.data(), row, png.w);
+    } else {
+      for (size_t x = 0; x < png.w; ++x) row[x] = cur[x];
+    }
+    prev.swap(cur);
+  }
+}
+
+}  // namespace
+
+bool DecodeGreyPng(std::vector<uint8_t>& bytes, const std::string& path, Frame* out) {
+  static const uint8_t kSig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  if (bytes.size() < 8 || std::memcmp(bytes.data(), kSig, 8) != 0) return false;
+  PngLayout png;
+  if (!ReadChunks(bytes.data(), bytes.size(), path, &png)) return false;
+  const uint32_t w = png.w, h = png.h;
+  const size_t row_bytes = static_cast<size_t>(w) * (png.depth / 8);
   const size_t raw_bytes = (row_bytes + 1) * h;
   // Deflate expands at most ~1032:1: refuse before allocating what a short file cannot fill.
-  if (raw_bytes / 1032 > idat_end - idat_begin + 64) Corrupt(path, "IDAT holds fewer bytes than IHDR's size needs (truncated)");
+  if (raw_bytes / 1032 > png.idat_end - png.idat_begin + 64) Corrupt(path, "IDAT holds fewer bytes than IHDR's size needs (truncated)");
   Frame fr;
   fr.file = path;
-  fr.bit_depth = depth;
-  fr.saturation_adu = depth == 8 ? 255 : 65535;
+  fr.bit_depth = png.depth;
+  fr.saturation_adu = png.depth == 8 ? 255 : 65535;
   fr.image.width = static_cast<int>(w);
   fr.image.height = static_cast<int>(h);
   const size_t n_px = static_cast<size_t>(w) * h;
@@ -169,7 +214,7 @@ bool DecodeGreyPng(std::vector<uint8_t>& bytes, const std::string& path, Frame* 
   // 8-bit: the output is twice the input, so inflate into a scratch buffer.
   std::unique_ptr<uint8_t[]> scratch;
   uint8_t* raw = nullptr;
-  if (depth == 16) {
+  if (png.depth == 16) {
     fr.image.pixels.resize(n_px + (h + 1) / 2);
     raw = reinterpret_cast<uint8_t*>(fr.image.pixels.data());
   } else {
@@ -177,30 +222,8 @@ bool DecodeGreyPng(std::vector<uint8_t>& bytes, const std::string& path, Frame* 
     scratch.reset(new uint8_t[raw_bytes]);
     raw = scratch.get();
   }
-  libdeflate_decompressor* dec = libdeflate_alloc_decompressor();
-  if (!dec) throw InputError(path, "out of memory decoding PNG");
-  const libdeflate_result r = libdeflate_zlib_decompress(dec, b + idat_begin, idat_end - idat_begin, raw, raw_bytes, nullptr);
-  libdeflate_free_decompressor(dec);
-  if (r == LIBDEFLATE_SHORT_OUTPUT) Corrupt(path, "IDAT holds fewer bytes than IHDR's size needs (truncated)");
-  if (r == LIBDEFLATE_INSUFFICIENT_SPACE) Corrupt(path, "IDAT holds more bytes than IHDR's size");
-  if (r != LIBDEFLATE_SUCCESS) Corrupt(path, "IDAT zlib stream is corrupt");
-
-  std::vector<uint8_t> prev(row_bytes, 0), cur(row_bytes);
-  uint16_t* dst = fr.image.pixels.data();
-  for (uint32_t y = 0; y < h; ++y) {
-    const uint8_t* src = raw + static_cast<size_t>(y) * (row_bytes + 1);
-    std::memcpy(cur.data(), src + 1, row_bytes);
-    if (!Unfilter(src[0], cur.data(), prev.data(), row_bytes, bpp)) {
-      Corrupt(path, "row " + std::to_string(y) + " has unknown filter type " + std::to_string(src[0]));
-    }
-    uint16_t* row = dst + static_cast<size_t>(y) * w;
-    if (depth == 16) {
-      StoreBe16(cur.data(), row, w);
-    } else {
-      for (size_t x = 0; x < w; ++x) row[x] = cur[x];
-    }
-    prev.swap(cur);
-  }
+  Inflate(bytes.data() + png.idat_begin, png.idat_end - png.idat_begin, raw, raw_bytes, path);
+  UnfilterRows(raw, png, fr.image.pixels.data(), path);
   fr.image.pixels.resize(n_px);
   *out = std::move(fr);
   return true;
