@@ -375,41 +375,40 @@ Json FrameSimOptionsDiff(const FrameSimOptions& base, const FrameSimOptions& fit
 
 void WriteComparePlots(const std::string& dir, const std::string& prefix, const FrameComparison& c,
                        const Camera& camera, const std::string& title) {
-  const PlotColor red{200, 40, 40}, blue{40, 70, 200};
-  {
+  // One figure of the measured (red) and simulated (blue) values of the same stars against x; a
+  // value <= 0 (not measured) is left out.
+  using Pick = double (*)(const StarPair&, const Camera&);
+  auto scatter = [&](const std::string& file, Pick x_of, Pick measured, Pick simulated, PlotOptions po) {
     PlotSeries ms, ss;
     ms.label = "measured", ss.label = "simulated";
-    ms.color = red, ss.color = blue;
+    ms.color = {200, 40, 40}, ss.color = {40, 70, 200};
     ms.line = ss.line = false;
     ms.markers = ss.markers = true;
     for (const auto& p : c.pairs) {
-      if (p.flux_measured_adu > 0) ms.x.push_back(p.mag), ms.y.push_back(p.flux_measured_adu);
-      if (p.flux_simulated_adu > 0) ss.x.push_back(p.mag), ss.y.push_back(p.flux_simulated_adu);
+      const double x = x_of(p, camera), m = measured(p, camera), s = simulated(p, camera);
+      if (m > 0) ms.x.push_back(x), ms.y.push_back(m);
+      if (s > 0) ss.x.push_back(x), ss.y.push_back(s);
     }
-    PlotOptions po;
-    po.log_y = true;
-    po.title = title + ": flux vs catalog V, same stars";
-    po.x_label = "V (mag)";
-    po.y_label = "flux (ADU)";
-    if (!ms.x.empty()) WritePlotPng(dir + "/" + prefix + "_flux.png", {ms, ss}, po);
-  }
-  {
-    PlotSeries ms, ss;
-    ms.label = "measured", ss.label = "simulated";
-    ms.color = red, ss.color = blue;
-    ms.line = ss.line = false;
-    ms.markers = ss.markers = true;
-    for (const auto& p : c.pairs) {
-      const double r = std::hypot(p.x_measured_px - camera.cx_px, p.y_measured_px - camera.cy_px);
-      if (p.sigma_measured_px > 0) ms.x.push_back(r), ms.y.push_back(p.sigma_measured_px);
-      if (p.sigma_simulated_px > 0) ss.x.push_back(r), ss.y.push_back(p.sigma_simulated_px);
-    }
-    PlotOptions po;
-    po.title = title + ": spot sigma (detector fit) vs field radius";
-    po.x_label = "distance from the principal point (px)";
-    po.y_label = "sigma (px)";
-    if (!ms.x.empty()) WritePlotPng(dir + "/" + prefix + "_sigma.png", {ms, ss}, po);
-  }
+    if (!ms.x.empty()) WritePlotPng(dir + "/" + prefix + file, {ms, ss}, po);
+  };
+  PlotOptions flux;
+  flux.log_y = true;
+  flux.title = title + ": flux vs catalog V, same stars";
+  flux.x_label = "V (mag)";
+  flux.y_label = "flux (ADU)";
+  scatter(
+      "_flux.png", [](const StarPair& p, const Camera&) { return p.mag; },
+      [](const StarPair& p, const Camera&) { return p.flux_measured_adu; },
+      [](const StarPair& p, const Camera&) { return p.flux_simulated_adu; }, flux);
+  PlotOptions sigma;
+  sigma.title = title + ": spot sigma (detector fit) vs field radius";
+  sigma.x_label = "distance from the principal point (px)";
+  sigma.y_label = "sigma (px)";
+  scatter(
+      "_sigma.png",
+      [](const StarPair& p, const Camera& cam) { return std::hypot(p.x_measured_px - cam.cx_px, p.y_measured_px - cam.cy_px); },
+      [](const StarPair& p, const Camera&) { return p.sigma_measured_px; },
+      [](const StarPair& p, const Camera&) { return p.sigma_simulated_px; }, sigma);
 }
 
 }  // namespace ssiu
