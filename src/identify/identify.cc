@@ -319,7 +319,7 @@ void RefineFocal(const Context& ctx, const std::vector<StarMatch>& ms, Camera* c
 // - each extra match in the test's (geometric) order: given the pairs before it, its flux is a
 //   uniform draw from the N centroids not yet used. Its flux predicted from their zero point (median
 //   of ln f + 0.4 ln(10) V) ranks K-th closest among those N (ties counted in), p = K / N and
-//   e = 1 / (p H_N), H_N the N-th harmonic number (= E[1/p]).
+//   e = (1 / (p H_N) + N / (K^2 S_N)) / 2, H_N the N-th harmonic number (= E[1/p]), S_N = sum 1/k^2.
 // The product E of these has mean 1 (each factor's mean is 1 given the ones before), and so has the
 // mixture (1 + E) / 2, which bounds the cost of photometry that disagrees (a colour term, a saturated
 // star) to a factor 2. Returned: 2 / (1 + E), the factor on the geometric p-value. With p_g valid and
@@ -388,6 +388,13 @@ int WorstOutlier(const Context& ctx, const IdentifyOptions& o, const std::vector
   }
   return worst;
 }
+
+// The union bound over the data-chosen count j of extra matches (docs/identify.md, step 5): 1 / w_j
+// with weights w_1 = 3/4 and w_j = 1 / (4 (j - 1) j) for j >= 2 (summing to 1). A four-star solution
+// (j = 1) has the thinnest evidence, so it gets most of the weight: 4/3 instead of 2 with the
+// weights 1 / (j (j + 1)) used before; five stars pay 8 instead of 6, six 24 instead of 12, whose
+// evidence is far stronger (docs/results.md, issue 14).
+double CountFactor(int j) { return j <= 1 ? 4.0 / 3.0 : 4.0 * (j - 1.0) * j; }
 
 struct Refined {
   Verification v;
@@ -474,6 +481,7 @@ void IdentifyOptions::Check() const {
   if (!(centroid_sigma_px > 0 && centroid_sigma_px < 20)) bad("centroid_sigma_px", "must be in (0, 20)");
   if (!(systematic_px >= 0 && systematic_px < 20)) bad("systematic_px", "must be in [0, 20)");
   if (!(tolerance_sigmas >= 1 && tolerance_sigmas <= 20)) bad("tolerance_sigmas", "must be in [1, 20]");
+  if (!(side_sigmas >= 1 && side_sigmas <= 20)) bad("side_sigmas", "must be in [1, 20]");
   if (!(match_radius_px >= 0 && match_radius_px < 100)) bad("match_radius_px", "must be in [0, 100)");
   if (!(fov_tolerance_pct >= 0 && fov_tolerance_pct <= 30)) bad("fov_tolerance_pct", "must be in [0, 30]");
   if (!(fov_min_deg == 0 && fov_max_deg == 0) && !(fov_min_deg > 0.5 && fov_min_deg < fov_max_deg && fov_max_deg < 90))
@@ -511,9 +519,13 @@ double PhotometricEvidence(const std::vector<double>& pair_flux, const std::vect
     auto count = [&](double f) { ++pool, within += std::abs(std::log(f) - pred) <= d; };
     for (size_t q = i; q < pair_flux.size(); ++q) count(pair_flux[q]);
     for (double f : other_flux) count(f);
-    double h_n = 0;
-    for (int k = 1; k <= pool; ++k) h_n += 1.0 / k;
-    e *= pool / (std::max(1, within) * h_n);
+    double h_n = 0, s_n = 0;
+    for (int k = 1; k <= pool; ++k) h_n += 1.0 / k, s_n += 1.0 / (static_cast<double>(k) * k);
+    const double kk = std::max(1, within);
+    // The mean of two calibrators, each of mean 1 for K uniform on {1..N}: 1 / (p H_N) and the steeper
+    // N / (K^2 S_N), S_N = sum 1/k^2 (~N / 1.64 for K = 1 instead of N / H_N, ~N / 4.3 at N = 40; it
+    // falls faster with K, so the mean keeps most of the harmonic one's value for noisy fluxes).
+    e *= 0.5 * (pool / (kk * h_n) + pool / (kk * kk * s_n));
     zp.push_back(std::log(pair_flux[i]) + k_mag * pair_mag[i]);
   }
   return e;
@@ -638,7 +650,8 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
         // Side-length tolerance (rad) from this triangle's own centroid noise (a poorly measured
         // centroid elsewhere in the frame does not widen every search).
         const double sig_tri = std::max({ctx.sigma_px[ctx.order[a]], ctx.sigma_px[ctx.order[b]], ctx.sigma_px[ctx.order[c]]});
-        const double tol_side = o.tolerance_sigmas * std::sqrt(2.0) * sig_tri / f;
+        const double side_sigma = std::sqrt(2.0) * sig_tri / f;
+        const double tol_side = o.tolerance_sigmas * side_sigma;
         const double side[3] = {ang[b * k_pat + c], ang[a * k_pat + c], ang[a * k_pat + b]};
         double s[3] = {side[0], side[1], side[2]};
         std::sort(s, s + 3);
@@ -660,9 +673,18 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
           const double scale0 = s[2] / t.longest_rad;  // observed / catalog angle ~ f_true / f_nominal
           if (scale0 < scale_lo - tol_side / s[2] || scale0 > scale_hi + tol_side / s[2]) continue;
           for (const auto& pm : kPerm) {
-            // Observed vertex vtx[i] <-> catalog vertex pm[i]: opposite sides must agree (after scale).
+            // Observed vertex vtx[i] <-> catalog vertex pm[i]: opposite sides must agree, each within
+            // side_sigmas of its own error. A side's error (two centroids' errors along it) has a
+            // sigma <= sqrt(2) sig_tri / f. With the focal length searched the sides are compared after
+            // the scale of the longest, which adds its error times the side ratio rho: sigma <=
+            // sqrt(2) sig_tri sqrt(1 + rho^2) / f. (Before: 2 tol_side = 8 sqrt(2) sigmas, looser than
+            // the key box, so every box hit was a hypothesis; docs/identify.md step 2 has the gain.)
             bool ok = true;
-            for (int i = 0; i < 3 && ok; ++i) ok = std::abs(side[i] / scale0 - cside[pm[i]]) <= 2 * tol_side;
+            for (int i = 0; i < 3 && ok; ++i) {
+              const double rho = focal_searched ? side[i] / s[2] : 0.0;
+              const double lim = o.side_sigmas * side_sigma * std::sqrt(1 + rho * rho);
+              ok = std::abs(side[i] / (focal_searched ? scale0 : 1.0) - cside[pm[i]]) <= lim;
+            }
             if (!ok) continue;
             Camera cam = camera;
             if (focal_searched) {
@@ -708,7 +730,7 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
             // weighted union bound over j with weights 1 / (j (j + 1)) (summing to 1) makes it valid:
             // the factor j (j + 1) is 2 for four stars, 6 for five.
             const double u = ht.p_hit * ht.worst;
-            const double j_factor = static_cast<double>(ht.extra) * (ht.extra + 1);
+            const double j_factor = CountFactor(ht.extra);
             // Photometry (PhotometricFactor): an independent test of the same null, <= 2.
             const double phot = PhotometricFactor(ctx, ht.v.matches);
             const double prob = std::min(1.0, BinomialTail(ctx.m - 3, u, ht.extra) * j_factor * phot * hyp * seq_factor);
@@ -743,7 +765,7 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
               for (size_t i = 3; i < ht_matches.size(); ++i)
                 if (!excluded[ht_matches[i].centroid]) kept.push_back(ht_matches[i]);
               phot_final = PhotometricFactor(ctx, kept);
-              prob_final = std::min(1.0, BinomialTail(ctx.m - 3, u, j) * j * (j + 1.0) * phot_final * hyp * seq_factor);
+              prob_final = std::min(1.0, BinomialTail(ctx.m - 3, u, j) * CountFactor(j) * phot_final * hyp * seq_factor);
               if (prob_final >= o.max_false_match_prob) continue;
             }
             out.status = "solved";

@@ -62,10 +62,12 @@ TEST(Photometry, EvidenceAnalyticCases) {
   EXPECT_NEAR(PhotometricEvidence({flux(2), flux(3), flux(4)}, mags, {}), 6 * 30.0 / 67, 1e-12);
   EXPECT_NEAR(PhotometricEvidence({flux(4), flux(3), flux(2)}, mags, {}), 30.0 / 67, 1e-12);
   EXPECT_NEAR(PhotometricEvidence({flux(2), flux(3), flux(4)}, {2.0, 3.0, 3.0}, {}), 2 * 30.0 / 67, 1e-12);
-  // Fourth pair at V 5 with its exact flux, four other centroids far from it: K = 1 of N = 5.
+  // Fourth pair at V 5 with its exact flux, four other centroids far from it: K = 1 of N = 5, e = the
+  // mean of the harmonic calibrator N / (K H_N) and the steeper N / (K^2 S_N).
   const double h5 = 1 + 1 / 2.0 + 1 / 3.0 + 1 / 4.0 + 1 / 5.0;
+  const double s5 = 1 + 1 / 4.0 + 1 / 9.0 + 1 / 16.0 + 1 / 25.0;
   EXPECT_NEAR(PhotometricEvidence({flux(2), flux(3), flux(4), flux(5)}, {2, 3, 4, 5}, {flux(0), flux(1), flux(8), flux(9)}),
-              6 * 30.0 / 67 * 5 / h5, 1e-9);
+              6 * 30.0 / 67 * 0.5 * (5 / h5 + 5 / s5), 1e-9);
   EXPECT_THROW(PhotometricEvidence({1, 2}, {1, 2}, {}), InputError);
 }
 

@@ -19,7 +19,7 @@ int Trials(int n) { return std::getenv("LIS_TRIALS") ? std::atoi(std::getenv("LI
 uint64_t Seed0(uint64_t seed0) { return std::getenv("LIS_SEED") ? std::strtoull(std::getenv("LIS_SEED"), nullptr, 10) : seed0; }
 
 TEST(LostInSpaceLong, KelvinsScenes1000) {
-  for (double alpha : {1e-5, 1e-3}) {
+  for (double alpha : {1e-5, 1e-4, 1e-3}) {
     IdentifyOptions io = KelvinsIdentifyOptions();
     io.max_false_match_prob = alpha;
     SceneCampaign c = RunKelvinsScenes(Trials(1000), Seed0(1), io);
@@ -55,7 +55,7 @@ TEST(LostInSpaceLong, KelvinsScenesFluxNoise) {
 int Allowed(int n, double p) { return static_cast<int>(n * p + 3.1 * std::sqrt(n * p) + 3); }
 
 TEST(LostInSpaceLong, CalibrationRandomCentroids) {
-  for (double alpha : {1e-2, 1e-3, IdentifyOptions{}.max_false_match_prob}) {
+  for (double alpha : {1e-3, IdentifyOptions{}.max_false_match_prob}) {
     IdentifyOptions io;
     io.timeout_ms = 0;
     io.pattern_centroids = 40;
@@ -86,6 +86,7 @@ TEST(LostInSpaceLong, CalibrationStarFreeFrames) {
       const SolveResult r = SolveFrame(id, f.image.view(), cam, so);
       ++n;
       solved += r.status == "solved";
+      if (n % 500 == 0) std::printf("  star-free frames at %g: %d false of %d so far\n", alpha, solved, n), std::fflush(stdout);
     }
     std::printf("star-free frames at %g: %d false of %d\n", alpha, solved, n);
     EXPECT_LE(solved, Allowed(n, alpha));
