@@ -33,7 +33,8 @@
 //     and seen in the held-out blocks' own scatter too (paired block z > min_block_z).
 //  4c. `unexplained`: the residual of the named cause (or of the base) is whitened with a noise model
 //     refitted on it and tested (spectral peak, Ljung-Box, runs, regression on every logged column, and
-//     jumps: levels that take two values, against a bootstrap of the wander; Bonferroni over the five at
+//     jumps: a two-state hidden Markov model's likelihood ratio against the noise model, calibrated by a
+//     bootstrap of the noise model (a level that switches between two values); Bonferroni over the five at
 //     residual_alpha; after periodic_drift also its harmonics / folded shape, a test of the sinusoid of
 //     its own); structure left -> `unexplained`, the residual described (period, amplitude, the column
 //     it follows, the jumps) and the first cause kept as partial_cause.
@@ -131,11 +132,15 @@ struct GyroResidual {
   // periodic_drift's shape: the residual folded at its period into phase bins (a sawtooth is not a sinusoid).
   double periodic_shape_chi2 = 0, periodic_shape_p = 1;
   int periodic_shape_dof = 0;
-  // Jumps of the level between two values (a telegraph bias): the levels of the pieces of constant level
-  // (binary segmentation) split into two groups; the within-group share of their variance against the
-  // wander's (bootstrap), in the log where it is most significant.
+  // Jumps of the level between two values (a telegraph bias), in the log where they are most significant:
+  // the levels of the pieces of constant level (binary segmentation) split into two groups, the
+  // within-group share of their variance; and the likelihood ratio of a two-state hidden Markov model
+  // against the noise model (the test's statistic; jumps_p its bootstrap p-value, Bonferroni over logs).
   int jumps = 0;                     // switches between the two groups
-  double levels_within_ratio = 1, jumps_p = 1, jump_size_dph = 0;  // statistic, p-value, levels' difference
+  double levels_within_ratio = 1, jumps_p = 1, jump_size_dph = 0;  // split's statistic, test's p, levels apart
+  double levels_within_p = 1;        // the level split's bootstrap p-value on the same replicates (that log)
+  double telegraph_llr = 0, telegraph_p = 1;  // ln L(HMM) - ln L(noise model) (nats), its bootstrap p-value
+  double telegraph_levels_dph = 0, telegraph_dwell_s = 0;  // the HMM's levels apart and mean dwell
   std::vector<double> jump_times_s;
 };
 

@@ -59,7 +59,7 @@ inline const std::vector<std::string>& NewGyroCauses() {
 // Effects outside the vocabulary (expected answer `unexplained`): a drift that follows an irregular
 // heater on/off column of the log (steps 20-60 min apart), a chirp (period sweeping 4 h -> 15 min), a
 // random telegraph bias (two levels, switching at random, 40 min on average, nothing logged), and a
-// sawtooth (a linear ramp reset every 50-80 min).
+// sawtooth (a linear ramp reset every 50-80 min). "telegraph_fast": the telegraph with 20 min dwells.
 inline const std::vector<std::string>& UnexplainedGyroEffects() {
   static const std::vector<std::string> k = {"square_wave_column", "chirp", "telegraph", "sawtooth"};
   return k;
@@ -71,7 +71,8 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
   Rng rng(seed);
   GyroCase c;
   c.cause = cause == "magnetic_field_logged" ? "magnetic_field" : cause;
-  if (cause == "square_wave_column" || cause == "chirp" || cause == "telegraph" || cause == "sawtooth") {
+  if (cause == "square_wave_column" || cause == "chirp" || cause == "telegraph" || cause == "telegraph_fast" ||
+      cause == "sawtooth") {
     c.cause = "unexplained";
   }
   // The heater column and the out-of-vocabulary effects draw from their own stream, so that the other
@@ -83,11 +84,14 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
   Rng rng_y(seed * 40503ULL + 91);
   double tele_amp = 0, saw_amp = 0, saw_period = 3600;
   std::vector<double> tele_switch;
-  if (cause == "telegraph") {
+  if (cause == "telegraph" || cause == "telegraph_fast") {
+    const double dwell_s = cause == "telegraph" ? 2400 : 1200;
     tele_amp = rng_y.Uniform(0.04, 0.07);
-    for (double tt = -2400 * std::log(1 - rng_y.Uniform()); tt < 43200; tt += -2400 * std::log(1 - rng_y.Uniform())) {
+    for (double tt = -dwell_s * std::log(1 - rng_y.Uniform()); tt < 43200; tt += -dwell_s * std::log(1 - rng_y.Uniform())) {
       tele_switch.push_back(tt);
     }
+    // Not parameters of a cause: the telegraph's levels apart and its switches in the static log.
+    c.truth = {{"telegraph_levels_dph", tele_amp}, {"telegraph_switches", static_cast<double>(tele_switch.size())}};
   }
   if (cause == "sawtooth") saw_amp = rng_y.Uniform(0.04, 0.08), saw_period = rng_y.Uniform(50, 80) * 60;
   const double lat = 50.0 * kDegToRad;

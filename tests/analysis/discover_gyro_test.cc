@@ -91,25 +91,32 @@ TEST(DiscoverGyro, DriftFollowingAnUnrelatedColumnIsUnexplained) {
 }
 
 // Issue 18's two hard effects outside the vocabulary (seeds of DiscoverGyroLong.OutOfVocabularyIsUnexplained
-// where they are found): a random telegraph bias, whose levels take two values (the jumps test, with the
-// switches and the levels' difference it reports), and a sawtooth, which is not the sinusoid that
-// periodic_drift fits (the harmonics / folded-shape test).
+// where they are found): a random telegraph bias, whose levels take two values (the jumps test: the
+// two-state hidden Markov model's likelihood ratio, with the switches, the levels and the dwell it
+// reports; this seed was `none` with the level split as the statistic, p 0.008 per log), and a sawtooth,
+// which is not the sinusoid that periodic_drift fits (the harmonics / folded-shape test).
 TEST(DiscoverGyro, TelegraphAndSawtoothAreUnexplained) {
-  const auto t = testing::MakeGyroCase("telegraph", 272727 + 7919 * 14);
+  const auto t = testing::MakeGyroCase("telegraph", 272727 + 7919 * 10);
   const GyroDiscovery dt = DiscoverGyro(t.logs, GyroDiscoverOptions{});
   ASSERT_EQ(dt.cause, "unexplained") << GyroDiscoveryToJson(dt).dump(1);
   EXPECT_EQ(dt.residual.finding, "jumps");
+  EXPECT_LT(dt.residual.telegraph_p, 0.001);
   EXPECT_GE(dt.residual.jumps, 8);                 // ~18 switches in 12 h, 40 min apart on average
   EXPECT_NEAR(dt.residual.jump_size_dph, 0.055, 0.03);  // 0.04-0.07 deg/h peak to peak
+  const double levels = t.truth.at("telegraph_levels_dph"), dwell = 43200 / (t.truth.at("telegraph_switches") + 1);
+  EXPECT_NEAR(dt.residual.telegraph_levels_dph, levels, 0.15 * levels);
+  EXPECT_GT(dt.residual.telegraph_dwell_s, 0.5 * dwell);
+  EXPECT_LT(dt.residual.telegraph_dwell_s, 2 * dwell);
   const auto s = testing::MakeGyroCase("sawtooth", 272727 + 7919 * 15);
   const GyroDiscovery ds = DiscoverGyro(s.logs, GyroDiscoverOptions{});
   ASSERT_EQ(ds.cause, "unexplained") << GyroDiscoveryToJson(ds).dump(1);
   EXPECT_EQ(ds.partial_cause, "periodic_drift");
   EXPECT_EQ(ds.residual.finding, "harmonics");
   EXPECT_LT(ds.residual.periodic_shape_p, 0.01);
-  std::printf("telegraph: %d switches, levels %.3f deg/h apart, p %.2g; sawtooth after periodic_drift: shape chi2 %.1f "
-              "(%d dof), p %.2g\n",
-              dt.residual.jumps, dt.residual.jump_size_dph, dt.residual.jumps_p, ds.residual.periodic_shape_chi2,
+  std::printf("telegraph: %d switches, levels %.3f deg/h apart (HMM %.3f, true %.3f; dwell %.0f s, true %.0f s), "
+              "p %.2g; sawtooth after periodic_drift: shape chi2 %.1f (%d dof), p %.2g\n",
+              dt.residual.jumps, dt.residual.jump_size_dph, dt.residual.telegraph_levels_dph, levels,
+              dt.residual.telegraph_dwell_s, dwell, dt.residual.jumps_p, ds.residual.periodic_shape_chi2,
               ds.residual.periodic_shape_dof, ds.residual.periodic_shape_p);
 }
 
