@@ -4,6 +4,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <optional>
 
 #include "core/attitude.h"
 #include "core/error.h"
@@ -258,216 +259,295 @@ Quat RandomAttitude(uint64_t seed) {
   return QuatFromUniform(u1, u2, u3);
 }
 
-SimulatedFrame SimulateFrame(const Camera& cam, const StarCatalog& catalog, const Quat& q_in,
-                             const FrameSimOptions& o, uint64_t seed) {
-  cam.Check();
-  o.Check();
-  const int w = cam.width, h = cam.height;
-  Rng rng(seed);
-  SimulatedFrame out;
-  out.seed = seed;
-  out.q_inertial_from_sensor = q_in.normalized();
-  const Mat3 r_sensor_from_inertial = out.q_inertial_from_sensor.toRotationMatrix().transpose();
-  std::vector<double> signal(static_cast<size_t>(w) * h, 0.0);  // electrons
+namespace {
 
-  const double r_corner2 = 0.25 * (double(w) * w + double(h) * h);
-  auto vignette = [&](double x, double y) {
-    const double dx = x - cam.cx_px, dy = y - cam.cy_px;
-    return 1.0 - o.vignetting * (dx * dx + dy * dy) / r_corner2;
-  };
-  // Noise per pixel of the background (electrons^2) and the PSF's noise-equivalent area, for SNR truth.
-  const double bg_e = (o.background_e_per_s + o.dark_current_e_per_s) * o.exposure_s;
-  const double var_bg_e2 = (o.shot_noise ? bg_e : 0.0) + o.read_noise_e * o.read_noise_e +
-                           o.gain_e_per_adu * o.gain_e_per_adu / 12.0;
+// A track artefact (streak or cosmic ray) from (x0, y0), `len` px long at angle `th`, clipped to the frame.
+SimArtefact Track(const char* type, double x0, double y0, double len, double th, int w, int h) {
+  SimArtefact a;
+  a.type = type;
+  a.x0_px = x0;
+  a.y0_px = y0;
+  a.x1_px = std::clamp(a.x0_px + len * std::cos(th), 0.0, w - 1.0);
+  a.y1_px = std::clamp(a.y0_px + len * std::sin(th), 0.0, h - 1.0);
+  a.x_px = 0.5 * (a.x0_px + a.x1_px);
+  a.y_px = 0.5 * (a.y0_px + a.y1_px);
+  return a;
+}
+
+// The frame SimulateFrame draws: the signal image (electrons) and the optics, motion and noise model its
+// steps share. Each step draws from the generator it is given, so the frame's draw sequence is the
+// order of the calls in SimulateFrame.
+class FrameRenderer {
+ public:
+  FrameRenderer(const Camera& cam, const FrameSimOptions& o, SimulatedFrame* out);
+
+  void AddCatalogStars(const StarCatalog& catalog);
+  void AddFalseStars(Rng& rng);
+  void AddStreaks(Rng& rng);
+  void AddCosmicRays(Rng& rng);
+  std::vector<uint8_t> AddSensorDefects();
+  void ReadOut(const std::vector<uint8_t>& dead, Rng& rng);
+
+ private:
+  double Vignette(double x, double y) const;
+  PsfShape ShapeAt(double x, double y) const;
+  std::optional<Vec2> PathAt(const Vec3& v_mid, double t) const;
+  std::vector<Vec2> SmearPath(const Vec2& p, const Vec3& v_mid, double* smear_px) const;
+  void AddStar(StarId id, double mag, const Vec2& p, const Vec3& v_mid);
+
+  // Sub-step of the integration along a moving star's path.
+  static constexpr double kSmearStepPx = 0.1;
+
+  const Camera& cam_;
+  const FrameSimOptions& o_;
+  SimulatedFrame& out_;
+  const int w_, h_;
+  std::vector<double> signal_;  // electrons
+  double r_corner2_ = 0;        // squared half diagonal, the vignetting's and the PSF's radial scale
+  double bg_e_ = 0;             // background + dark charge per pixel
+  double var_bg_e2_ = 0;        // its noise per pixel (electrons^2), for the SNR truth
+  PsfShape shape0_;             // the PSF at the centre
+  bool varying_sigma_ = false;
+  double area_factor_ = 1;      // an elliptical Gaussian's area / a round one's of the mean sigma
+  double sigma_max_px_ = 0;     // the widest PSF anywhere (major-axis sigma)
+  Vec3 rate_rad_s_ = Vec3::Zero();
+  bool moving_ = false;
+  double smear_margin_px_ = 0;
+};
+
+FrameRenderer::FrameRenderer(const Camera& cam, const FrameSimOptions& o, SimulatedFrame* out)
+    : cam_(cam), o_(o), out_(*out), w_(cam.width), h_(cam.height), signal_(static_cast<size_t>(w_) * h_, 0.0) {
+  r_corner2_ = 0.25 * (double(w_) * w_ + double(h_) * h_);
+  bg_e_ = (o.background_e_per_s + o.dark_current_e_per_s) * o.exposure_s;
+  var_bg_e2_ = (o.shot_noise ? bg_e_ : 0.0) + o.read_noise_e * o.read_noise_e +
+               o.gain_e_per_adu * o.gain_e_per_adu / 12.0;
   // The PSF at an image position: sigma(r) and the fixed ellipse (axes in pixel coordinates).
   const double axis_ratio2 = (1 - o.psf_ellipticity) * (1 - o.psf_ellipticity);
-  PsfShape shape0;
-  shape0.sigma = o.psf_sigma_px;
-  shape0.e = (1 - axis_ratio2) / (1 + axis_ratio2);
-  shape0.cos_th = std::cos(o.psf_angle_deg * kDegToRad), shape0.sin_th = std::sin(o.psf_angle_deg * kDegToRad);
-  const bool varying_sigma = o.psf_sigma_corner_px > 0 && o.psf_sigma_corner_px != o.psf_sigma_px;
-  auto shape_at = [&](double x, double y) {
-    PsfShape p = shape0;
-    if (varying_sigma) {
-      const double u = (std::pow(x - cam.cx_px, 2) + std::pow(y - cam.cy_px, 2)) / r_corner2;
-      p.sigma = std::max(0.5 * std::min(o.psf_sigma_px, o.psf_sigma_corner_px),
-                         o.psf_sigma_px + (o.psf_sigma_corner_px - o.psf_sigma_px) * u);
-    }
-    return p;
-  };
-  // Noise-equivalent area and peak fraction of the local PSF (an elliptical Gaussian's area scales
-  // with a b = sigma^2 sqrt(1 - e^2)).
-  const double area_factor = std::sqrt(1 - shape0.e * shape0.e);
-  auto nea_of = [&](const PsfShape& p) {
-    return 4 * kPi * p.sigma * p.sigma * area_factor + kPi * o.defocus_radius_px * o.defocus_radius_px;
-  };
-  auto peak_fraction_of = [&](const PsfShape& p) {
-    return 1.0 / (2 * kPi * p.sigma * p.sigma * area_factor + kPi * o.defocus_radius_px * o.defocus_radius_px);
-  };
+  shape0_.sigma = o.psf_sigma_px;
+  shape0_.e = (1 - axis_ratio2) / (1 + axis_ratio2);
+  shape0_.cos_th = std::cos(o.psf_angle_deg * kDegToRad), shape0_.sin_th = std::sin(o.psf_angle_deg * kDegToRad);
+  varying_sigma_ = o.psf_sigma_corner_px > 0 && o.psf_sigma_corner_px != o.psf_sigma_px;
+  // An elliptical Gaussian's area scales with a b = sigma^2 sqrt(1 - e^2).
+  area_factor_ = std::sqrt(1 - shape0_.e * shape0_.e);
   // The widest PSF anywhere (major-axis sigma) for the margin of stars drawn outside the frame.
-  const double sigma_max_px = std::max(o.psf_sigma_px, o.psf_sigma_corner_px) * std::sqrt(1 + shape0.e);
-  // Motion during the exposure (detect/smear.h for the kinematics): a direction fixed in inertial space
-  // is exp(-[w]x t) v in sensor axes, t from mid-exposure. Its image is integrated along the projected
-  // path (camera model, distortion included) at sub-steps of at most kSmearStepPx.
-  constexpr double kSmearStepPx = 0.1;
-  const Vec3 rate_rad_s = Vec3(o.rate_x_dps, o.rate_y_dps, o.rate_z_dps) * kDegToRad;
-  const bool moving = rate_rad_s.squaredNorm() > 0;
-  auto path_at = [&](const Vec3& v_mid, double t) {
-    return cam.Project(Eigen::AngleAxisd(-rate_rad_s.norm() * t, rate_rad_s.normalized()) * v_mid);
-  };
+  sigma_max_px_ = std::max(o.psf_sigma_px, o.psf_sigma_corner_px) * std::sqrt(1 + shape0_.e);
+  // Motion during the exposure (detect/smear.h for the kinematics).
+  rate_rad_s_ = Vec3(o.rate_x_dps, o.rate_y_dps, o.rate_z_dps) * kDegToRad;
+  moving_ = rate_rad_s_.squaredNorm() > 0;
   // Stars up to half a smear outside the frame at mid-exposure run into it (half a smear is at most
   // |w| T / 2 times the focal length plus the half diagonal, pinhole; 1.5x for distortion).
-  const double smear_margin_px =
-      1.5 * 0.5 * rate_rad_s.norm() * o.exposure_s * (std::max(cam.focal_length_px, cam.FocalYPx()) + 0.5 * std::hypot(double(w), double(h)));
+  smear_margin_px_ = 1.5 * 0.5 * rate_rad_s_.norm() * o.exposure_s *
+                     (std::max(cam.focal_length_px, cam.FocalYPx()) + 0.5 * std::hypot(double(w_), double(h_)));
+}
 
-  // Stars: every catalog star whose PSF reaches the frame.
-  const double cos_limit = std::cos(0.5 * cam.FovDiagRad() + 0.01);
-  const Vec3 boresight = out.q_inertial_from_sensor * Vec3::UnitZ();
-  auto add_star = [&](StarId id, double mag, const Vec2& p, const Vec3& v_mid) {
-    SimStar s;
-    s.star_id = id;
-    s.mag = mag;
-    s.x_px = p.x();
-    s.y_px = p.y();
-    s.flux_e = o.mag0_flux_e_per_s * std::pow(10.0, -0.4 * mag) * o.exposure_s * std::max(0.0, vignette(p.x(), p.y()));
-    s.flux_adu = s.flux_e / o.gain_e_per_adu;
-    std::vector<Vec2> path;  // image positions at n sub-steps (centres of n equal time slices)
-    if (moving) {
-      const auto a = path_at(v_mid, -0.5 * o.exposure_s), b = path_at(v_mid, 0.5 * o.exposure_s);
-      if (a && b) {
-        const int n = std::max(1, static_cast<int>(std::ceil(((*a - p).norm() + (*b - p).norm()) / kSmearStepPx)));
-        Vec2 prev = *a;
-        for (int k = 0; k <= n; ++k) {
-          if (k < n) {
-            const auto c = path_at(v_mid, o.exposure_s * ((k + 0.5) / n - 0.5));
-            path.push_back(c ? *c : p);
-          }
-          const auto e = path_at(v_mid, o.exposure_s * (double(k) / n - 0.5));  // slice edges: path length
-          if (e) {
-            s.smear_px += (*e - prev).norm();
-            prev = *e;
-          }
-        }
-      }
+double FrameRenderer::Vignette(double x, double y) const {
+  const double dx = x - cam_.cx_px, dy = y - cam_.cy_px;
+  return 1.0 - o_.vignetting * (dx * dx + dy * dy) / r_corner2_;
+}
+
+PsfShape FrameRenderer::ShapeAt(double x, double y) const {
+  PsfShape p = shape0_;
+  if (varying_sigma_) {
+    const double u = (std::pow(x - cam_.cx_px, 2) + std::pow(y - cam_.cy_px, 2)) / r_corner2_;
+    p.sigma = std::max(0.5 * std::min(o_.psf_sigma_px, o_.psf_sigma_corner_px),
+                       o_.psf_sigma_px + (o_.psf_sigma_corner_px - o_.psf_sigma_px) * u);
+  }
+  return p;
+}
+
+// A direction fixed in inertial space is exp(-[w]x t) v in sensor axes, t from mid-exposure; its image
+// through the camera model (distortion included).
+std::optional<Vec2> FrameRenderer::PathAt(const Vec3& v_mid, double t) const {
+  return cam_.Project(Eigen::AngleAxisd(-rate_rad_s_.norm() * t, rate_rad_s_.normalized()) * v_mid);
+}
+
+// The image positions of a moving star at n sub-steps (centres of n equal time slices, at most
+// kSmearStepPx apart), and in *smear_px the path's length; empty when still.
+std::vector<Vec2> FrameRenderer::SmearPath(const Vec2& p, const Vec3& v_mid, double* smear_px) const {
+  std::vector<Vec2> path;
+  if (!moving_) return path;
+  const auto a = PathAt(v_mid, -0.5 * o_.exposure_s), b = PathAt(v_mid, 0.5 * o_.exposure_s);
+  if (!a || !b) return path;
+  const int n = std::max(1, static_cast<int>(std::ceil(((*a - p).norm() + (*b - p).norm()) / kSmearStepPx)));
+  Vec2 prev = *a;
+  for (int k = 0; k <= n; ++k) {
+    if (k < n) {
+      const auto c = PathAt(v_mid, o_.exposure_s * ((k + 0.5) / n - 0.5));
+      path.push_back(c ? *c : p);
     }
-    const PsfShape psf = shape_at(p.x(), p.y());
-    const double nea_px = nea_of(psf), peak_fraction = peak_fraction_of(psf);
-    // The PSF-equivalent Gaussian sigma for the smear's peak / NEA factors (a defocused or elliptical
-    // PSF: the Gaussian of the same noise-equivalent area).
-    const double sigma_equiv = std::sqrt(nea_px / (4 * kPi));
-    const double nea_e = s.smear_px > 0 ? nea_px * SmearNeaFactor(s.smear_px, sigma_equiv) : nea_px;
-    const double peak_e = s.smear_px > 0 ? peak_fraction * SmearPeakFactor(s.smear_px, sigma_equiv) : peak_fraction;
-    s.snr = s.flux_e / std::sqrt((o.shot_noise ? s.flux_e : 0.0) + nea_e * var_bg_e2);
-    s.saturated = s.flux_e * peak_e + bg_e > o.full_well_e ||
-                  (s.flux_e * peak_e + bg_e) / o.gain_e_per_adu + o.bias_adu >= (1 << o.bit_depth) - 1;
-    if (path.empty()) {
-      AddPsf(signal, w, h, p.x(), p.y(), o, psf, s.flux_e);
-    } else {
-      for (const Vec2& q : path) AddPsf(signal, w, h, q.x(), q.y(), o, shape_at(q.x(), q.y()), s.flux_e / path.size());
+    const auto e = PathAt(v_mid, o_.exposure_s * (double(k) / n - 0.5));  // slice edges: path length
+    if (e) {
+      *smear_px += (*e - prev).norm();
+      prev = *e;
     }
-    out.stars.push_back(s);
-  };
-  const SkyCorrections sky = SkyForSimulation(o);
+  }
+  return path;
+}
+
+// Draws one star at mid-exposure position p (direction v_mid in sensor axes) and records its truth.
+void FrameRenderer::AddStar(StarId id, double mag, const Vec2& p, const Vec3& v_mid) {
+  SimStar s;
+  s.star_id = id;
+  s.mag = mag;
+  s.x_px = p.x();
+  s.y_px = p.y();
+  s.flux_e = o_.mag0_flux_e_per_s * std::pow(10.0, -0.4 * mag) * o_.exposure_s * std::max(0.0, Vignette(p.x(), p.y()));
+  s.flux_adu = s.flux_e / o_.gain_e_per_adu;
+  const std::vector<Vec2> path = SmearPath(p, v_mid, &s.smear_px);
+  // Noise-equivalent area and peak fraction of the local PSF, for the SNR and saturation truth.
+  const PsfShape psf = ShapeAt(p.x(), p.y());
+  const double nea_px = 4 * kPi * psf.sigma * psf.sigma * area_factor_ + kPi * o_.defocus_radius_px * o_.defocus_radius_px;
+  const double peak_fraction =
+      1.0 / (2 * kPi * psf.sigma * psf.sigma * area_factor_ + kPi * o_.defocus_radius_px * o_.defocus_radius_px);
+  // The PSF-equivalent Gaussian sigma for the smear's peak / NEA factors (a defocused or elliptical
+  // PSF: the Gaussian of the same noise-equivalent area).
+  const double sigma_equiv = std::sqrt(nea_px / (4 * kPi));
+  const double nea_e = s.smear_px > 0 ? nea_px * SmearNeaFactor(s.smear_px, sigma_equiv) : nea_px;
+  const double peak_e = s.smear_px > 0 ? peak_fraction * SmearPeakFactor(s.smear_px, sigma_equiv) : peak_fraction;
+  s.snr = s.flux_e / std::sqrt((o_.shot_noise ? s.flux_e : 0.0) + nea_e * var_bg_e2_);
+  s.saturated = s.flux_e * peak_e + bg_e_ > o_.full_well_e ||
+                (s.flux_e * peak_e + bg_e_) / o_.gain_e_per_adu + o_.bias_adu >= (1 << o_.bit_depth) - 1;
+  if (path.empty()) {
+    AddPsf(signal_, w_, h_, p.x(), p.y(), o_, psf, s.flux_e);
+  } else {
+    for (const Vec2& q : path) AddPsf(signal_, w_, h_, q.x(), q.y(), o_, ShapeAt(q.x(), q.y()), s.flux_e / path.size());
+  }
+  out_.stars.push_back(s);
+}
+
+// Every catalog star whose PSF reaches the frame (or, moving, whose smear runs into it).
+void FrameRenderer::AddCatalogStars(const StarCatalog& catalog) {
+  const Mat3 r_sensor_from_inertial = out_.q_inertial_from_sensor.toRotationMatrix().transpose();
+  const double cos_limit = std::cos(0.5 * cam_.FovDiagRad() + 0.01);
+  const Vec3 boresight = out_.q_inertial_from_sensor * Vec3::UnitZ();
+  const SkyCorrections sky = SkyForSimulation(o_);
   const Vec3 v_observer_m_s = sky.ObserverVelocityMS();
   for (const CatalogStar& cs : catalog.stars) {
-    if (cs.mag > o.mag_max) continue;
+    if (cs.mag > o_.mag_max) continue;
     if (cs.unit.dot(boresight) < cos_limit) continue;  // the limit's 0.01 rad margin covers aberration
     const Vec3 v = r_sensor_from_inertial * sky.Apparent(cs, catalog.epoch_year, v_observer_m_s);
-    const auto p = cam.Project(v);
-    if (!p || !cam.InImage(*p, moving ? -3 * sigma_max_px - smear_margin_px : -3 * sigma_max_px)) continue;
-    add_star(cs.id, cs.mag, *p, v);
+    const auto p = cam_.Project(v);
+    if (!p || !cam_.InImage(*p, moving_ ? -3 * sigma_max_px_ - smear_margin_px_ : -3 * sigma_max_px_)) continue;
+    AddStar(cs.id, cs.mag, *p, v);
   }
-  for (int k = 0; k < o.false_stars; ++k) {
-    const double mag = rng.Uniform(2.0, std::max(2.5, o.mag_max - 0.5));
-    const double y = rng.Uniform(5, h - 6);  // y first, in its own statement (see scene_sim.cc)
-    const Vec2 p(rng.Uniform(5, w - 6), y);
-    add_star(kInvalidStarId, mag, p, moving ? cam.Unproject(p) : Vec3::UnitZ());
-  }
+}
 
-  // Satellite streaks: PSF-blurred lines crossing a good part of the frame.
-  for (int k = 0; k < o.streaks; ++k) {
-    SimArtefact a;
-    a.type = "streak";
-    a.x0_px = rng.Uniform(0, w - 1);
-    a.y0_px = rng.Uniform(0, h - 1);
-    const double len = rng.Uniform(0.15, 0.4) * std::min(w, h), th = rng.Uniform(0, 2 * kPi);
-    a.x1_px = std::clamp(a.x0_px + len * std::cos(th), 0.0, w - 1.0);
-    a.y1_px = std::clamp(a.y0_px + len * std::sin(th), 0.0, h - 1.0);
-    a.x_px = 0.5 * (a.x0_px + a.x1_px);
-    a.y_px = 0.5 * (a.y0_px + a.y1_px);
-    a.signal_e = o.streak_flux_e_per_px;
-    AddTrack(signal, w, h, a.x0_px, a.y0_px, a.x1_px, a.y1_px, o.streak_flux_e_per_px, o.psf_sigma_px);
-    out.artefacts.push_back(a);
+// False stars: uniform positions 5 px inside the frame, magnitudes from 2 to half a magnitude above the limit.
+void FrameRenderer::AddFalseStars(Rng& rng) {
+  for (int k = 0; k < o_.false_stars; ++k) {
+    const double mag = rng.Uniform(2.0, std::max(2.5, o_.mag_max - 0.5));
+    const double y = rng.Uniform(5, h_ - 6);  // y first, in its own statement (see scene_sim.cc)
+    const Vec2 p(rng.Uniform(5, w_ - 6), y);
+    AddStar(kInvalidStarId, mag, p, moving_ ? cam_.Unproject(p) : Vec3::UnitZ());
   }
-  // Cosmic rays: sharp tracks (charge in the pixels crossed, no optical blur), random length
-  // (0 = a single-pixel hit) and direction.
-  for (int k = 0; k < o.cosmic_rays; ++k) {
-    SimArtefact a;
-    a.type = "cosmic_ray";
-    a.x0_px = rng.Uniform(2, w - 3);
-    a.y0_px = rng.Uniform(2, h - 3);
-    const double len = rng.Uniform(0, o.cosmic_ray_max_length_px), th = rng.Uniform(0, 2 * kPi);
-    a.x1_px = std::clamp(a.x0_px + len * std::cos(th), 0.0, w - 1.0);
-    a.y1_px = std::clamp(a.y0_px + len * std::sin(th), 0.0, h - 1.0);
-    a.x_px = 0.5 * (a.x0_px + a.x1_px);
-    a.y_px = 0.5 * (a.y0_px + a.y1_px);
-    a.signal_e = o.cosmic_ray_e_per_px * rng.Uniform(0.5, 1.5);
-    AddTrack(signal, w, h, a.x0_px, a.y0_px, a.x1_px, a.y1_px, a.signal_e, 0.0);
-    out.artefacts.push_back(a);
+}
+
+// Satellite streaks: PSF-blurred lines crossing a good part of the frame.
+void FrameRenderer::AddStreaks(Rng& rng) {
+  for (int k = 0; k < o_.streaks; ++k) {
+    const double x0 = rng.Uniform(0, w_ - 1);
+    const double y0 = rng.Uniform(0, h_ - 1);
+    const double len = rng.Uniform(0.15, 0.4) * std::min(w_, h_), th = rng.Uniform(0, 2 * kPi);
+    SimArtefact a = Track("streak", x0, y0, len, th, w_, h_);
+    a.signal_e = o_.streak_flux_e_per_px;
+    AddTrack(signal_, w_, h_, a.x0_px, a.y0_px, a.x1_px, a.y1_px, o_.streak_flux_e_per_px, o_.psf_sigma_px);
+    out_.artefacts.push_back(a);
   }
-  // Hot pixels: dark rate log-uniform in [min, max]; dead pixels: no response. Both belong to the
-  // sensor, so they come from their own seed and stay put from frame to frame.
-  Rng sensor(0xD5F3C0DEULL + static_cast<uint64_t>(o.defect_seed));
-  std::vector<uint8_t> dead(static_cast<size_t>(w) * h, 0);
-  for (int k = 0; k < o.hot_pixels; ++k) {
-    const int x = static_cast<int>(sensor.Uniform() * w), y = static_cast<int>(sensor.Uniform() * h);
-    const double rate = o.hot_pixel_min_e_per_s *
-                        std::pow(o.hot_pixel_max_e_per_s / o.hot_pixel_min_e_per_s, sensor.Uniform());
+}
+
+// Cosmic rays: sharp tracks (charge in the pixels crossed, no optical blur), random length
+// (0 = a single-pixel hit) and direction.
+void FrameRenderer::AddCosmicRays(Rng& rng) {
+  for (int k = 0; k < o_.cosmic_rays; ++k) {
+    const double x0 = rng.Uniform(2, w_ - 3);
+    const double y0 = rng.Uniform(2, h_ - 3);
+    const double len = rng.Uniform(0, o_.cosmic_ray_max_length_px), th = rng.Uniform(0, 2 * kPi);
+    SimArtefact a = Track("cosmic_ray", x0, y0, len, th, w_, h_);
+    a.signal_e = o_.cosmic_ray_e_per_px * rng.Uniform(0.5, 1.5);
+    AddTrack(signal_, w_, h_, a.x0_px, a.y0_px, a.x1_px, a.y1_px, a.signal_e, 0.0);
+    out_.artefacts.push_back(a);
+  }
+}
+
+// Hot pixels: dark rate log-uniform in [min, max]; dead pixels: no response. Both belong to the
+// sensor, so they come from their own seed and stay put from frame to frame. Returns the dead-pixel map.
+std::vector<uint8_t> FrameRenderer::AddSensorDefects() {
+  Rng sensor(0xD5F3C0DEULL + static_cast<uint64_t>(o_.defect_seed));
+  std::vector<uint8_t> dead(static_cast<size_t>(w_) * h_, 0);
+  for (int k = 0; k < o_.hot_pixels; ++k) {
+    const int x = static_cast<int>(sensor.Uniform() * w_), y = static_cast<int>(sensor.Uniform() * h_);
+    const double rate = o_.hot_pixel_min_e_per_s *
+                        std::pow(o_.hot_pixel_max_e_per_s / o_.hot_pixel_min_e_per_s, sensor.Uniform());
     SimArtefact a;
     a.type = "hot_pixel";
     a.x_px = a.x0_px = a.x1_px = x;
     a.y_px = a.y0_px = a.y1_px = y;
-    a.signal_e = rate * o.exposure_s;
-    signal[static_cast<size_t>(y) * w + x] += a.signal_e;
-    out.artefacts.push_back(a);
+    a.signal_e = rate * o_.exposure_s;
+    signal_[static_cast<size_t>(y) * w_ + x] += a.signal_e;
+    out_.artefacts.push_back(a);
   }
-  for (int k = 0; k < o.dead_pixels; ++k) {
-    const int x = static_cast<int>(sensor.Uniform() * w), y = static_cast<int>(sensor.Uniform() * h);
-    dead[static_cast<size_t>(y) * w + x] = 1;
+  for (int k = 0; k < o_.dead_pixels; ++k) {
+    const int x = static_cast<int>(sensor.Uniform() * w_), y = static_cast<int>(sensor.Uniform() * h_);
+    dead[static_cast<size_t>(y) * w_ + x] = 1;
     SimArtefact a;
     a.type = "dead_pixel";
     a.x_px = a.x0_px = a.x1_px = x;
     a.y_px = a.y0_px = a.y1_px = y;
-    out.artefacts.push_back(a);
+    out_.artefacts.push_back(a);
   }
+  return dead;
+}
 
-  // Detector: background and dark (with vignetting on the sky part), shot noise, full well,
-  // read noise, gain, bias, quantisation and ADC saturation.
+// Detector: background and dark (with vignetting on the sky part), shot noise, full well,
+// read noise, gain, bias, quantisation and ADC saturation, into out->image.
+void FrameRenderer::ReadOut(const std::vector<uint8_t>& dead, Rng& rng) {
   // The sky gradient: +-background_gradient_e_per_s at the extreme corners along its direction.
-  const double gc = std::cos(o.background_gradient_angle_deg * kDegToRad),
-               gs = std::sin(o.background_gradient_angle_deg * kDegToRad);
-  const double g_half_extent = std::abs(gc) * 0.5 * (w - 1) + std::abs(gs) * 0.5 * (h - 1);
-  const bool gradient = o.background_gradient_e_per_s > 0 && g_half_extent > 0;
+  const double gc = std::cos(o_.background_gradient_angle_deg * kDegToRad),
+               gs = std::sin(o_.background_gradient_angle_deg * kDegToRad);
+  const double g_half_extent = std::abs(gc) * 0.5 * (w_ - 1) + std::abs(gs) * 0.5 * (h_ - 1);
+  const bool gradient = o_.background_gradient_e_per_s > 0 && g_half_extent > 0;
   auto sky_at = [&](int x, int y) {
-    if (!gradient) return o.background_e_per_s;
-    const double d = ((x - 0.5 * (w - 1)) * gc + (y - 0.5 * (h - 1)) * gs) / g_half_extent;
-    return std::max(0.0, o.background_e_per_s + o.background_gradient_e_per_s * d);
+    if (!gradient) return o_.background_e_per_s;
+    const double d = ((x - 0.5 * (w_ - 1)) * gc + (y - 0.5 * (h_ - 1)) * gs) / g_half_extent;
+    return std::max(0.0, o_.background_e_per_s + o_.background_gradient_e_per_s * d);
   };
-  const double adc_max = (1 << o.bit_depth) - 1;
-  out.image = Image16(w, h);
-  for (int y = 0; y < h; ++y) {
-    for (int x = 0; x < w; ++x) {
-      const size_t i = static_cast<size_t>(y) * w + x;
-      double e = signal[i] + o.exposure_s * (sky_at(x, y) * vignette(x, y) + o.dark_current_e_per_s);
+  const double adc_max = (1 << o_.bit_depth) - 1;
+  out_.image = Image16(w_, h_);
+  for (int y = 0; y < h_; ++y) {
+    for (int x = 0; x < w_; ++x) {
+      const size_t i = static_cast<size_t>(y) * w_ + x;
+      double e = signal_[i] + o_.exposure_s * (sky_at(x, y) * Vignette(x, y) + o_.dark_current_e_per_s);
       if (dead[i]) e = 0;
-      if (o.shot_noise) e = rng.Poisson(e);
-      e = std::min(e, o.full_well_e);
-      const double noise_e = o.read_noise_e > 0 ? o.read_noise_e * rng.Normal() : 0.0;
-      double adu = dead[i] ? 0.0 : std::round((e + noise_e) / o.gain_e_per_adu + o.bias_adu);
-      out.image.pixels[i] = static_cast<uint16_t>(std::clamp(adu, 0.0, adc_max));
+      if (o_.shot_noise) e = rng.Poisson(e);
+      e = std::min(e, o_.full_well_e);
+      const double noise_e = o_.read_noise_e > 0 ? o_.read_noise_e * rng.Normal() : 0.0;
+      double adu = dead[i] ? 0.0 : std::round((e + noise_e) / o_.gain_e_per_adu + o_.bias_adu);
+      out_.image.pixels[i] = static_cast<uint16_t>(std::clamp(adu, 0.0, adc_max));
     }
   }
-  out.noise_adu = std::sqrt(var_bg_e2) / o.gain_e_per_adu;
+  out_.noise_adu = std::sqrt(var_bg_e2_) / o_.gain_e_per_adu;
+}
+
+}  // namespace
+
+SimulatedFrame SimulateFrame(const Camera& cam, const StarCatalog& catalog, const Quat& q_in,
+                             const FrameSimOptions& o, uint64_t seed) {
+  cam.Check();
+  o.Check();
+  Rng rng(seed);  // one sequence for the whole frame: the steps' order below is its draw order
+  SimulatedFrame out;
+  out.seed = seed;
+  out.q_inertial_from_sensor = q_in.normalized();
+  FrameRenderer frame(cam, o, &out);
+  // 1. Stars, catalog and false, smeared along their paths when the camera turns.
+  frame.AddCatalogStars(catalog);
+  frame.AddFalseStars(rng);
+  // 2. Artefacts: satellite streaks, cosmic rays and the sensor's hot and dead pixels.
+  frame.AddStreaks(rng);
+  frame.AddCosmicRays(rng);
+  const std::vector<uint8_t> dead = frame.AddSensorDefects();
+  // 3. The detector's readout of the charge image.
+  frame.ReadOut(dead, rng);
   return out;
 }
 
