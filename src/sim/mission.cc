@@ -281,9 +281,11 @@ SimulatedFrame SimulateMissionFrame(const MissionConfig& config, const MissionDa
   return SimulateFrame(h.camera, catalog, q_sensor, so, seed);
 }
 
-MissionResult RunMission(const MissionConfig& config_in, const StarCatalog& catalog, const std::string& out_dir) {
+namespace {
+
+// The unit's knowledge of itself, which the processor takes from the simulator's truth.
+MissionConfig WithUnitKnowledge(const MissionConfig& config_in) {
   MissionConfig config = config_in;
-  config.Check("mission");
   // The processor knows its cameras' gain (a property of the unit); the simulator's is the truth.
   for (auto& h : config.heads) {
     if (h.camera.gain_e_per_adu == 0) h.camera.gain_e_per_adu = config.frame_sim.gain_e_per_adu;
@@ -294,143 +296,217 @@ MissionResult RunMission(const MissionConfig& config_in, const StarCatalog& cata
   }
   // ... and its clock and velocity, from which it removes proper motion and aberration.
   config.processor.solve.sky = MissionSky(config);
-  const MissionData data = SimulateMission(config);
-  const int nh = static_cast<int>(config.heads.size());
+  return config;
+}
 
-  // One identifier per distinct field of view (MakeIdentifierForCamera's catalog key).
+// One identifier per distinct field of view (MakeIdentifierForCamera's catalog key).
+std::vector<std::shared_ptr<const StarIdentifier>> IdentifiersForHeads(const std::vector<OpticalHead>& heads) {
   std::map<long, std::shared_ptr<const StarIdentifier>> by_fov;
   std::vector<std::shared_ptr<const StarIdentifier>> ids;
-  for (const auto& h : config.heads) {
+  for (const auto& h : heads) {
     const long key = std::lround(h.camera.FovMaxRad() * kRadToDeg * 10);
     if (!by_fov.count(key)) {
       by_fov[key] = std::make_shared<const StarIdentifier>(MakeIdentifierForCamera("", h.camera, 0.0));
     }
     ids.push_back(by_fov[key]);
   }
-  UnitProcessor proc(config.heads, ids, config.unit, config.processor);
+  return ids;
+}
 
-  MissionResult res;
-  res.heads.resize(nh);
-  res.frames = static_cast<int>(data.frame_t_s.size());
-  const Quat q_sensor1_from_body = config.heads[0].q_body_from_sensor.conjugate();
-  ErrorAccumulator star_acc, fused_acc;
-  long within = 0, axis_samples = 0, nees_n = 0, trusted = 0, trust_n = 0;
-  int worst = 0;
-  double t_prev_status = -1;
-  double nees_sum = 0, frame_ms_sum = 0, gyro_s = 0, sim_s = 0;
-  const bool write = !out_dir.empty();
-  if (write) std::filesystem::create_directories(out_dir);
-  std::vector<std::vector<double>> att_cols(write ? 19 : 0), frame_cols(write ? 6 + 5 * nh : 0);
-  bool first_valid = true;
+// One mission run: the simulated gyro samples and frames fed to the unit processor in time order,
+// its outputs scored against the truth and, with an output directory, recorded as CSV columns.
+class MissionRun {
+ public:
+  MissionRun(const MissionConfig& config, const MissionData& data, const StarCatalog& catalog,
+             const std::string& out_dir);
+  MissionResult Run();
 
-  const auto& g = data.gyro;
+ private:
+  void OnFrameTime(double t_f);
+  std::vector<SimulatedFrame> SimulateFrameSet();
+  void ScoreHeads(const FrameReport& fr);
+  void RecordFrameRow(double t_f, const FrameReport& fr, const Vec3& e_star);
+  void OnGyroSample(size_t k);
+  void RecordAttitudeRow(size_t k, const UnitAttitude& a, const Vec3& e, int code);
+  void Summarise();
+  void WriteCsvs() const;
+
+  const MissionConfig& config_;
+  const MissionData& data_;
+  const GyroSimulation& g_;
+  const StarCatalog& catalog_;
+  const std::string out_dir_;
+  const int nh_;
+  const bool write_;
+  UnitProcessor proc_;
+  MissionResult res_;
+  const Quat q_sensor1_from_body_;
+  ErrorAccumulator star_acc_, fused_acc_;
+  long within_ = 0, axis_samples_ = 0, nees_n_ = 0, trusted_ = 0, trust_n_ = 0;
+  int worst_ = 0;
+  double t_prev_status_ = -1;
+  double nees_sum_ = 0, frame_ms_sum_ = 0, gyro_s_ = 0, sim_s_ = 0;
+  std::vector<std::vector<double>> att_cols_, frame_cols_;
+  bool first_valid_ = true;
+  size_t fi_ = 0;  // the next frame time
+};
+
+MissionRun::MissionRun(const MissionConfig& config, const MissionData& data, const StarCatalog& catalog,
+                       const std::string& out_dir)
+    : config_(config),
+      data_(data),
+      g_(data.gyro),
+      catalog_(catalog),
+      out_dir_(out_dir),
+      nh_(static_cast<int>(config.heads.size())),
+      write_(!out_dir.empty()),
+      proc_(config.heads, IdentifiersForHeads(config.heads), config.unit, config.processor),
+      q_sensor1_from_body_(config.heads[0].q_body_from_sensor.conjugate()) {
+  res_.heads.resize(nh_);
+  res_.frames = static_cast<int>(data.frame_t_s.size());
+  if (write_) std::filesystem::create_directories(out_dir_);
+  att_cols_.resize(write_ ? 19 : 0);
+  frame_cols_.resize(write_ ? 6 + 5 * nh_ : 0);
+}
+
+// The gyro samples in time order, each frame time processed before the first sample after it.
+MissionResult MissionRun::Run() {
   const auto t_run = Clock::now();
-  size_t fi = 0;
-  auto process_frames = [&](double t_f) {
+  for (size_t k = 0; k < g_.t_s.size(); ++k) {
+    while (fi_ < data_.frame_t_s.size() && data_.frame_t_s[fi_] < g_.t_s[k] - 1e-9) OnFrameTime(data_.frame_t_s[fi_]);
     const auto t0 = Clock::now();
-    std::vector<SimulatedFrame> frames;
-    for (int h = 0; h < nh; ++h) frames.push_back(SimulateMissionFrame(config, data, catalog, static_cast<int>(fi), h));
-    sim_s += SecondsSince(t0);
-    if (write && fi == 0) {
-      for (int h = 0; h < nh; ++h) WritePng16(out_dir + "/head" + std::to_string(h + 1) + "_first.png", frames[h].image);
-    }
-    std::vector<ImageView> views;
-    for (const auto& f : frames) views.push_back(f.image.view());
-    const FrameReport fr = proc.OnFrames(t_f, views);
-    frame_ms_sum += fr.total_ms;
-    res.frame_ms_max = std::max(res.frame_ms_max, fr.total_ms);
-    const Quat q_true = TrueAttitudeAt(data, t_f);
-    for (int h = 0; h < nh; ++h) {
-      const HeadResult& hr = fr.heads[h];
-      HeadSummary& s = res.heads[h];
-      ++s.frames;
-      if (hr.status == "solved") {
-        ++s.solved;
-        s.mean_matches += hr.matches;
-        s.mean_sigma_cross_arcsec += hr.sigma_cross_arcsec;
-        s.mean_sigma_roll_arcsec += hr.sigma_roll_arcsec;
-        (hr.mode == "tracking" ? s.tracking : s.lost_in_space)++;
-      }
-      auto ms = [&](const char* k) { return hr.timing_ms.count(k) ? hr.timing_ms.at(k) : 0.0; };
-      s.detect_ms_mean += ms("detect");
-      s.identify_ms_mean += ms("identify");
-      s.total_ms_mean += ms("total");
-      s.total_ms_max = std::max(s.total_ms_max, ms("total"));
-    }
-    Vec3 e_star = Vec3::Constant(std::nan(""));
-    if (fr.status == "solved") {
-      ++res.frames_solved;
-      e_star = BodyError(fr.q_inertial_from_body, q_true);
-      if (t_f >= config.score_after_s) star_acc.Add(q_sensor1_from_body * e_star);
-    }
-    const UnitAttitude a = proc.Attitude();
-    if (a.valid && t_f >= config.score_after_s) {
-      const Vec3 e = BodyError(a.q_inertial_from_body, q_true);
-      nees_sum += e.dot(a.covariance_rad2.ldlt().solve(e));
-      ++nees_n;
-    }
-    if (write) {
-      frame_cols[0].push_back(t_f);
-      frame_cols[1].push_back(fr.heads_solved);
-      frame_cols[2].push_back(fr.update.accepted ? 1 : 0);
-      for (int i = 0; i < 3; ++i) frame_cols[3 + i].push_back(e_star[i] * kRadToArcsec);
-      for (int h = 0; h < nh; ++h) {
-        const HeadResult& hr = fr.heads[h];
-        const bool ok = hr.status == "solved";
-        frame_cols[6 + 5 * h].push_back(ok ? 1 : 0);
-        frame_cols[7 + 5 * h].push_back(ok ? (hr.mode == "tracking" ? 1 : 0) : std::nan(""));
-        frame_cols[8 + 5 * h].push_back(hr.matches);
-        frame_cols[9 + 5 * h].push_back(ok ? hr.sigma_cross_arcsec : std::nan(""));
-        frame_cols[10 + 5 * h].push_back(hr.timing_ms.count("total") ? hr.timing_ms.at("total") : 0.0);
-      }
-    }
-    ++fi;
-  };
+    proc_.OnGyroSample(g_.t_s[k], g_.gyro_dph[k]);
+    gyro_s_ += SecondsSince(t0);
+    while (fi_ < data_.frame_t_s.size() && data_.frame_t_s[fi_] <= g_.t_s[k] + 1e-9) OnFrameTime(data_.frame_t_s[fi_]);
+    OnGyroSample(k);
+  }
+  while (fi_ < data_.frame_t_s.size()) OnFrameTime(data_.frame_t_s[fi_]);
+  res_.process_s = SecondsSince(t_run) - sim_s_;
+  res_.simulate_s = sim_s_;
+  Summarise();
+  if (write_) WriteCsvs();
+  return res_;
+}
 
-  for (size_t k = 0; k < g.t_s.size(); ++k) {
-    while (fi < data.frame_t_s.size() && data.frame_t_s[fi] < g.t_s[k] - 1e-9) process_frames(data.frame_t_s[fi]);
-    const auto t0 = Clock::now();
-    proc.OnGyroSample(g.t_s[k], g.gyro_dph[k]);
-    gyro_s += SecondsSince(t0);
-    while (fi < data.frame_t_s.size() && data.frame_t_s[fi] <= g.t_s[k] + 1e-9) process_frames(data.frame_t_s[fi]);
-    const UnitAttitude a = proc.Attitude();
-    if (!a.valid) continue;
-    if (first_valid) {
-      res.bias_error_start_dph = (a.bias_dph - g.body_bias_dph[k]).norm();
-      first_valid = false;
+// Frame fi_ of every head, rendered (its rendering time kept out of the processing time).
+std::vector<SimulatedFrame> MissionRun::SimulateFrameSet() {
+  const auto t0 = Clock::now();
+  std::vector<SimulatedFrame> frames;
+  for (int h = 0; h < nh_; ++h) frames.push_back(SimulateMissionFrame(config_, data_, catalog_, static_cast<int>(fi_), h));
+  sim_s_ += SecondsSince(t0);
+  if (write_ && fi_ == 0) {
+    for (int h = 0; h < nh_; ++h) WritePng16(out_dir_ + "/head" + std::to_string(h + 1) + "_first.png", frames[h].image);
+  }
+  return frames;
+}
+
+// The frames of one frame time through the processor; the star solution and the filter's NEES scored.
+void MissionRun::OnFrameTime(double t_f) {
+  const std::vector<SimulatedFrame> frames = SimulateFrameSet();
+  std::vector<ImageView> views;
+  for (const auto& f : frames) views.push_back(f.image.view());
+  const FrameReport fr = proc_.OnFrames(t_f, views);
+  frame_ms_sum_ += fr.total_ms;
+  res_.frame_ms_max = std::max(res_.frame_ms_max, fr.total_ms);
+  const Quat q_true = TrueAttitudeAt(data_, t_f);
+  ScoreHeads(fr);
+  Vec3 e_star = Vec3::Constant(std::nan(""));
+  if (fr.status == "solved") {
+    ++res_.frames_solved;
+    e_star = BodyError(fr.q_inertial_from_body, q_true);
+    if (t_f >= config_.score_after_s) star_acc_.Add(q_sensor1_from_body_ * e_star);
+  }
+  const UnitAttitude a = proc_.Attitude();
+  if (a.valid && t_f >= config_.score_after_s) {
+    const Vec3 e = BodyError(a.q_inertial_from_body, q_true);
+    nees_sum_ += e.dot(a.covariance_rad2.ldlt().solve(e));
+    ++nees_n_;
+  }
+  if (write_) RecordFrameRow(t_f, fr, e_star);
+  ++fi_;
+}
+
+// Per head: frames solved, how (lost in space or tracking), matches, sigmas and timings (sums; means in Summarise).
+void MissionRun::ScoreHeads(const FrameReport& fr) {
+  for (int h = 0; h < nh_; ++h) {
+    const HeadResult& hr = fr.heads[h];
+    HeadSummary& s = res_.heads[h];
+    ++s.frames;
+    if (hr.status == "solved") {
+      ++s.solved;
+      s.mean_matches += hr.matches;
+      s.mean_sigma_cross_arcsec += hr.sigma_cross_arcsec;
+      s.mean_sigma_roll_arcsec += hr.sigma_roll_arcsec;
+      (hr.mode == "tracking" ? s.tracking : s.lost_in_space)++;
     }
-    const Vec3 e = BodyError(a.q_inertial_from_body, g.q_true[k]);
-    const int code = StatusCode(a.status);
-    worst = std::max(worst, code);
-    if (t_prev_status >= 0) res.status_s[a.status] += g.t_s[k] - t_prev_status;
-    t_prev_status = g.t_s[k];
-    if (g.t_s[k] >= config.score_after_s) {
-      fused_acc.Add(q_sensor1_from_body * e);
-      for (int i = 0; i < 3; ++i) {
-        const bool w = std::abs(e[i]) <= 3 * std::sqrt(a.covariance_rad2(i, i));
-        within += w ? 1 : 0;
-        trusted += w || code != 0 ? 1 : 0;
-        ++axis_samples;
-        ++trust_n;
-      }
-    }
-    if (write) {
-      const auto q = ToWxyz(a.q_inertial_from_body);
-      const auto qt = ToWxyz(g.q_true[k]);
-      att_cols[0].push_back(g.t_s[k]);
-      for (int i = 0; i < 4; ++i) att_cols[1 + i].push_back(q[i]);
-      for (int i = 0; i < 3; ++i) att_cols[5 + i].push_back(std::sqrt(a.covariance_rad2(i, i)) * kRadToArcsec);
-      for (int i = 0; i < 3; ++i) att_cols[8 + i].push_back(e[i] * kRadToArcsec);
-      for (int i = 0; i < 3; ++i) att_cols[11 + i].push_back(a.bias_dph[i]);
-      for (int i = 0; i < 4; ++i) att_cols[14 + i].push_back(qt[i]);
-      att_cols[18].push_back(code);
+    auto ms = [&](const char* k) { return hr.timing_ms.count(k) ? hr.timing_ms.at(k) : 0.0; };
+    s.detect_ms_mean += ms("detect");
+    s.identify_ms_mean += ms("identify");
+    s.total_ms_mean += ms("total");
+    s.total_ms_max = std::max(s.total_ms_max, ms("total"));
+  }
+}
+
+// A row of frames.csv (columns in WriteCsvs).
+void MissionRun::RecordFrameRow(double t_f, const FrameReport& fr, const Vec3& e_star) {
+  frame_cols_[0].push_back(t_f);
+  frame_cols_[1].push_back(fr.heads_solved);
+  frame_cols_[2].push_back(fr.update.accepted ? 1 : 0);
+  for (int i = 0; i < 3; ++i) frame_cols_[3 + i].push_back(e_star[i] * kRadToArcsec);
+  for (int h = 0; h < nh_; ++h) {
+    const HeadResult& hr = fr.heads[h];
+    const bool ok = hr.status == "solved";
+    frame_cols_[6 + 5 * h].push_back(ok ? 1 : 0);
+    frame_cols_[7 + 5 * h].push_back(ok ? (hr.mode == "tracking" ? 1 : 0) : std::nan(""));
+    frame_cols_[8 + 5 * h].push_back(hr.matches);
+    frame_cols_[9 + 5 * h].push_back(ok ? hr.sigma_cross_arcsec : std::nan(""));
+    frame_cols_[10 + 5 * h].push_back(hr.timing_ms.count("total") ? hr.timing_ms.at("total") : 0.0);
+  }
+}
+
+// The fused attitude after gyro sample k scored against the truth: its error, whether the covariance
+// covers it, and the time spent in each status.
+void MissionRun::OnGyroSample(size_t k) {
+  const UnitAttitude a = proc_.Attitude();
+  if (!a.valid) return;
+  if (first_valid_) {
+    res_.bias_error_start_dph = (a.bias_dph - g_.body_bias_dph[k]).norm();
+    first_valid_ = false;
+  }
+  const Vec3 e = BodyError(a.q_inertial_from_body, g_.q_true[k]);
+  const int code = StatusCode(a.status);
+  worst_ = std::max(worst_, code);
+  if (t_prev_status_ >= 0) res_.status_s[a.status] += g_.t_s[k] - t_prev_status_;
+  t_prev_status_ = g_.t_s[k];
+  if (g_.t_s[k] >= config_.score_after_s) {
+    fused_acc_.Add(q_sensor1_from_body_ * e);
+    for (int i = 0; i < 3; ++i) {
+      const bool w = std::abs(e[i]) <= 3 * std::sqrt(a.covariance_rad2(i, i));
+      within_ += w ? 1 : 0;
+      trusted_ += w || code != 0 ? 1 : 0;
+      ++axis_samples_;
+      ++trust_n_;
     }
   }
-  while (fi < data.frame_t_s.size()) process_frames(data.frame_t_s[fi]);
-  res.process_s = SecondsSince(t_run) - sim_s;
-  res.simulate_s = sim_s;
+  if (write_) RecordAttitudeRow(k, a, e, code);
+}
 
-  for (auto& s : res.heads) {
+// A row of attitude.csv (columns in WriteCsvs).
+void MissionRun::RecordAttitudeRow(size_t k, const UnitAttitude& a, const Vec3& e, int code) {
+  const auto q = ToWxyz(a.q_inertial_from_body);
+  const auto qt = ToWxyz(g_.q_true[k]);
+  att_cols_[0].push_back(g_.t_s[k]);
+  for (int i = 0; i < 4; ++i) att_cols_[1 + i].push_back(q[i]);
+  for (int i = 0; i < 3; ++i) att_cols_[5 + i].push_back(std::sqrt(a.covariance_rad2(i, i)) * kRadToArcsec);
+  for (int i = 0; i < 3; ++i) att_cols_[8 + i].push_back(e[i] * kRadToArcsec);
+  for (int i = 0; i < 3; ++i) att_cols_[11 + i].push_back(a.bias_dph[i]);
+  for (int i = 0; i < 4; ++i) att_cols_[14 + i].push_back(qt[i]);
+  att_cols_[18].push_back(code);
+}
+
+// The sums into means and the run's figures: errors, coverage, status, final state and bias.
+void MissionRun::Summarise() {
+  for (auto& s : res_.heads) {
     if (s.solved > 0) {
       s.mean_matches /= s.solved;
       s.mean_sigma_cross_arcsec /= s.solved;
@@ -442,56 +518,65 @@ MissionResult RunMission(const MissionConfig& config_in, const StarCatalog& cata
       s.total_ms_mean /= s.frames;
     }
   }
-  res.star_only = star_acc.Stats();
-  res.fused = fused_acc.Stats();
-  res.within_3sigma_fraction = axis_samples > 0 ? static_cast<double>(within) / axis_samples : 0.0;
-  res.trustworthy_fraction = trust_n > 0 ? static_cast<double>(trusted) / trust_n : 0.0;
-  res.status = worst == 0 ? "ok" : (worst == 1 ? "degraded" : "failed");
-  res.nees_mean = nees_n > 0 ? nees_sum / nees_n : 0.0;
-  res.final_state = proc.Attitude();
-  if (!g.t_s.empty()) {
-    const auto it = std::lower_bound(g.t_s.begin(), g.t_s.end(), res.final_state.t_s);
-    const size_t k = std::min(static_cast<size_t>(it - g.t_s.begin()), g.t_s.size() - 1);
-    res.q_truth_final = g.q_true[k];
+  res_.star_only = star_acc_.Stats();
+  res_.fused = fused_acc_.Stats();
+  res_.within_3sigma_fraction = axis_samples_ > 0 ? static_cast<double>(within_) / axis_samples_ : 0.0;
+  res_.trustworthy_fraction = trust_n_ > 0 ? static_cast<double>(trusted_) / trust_n_ : 0.0;
+  res_.status = worst_ == 0 ? "ok" : (worst_ == 1 ? "degraded" : "failed");
+  res_.nees_mean = nees_n_ > 0 ? nees_sum_ / nees_n_ : 0.0;
+  res_.final_state = proc_.Attitude();
+  if (!g_.t_s.empty()) {
+    const auto it = std::lower_bound(g_.t_s.begin(), g_.t_s.end(), res_.final_state.t_s);
+    const size_t k = std::min(static_cast<size_t>(it - g_.t_s.begin()), g_.t_s.size() - 1);
+    res_.q_truth_final = g_.q_true[k];
   }
-  res.bias_dph = res.final_state.bias_dph;
-  res.bias_sigma_dph = res.final_state.bias_sigma_dph;
-  res.bias_truth_dph = g.body_bias_dph.empty() ? Vec3::Zero() : g.body_bias_dph.back();
-  res.bias_error_end_dph = (res.bias_dph - res.bias_truth_dph).norm();
-  res.updates = proc.fusion().n_updates();
-  res.rejected = proc.fusion().n_rejected();
-  res.frame_ms_mean = res.frames > 0 ? frame_ms_sum / res.frames : 0.0;
-  res.gyro_us_mean = g.t_s.empty() ? 0.0 : gyro_s * 1e6 / g.t_s.size();
+  res_.bias_dph = res_.final_state.bias_dph;
+  res_.bias_sigma_dph = res_.final_state.bias_sigma_dph;
+  res_.bias_truth_dph = g_.body_bias_dph.empty() ? Vec3::Zero() : g_.body_bias_dph.back();
+  res_.bias_error_end_dph = (res_.bias_dph - res_.bias_truth_dph).norm();
+  res_.updates = proc_.fusion().n_updates();
+  res_.rejected = proc_.fusion().n_rejected();
+  res_.frame_ms_mean = res_.frames > 0 ? frame_ms_sum_ / res_.frames : 0.0;
+  res_.gyro_us_mean = g_.t_s.empty() ? 0.0 : gyro_s_ * 1e6 / g_.t_s.size();
+}
 
-  if (write) {
-    WriteCsv(out_dir + "/attitude.csv",
-             {"t_s", "qw", "qx", "qy", "qz", "sigma_x_arcsec", "sigma_y_arcsec", "sigma_z_arcsec", "err_x_arcsec",
-              "err_y_arcsec", "err_z_arcsec", "bx_dph", "by_dph", "bz_dph", "true_qw", "true_qx", "true_qy", "true_qz",
-              "status_code"},
-             att_cols, 12);
-    std::vector<std::string> fh = {"t_s", "heads_solved", "update_accepted", "star_err_x_arcsec", "star_err_y_arcsec",
-                                   "star_err_z_arcsec"};
-    for (int h = 1; h <= nh; ++h) {
-      const std::string p = "head" + std::to_string(h) + "_";
-      for (const char* n : {"solved", "tracking", "matches", "sigma_cross_arcsec", "ms"}) fh.push_back(p + n);
-    }
-    WriteCsv(out_dir + "/frames.csv", fh, frame_cols, 9);
-    std::vector<std::vector<double>> gc(1 + config.unit.size() + 1), tc(5);
-    for (size_t k = 0; k < g.t_s.size(); ++k) {
-      gc[0].push_back(g.t_s[k]);
-      for (int i = 0; i < config.unit.size(); ++i) gc[1 + i].push_back(g.gyro_dph[k][i]);
-      gc.back().push_back(g.temp_c[k]);
-      const auto q = ToWxyz(g.q_true[k]);
-      tc[0].push_back(g.t_s[k]);
-      for (int i = 0; i < 4; ++i) tc[1 + i].push_back(q[i]);
-    }
-    std::vector<std::string> gh = {"t_s"};
-    for (int i = 1; i <= config.unit.size(); ++i) gh.push_back("g" + std::to_string(i) + "_dph");
-    gh.push_back("temp_c");
-    WriteCsv(out_dir + "/gyro.csv", gh, gc, 12);
-    WriteCsv(out_dir + "/truth.csv", {"t_s", "qw", "qx", "qy", "qz"}, tc, 15);
+// attitude.csv and frames.csv (the recorded rows), gyro.csv and truth.csv (the simulated data).
+void MissionRun::WriteCsvs() const {
+  WriteCsv(out_dir_ + "/attitude.csv",
+           {"t_s", "qw", "qx", "qy", "qz", "sigma_x_arcsec", "sigma_y_arcsec", "sigma_z_arcsec", "err_x_arcsec",
+            "err_y_arcsec", "err_z_arcsec", "bx_dph", "by_dph", "bz_dph", "true_qw", "true_qx", "true_qy", "true_qz",
+            "status_code"},
+           att_cols_, 12);
+  std::vector<std::string> fh = {"t_s", "heads_solved", "update_accepted", "star_err_x_arcsec", "star_err_y_arcsec",
+                                 "star_err_z_arcsec"};
+  for (int h = 1; h <= nh_; ++h) {
+    const std::string p = "head" + std::to_string(h) + "_";
+    for (const char* n : {"solved", "tracking", "matches", "sigma_cross_arcsec", "ms"}) fh.push_back(p + n);
   }
-  return res;
+  WriteCsv(out_dir_ + "/frames.csv", fh, frame_cols_, 9);
+  std::vector<std::vector<double>> gc(1 + config_.unit.size() + 1), tc(5);
+  for (size_t k = 0; k < g_.t_s.size(); ++k) {
+    gc[0].push_back(g_.t_s[k]);
+    for (int i = 0; i < config_.unit.size(); ++i) gc[1 + i].push_back(g_.gyro_dph[k][i]);
+    gc.back().push_back(g_.temp_c[k]);
+    const auto q = ToWxyz(g_.q_true[k]);
+    tc[0].push_back(g_.t_s[k]);
+    for (int i = 0; i < 4; ++i) tc[1 + i].push_back(q[i]);
+  }
+  std::vector<std::string> gh = {"t_s"};
+  for (int i = 1; i <= config_.unit.size(); ++i) gh.push_back("g" + std::to_string(i) + "_dph");
+  gh.push_back("temp_c");
+  WriteCsv(out_dir_ + "/gyro.csv", gh, gc, 12);
+  WriteCsv(out_dir_ + "/truth.csv", {"t_s", "qw", "qx", "qy", "qz"}, tc, 15);
+}
+
+}  // namespace
+
+MissionResult RunMission(const MissionConfig& config_in, const StarCatalog& catalog, const std::string& out_dir) {
+  config_in.Check("mission");
+  const MissionConfig config = WithUnitKnowledge(config_in);
+  const MissionData data = SimulateMission(config);
+  return MissionRun(config, data, catalog, out_dir).Run();
 }
 
 std::string MissionResult::Text() const {
