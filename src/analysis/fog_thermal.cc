@@ -289,9 +289,10 @@ ThermalEvaluation EvaluateThermalModel(const std::vector<ThermalRun>& runs, cons
   return ev;
 }
 
-ThermalFitResult FitThermalDrift(const std::vector<ThermalRun>& runs, const ThermalFitOptions& options) {
-  options.Check();
-  if (runs.empty()) throw InputError("", "no thermal run given");
+namespace {
+
+// The runs binned, with the total number of bins (at least four per term).
+std::vector<Bins> BinRuns(const std::vector<ThermalRun>& runs, const ThermalFitOptions& options, int* n_out) {
   std::vector<Bins> bins;
   int n = 0;
   for (const auto& run : runs) {
@@ -303,87 +304,101 @@ ThermalFitResult FitThermalDrift(const std::vector<ThermalRun>& runs, const Ther
     throw InputError(runs.front().file, "too few " + std::to_string(options.bin_s) + " s bins (" +
                                             std::to_string(n) + ", need >= " + std::to_string(4 * kTerms) + ")");
   }
-  ThermalFitResult res;
-  res.status = "fitted";
-  res.n_bins = n;
+  *n_out = n;
+  return bins;
+}
 
-  // 1. Ordinary least squares with all ten terms: its residuals estimate the noise whatever the
-  // true subset is (every subset is nested in it).
+// Ordinary least squares with all ten terms: its residuals estimate the noise whatever the true
+// subset is (every subset is nested in it).
+VectorXd FullOlsResiduals(const std::vector<Bins>& bins, int n) {
   MatrixXd x_all(n, kTerms);
   VectorXd y_all(n);
-  {
-    int r = 0;
-    for (const auto& b : bins) {
-      x_all.middleRows(r, b.x.rows()) = b.x;
-      y_all.segment(r, b.x.rows()) = Eigen::Map<const VectorXd>(b.y_dph.data(), b.y_dph.size());
-      r += static_cast<int>(b.x.rows());
-    }
+  int r = 0;
+  for (const auto& b : bins) {
+    x_all.middleRows(r, b.x.rows()) = b.x;
+    y_all.segment(r, b.x.rows()) = Eigen::Map<const VectorXd>(b.y_dph.data(), b.y_dph.size());
+    r += static_cast<int>(b.x.rows());
   }
   const VectorXd beta_ols = x_all.colPivHouseholderQr().solve(y_all);
-  const VectorXd e_ols = y_all - x_all * beta_ols;
+  return y_all - x_all * beta_ols;
+}
 
-  // 2. Noise model: gamma_0 = s_w^2 + s_g^2, gamma_k = s_g^2 phi^k (k >= 1), white + Gauss-Markov
-  // (an ARMA(1,1) autocovariance); phi and s_g^2 from a log-linear fit over the positive lags.
+// The residual noise per bin: white (var_w) plus Gauss-Markov (var_g, correlation phi per bin).
+struct BinNoise {
+  double gamma0 = 0;  // the residuals' variance
+  double var_w = 0, var_g = 0, phi = 0;
+};
+
+// gamma_0 = s_w^2 + s_g^2, gamma_k = s_g^2 phi^k (k >= 1), white + Gauss-Markov (an ARMA(1,1)
+// autocovariance); phi and s_g^2 from a log-linear fit over the positive lags.
+BinNoise FitBinNoise(const std::vector<Bins>& bins, const VectorXd& e_ols, const ThermalFitOptions& options) {
   std::vector<double> gamma(options.max_noise_lag + 1, 0.0);
   std::vector<int> gcount(options.max_noise_lag + 1, 0);
-  {
-    int r = 0;
-    for (const auto& b : bins) {
-      const int m = static_cast<int>(b.x.rows());
-      for (int k = 0; k <= options.max_noise_lag; ++k) {
-        for (int i = k; i < m; ++i) {
-          gamma[k] += e_ols(r + i) * e_ols(r + i - k);
-          ++gcount[k];
-        }
+  int r = 0;
+  for (const auto& b : bins) {
+    const int m = static_cast<int>(b.x.rows());
+    for (int k = 0; k <= options.max_noise_lag; ++k) {
+      for (int i = k; i < m; ++i) {
+        gamma[k] += e_ols(r + i) * e_ols(r + i - k);
+        ++gcount[k];
       }
-      r += m;
     }
-    for (int k = 0; k <= options.max_noise_lag; ++k) gamma[k] = gcount[k] ? gamma[k] / gcount[k] : 0.0;
+    r += m;
   }
-  double var_w = gamma[0], var_g = 0, phi = 0;
-  if (options.prewhiten && gamma[0] > 0 && gamma[1] > 0) {
-    double sx = 0, sy = 0, sxx = 0, sxy = 0;
-    int m = 0;
-    for (int k = 1; k <= options.max_noise_lag && gamma[k] > 0; ++k) {
-      sx += k;
-      sy += std::log(gamma[k]);
-      sxx += k * k;
-      sxy += k * std::log(gamma[k]);
-      ++m;
-    }
-    if (m >= 2) {
-      const double slope = (m * sxy - sx * sy) / (m * sxx - sx * sx);
-      phi = std::exp(slope);
-      var_g = std::exp((sy - slope * sx) / m);
-    } else {  // one positive lag: plain AR(1)
-      phi = gamma[1] / gamma[0];
-      var_g = gamma[0];
-    }
-    phi = std::clamp(phi, 0.0, 0.999);
-    var_g = std::clamp(var_g, 0.0, gamma[0]);
-    var_w = std::max(gamma[0] - var_g, 1e-6 * gamma[0]);
+  for (int k = 0; k <= options.max_noise_lag; ++k) gamma[k] = gcount[k] ? gamma[k] / gcount[k] : 0.0;
+  BinNoise noise;
+  noise.gamma0 = gamma[0];
+  noise.var_w = gamma[0];
+  if (!(options.prewhiten && gamma[0] > 0 && gamma[1] > 0)) return noise;
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  int m = 0;
+  for (int k = 1; k <= options.max_noise_lag && gamma[k] > 0; ++k) {
+    sx += k;
+    sy += std::log(gamma[k]);
+    sxx += k * k;
+    sxy += k * std::log(gamma[k]);
+    ++m;
   }
-  res.noise_white_dph = std::sqrt(std::max(var_w, 0.0));
-  res.noise_wander_dph = std::sqrt(var_g);
-  res.noise_wander_tau_s = phi > 0 && phi < 1 ? -options.bin_s / std::log(phi) : 0.0;
+  double phi = 0, var_g = 0;
+  if (m >= 2) {
+    const double slope = (m * sxy - sx * sy) / (m * sxx - sx * sx);
+    phi = std::exp(slope);
+    var_g = std::exp((sy - slope * sx) / m);
+  } else {  // one positive lag: plain AR(1)
+    phi = gamma[1] / gamma[0];
+    var_g = gamma[0];
+  }
+  noise.phi = std::clamp(phi, 0.0, 0.999);
+  noise.var_g = std::clamp(var_g, 0.0, gamma[0]);
+  noise.var_w = std::max(gamma[0] - noise.var_g, 1e-6 * gamma[0]);
+  return noise;
+}
 
-  // 3. Prewhitening: Sigma = s_w^2 I + s_g^2 phi^{|dt|/bin} per run (runs independent); with
-  // L L^T = Sigma, the whitened data L^-1 y, L^-1 X have (nearly) white residuals (GLS).
+// The runs' whitened data and their normal-equation moments.
+struct WhitenedRuns {
   std::vector<Moments> moments;
-  std::vector<MatrixXd> xw_runs;
-  std::vector<VectorXd> yw_runs;
+  std::vector<MatrixXd> xw;
+  std::vector<VectorXd> yw;
+  Moments total;
+};
+
+// Sigma = s_w^2 I + s_g^2 phi^{|dt|/bin} per run (runs independent); with L L^T = Sigma, the whitened
+// data L^-1 y, L^-1 X have (nearly) white residuals (GLS).
+WhitenedRuns Prewhiten(const std::vector<Bins>& bins, const BinNoise& noise, double bin_s) {
+  WhitenedRuns w;
   for (const auto& b : bins) {
     const int m = static_cast<int>(b.x.rows());
     MatrixXd xw = b.x;
     VectorXd yw = Eigen::Map<const VectorXd>(b.y_dph.data(), m);
-    if (var_g > 0) {
+    if (noise.var_g > 0) {
       MatrixXd sigma(m, m);
       for (int i = 0; i < m; ++i) {
         for (int j = 0; j < m; ++j) {
-          sigma(i, j) = var_g * std::pow(phi, std::abs(b.t_s[i] - b.t_s[j]) / options.bin_s) + (i == j ? var_w : 0.0);
+          sigma(i, j) = noise.var_g * std::pow(noise.phi, std::abs(b.t_s[i] - b.t_s[j]) / bin_s) +
+                        (i == j ? noise.var_w : 0.0);
         }
       }
-      Eigen::LLT<MatrixXd> llt(sigma / gamma[0]);
+      Eigen::LLT<MatrixXd> llt(sigma / noise.gamma0);
       if (llt.info() == Eigen::Success) {
         llt.matrixL().solveInPlace(xw);
         llt.matrixL().solveInPlace(yw);
@@ -394,36 +409,32 @@ ThermalFitResult FitThermalDrift(const std::vector<ThermalRun>& runs, const Ther
     mo.b = xw.transpose() * yw;
     mo.yy = yw.squaredNorm();
     mo.n = m;
-    moments.push_back(mo);
-    xw_runs.push_back(std::move(xw));
-    yw_runs.push_back(std::move(yw));
+    w.moments.push_back(mo);
+    w.xw.push_back(std::move(xw));
+    w.yw.push_back(std::move(yw));
   }
-  Moments total;
-  for (const auto& m : moments) total += m;
+  for (const auto& m : w.moments) w.total += m;
+  return w;
+}
 
-  // 4. Correlation left in the whitened residuals of the full model -> effective sample size.
-  std::vector<int> all(kTerms);
-  std::iota(all.begin(), all.end(), 0);
-  const SubsetFit full = SolveSubset(total, all);
-  if (!full.ok) throw InputError(runs.front().file, "the ten regressors are degenerate (temperature programme too poor)");
-  {
-    std::vector<VectorXd> ew;
-    for (size_t r = 0; r < bins.size(); ++r) ew.push_back(yw_runs[r] - xw_runs[r] * full.beta);
-    res.whitened_r1 = AutoCorr(ew, 1);
-    // Variance inflation 1 + 2 sum_k (1 - k/(L+1)) r_k (Bartlett-weighted integrated
-    // autocorrelation; (1 + r1)/(1 - r1) for an AR(1) remainder).
-    double f = 1;
-    for (int k = 1; k <= options.max_noise_lag; ++k) {
-      f += 2 * (1 - k / (options.max_noise_lag + 1.0)) * AutoCorr(ew, k);
-    }
-    res.variance_inflation = options.effective_sample_size ? std::clamp(f, 1.0, 20.0) : 1.0;
+// Correlation left in the whitened residuals of the full model -> res->whitened_r1 and the variance
+// inflation 1 + 2 sum_k (1 - k/(L+1)) r_k (Bartlett-weighted integrated autocorrelation; (1 + r1)/(1 - r1)
+// for an AR(1) remainder), which shrinks the sample size.
+void MeasureVarianceInflation(const WhitenedRuns& w, const SubsetFit& full, const ThermalFitOptions& options,
+                              ThermalFitResult* res) {
+  std::vector<VectorXd> ew;
+  for (size_t r = 0; r < w.xw.size(); ++r) ew.push_back(w.yw[r] - w.xw[r] * full.beta);
+  res->whitened_r1 = AutoCorr(ew, 1);
+  double f = 1;
+  for (int k = 1; k <= options.max_noise_lag; ++k) {
+    f += 2 * (1 - k / (options.max_noise_lag + 1.0)) * AutoCorr(ew, k);
   }
-  const double inflate = res.variance_inflation;
-  const double n_eff = n / inflate;
-  res.n_eff = n_eff;
+  res->variance_inflation = options.effective_sample_size ? std::clamp(f, 1.0, 20.0) : 1.0;
+}
 
-  // 5. All 1024 subsets by BIC (Schwarz 1978) with the effective sample size:
-  // BIC = (n_eff/n) * n ln(RSS/n) + k ln(n_eff).
+// BIC of all 1024 subsets (Schwarz 1978) with the effective sample size:
+// BIC = (n_eff/n) * n ln(RSS/n) + k ln(n_eff); infinite for a degenerate subset.
+std::vector<double> SubsetBics(const Moments& total, int n, double inflate, double n_eff) {
   std::vector<double> bic(kSubsets, std::numeric_limits<double>::infinity());
   for (int mask = 0; mask < kSubsets; ++mask) {
     const auto idx = SubsetIndices(mask);
@@ -431,35 +442,69 @@ ThermalFitResult FitThermalDrift(const std::vector<ThermalRun>& runs, const Ther
     if (!f.ok) continue;
     bic[mask] = n * std::log(f.rss / n) / inflate + idx.size() * std::log(n_eff);
   }
-  const int best = static_cast<int>(std::min_element(bic.begin(), bic.end()) - bic.begin());
+  return bic;
+}
+
+// The selected subset's terms and sigmas into res->model, and every term's statistics (selected, in
+// the full model, the BIC change of toggling it) into res->tested.
+void ReportTerms(const Moments& total, const SubsetFit& full, const std::vector<double>& bic, int best, int n,
+                 ThermalFitResult* res) {
+  const double inflate = res->variance_inflation;
   const auto best_idx = SubsetIndices(best);
   const SubsetFit sel = SolveSubset(total, best_idx);
   const double s2_sel = sel.rss / std::max(1, n - static_cast<int>(best_idx.size()));
   for (size_t i = 0; i < best_idx.size(); ++i) {
     const int k = best_idx[i];
-    res.kept[k] = true;
-    res.model.k_dph[k] = sel.beta(i);
-    res.sigma_dph[k] = std::sqrt(s2_sel * sel.a_inv(i, i) * inflate);
+    res->kept[k] = true;
+    res->model.k_dph[k] = sel.beta(i);
+    res->sigma_dph[k] = std::sqrt(s2_sel * sel.a_inv(i, i) * inflate);
   }
   const double s2_full = full.rss / (n - kTerms);
   for (int k = 0; k < kTerms; ++k) {
     ThermalTermStat st;
     st.name = ThermalDriftModel::TermName(k);
-    st.kept = res.kept[k];
-    st.estimate_dph = res.model.k_dph[k];
-    st.sigma_dph = res.sigma_dph[k];
+    st.kept = res->kept[k];
+    st.estimate_dph = res->model.k_dph[k];
+    st.sigma_dph = res->sigma_dph[k];
     st.full_estimate_dph = full.beta(k);
     st.full_sigma_dph = std::sqrt(s2_full * full.a_inv(k, k) * inflate);
     st.full_t = st.full_estimate_dph / st.full_sigma_dph;
     st.delta_bic_toggle = bic[best ^ (1 << k)] - bic[best];
-    res.tested.push_back(st);
+    res->tested.push_back(st);
   }
+}
 
-  // 6. Validation of the best candidates: leave one run out, fit (GLS) on the rest, RMS of the
-  // un-whitened residual drift of the left-out run.
+// Leave one run out: the subset fitted (GLS) on the other runs, the RMS of the un-whitened residual
+// drift of the left-out run, pooled over the runs; negative when no run could be predicted.
+double LeaveOneRunOutRms(const std::vector<Bins>& bins, const std::vector<Moments>& moments,
+                         const std::vector<int>& idx) {
+  double ss = 0;
+  int cnt = 0;
+  for (size_t h = 0; h < bins.size(); ++h) {
+    Moments train;
+    for (size_t r = 0; r < bins.size(); ++r) {
+      if (r != h) train += moments[r];
+    }
+    const SubsetFit f = SolveSubset(train, idx);
+    if (!f.ok) continue;
+    for (int i = 0; i < bins[h].x.rows(); ++i) {
+      double pred = 0;
+      for (size_t j = 0; j < idx.size(); ++j) pred += f.beta(j) * bins[h].x(i, idx[j]);
+      const double e = bins[h].y_dph[i] - pred;
+      ss += e * e;
+      ++cnt;
+    }
+  }
+  return cnt > 0 ? std::sqrt(ss / cnt) : -1.0;
+}
+
+// Validation of the best candidates by BIC (leave one run out, with two runs or more) into
+// res->candidates, res->validation_agrees and res->message.
+void ValidateCandidates(const std::vector<Bins>& bins, const std::vector<Moments>& moments,
+                        const std::vector<double>& bic, int best, int validate_top, ThermalFitResult* res) {
   std::vector<int> order(kSubsets);
   std::iota(order.begin(), order.end(), 0);
-  const int top = std::min(options.validate_top, kSubsets);
+  const int top = std::min(validate_top, kSubsets);
   std::partial_sort(order.begin(), order.begin() + top, order.end(), [&](int a, int b) { return bic[a] < bic[b]; });
   double best_cv = std::numeric_limits<double>::infinity(), chosen_cv = -1;
   for (int c = 0; c < top; ++c) {
@@ -470,35 +515,58 @@ ThermalFitResult FitThermalDrift(const std::vector<ThermalRun>& runs, const Ther
     for (int k : idx) cand.terms.push_back(ThermalDriftModel::TermName(k));
     cand.bic = bic[mask];
     if (bins.size() >= 2) {
-      double ss = 0;
-      int cnt = 0;
-      for (size_t h = 0; h < bins.size(); ++h) {
-        Moments train;
-        for (size_t r = 0; r < bins.size(); ++r) {
-          if (r != h) train += moments[r];
-        }
-        const SubsetFit f = SolveSubset(train, idx);
-        if (!f.ok) continue;
-        for (int i = 0; i < bins[h].x.rows(); ++i) {
-          double pred = 0;
-          for (size_t j = 0; j < idx.size(); ++j) pred += f.beta(j) * bins[h].x(i, idx[j]);
-          const double e = bins[h].y_dph[i] - pred;
-          ss += e * e;
-          ++cnt;
-        }
-      }
-      if (cnt > 0) {
-        cand.cv_rms_dph = std::sqrt(ss / cnt);
+      const double cv_rms_dph = LeaveOneRunOutRms(bins, moments, idx);
+      if (cv_rms_dph >= 0) {
+        cand.cv_rms_dph = cv_rms_dph;
         best_cv = std::min(best_cv, cand.cv_rms_dph);
         if (mask == best) chosen_cv = cand.cv_rms_dph;
       }
     }
-    res.candidates.push_back(cand);
+    res->candidates.push_back(cand);
   }
-  res.validation_agrees = chosen_cv < 0 || chosen_cv <= 1.05 * best_cv;
-  res.message = bins.size() >= 2 ? (res.validation_agrees ? "BIC choice confirmed by leave-one-run-out validation"
-                                                          : "another candidate validates better on held-out runs")
-                                 : "single run: no held-out validation";
+  res->validation_agrees = chosen_cv < 0 || chosen_cv <= 1.05 * best_cv;
+  res->message = bins.size() >= 2 ? (res->validation_agrees ? "BIC choice confirmed by leave-one-run-out validation"
+                                                            : "another candidate validates better on held-out runs")
+                                  : "single run: no held-out validation";
+}
+
+}  // namespace
+
+ThermalFitResult FitThermalDrift(const std::vector<ThermalRun>& runs, const ThermalFitOptions& options) {
+  options.Check();
+  if (runs.empty()) throw InputError("", "no thermal run given");
+  int n = 0;
+  const std::vector<Bins> bins = BinRuns(runs, options, &n);
+  ThermalFitResult res;
+  res.status = "fitted";
+  res.n_bins = n;
+
+  // 1. The noise model, from the residuals of ordinary least squares with all ten terms.
+  const BinNoise noise = FitBinNoise(bins, FullOlsResiduals(bins, n), options);
+  res.noise_white_dph = std::sqrt(std::max(noise.var_w, 0.0));
+  res.noise_wander_dph = std::sqrt(noise.var_g);
+  res.noise_wander_tau_s = noise.phi > 0 && noise.phi < 1 ? -options.bin_s / std::log(noise.phi) : 0.0;
+
+  // 2. Prewhitening by that model (GLS).
+  const WhitenedRuns whitened = Prewhiten(bins, noise, options.bin_s);
+
+  // 3. The full model's whitened residuals -> effective sample size.
+  std::vector<int> all(kTerms);
+  std::iota(all.begin(), all.end(), 0);
+  const SubsetFit full = SolveSubset(whitened.total, all);
+  if (!full.ok) throw InputError(runs.front().file, "the ten regressors are degenerate (temperature programme too poor)");
+  MeasureVarianceInflation(whitened, full, options, &res);
+  const double inflate = res.variance_inflation;
+  const double n_eff = n / inflate;
+  res.n_eff = n_eff;
+
+  // 4. Term selection: all 1024 subsets by BIC.
+  const std::vector<double> bic = SubsetBics(whitened.total, n, inflate, n_eff);
+  const int best = static_cast<int>(std::min_element(bic.begin(), bic.end()) - bic.begin());
+  ReportTerms(whitened.total, full, bic, best, n, &res);
+
+  // 5. Validation of the best candidates on held-out runs, and the selected model's evaluation.
+  ValidateCandidates(bins, whitened.moments, bic, best, options.validate_top, &res);
   res.evaluation = EvaluateThermalModel(runs, res.model, options);
   return res;
 }
