@@ -5,7 +5,7 @@
 #include <cmath>
 #include <vector>
 
-#include "analysis/allan.h"
+#include "calibration/allan.h"
 #include "core/rng.h"
 
 namespace {

@@ -2,8 +2,8 @@
 // 1 Hz runs, all 1024 subsets) and the turntable fit (25 positions).
 #include <benchmark/benchmark.h>
 
-#include "analysis/fog_magnetic.h"
-#include "analysis/fog_thermal.h"
+#include "calibration/fog_magnetic.h"
+#include "calibration/fog_thermal.h"
 #include "sim/fog_bench_sim.h"
 
 namespace {

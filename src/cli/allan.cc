@@ -6,8 +6,8 @@
 #include <memory>
 #include <string>
 
-#include "analysis/allan.h"
-#include "analysis/allan_io.h"
+#include "calibration/allan.h"
+#include "calibration/allan_io.h"
 #include "cli/command.h"
 #include "core/error.h"
 #include "core/json.h"

@@ -1,17 +1,17 @@
 // `ssiu discover gyro LOG.csv [LOG2.csv ...] --json OUT` and `ssiu discover frames FRAME... --camera
 // CAM.json --json OUT`: model discrepancy analysis (docs/discrepancy.md). The library does the work
-// (analysis/discover_gyro.h, analysis/discover_frames.h); this file parses flags and writes JSON.
+// (discover/discover_gyro.h, discover/discover_frames.h); this file parses flags and writes JSON.
 #include <iostream>
 #include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
 
-#include "analysis/allan_io.h"
-#include "analysis/discover_allan.h"
-#include "analysis/discover_frames.h"
-#include "analysis/discover_gyro.h"
-#include "analysis/frame_compare.h"
+#include "calibration/allan_io.h"
+#include "discover/discover_allan.h"
+#include "discover/discover_frames.h"
+#include "discover/discover_gyro.h"
+#include "discover/frame_compare.h"
 #include "attitude/star_solver.h"
 #include "core/camera.h"
 #include "core/error.h"

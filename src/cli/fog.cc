@@ -6,9 +6,9 @@
 #include <memory>
 #include <sstream>
 
-#include "analysis/fog_magnetic.h"
-#include "analysis/fog_plot.h"
-#include "analysis/fog_thermal.h"
+#include "calibration/fog_magnetic.h"
+#include "calibration/fog_plot.h"
+#include "calibration/fog_thermal.h"
 #include "cli/command.h"
 #include "core/csv.h"
 #include "core/error.h"

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <filesystem>
 
-#include "analysis/plot.h"
+#include "plot/plot.h"
 #include "core/attitude.h"
 #include "core/csv.h"
 #include "core/error.h"

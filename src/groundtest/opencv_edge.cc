@@ -2,9 +2,9 @@
 // attitude/, analysis/ and groundtest/ opencv_calls.cc, by name.
 #include <cstring>
 
-#include "analysis/discover_frames.h"
-#include "analysis/fog_plot.h"
-#include "analysis/plot.h"
+#include "discover/discover_frames.h"
+#include "calibration/fog_plot.h"
+#include "plot/plot.h"
 #include "attitude/overlay.h"
 #include "groundtest/mask.h"
 #include "groundtest/reference.h"

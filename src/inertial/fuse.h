@@ -116,7 +116,7 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
 // 0 for "ok", 1 "degraded", 2 "failed" (anything else).
 int StatusCode(const std::string& status);
 
-// Gyro noise from `ssiu allan --json` output (analysis/allan_io.h AllanReportJson): one report (one
+// Gyro noise from `ssiu allan --json` output (calibration/allan_io.h AllanReportJson): one report (one
 // gyro) or an array of reports (one per axis or gyro). Per report, the terms arw_deg_per_sqrt_h,
 // bias_instability_dph and rrw_deg_per_h_per_sqrt_h ({"value", "significant"}) give the error model's
 // ARW, flicker floor and RRW; a term the fit did not find significant counts as 0 (docs/inertial.md).

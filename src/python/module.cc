@@ -21,8 +21,8 @@
 #include <string>
 #include <vector>
 
-#include "analysis/allan.h"
-#include "analysis/allan_io.h"
+#include "calibration/allan.h"
+#include "calibration/allan_io.h"
 #include "attitude/star_solver.h"
 #include "core/camera.h"
 #include "core/error.h"

@@ -1,0 +1,168 @@
+// Model discrepancy of single-axis gyro bench logs (`ssiu discover gyro`, docs/discrepancy.md):
+// start from the base model (a constant bias per log + white noise + slow bounded wander), test each
+// candidate cause of the fixed vocabulary (conventions.md) against it, name the best significant one
+// or `none`, fit it and measure the gain on data the fit did not see.
+//
+// Method:
+//  1. Each log t_s,w_dph,ref_dph,temp_c[,azimuth_deg] is averaged into at most max_bins_per_log bins;
+//     the drift is y = w - ref. Regressors per bin (linear, so bin means are exact):
+//       temperature K10, K20 (Z1, Z1^2), temperature_gradient K01 (Z2), with T and dT/dt from the
+//       local-polynomial estimate of fog_thermal.h; magnetic_field S sin(psi + phi) as
+//       (sin psi, cos psi); misalignment delta * d(ref)/d(psi) (a fixed-phase harmonic, nested in
+//       the magnetic one); scale_factor ref * 1e-6 (ppm); time_delay -d(ref)/dt (seconds).
+//  2. The noise of the full model (every applicable regressor) is fitted as white + first-order
+//     Gauss-Markov (ARMA(1,1) autocovariance, as in fog_thermal) and the data are whitened exactly
+//     (GLS) by the innovations of its Kalman filter. Correlation left in the whitened residuals
+//     shrinks the sample size to n_eff = n / f (Bartlett-weighted integrated autocorrelation).
+//  3. Each candidate: Wald chi^2 of its terms against the base model (q <= 2 dof), scaled by f;
+//     `bias` (a step in the bias) is located by a scan and its p-value Bonferroni-corrected for the
+//     scanned positions;
+//     A candidate is significant when p < alpha / (number of candidates tested).
+//     rate_random_walk is the likelihood ratio of the base noise model plus a random walk of the
+//     bias against the base noise model, both fitted by maximum likelihood (Kalman filter).
+//  4. Among the significant candidates the lowest exact-likelihood BIC wins (noise model refitted
+//     by maximum likelihood on the residual of each), so that steps, walks and slow regressors
+//     compete on the same footing.
+//     New in issue 18: bias_step (the located step, formerly reported as `bias`), periodic_drift (a
+//     located sinusoid: GLS periodogram, Bonferroni over independent frequencies),
+//     scale_factor_asymmetry (ref and |ref|), magnetic_field from the logged bn/be/bh columns.
+//  4b. Gates, in BIC order until one passes: the parameters lie within physical bounds (temperature
+//     and field must move; K, ppm, delay, amplitude limits; no cancelling terms; a walk needs >= 1 h)
+//     and the held-out improvement is significant: z = e.p / sqrt(p' S p) (e held-out base residual,
+//     p held-out prediction, S the fitted noise covariance) above the one-sided quantile of gain_alpha,
+//     and seen in the held-out blocks' own scatter too (paired block z > min_block_z).
+//  4c. `unexplained`: the residual of the named cause (or of the base) is whitened with a noise model
+//     refitted on it and tested (spectral peak, Ljung-Box, runs, regression on every logged column, and
+//     jumps: a two-state hidden Markov model's likelihood ratio against the noise model, calibrated by a
+//     bootstrap of the noise model (a level that switches between two values); Bonferroni over the five at
+//     residual_alpha; after periodic_drift also its harmonics / folded shape, a test of the sinusoid of
+//     its own); structure left -> `unexplained`, the residual described (period, amplitude, the column
+//     it follows, the jumps) and the first cause kept as partial_cause.
+//  5. Gain: each log is cut into cv_blocks blocks; the model is fitted on the even blocks and scored
+//     on the odd ones and vice versa (bin RMS of the drift after a bias-only fit / after the cause).
+//     For rate_random_walk: one-step prediction of the bins of the second half of each log by a
+//     constant bias vs an exponentially smoothed level tuned on the first half.
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "calibration/fog_thermal.h"
+#include "core/json.h"
+
+namespace ssiu {
+
+struct GyroBenchLog {
+  std::string file;
+  std::vector<double> t_s, w_dph, ref_dph, temp_c, azimuth_deg;  // azimuth empty when absent
+  std::vector<double> bn_ut, be_ut, bh_ut;  // logged magnetic field (north, east, vertical); empty when absent
+  // Every other numeric column (name -> values): the residual is tested against each (`unexplained`).
+  std::map<std::string, std::vector<double>> other;
+};
+
+// Reads t_s,w_dph,ref_dph,temp_c[,azimuth_deg][,bn_ut,be_ut,bh_ut]; other all-numeric columns go to
+// `other`. InputError on a missing column, a non-number, unsorted time or fewer than 50 rows.
+GyroBenchLog ReadGyroBenchLog(const std::string& path);
+void CheckGyroBenchLog(const GyroBenchLog& log);
+
+struct GyroDiscoverOptions {
+  double alpha = 0.01;           // family-wise false-alarm probability over all candidates
+  int max_bins_per_log = 1000;   // bin width = max(sample interval, duration / this)
+  TemperatureRateOptions rate;   // T and dT/dt estimation
+  int max_noise_lag = 30;        // bins used for the noise model and the effective sample size
+  double wander_tau_max_s = 1800;  // the base model's wander is bounded with correlation time <= this
+  int cv_blocks = 32;            // per log, for the cross-validated gain
+  // Gates (docs/discrepancy.md): a cause is named only when its held-out improvement is significant
+  // at gain_alpha (one-sided, Bonferroni over logs) and its parameters lie within the physical bounds.
+  double gain_alpha = 0.01;
+  // ... and the same improvement judged by the scatter of the held-out blocks themselves (paired over
+  // the cv_blocks blocks, no noise model) must exceed this many of its standard errors: a consistency
+  // check of the modelled z, not a second test (docs/discrepancy.md).
+  double min_block_z = 0.5;
+  double min_temp_span_c = 1.0;    // temperature terms are tested only when T moves at least this much
+  double min_field_span_ut = 1.0;  // a logged field component is a regressor only when it moves this much
+  double rrw_min_log_s = 3600;     // a random walk is tested only on logs at least this long
+  double periodic_min_cycles = 3;  // a periodic drift must repeat at least this often within its log
+  // `unexplained`: the residual of the named cause (or of the base model) is tested against the
+  // fitted noise model; family-wise false-alarm probability of the four residual tests.
+  double residual_alpha = 0.01;
+  int residual_lags = 10;          // Ljung-Box lags (bins)
+  void Check() const;
+};
+
+struct GyroCandidate {
+  std::string cause;
+  std::string model;      // when a cause has several: magnetic_field "azimuth_harmonic" or "logged_field"
+  double statistic = 0;   // Wald chi^2 (deterministic, bias) or likelihood ratio (rate_random_walk)
+  double p_value = 1;
+  double delta_bic = 0;   // BIC(base) - BIC(base + cause) under the GLS whitening; > 0 favours the cause
+  double bic = 0;         // exact-likelihood BIC (noise refitted), significant candidates only; lowest wins
+  int dof = 0;
+  bool applicable = true;  // false when the logs cannot show it (e.g. no azimuth column)
+  bool significant = false;
+  // Gates, for the significant candidates tried in BIC order until one passes.
+  bool evaluated = false;
+  double gain = 0, gain_z = 0;  // held-out gain and its significance (z of the improvement)
+  double gain_z_blocks = 0;     // the same z from the held-out blocks' own scatter (no noise model)
+  std::string verdict;          // "named", "gain not significant", "outside bounds: ...", ...
+};
+
+// A logged column against the residual (whitened GLS regression, per-log means removed).
+struct GyroResidualColumn {
+  std::string column;
+  double chi2 = 0, p_value = 1;
+  double coefficient_dph_per_unit = 0, correlation = 0;
+};
+
+// The residual after the best cause (or the base model) against the fitted noise model.
+struct GyroResidual {
+  bool structured = false;  // significant at residual_alpha over the four tests
+  double p_value = 1;       // family-wise (Bonferroni over the five tests; or the harmonics test's own)
+  std::string finding;      // the most significant test: spectral_peak, autocorrelation, runs, column, jumps, harmonics
+  double rms_dph = 0;
+  double period_s = 0, amplitude_dph = 0, spectral_chi2 = 0, spectral_p = 1;  // strongest sinusoid
+  double ljung_box_q = 0, ljung_box_p = 1;
+  int ljung_box_lags = 0;
+  double runs_z = 0, runs_p = 1;
+  std::string follows_column;  // the most significant logged column
+  double column_coefficient = 0, column_correlation = 0, column_p = 1;
+  std::vector<GyroResidualColumn> columns;
+  double harmonics_p = 1, harmonic_period_s = 0;  // periodic_drift's 2nd/3rd harmonics (when it was fitted)
+  // periodic_drift's shape: the residual folded at its period into phase bins (a sawtooth is not a sinusoid).
+  double periodic_shape_chi2 = 0, periodic_shape_p = 1;
+  int periodic_shape_dof = 0;
+  // Jumps of the level between two values (a telegraph bias), in the log where they are most significant:
+  // the levels of the pieces of constant level (binary segmentation) split into two groups, the
+  // within-group share of their variance; and the likelihood ratio of a two-state hidden Markov model
+  // against the noise model (the test's statistic; jumps_p its bootstrap p-value, Bonferroni over logs).
+  int jumps = 0;                     // switches between the two groups
+  double levels_within_ratio = 1, jumps_p = 1, jump_size_dph = 0;  // split's statistic, test's p, levels apart
+  double levels_within_p = 1;        // the level split's bootstrap p-value on the same replicates (that log)
+  double telegraph_llr = 0, telegraph_p = 1;  // ln L(HMM) - ln L(noise model) (nats), its bootstrap p-value
+  double telegraph_levels_dph = 0, telegraph_dwell_s = 0;  // the HMM's levels apart and mean dwell
+  std::vector<double> jump_times_s;
+};
+
+struct GyroDiscovery {
+  std::string cause = "none";
+  std::map<std::string, double> parameters;  // names of the FOG calibration issue (K10_dph, amplitude_dph, ...)
+  std::map<std::string, double> sigmas;      // 1-sigma of each parameter (same keys)
+  double rms_before_dph = 0, rms_after_dph = 0, gain = 1;  // cross-validated, held-out bins
+  double gain_z = 0, gain_z_min = 0;  // significance of the held-out improvement and the gate on it
+  std::vector<GyroCandidate> candidates;
+  // `unexplained`: the cause that was fitted before the residual test found structure left.
+  std::string partial_cause;
+  GyroResidual residual;
+  // Evidence: noise model and sample sizes.
+  int n_bins = 0;
+  double n_eff = 0, variance_inflation = 1;
+  double noise_white_dph = 0, noise_wander_dph = 0, noise_wander_tau_s = 0;
+  double alpha_per_candidate = 0;
+};
+
+GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDiscoverOptions& options);
+
+Json GyroDiscoveryToJson(const GyroDiscovery& d);
+
+}  // namespace ssiu

@@ -1,0 +1,90 @@
+#include <algorithm>
+#include <fstream>
+
+#include "calibration/allan.h"
+#include "calibration/allan_io.h"
+#include "discover/discover_allan.h"
+#include "core/rng.h"
+#include "testing/testing.h"
+
+namespace ssiu {
+namespace {
+
+// A white + rate-random-walk log: the default model (ARW + bias instability) must leave the curve
+// at long tau and the extended fit must name rate_random_walk; a white-only log gives no departure.
+TEST(DiscoverAllan, NamesMissingRateRandomWalk) {
+  Rng rng(3);
+  const double rate_hz = 10, n_arw = 1e-4, k_rrw = 2e-6;  // rad/s sqrt(s), rad/s/sqrt(s)
+  std::vector<double> with_rrw, white;
+  double walk = 0;
+  for (int i = 0; i < 200000; ++i) {
+    const double w = n_arw * std::sqrt(rate_hz) * rng.Normal();
+    walk += k_rrw / std::sqrt(rate_hz) * rng.Normal();
+    with_rrw.push_back(w + walk);
+    white.push_back(w);
+  }
+  const auto d = CompareAllanToDefaultModel(OverlappingAllanDeviation(with_rrw, rate_hz), {});
+  ASSERT_FALSE(d.departures_s.empty());
+  EXPECT_GT(d.departures_s.back().second, 100.0);
+  EXPECT_NE(std::find(d.missing_terms.begin(), d.missing_terms.end(), "rate_random_walk"), d.missing_terms.end());
+  EXPECT_LT(d.chi2_per_dof_after, d.chi2_per_dof_before);
+  EXPECT_NEAR(d.extended.rrw.value, k_rrw, 3 * d.extended.rrw.sigma);
+  const auto c = CompareAllanToDefaultModel(OverlappingAllanDeviation(white, rate_hz), {});
+  EXPECT_TRUE(c.missing_terms.empty());
+  EXPECT_NEAR(c.base_arw, n_arw, 0.03 * n_arw);
+}
+
+// The real KVH 1750 curve (docs/discrepancy.md): the default model misses the rate random walk.
+TEST(DiscoverAllan, Kvh1750MissesRateRandomWalk) {
+  SSIU_REQUIRE_SHARED(path, "gyro/smac-avar/kvh1750_av.csv");
+  CurveFileOptions co;
+  co.channel = "Gyro. X";
+  co.unit = "deg/s";
+  const auto d = CompareAllanToDefaultModel(ReadAllanCurveFile(path, co).curve, {});
+  EXPECT_EQ(d.missing_terms, std::vector<std::string>{"rate_random_walk"});
+  EXPECT_GT(d.chi2_per_dof_before, 4 * d.chi2_per_dof_after);
+}
+
+}  // namespace
+}  // namespace ssiu
+
+namespace ssiu {
+namespace {
+
+// A curve that is zero at some tau cannot weight the base model there: exit 1 naming the file
+// (was exit 0 with every figure null).
+TEST(DiscoverAllan, ZeroAdevIsBadInput) {
+  const std::string dir = testing::TempDir("zero_adev");
+  std::ofstream(dir + "/zero.csv") << "tau_s,adev_dph\n1,0.1\n2,0\n4,0.05\n8,0.035\n16,0.025\n";
+  std::string out;
+  EXPECT_EQ(testing::Run(testing::SsiuProgram() + " discover allan --curve " + dir + "/zero.csv --json -", &out), 1) << out;
+  EXPECT_THAT(out, ::testing::HasSubstr("zero.csv: ADEV is zero at tau 2"));
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+}
+
+// A negative or NaN length/rate behind the curve was silently ignored; a hex number was read as one;
+// an unwritable --json came after the summary line (two lines). Each is now one line, exit 1.
+TEST(DiscoverAllan, BadFlagsHexAndUnwritableOutputAreOneLine) {
+  const std::string dir = testing::TempDir("allan_flags");
+  std::ofstream(dir + "/c.csv") << "tau_s,adev_dph\n1,0.1\n2,0.07\n4,0.05\n8,0.035\n16,0.025\n";
+  std::ofstream(dir + "/hex.csv") << "tau_s,adev_dph\n1,0.1\n0x2,0.07\n4,0.05\n8,0.035\n16,0.025\n";
+  const std::string run = testing::SsiuProgram() + " discover allan --curve ";
+  struct Case {
+    std::string args, needle;
+  } cases[] = {{dir + "/c.csv --duration-s -5", "c.csv: duration (--duration-s) must be a finite number >= 0"},
+               {dir + "/c.csv --duration-s inf", "duration (--duration-s) must be"},
+               {dir + "/c.csv --sample-rate-hz nan", "sample rate (--sample-rate-hz) must be"},
+               {dir + "/hex.csv", "hex.csv"},
+               {dir + "/c.csv --json /nonexistent_dir/out.json", "/nonexistent_dir/out.json"}};
+  for (const auto& c : cases) {
+    std::string out;
+    EXPECT_EQ(testing::Run(run + c.args, &out), 1) << c.args << "\n" << out;
+    EXPECT_THAT(out, ::testing::HasSubstr(c.needle)) << c.args;
+    EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+  }
+  std::string out;  // the same curve with sane flags runs
+  EXPECT_EQ(testing::Run(run + dir + "/c.csv --duration-s 3600 --json " + dir + "/ok.json", &out), 0) << out;
+}
+
+}  // namespace
+}  // namespace ssiu
