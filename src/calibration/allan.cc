@@ -236,36 +236,190 @@ double NoiseFit::ModelAdev(double tau) const {
                    r * r * tau * tau / 2);
 }
 
-NoiseFit FitNoiseTerms(const AllanCurve& curve, const NoiseFitOptions& options) {
-  options.Check();
-  NoiseFit fit;
-  const size_t k = curve.tau_s.size();
-  if (curve.adev.size() != k || curve.edf.size() != k) throw std::invalid_argument("FitNoiseTerms: ragged curve");
-  // Points to fit.
+namespace {
+
+// The curve's points to fit: positive tau, ADEV and edf within the options' tau range.
+std::vector<size_t> PointsToFit(const AllanCurve& curve, const NoiseFitOptions& options) {
   std::vector<size_t> idx;
-  for (size_t i = 0; i < k; ++i) {
+  for (size_t i = 0; i < curve.tau_s.size(); ++i) {
     const double t = curve.tau_s[i];
     if (!(t > 0) || !(curve.adev[i] > 0) || !(curve.edf[i] > 0)) continue;
     if (options.tau_min_s > 0 && t < options.tau_min_s) continue;
     if (options.tau_max_s > 0 && t > options.tau_max_s) continue;
     idx.push_back(i);
   }
-  // The floor among points with at least floor_min_edf degrees of freedom (a lone long-tau dip is
-  // noise), or among all points when none has that many.
+  return idx;
+}
+
+// The floor (ADEV minimum) into fit->adev_min..., among points with at least floor_min_edf degrees of
+// freedom (a lone long-tau dip is noise), or among all points when none has that many.
+void FindFloor(const AllanCurve& curve, double floor_min_edf, NoiseFit* fit) {
+  const size_t k = curve.tau_s.size();
   bool any_well_determined = false;
-  for (size_t i = 0; i < k; ++i) any_well_determined |= curve.adev[i] > 0 && curve.edf[i] >= options.floor_min_edf;
+  for (size_t i = 0; i < k; ++i) any_well_determined |= curve.adev[i] > 0 && curve.edf[i] >= floor_min_edf;
   for (size_t i = 0; i < k; ++i) {
-    if (any_well_determined && !(curve.edf[i] >= options.floor_min_edf)) continue;
-    if (curve.adev[i] > 0 && (fit.adev_min == 0 || curve.adev[i] < fit.adev_min)) {
-      fit.adev_min = curve.adev[i];
-      fit.tau_at_min_s = curve.tau_s[i];
+    if (any_well_determined && !(curve.edf[i] >= floor_min_edf)) continue;
+    if (curve.adev[i] > 0 && (fit->adev_min == 0 || curve.adev[i] < fit->adev_min)) {
+      fit->adev_min = curve.adev[i];
+      fit->tau_at_min_s = curve.tau_s[i];
       // 1-sigma of an ADEV point: adev / sqrt(2 edf) (delta method on the chi-squared avar).
-      fit.adev_min_sigma = curve.edf[i] > 0 ? curve.adev[i] / std::sqrt(2 * curve.edf[i]) : 0;
+      fit->adev_min_sigma = curve.edf[i] > 0 ? curve.adev[i] / std::sqrt(2 * curve.edf[i]) : 0;
       // Still falling there: no flat region was reached, so the floor only bounds B from above.
-      fit.adev_min_is_upper_bound =
+      fit->adev_min_is_upper_bound =
           i < curve.noise.size() && (curve.noise[i] == AllanNoise::kWhiteRate || curve.noise[i] == AllanNoise::kQuantization);
     }
   }
+}
+
+// Basis of the IEEE 952 Annex C model in the squared coefficients c = (Q^2, N^2, B^2, K^2, R^2).
+double NoiseBasis(int j, double t) {
+  switch (j) {
+    case 0: return 3 / (t * t);
+    case 1: return 1 / t;
+    case 2: return kFlickerFactor;
+    case 3: return t / 3;
+    default: return t * t / 2;
+  }
+}
+
+// The linear system of the fitted points: basis a (p x 5), avar y, edf, and each point's octave share.
+struct AvarSystem {
+  Eigen::MatrixXd a;
+  Eigen::VectorXd y, edf, share;
+};
+
+AvarSystem MakeAvarSystem(const AllanCurve& curve, const std::vector<size_t>& idx) {
+  const size_t p = idx.size();
+  AvarSystem s;
+  s.a.resize(p, 5);
+  s.y.resize(p);
+  s.edf.resize(p);
+  s.share.resize(p);
+  for (size_t r = 0; r < p; ++r) {
+    const size_t i = idx[r];
+    const double t = curve.tau_s[i];
+    for (int j = 0; j < 5; ++j) s.a(r, j) = NoiseBasis(j, t);
+    s.y(r) = curve.adev[i] * curve.adev[i];
+    s.edf(r) = curve.edf[i];
+    // Share of an octave this point stands for: half the log2 distance to its neighbours, at most 1.
+    const double lo = r > 0 ? std::log2(t / curve.tau_s[idx[r - 1]]) : 1e9;
+    const double hi = r + 1 < p ? std::log2(curve.tau_s[idx[r + 1]] / t) : 1e9;
+    s.share(r) = std::min(1.0, 0.5 * (std::min(lo, 1.0) + std::min(hi, 1.0)));
+  }
+  return s;
+}
+
+// A set of active terms with its coefficients (all five, zero outside the set) and their covariance.
+struct TermSetFit {
+  std::vector<int> set;
+  Eigen::VectorXd c = Eigen::VectorXd::Zero(5);
+  Eigen::MatrixXd cov;
+  double cost = 0;  // weighted squared residual + penalty per term; infinite when no set is feasible
+};
+
+// Exact NNLS over five unknowns with weights w: the best feasible (all coefficients positive)
+// least-squares solution over all active sets of enabled terms, each term paying `penalty`.
+TermSetFit BestTermSet(const AvarSystem& s, const Eigen::VectorXd& w, const bool enabled[5], double penalty) {
+  const size_t p = static_cast<size_t>(s.y.size());
+  TermSetFit best;
+  best.cost = std::numeric_limits<double>::infinity();
+  for (int mask = 1; mask < 32; ++mask) {
+    std::vector<int> set;
+    bool ok = true;
+    for (int j = 0; j < 5; ++j) {
+      if (mask & (1 << j)) {
+        if (!enabled[j]) ok = false;
+        set.push_back(j);
+      }
+    }
+    if (!ok || set.size() >= p) continue;
+    const int q = static_cast<int>(set.size());
+    Eigen::MatrixXd as(p, q);
+    for (int j = 0; j < q; ++j) as.col(j) = s.a.col(set[j]);
+    // Weighted, column-normalised system: the basis spans many decades.
+    Eigen::VectorXd sw = w.cwiseSqrt();
+    Eigen::MatrixXd aw = sw.asDiagonal() * as;
+    Eigen::VectorXd scale = aw.colwise().norm().transpose();
+    for (int j = 0; j < q; ++j) aw.col(j) /= scale(j);
+    const Eigen::VectorXd yw = sw.cwiseProduct(s.y);
+    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(aw);
+    if (qr.rank() < q) continue;
+    const Eigen::VectorXd cs = qr.solve(yw);
+    Eigen::VectorXd c = cs.cwiseQuotient(scale);
+    if ((c.array() <= 0).any()) continue;
+    // Each term must pay for itself (Schwarz's criterion over the effective number of points), so
+    // a term enters only where it is significant and does not trade off against the true one.
+    const double cost = (aw * cs - yw).squaredNorm() + penalty * q;
+    if (cost < best.cost) {
+      best.cost = cost;
+      best.set = set;
+      best.c.setZero();
+      for (int j = 0; j < q; ++j) best.c(set[j]) = c(j);
+      const Eigen::MatrixXd ata = aw.transpose() * aw;
+      Eigen::MatrixXd cov_s = ata.inverse();
+      best.cov = Eigen::MatrixXd::Zero(5, 5);
+      for (int u = 0; u < q; ++u)
+        for (int v = 0; v < q; ++v) best.cov(set[u], set[v]) = cov_s(u, v) / (scale(u) * scale(v));
+    }
+  }
+  return best;
+}
+
+// Iteratively reweighted: weights from the data in the first pass, then from the previous pass'
+// model (left in *model).
+TermSetFit FitTermsIteratively(const AvarSystem& s, const bool enabled[5], double penalty,
+                               const NoiseFitOptions& options, Eigen::VectorXd* model) {
+  const size_t p = static_cast<size_t>(s.y.size());
+  *model = s.y;
+  TermSetFit best;
+  for (int iter = 0; iter < options.iterations; ++iter) {
+    // var(avar_i) = 2 avar_i^2 / edf_i (chi-squared); weight scaled by the point's octave share.
+    Eigen::VectorXd w(p);
+    // A relative floor on the ADEV error stands for model error (real flicker is not flat, filters
+    // shape the shortest taus), so that points with huge edf do not alone decide the fit.
+    const double floor2 = 4 * options.model_error * options.model_error;
+    for (size_t r = 0; r < p; ++r) w(r) = s.share(r) / ((*model)(r) * (*model)(r) * (2 / s.edf(r) + floor2));
+    best = BestTermSet(s, w, enabled, penalty);
+    if (!std::isfinite(best.cost)) break;
+    *model = s.a * best.c;
+  }
+  return best;
+}
+
+// One term's value, sigma (inflated by the misfit), the tau range where it dominates the model, and
+// whether it is significant.
+void ReportTerm(const AllanCurve& curve, const std::vector<size_t>& idx, const AvarSystem& s,
+                const Eigen::VectorXd& model, const TermSetFit& best, int j, double inflate, double dominance,
+                NoiseTerm* term) {
+  NoiseTerm& t = *term;
+  const double c = best.c(j);
+  if (c <= 0) return;
+  t.value = std::sqrt(c);
+  t.sigma = std::sqrt(std::max(0.0, best.cov(j, j) * inflate)) / (2 * t.value);  // delta method on sqrt
+  int support = 0;
+  for (size_t r = 0; r < idx.size(); ++r) {
+    const double f = s.a(r, j) * c / model(r);
+    t.max_fraction = std::max(t.max_fraction, f);
+    if (f >= dominance) {
+      ++support;
+      const double tau = curve.tau_s[idx[r]];
+      if (t.tau_min_s == 0 || tau < t.tau_min_s) t.tau_min_s = tau;
+      t.tau_max_s = std::max(t.tau_max_s, tau);
+    }
+  }
+  // One dominated point (often the last, with few degrees of freedom) is not support.
+  t.significant = support >= 2 && t.value > 2 * t.sigma;
+}
+
+}  // namespace
+
+NoiseFit FitNoiseTerms(const AllanCurve& curve, const NoiseFitOptions& options) {
+  options.Check();
+  NoiseFit fit;
+  const size_t k = curve.tau_s.size();
+  if (curve.adev.size() != k || curve.edf.size() != k) throw std::invalid_argument("FitNoiseTerms: ragged curve");
+  const std::vector<size_t> idx = PointsToFit(curve, options);
+  FindFloor(curve, options.floor_min_edf, &fit);
   const bool enabled[5] = {options.fit_quantization, true, options.fit_bias_instability, true, options.fit_rate_ramp};
   int n_enabled = 0;
   for (bool e : enabled) n_enabled += e;
@@ -278,119 +432,23 @@ NoiseFit FitNoiseTerms(const AllanCurve& curve, const NoiseFitOptions& options) 
     }
     return fit;
   }
-  const size_t p = idx.size();
-  // Basis of the IEEE 952 Annex C model in the squared coefficients c = (Q^2, N^2, B^2, K^2, R^2).
-  auto basis = [](int j, double t) {
-    switch (j) {
-      case 0: return 3 / (t * t);
-      case 1: return 1 / t;
-      case 2: return kFlickerFactor;
-      case 3: return t / 3;
-      default: return t * t / 2;
-    }
-  };
-  Eigen::MatrixXd a(p, 5);
-  Eigen::VectorXd y(p), edf(p), share(p);
-  for (size_t r = 0; r < p; ++r) {
-    const size_t i = idx[r];
-    const double t = curve.tau_s[i];
-    for (int j = 0; j < 5; ++j) a(r, j) = basis(j, t);
-    y(r) = curve.adev[i] * curve.adev[i];
-    edf(r) = curve.edf[i];
-    // Share of an octave this point stands for: half the log2 distance to its neighbours, at most 1.
-    const double lo = r > 0 ? std::log2(t / curve.tau_s[idx[r - 1]]) : 1e9;
-    const double hi = r + 1 < p ? std::log2(curve.tau_s[idx[r + 1]] / t) : 1e9;
-    share(r) = std::min(1.0, 0.5 * (std::min(lo, 1.0) + std::min(hi, 1.0)));
-  }
-  const double penalty = options.term_penalty >= 0 ? options.term_penalty : std::log(std::max(2.0, share.sum()));
-  Eigen::VectorXd model = y;  // weights from the data in the first pass, then from the model
-  Eigen::VectorXd best_c = Eigen::VectorXd::Zero(5);
-  Eigen::MatrixXd best_cov;
-  std::vector<int> best_set;
-  double best_cost = 0;
-  for (int iter = 0; iter < options.iterations; ++iter) {
-    // var(avar_i) = 2 avar_i^2 / edf_i (chi-squared); weight scaled by the point's octave share.
-    Eigen::VectorXd w(p);
-    // A relative floor on the ADEV error stands for model error (real flicker is not flat, filters
-    // shape the shortest taus), so that points with huge edf do not alone decide the fit.
-    const double floor2 = 4 * options.model_error * options.model_error;
-    for (size_t r = 0; r < p; ++r) w(r) = share(r) / (model(r) * model(r) * (2 / edf(r) + floor2));
-    best_cost = std::numeric_limits<double>::infinity();
-    // Exact NNLS over five unknowns: the best feasible least-squares solution over all active sets.
-    for (int mask = 1; mask < 32; ++mask) {
-      std::vector<int> set;
-      bool ok = true;
-      for (int j = 0; j < 5; ++j) {
-        if (mask & (1 << j)) {
-          if (!enabled[j]) ok = false;
-          set.push_back(j);
-        }
-      }
-      if (!ok || set.size() >= p) continue;
-      const int q = static_cast<int>(set.size());
-      Eigen::MatrixXd as(p, q);
-      for (int j = 0; j < q; ++j) as.col(j) = a.col(set[j]);
-      // Weighted, column-normalised system: the basis spans many decades.
-      Eigen::VectorXd sw = w.cwiseSqrt();
-      Eigen::MatrixXd aw = sw.asDiagonal() * as;
-      Eigen::VectorXd scale = aw.colwise().norm().transpose();
-      for (int j = 0; j < q; ++j) aw.col(j) /= scale(j);
-      const Eigen::VectorXd yw = sw.cwiseProduct(y);
-      Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(aw);
-      if (qr.rank() < q) continue;
-      const Eigen::VectorXd cs = qr.solve(yw);
-      Eigen::VectorXd c = cs.cwiseQuotient(scale);
-      if ((c.array() <= 0).any()) continue;
-      // Each term must pay for itself (Schwarz's criterion over the effective number of points), so
-      // a term enters only where it is significant and does not trade off against the true one.
-      const double cost = (aw * cs - yw).squaredNorm() + penalty * q;
-      if (cost < best_cost) {
-        best_cost = cost;
-        best_set = set;
-        best_c.setZero();
-        for (int j = 0; j < q; ++j) best_c(set[j]) = c(j);
-        const Eigen::MatrixXd ata = aw.transpose() * aw;
-        Eigen::MatrixXd cov_s = ata.inverse();
-        best_cov = Eigen::MatrixXd::Zero(5, 5);
-        for (int u = 0; u < q; ++u)
-          for (int v = 0; v < q; ++v) best_cov(set[u], set[v]) = cov_s(u, v) / (scale(u) * scale(v));
-      }
-    }
-    if (!std::isfinite(best_cost)) break;
-    model = a * best_c;
-  }
-  if (!std::isfinite(best_cost) || best_set.empty()) {
+  const AvarSystem s = MakeAvarSystem(curve, idx);
+  const double penalty = options.term_penalty >= 0 ? options.term_penalty : std::log(std::max(2.0, s.share.sum()));
+  Eigen::VectorXd model;
+  const TermSetFit best = FitTermsIteratively(s, enabled, penalty, options, &model);
+  if (!std::isfinite(best.cost) || best.set.empty()) {
     fit.status = "too_few_points";
     fit.message = "no non-negative fit of the noise model";
     return fit;
   }
   // Degrees of freedom from the octave shares (the effective number of independent points).
-  const double dof = std::max(1.0, share.sum() - static_cast<double>(best_set.size()));
-  fit.chi2_per_dof = (best_cost - penalty * static_cast<double>(best_set.size())) / dof;
+  const double dof = std::max(1.0, s.share.sum() - static_cast<double>(best.set.size()));
+  fit.chi2_per_dof = (best.cost - penalty * static_cast<double>(best.set.size())) / dof;
   // Model misfit (e.g. flicker that is not flat, unmodelled terms) widens the uncertainties.
   const double inflate = curve.edf_source == "assumed" ? fit.chi2_per_dof : std::max(1.0, fit.chi2_per_dof);
-  fit.points_used = p;
+  fit.points_used = idx.size();
   NoiseTerm* terms[5] = {&fit.quantization, &fit.arw, &fit.bias_instability, &fit.rrw, &fit.rate_ramp};
-  for (int j = 0; j < 5; ++j) {
-    NoiseTerm& t = *terms[j];
-    const double c = best_c(j);
-    if (c <= 0) continue;
-    t.value = std::sqrt(c);
-    t.sigma = std::sqrt(std::max(0.0, best_cov(j, j) * inflate)) / (2 * t.value);  // delta method on sqrt
-    int support = 0;
-    for (size_t r = 0; r < p; ++r) {
-      const double f = a(r, j) * c / model(r);
-      t.max_fraction = std::max(t.max_fraction, f);
-      if (f >= options.dominance) {
-        ++support;
-        const double tau = curve.tau_s[idx[r]];
-        if (t.tau_min_s == 0 || tau < t.tau_min_s) t.tau_min_s = tau;
-        t.tau_max_s = std::max(t.tau_max_s, tau);
-      }
-    }
-    // One dominated point (often the last, with few degrees of freedom) is not support.
-    t.significant = support >= 2 && t.value > 2 * t.sigma;
-  }
+  for (int j = 0; j < 5; ++j) ReportTerm(curve, idx, s, model, best, j, inflate, options.dominance, terms[j]);
   fit.model_adev.resize(k);
   for (size_t i = 0; i < k; ++i) fit.model_adev[i] = curve.tau_s[i] > 0 ? fit.ModelAdev(curve.tau_s[i]) : 0;
   fit.status = "fitted";
