@@ -230,106 +230,185 @@ RateLog ReadRateLog(const std::string& path, const std::string& column, const st
   return log;
 }
 
-CurveFile ReadAllanCurveFile(const std::string& path, const CurveFileOptions& o) {
+namespace {
+
+// The options' values behind the curve: a negative or non-finite length/rate was silently ignored
+// (the file's own values or none used instead), whichever command passed it.
+void CheckCurveFileOptions(const std::string& path, const CurveFileOptions& o) {
   if (!(o.confidence > 0 && o.confidence < 1)) throw InputError(path, "confidence must be in (0, 1)");
-  // A negative or non-finite length/rate behind the curve was silently ignored (the file's own
-  // values or none used instead), whichever command passed it.
   auto non_negative = [&](double v, const char* field) {
     if (!(std::isfinite(v) && v >= 0)) throw InputError(path, std::string(field) + " must be a finite number >= 0");
   };
   non_negative(o.sample_rate_hz, "sample rate (--sample-rate-hz)");
   non_negative(o.n, "sample count (--n)");
   non_negative(o.duration_s, "duration (--duration-s)");
+}
+
+// The columns read from a curve file: the table rows used, tau (s), ADEV (file unit), and the
+// per-point edf or SMAC-Group rel_error when the file has them.
+struct CurveColumns {
+  std::vector<size_t> rows;
+  std::vector<double> tau, adev, edf, rel;
+};
+
+// imu_utils layout: tau and ADEV columns, or one ADEV column here and the taus in o.tau_file.
+CurveColumns ReadHeaderlessColumns(const TextTable& t, const std::string& path, const CurveFileOptions& o,
+                                   CurveFile* out) {
+  CurveColumns cc;
+  if (t.header.size() == 2 && o.tau_file.empty()) {
+    for (size_t r = 0; r < t.rows.size(); ++r) cc.rows.push_back(r);
+    cc.tau = NumericColumn(t, 0, cc.rows, path);
+    cc.adev = NumericColumn(t, 1, cc.rows, path);
+  } else if (t.header.size() == 1) {
+    if (o.tau_file.empty()) throw InputError(path, "header-less one-column ADEV file: give --tau-file");
+    const TextTable tt = ReadTextTable(o.tau_file);
+    if (tt.has_header || tt.header.size() != 1) throw InputError(o.tau_file, "expected one column of taus in seconds");
+    if (tt.rows.size() != t.rows.size()) {
+      throw InputError(o.tau_file, std::to_string(tt.rows.size()) + " taus for " + std::to_string(t.rows.size()) +
+                                       " ADEV values in " + path);
+    }
+    for (size_t r = 0; r < t.rows.size(); ++r) cc.rows.push_back(r);
+    cc.tau = NumericColumn(tt, 0, cc.rows, o.tau_file);
+    cc.adev = NumericColumn(t, 0, cc.rows, path);
+  } else {
+    throw InputError(path, "header-less file must have one (ADEV, with --tau-file) or two (tau, ADEV) columns");
+  }
+  out->tau_column = "column1";
+  out->adev_column = t.header.size() == 2 ? "column2" : "column1";
+  return cc;
+}
+
+// The channel column (one named "channel", else the first non-numeric column; -1 if none), the
+// channels it holds into out->channels and the one to read into out->channel.
+int SelectChannel(const TextTable& t, const std::string& path, const CurveFileOptions& o, CurveFile* out) {
+  int ch = ColumnIndex(t, "channel");
+  if (ch < 0) {
+    for (size_t c = 0; c < t.header.size() && ch < 0; ++c) {
+      double v;
+      if (!ParseNumber(t.rows[0][c], &v)) ch = static_cast<int>(c);
+    }
+  }
+  if (ch >= 0) {
+    std::set<std::string> seen;
+    for (const auto& r : t.rows) {
+      if (seen.insert(r[ch]).second) out->channels.push_back(r[ch]);
+    }
+  }
+  if (!o.channel.empty()) {
+    if (ch < 0) throw InputError(path, "no channel column, but --channel '" + o.channel + "' was given");
+    out->channel = o.channel;
+  } else if (out->channels.size() == 1) {
+    out->channel = out->channels[0];
+  } else if (out->channels.size() > 1) {
+    std::string list;
+    for (const auto& c : out->channels) list += (list.empty() ? "" : ", ") + c;
+    throw InputError(path, "column '" + t.header[ch] + "' holds several channels (" + list + "): give --channel");
+  }
+  return ch;
+}
+
+// The column given (which must exist), else the first of `names` present.
+std::string PickColumn(const TextTable& t, const std::string& path, const std::string& given,
+                       const std::vector<std::string>& names, const char* what) {
+  if (!given.empty()) {
+    if (ColumnIndex(t, given) < 0) throw InputError(path, "missing column '" + given + "'");
+    return given;
+  }
+  for (const auto& n : names) {
+    if (ColumnIndex(t, n) >= 0) return n;
+  }
+  throw InputError(path, std::string("no ") + what + " column found: give --" + what + "-column");
+}
+
+// ADEV column candidates: adev* (not its bounds or error), then avar* (square-rooted when read).
+std::vector<std::string> AdevColumnNames(const TextTable& t) {
+  std::vector<std::string> adev_names;
+  for (const auto& h : t.header) {
+    const std::string l = Lower(h);
+    if (l.rfind("adev", 0) == 0 && l.find("lci") == std::string::npos && l.find("uci") == std::string::npos &&
+        l.find("_lo") == std::string::npos && l.find("_hi") == std::string::npos && l.find("err") == std::string::npos) {
+      adev_names.push_back(h);
+    }
+  }
+  for (const auto& h : t.header) {
+    if (Lower(h).rfind("avar", 0) == 0) adev_names.push_back(h);
+  }
+  return adev_names;
+}
+
+// A CSV with a header: the channel's rows, the tau and ADEV columns (given or found), edf or rel_error.
+CurveColumns ReadHeaderedColumns(const TextTable& t, const std::string& path, const CurveFileOptions& o,
+                                 CurveFile* out) {
+  CurveColumns cc;
+  const int ch = SelectChannel(t, path, o, out);
+  for (size_t r = 0; r < t.rows.size(); ++r) {
+    if (ch < 0 || t.rows[r][ch] == out->channel) cc.rows.push_back(r);
+  }
+  if (cc.rows.empty()) throw InputError(path, "no rows of channel '" + o.channel + "'");
+  out->tau_column = PickColumn(t, path, o.tau_column, {"tau_s", "tau", "tau_sec", "averaging_time_s"}, "tau");
+  out->adev_column = PickColumn(t, path, o.adev_column, AdevColumnNames(t), "adev");
+  cc.tau = NumericColumn(t, ColumnIndex(t, out->tau_column), cc.rows, path);
+  cc.adev = NumericColumn(t, ColumnIndex(t, out->adev_column), cc.rows, path);
+  if (Lower(out->adev_column).rfind("avar", 0) == 0) {
+    for (double& v : cc.adev) {
+      if (v < 0) throw InputError(path, "column '" + out->adev_column + "': negative Allan variance");
+      v = std::sqrt(v);
+    }
+  }
+  if (ColumnIndex(t, "edf") >= 0) cc.edf = NumericColumn(t, ColumnIndex(t, "edf"), cc.rows, path);
+  else if (ColumnIndex(t, "rel_error") >= 0) cc.rel = NumericColumn(t, ColumnIndex(t, "rel_error"), cc.rows, path);
+  return cc;
+}
+
+// At least three points, tau positive and strictly increasing, ADEV non-negative.
+void CheckCurvePoints(const CurveColumns& cc, const std::string& path, const CurveFile& out) {
+  const auto& tau = cc.tau;
+  if (tau.size() < 3) throw InputError(path, "too few Allan points (" + std::to_string(tau.size()) + ")");
+  for (size_t i = 0; i < tau.size(); ++i) {
+    if (!(tau[i] > 0)) {
+      throw InputError(path, "column '" + out.tau_column + "': tau must be > 0 (row " + std::to_string(cc.rows[i] + 1) + ")");
+    }
+    if (i > 0 && !(tau[i] > tau[i - 1])) {
+      throw InputError(path, "column '" + out.tau_column + "' is not strictly increasing at row " +
+                                 std::to_string(cc.rows[i] + 1));
+    }
+    if (!(cc.adev[i] >= 0)) {
+      throw InputError(path, "column '" + out.adev_column + "': negative value at row " + std::to_string(cc.rows[i] + 1));
+    }
+  }
+}
+
+// Degrees of freedom of each point into c->edf: from the file (edf, else rel_error), else the formulas
+// when the sample rate fs and count n are known, else assumed equal.
+void SetCurveEdf(const CurveColumns& cc, double fs, double n, AllanCurve* c) {
+  if (!cc.edf.empty()) {
+    c->edf = cc.edf;
+    c->edf_source = "file";
+  } else if (!cc.rel.empty()) {
+    // SMAC-Group's rel_error is 1/sqrt(2 (N/m - 1)), the relative error of ADEV: edf = 1 / (2 rel^2).
+    for (double r : cc.rel) c->edf.push_back(r > 0 ? 1 / (2 * r * r) : 1.0);
+    c->edf_source = "rel_error";
+  } else if (fs > 0 && n > 0) {
+    for (size_t i = 0; i < cc.tau.size(); ++i) {
+      const double m = std::max(1.0, std::round(cc.tau[i] * fs));
+      c->edf.push_back(2 * m <= n + 1 ? ConservativeAvarEdf(c->noise[i], n + 1, m) : 1.0);
+    }
+    c->edf_source = "formula";
+  } else {
+    c->edf.assign(cc.tau.size(), 100.0);
+    c->edf_source = "assumed";
+  }
+  for (double& e : c->edf) e = std::max(e, 1.0);
+}
+
+}  // namespace
+
+CurveFile ReadAllanCurveFile(const std::string& path, const CurveFileOptions& o) {
+  CheckCurveFileOptions(path, o);
   const TextTable t = ReadTextTable(path);
   CurveFile out;
   out.file = path;
-  std::vector<size_t> rows;
-  std::vector<double> tau, adev, edf, rel;
-  if (!t.has_header) {
-    // imu_utils layout: one ADEV column here, the taus in a separate file.
-    if (t.header.size() == 2 && o.tau_file.empty()) {
-      for (size_t r = 0; r < t.rows.size(); ++r) rows.push_back(r);
-      tau = NumericColumn(t, 0, rows, path);
-      adev = NumericColumn(t, 1, rows, path);
-    } else if (t.header.size() == 1) {
-      if (o.tau_file.empty()) throw InputError(path, "header-less one-column ADEV file: give --tau-file");
-      const TextTable tt = ReadTextTable(o.tau_file);
-      if (tt.has_header || tt.header.size() != 1) throw InputError(o.tau_file, "expected one column of taus in seconds");
-      if (tt.rows.size() != t.rows.size()) {
-        throw InputError(o.tau_file, std::to_string(tt.rows.size()) + " taus for " + std::to_string(t.rows.size()) +
-                                         " ADEV values in " + path);
-      }
-      for (size_t r = 0; r < t.rows.size(); ++r) rows.push_back(r);
-      tau = NumericColumn(tt, 0, rows, o.tau_file);
-      adev = NumericColumn(t, 0, rows, path);
-    } else {
-      throw InputError(path, "header-less file must have one (ADEV, with --tau-file) or two (tau, ADEV) columns");
-    }
-    out.tau_column = "column1";
-    out.adev_column = t.header.size() == 2 ? "column2" : "column1";
-  } else {
-    // Channel: a column named "channel", else the first non-numeric column.
-    int ch = ColumnIndex(t, "channel");
-    if (ch < 0) {
-      for (size_t c = 0; c < t.header.size() && ch < 0; ++c) {
-        double v;
-        if (!ParseNumber(t.rows[0][c], &v)) ch = static_cast<int>(c);
-      }
-    }
-    if (ch >= 0) {
-      std::set<std::string> seen;
-      for (const auto& r : t.rows) {
-        if (seen.insert(r[ch]).second) out.channels.push_back(r[ch]);
-      }
-    }
-    if (!o.channel.empty()) {
-      if (ch < 0) throw InputError(path, "no channel column, but --channel '" + o.channel + "' was given");
-      out.channel = o.channel;
-    } else if (out.channels.size() == 1) {
-      out.channel = out.channels[0];
-    } else if (out.channels.size() > 1) {
-      std::string list;
-      for (const auto& c : out.channels) list += (list.empty() ? "" : ", ") + c;
-      throw InputError(path, "column '" + t.header[ch] + "' holds several channels (" + list + "): give --channel");
-    }
-    for (size_t r = 0; r < t.rows.size(); ++r) {
-      if (ch < 0 || t.rows[r][ch] == out.channel) rows.push_back(r);
-    }
-    if (rows.empty()) throw InputError(path, "no rows of channel '" + o.channel + "'");
-    auto pick = [&](const std::string& given, const std::vector<std::string>& names, const char* what) {
-      if (!given.empty()) {
-        if (ColumnIndex(t, given) < 0) throw InputError(path, "missing column '" + given + "'");
-        return given;
-      }
-      for (const auto& n : names) {
-        if (ColumnIndex(t, n) >= 0) return n;
-      }
-      throw InputError(path, std::string("no ") + what + " column found: give --" + what + "-column");
-    };
-    out.tau_column = pick(o.tau_column, {"tau_s", "tau", "tau_sec", "averaging_time_s"}, "tau");
-    std::vector<std::string> adev_names;
-    for (const auto& h : t.header) {
-      const std::string l = Lower(h);
-      if (l.rfind("adev", 0) == 0 && l.find("lci") == std::string::npos && l.find("uci") == std::string::npos &&
-          l.find("_lo") == std::string::npos && l.find("_hi") == std::string::npos && l.find("err") == std::string::npos) {
-        adev_names.push_back(h);
-      }
-    }
-    for (const auto& h : t.header) {
-      if (Lower(h).rfind("avar", 0) == 0) adev_names.push_back(h);
-    }
-    out.adev_column = pick(o.adev_column, adev_names, "adev");
-    tau = NumericColumn(t, ColumnIndex(t, out.tau_column), rows, path);
-    adev = NumericColumn(t, ColumnIndex(t, out.adev_column), rows, path);
-    if (Lower(out.adev_column).rfind("avar", 0) == 0) {
-      for (double& v : adev) {
-        if (v < 0) throw InputError(path, "column '" + out.adev_column + "': negative Allan variance");
-        v = std::sqrt(v);
-      }
-    }
-    if (ColumnIndex(t, "edf") >= 0) edf = NumericColumn(t, ColumnIndex(t, "edf"), rows, path);
-    else if (ColumnIndex(t, "rel_error") >= 0) rel = NumericColumn(t, ColumnIndex(t, "rel_error"), rows, path);
-  }
+  const CurveColumns cc = t.has_header ? ReadHeaderedColumns(t, path, o, &out) : ReadHeaderlessColumns(t, path, o, &out);
   // Unit.
   if (!o.unit.empty()) {
     out.unit = ParseRateUnit(o.unit, path);
@@ -337,52 +416,25 @@ CurveFile ReadAllanCurveFile(const std::string& path, const CurveFileOptions& o)
     throw InputError(path, "column '" + out.adev_column +
                                "': rate unit not in its name (e.g. adev_dph): give --unit rad/s, deg/s or deg/h");
   }
-  if (tau.size() < 3) throw InputError(path, "too few Allan points (" + std::to_string(tau.size()) + ")");
-  for (size_t i = 0; i < tau.size(); ++i) {
-    if (!(tau[i] > 0)) {
-      throw InputError(path, "column '" + out.tau_column + "': tau must be > 0 (row " + std::to_string(rows[i] + 1) + ")");
-    }
-    if (i > 0 && !(tau[i] > tau[i - 1])) {
-      throw InputError(path, "column '" + out.tau_column + "' is not strictly increasing at row " +
-                                 std::to_string(rows[i] + 1));
-    }
-    if (!(adev[i] >= 0)) {
-      throw InputError(path, "column '" + out.adev_column + "': negative value at row " + std::to_string(rows[i] + 1));
-    }
-  }
+  CheckCurvePoints(cc, path, out);
   AllanCurve& c = out.curve;
   const double k = RateUnitToRadPerS(out.unit);
-  c.tau_s = tau;
-  for (double v : adev) c.adev.push_back(v * k);
+  c.tau_s = cc.tau;
+  for (double v : cc.adev) c.adev.push_back(v * k);
   c.noise = IdentifyNoiseBySlope(c.tau_s, c.adev);
+  // The sample rate and length behind the curve: the options', else the file's comment values; a
+  // duration sets the length (at the rate of the first tau when no rate is known).
   double fs = o.sample_rate_hz > 0 ? o.sample_rate_hz
               : t.comment_values.count("freq_hz") ? t.comment_values.at("freq_hz")
                                                   : 0;
   double n = o.n > 0 ? o.n : t.comment_values.count("n") ? t.comment_values.at("n") : 0;
   if (o.duration_s > 0) {
-    if (fs <= 0) fs = 1 / tau.front();
+    if (fs <= 0) fs = 1 / cc.tau.front();
     n = o.duration_s * fs;
   }
   c.sample_rate_hz = fs;
   c.n = n > 0 ? static_cast<size_t>(n) : 0;
-  if (!edf.empty()) {
-    c.edf = edf;
-    c.edf_source = "file";
-  } else if (!rel.empty()) {
-    // SMAC-Group's rel_error is 1/sqrt(2 (N/m - 1)), the relative error of ADEV: edf = 1 / (2 rel^2).
-    for (double r : rel) c.edf.push_back(r > 0 ? 1 / (2 * r * r) : 1.0);
-    c.edf_source = "rel_error";
-  } else if (fs > 0 && n > 0) {
-    for (size_t i = 0; i < tau.size(); ++i) {
-      const double m = std::max(1.0, std::round(tau[i] * fs));
-      c.edf.push_back(2 * m <= n + 1 ? ConservativeAvarEdf(c.noise[i], n + 1, m) : 1.0);
-    }
-    c.edf_source = "formula";
-  } else {
-    c.edf.assign(tau.size(), 100.0);
-    c.edf_source = "assumed";
-  }
-  for (double& e : c.edf) e = std::max(e, 1.0);
+  SetCurveEdf(cc, fs, n, &c);
   SetConfidenceIntervals(&c, o.confidence);
   return out;
 }
