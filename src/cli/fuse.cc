@@ -52,7 +52,7 @@ void Run(Opts o) {
             << r.noise.value("rrw_dph_per_sqrt_h", 0.0) << " deg/h/sqrt(h) -> bias walk "
             << r.noise.value("bias_walk_dph_per_sqrt_h", 0.0) << " deg/h/sqrt(h), initial bias sigma "
             << o.fuse.init_bias_sigma_dph << " deg/h\n";
-  std::cerr << "fuse: " << r.status << ": " << r.message << "; bias [" << r.bias_dph.x() << ", " << r.bias_dph.y()
+  std::cerr << "fuse: " << FuseStatusName(r.status) << ": " << r.message << "; bias [" << r.bias_dph.x() << ", " << r.bias_dph.y()
             << ", " << r.bias_dph.z() << "] deg/h\n";
 }
 

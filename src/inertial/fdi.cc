@@ -50,9 +50,18 @@ double CusumThresholdGaussian(double arl_samples, double delta) {
   return std::max(0.0, b - 1.166 * delta);
 }
 
+const char* FaultStatusName(FaultStatus s) {
+  switch (s) {
+    case FaultStatus::kDetected: return "detected";
+    case FaultStatus::kIsolated: return "isolated";
+    case FaultStatus::kUnresolved: return "unresolved";
+  }
+  return "unresolved";
+}
+
 Json FaultEvent::ToJson() const {
   Json j = {{"gyro", gyro},     {"t_detect_s", t_detect_s}, {"parity_jump_dph", parity_jump_dph},
-            {"status", status}, {"method", method},         {"residual_dph", residual_dph},
+            {"status", FaultStatusName(status)}, {"method", method},         {"residual_dph", residual_dph},
             {"fault_dph", fault_dph}};
   j["t_isolate_s"] = t_isolate_s >= 0 ? Json(t_isolate_s) : Json(nullptr);
   j["t_onset_s"] = t_onset_s;

@@ -47,13 +47,21 @@ struct FdiOptions {
   void Check() const;  // InputError naming the bad field
 };
 
+// Where a detected fault stands (JSON spelling: FaultStatusName).
+enum class FaultStatus {
+  kDetected,    // "detected": awaiting star data to isolate it
+  kIsolated,    // "isolated": the gyro is left out (or its fault compensated)
+  kUnresolved,  // "unresolved": could not be isolated (still watched)
+};
+const char* FaultStatusName(FaultStatus s);
+
 struct FaultEvent {
   int gyro = 0;                  // 1-based; 0 while not isolated
   double t_onset_s = 0;          // estimated start (the CUSUM's last zero; the detection time otherwise)
   double t_detect_s = 0;
   double t_isolate_s = -1;       // -1 while not isolated
   double parity_jump_dph = 0;    // norm of the parity jump at detection
-  std::string status;            // "isolated", "detected" (awaiting star data), "unresolved"
+  FaultStatus status = FaultStatus::kDetected;
   std::string method;            // "parity" or "star_rates"
   std::string test;              // what detected it: "window", "cusum", "noise" or "star_innovation"
   std::string shape;             // "step", "ramp" or "noise" (from the parity since onset)

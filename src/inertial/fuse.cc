@@ -100,15 +100,29 @@ void FuseOptions::Check() const {
   policy.Check();
 }
 
-int StatusCode(const std::string& status) {
-  if (status == "ok") return 0;
-  return status == "degraded" ? 1 : 2;
+const char* FusionStatusName(FusionStatus s) {
+  switch (s) {
+    case FusionStatus::kOk: return "ok";
+    case FusionStatus::kDegraded: return "degraded";
+    case FusionStatus::kFailed: return "failed";
+  }
+  return "failed";
+}
+
+const char* FuseStatusName(FuseStatus s) {
+  switch (s) {
+    case FuseStatus::kFused: return "fused";
+    case FuseStatus::kDegraded: return "degraded";
+    case FuseStatus::kFailed: return "failed";
+    case FuseStatus::kNoStarData: return "no_star_data";
+  }
+  return "no_star_data";
 }
 
 Json FuseResult::ToJson() const {
   Json faults_json = Json::array();
   for (const auto& f : faults) faults_json.push_back(f.ToJson());
-  return {{"status", status},
+  return {{"status", FuseStatusName(status)},
           {"message", message},
           {"bias_dph", {bias_dph.x(), bias_dph.y(), bias_dph.z()}},
           {"bias_sigma_dph", {bias_sigma_dph.x(), bias_sigma_dph.y(), bias_sigma_dph.z()}},
@@ -212,7 +226,7 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
                                     " gyro columns but the unit has " + std::to_string(n) + " gyros");
   }
   if (st.t_s.empty() || st.t_s.front() >= gyro.t_s.back()) {
-    res.status = "no_star_data";
+    res.status = FuseStatus::kNoStarData;
     res.message = "no star-tracker sample within the gyro log";
     return res;
   }
@@ -241,7 +255,7 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
   const double log_start = gyro.t_s.front() - dt_nominal;
   while (j < st.t_s.size() && st.t_s[j] < log_start - 1e-9) ++j;
   if (j >= st.t_s.size()) {
-    res.status = "no_star_data";
+    res.status = FuseStatus::kNoStarData;
     res.message = "no star-tracker sample within the gyro log";
     return res;
   }
@@ -258,7 +272,7 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
       ++resid_n;
     }
   };
-  int worst = 0;  // 0 ok, 1 degraded, 2 failed
+  FusionStatus worst = FusionStatus::kOk;
   double t_prev_out = t_start_fix;
   for (size_t k = 0; k < gyro.t_s.size(); ++k) {
     const double t_k = gyro.t_s[k];
@@ -266,10 +280,9 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
     fusion.AddGyro(t_k, gyro.rates_dph[k]);
     while (j < st.t_s.size() && st.t_s[j] <= t_k + 1e-9) star_update(j++);
     if (!fusion.initialised() || t_k <= t_start_fix) continue;
-    const std::string status = fusion.Status();
-    const int code = StatusCode(status);
-    worst = std::max(worst, code);
-    res.status_s[status] += t_k - t_prev_out;
+    const FusionStatus status = fusion.Status();
+    worst = std::max(worst, status);
+    res.status_s[FusionStatusName(status)] += t_k - t_prev_out;
     t_prev_out = t_k;
     if (static_cast<long>(k) % options.output_every == 0 || k + 1 == gyro.t_s.size()) {
       FusedSample s;
@@ -288,7 +301,8 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
   res.n_st_rejected = fusion.n_rejected();
   res.faults = fusion.faults();
   res.gyros_in_use = fusion.GyrosInUse();
-  res.status = worst == 0 ? "fused" : (worst == 1 ? "degraded" : "failed");
+  res.status = worst == FusionStatus::kOk ? FuseStatus::kFused
+               : worst == FusionStatus::kDegraded ? FuseStatus::kDegraded : FuseStatus::kFailed;
   res.bias_dph = fusion.bias_rad_s() * kRadSToDph;
   res.bias_sigma_dph = fusion.bias_sigma_dph();
   res.st_residual_rms_arcsec = resid_n > 0 ? std::sqrt(resid_sum2 / (3.0 * resid_n)) * kRadToArcsec : 0.0;
@@ -307,7 +321,7 @@ void WriteFusedAttitude(const std::string& path, const FuseResult& result) {
     for (int a = 0; a < 4; ++a) c[1 + a].push_back(q[a]);
     for (int a = 0; a < 3; ++a) c[5 + a].push_back(s.sigma_rad[a] * kRadToArcsec);
     for (int a = 0; a < 3; ++a) c[8 + a].push_back(s.bias_dph[a]);
-    c[11].push_back(StatusCode(s.status));
+    c[11].push_back(static_cast<int>(s.status));
   }
   WriteCsv(path,
            {"t_s", "qw", "qx", "qy", "qz", "sigma_x_arcsec", "sigma_y_arcsec", "sigma_z_arcsec", "bx_dph", "by_dph",

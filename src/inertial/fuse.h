@@ -76,19 +76,28 @@ struct FuseOptions {
   void Check() const;
 };
 
+// The attitude's trust at a moment (OnlineFusion::Status), in order of severity: the worst of a run is
+// the maximum, and the CSV status_code is the enumerator's value (0 ok, 1 degraded, 2 failed).
+enum class FusionStatus { kOk = 0, kDegraded = 1, kFailed = 2 };
+const char* FusionStatusName(FusionStatus s);  // "ok", "degraded", "failed"
+
+// A whole fusion run: "fused" (the attitude trustworthy throughout), "degraded" or "failed" (some of
+// the time: see status_s and each sample's status; online_fusion.h), or "no_star_data" (nothing to
+// start from).
+enum class FuseStatus { kFused, kDegraded, kFailed, kNoStarData };
+const char* FuseStatusName(FuseStatus s);
+
 struct FusedSample {
   double t_s = 0;
   Quat q_inertial_from_body = Quat::Identity();
   Vec3 sigma_rad = Vec3::Zero();   // 1 sigma attitude error about body x, y, z
   Vec3 bias_dph = Vec3::Zero();
   Vec3 bias_sigma_dph = Vec3::Zero();
-  std::string status = "ok";       // OnlineFusion::Status(): ok, degraded or failed
+  FusionStatus status = FusionStatus::kOk;
 };
 
 struct FuseResult {
-  // "fused" (the attitude trustworthy throughout), "degraded" or "failed" (some of the time: see
-  // status_s and each sample's status; online_fusion.h), or "no_star_data" (nothing to start from).
-  std::string status;
+  FuseStatus status = FuseStatus::kNoStarData;
   std::string message;
   std::vector<FusedSample> samples;
   Vec3 bias_dph = Vec3::Zero(), bias_sigma_dph = Vec3::Zero();
@@ -112,9 +121,6 @@ struct FuseResult {
 // other unit its first gyro's on every axis. Starts at the first star sample. Throws
 // InputError when the log's gyro count does not match the unit.
 FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& unit, const FuseOptions& options);
-
-// 0 for "ok", 1 "degraded", 2 "failed" (anything else).
-int StatusCode(const std::string& status);
 
 // Gyro noise from `ssiu allan --json` output (calibration/allan_io.h AllanReportJson): one report (one
 // gyro) or an array of reports (one per axis or gyro). Per report, the terms arw_deg_per_sqrt_h,

@@ -54,12 +54,12 @@ void OnlineFusion::PropagateTo(double t_s, const Vec3& w, const GyroVec& g, bool
   t_cur_ = t_s;
 }
 
-std::string OnlineFusion::Status() const {
-  if (!initialised_) return "failed";
+FusionStatus OnlineFusion::Status() const {
+  if (!initialised_) return FusionStatus::kFailed;
   bool unresolved = isolating_ || compensated_ || t_cur_ < t_settled_;
-  for (const auto& f : faults_) unresolved |= f.status != "isolated";
-  if (!unresolved) return "ok";
-  return t_cur_ - t_last_accepted_ > opt_.policy.failed_after_s ? "failed" : "degraded";
+  for (const auto& f : faults_) unresolved |= f.status != FaultStatus::kIsolated;
+  if (!unresolved) return FusionStatus::kOk;
+  return t_cur_ - t_last_accepted_ > opt_.policy.failed_after_s ? FusionStatus::kFailed : FusionStatus::kDegraded;
 }
 
 Vec3 OnlineFusion::attitude_sigma_rad() const {
@@ -98,7 +98,7 @@ void OnlineFusion::Isolate(int gi, double t, const char* method, const GyroVec& 
   FaultEvent& ev = faults_.back();
   ev.gyro = gi + 1;
   ev.t_isolate_s = t;
-  ev.status = "isolated";
+  ev.status = FaultStatus::kIsolated;
   ev.method = method;
   ev.fault_dph = fault_dph;
   ev.residual_dph.assign(resid.data(), resid.data() + resid.size());
@@ -153,7 +153,7 @@ void OnlineFusion::OnDetection(double t, const std::string& test, double onset_s
   ev.t_detect_s = t;
   ev.t_onset_s = std::min(onset_s, t);
   ev.parity_jump_dph = parity_jump_dph;
-  ev.status = "detected";
+  ev.status = FaultStatus::kDetected;
   ev.test = test;
   fit_v_ = GyroParity();
   if (monitor_.active() && monitor_.ready()) {
@@ -308,7 +308,7 @@ MekfUpdate OnlineFusion::AddAttitude(double t_j, const Quat& q_meas, const Mat3&
     Isolate(gi, t_j, "star_rates", r, r[gi]);
     w_last_ = solver_.Solve(g_last_ - correction_) * kDphToRadS;
   } else if (t_j - ev.t_detect_s > opt_.fdi_options.isolation_timeout_s) {
-    ev.status = "unresolved";  // still watched: a later isolation resolves it
+    ev.status = FaultStatus::kUnresolved;  // still watched: a later isolation resolves it
     ev.residual_dph.assign(r.data(), r.data() + r.size());
   }
   return u;

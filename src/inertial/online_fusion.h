@@ -52,7 +52,7 @@ class OnlineFusion {
   // isolation (the bias re-converging on the remaining gyros), or once a faulty gyro had to stay in
   // use (three left, its fault compensated); "failed" when degraded and no star measurement has been
   // accepted for policy.failed_after_s (nothing bounds the drift); "failed" before the first measurement.
-  std::string Status() const;
+  FusionStatus Status() const;
   // The default policies (FusionPolicy in fuse.h holds them and the options may change them).
   static constexpr double kFailedAfterS = FusionPolicy{}.failed_after_s;
   static constexpr double kSettleS = FusionPolicy{}.settle_after_isolation_s;

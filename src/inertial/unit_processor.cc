@@ -103,7 +103,7 @@ HeadResult UnitProcessor::SolveHead(int h, double t_s, const ImageView& image, I
   // attitude is suspect (a gyro fault not yet resolved) its prediction may be far off and would pull
   // tracking onto wrong stars: lost in space first, then tracking with a search radius four times wider.
   const auto t1 = Clock::now();
-  const bool suspect = fusion_.initialised() && fusion_.Status() != "ok";
+  const bool suspect = fusion_.initialised() && fusion_.Status() != FusionStatus::kOk;
   if (fusion_.initialised() && !suspect) {
     const Quat q_pred = fusion_.q() * head.q_body_from_sensor;
     *id = sid.MatchWithAttitude(c, head.camera, q_pred, so.track_search_radius_px, so.identify);

@@ -83,7 +83,7 @@ struct UnitAttitude {
   Vec3 bias_dph = Vec3::Zero(), bias_sigma_dph = Vec3::Zero();
   std::vector<FaultEvent> faults;
   std::vector<int> gyros_in_use;  // 1-based
-  std::string status = "failed";  // OnlineFusion::Status(): ok, degraded, failed
+  FusionStatus status = FusionStatus::kFailed;  // OnlineFusion::Status()
 };
 
 class UnitProcessor {

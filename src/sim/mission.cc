@@ -343,7 +343,7 @@ class MissionRun {
   const Quat q_sensor1_from_body_;
   ErrorAccumulator star_acc_, fused_acc_;
   long within_ = 0, axis_samples_ = 0, nees_n_ = 0, trusted_ = 0, trust_n_ = 0;
-  int worst_ = 0;
+  FusionStatus worst_ = FusionStatus::kOk;
   double t_prev_status_ = -1;
   double nees_sum_ = 0, frame_ms_sum_ = 0, gyro_s_ = 0, sim_s_ = 0;
   std::vector<std::vector<double>> att_cols_, frame_cols_;
@@ -474,21 +474,20 @@ void MissionRun::OnGyroSample(size_t k) {
     first_valid_ = false;
   }
   const Vec3 e = BodyError(a.q_inertial_from_body, g_.q_true[k]);
-  const int code = StatusCode(a.status);
-  worst_ = std::max(worst_, code);
-  if (t_prev_status_ >= 0) res_.status_s[a.status] += g_.t_s[k] - t_prev_status_;
+  worst_ = std::max(worst_, a.status);
+  if (t_prev_status_ >= 0) res_.status_s[FusionStatusName(a.status)] += g_.t_s[k] - t_prev_status_;
   t_prev_status_ = g_.t_s[k];
   if (g_.t_s[k] >= config_.score_after_s) {
     fused_acc_.Add(q_sensor1_from_body_ * e);
     for (int i = 0; i < 3; ++i) {
       const bool w = std::abs(e[i]) <= 3 * std::sqrt(a.covariance_rad2(i, i));
       within_ += w ? 1 : 0;
-      trusted_ += w || code != 0 ? 1 : 0;
+      trusted_ += w || a.status != FusionStatus::kOk ? 1 : 0;
       ++axis_samples_;
       ++trust_n_;
     }
   }
-  if (write_) RecordAttitudeRow(k, a, e, code);
+  if (write_) RecordAttitudeRow(k, a, e, static_cast<int>(a.status));  // status_code
 }
 
 // A row of attitude.csv (columns in WriteCsvs).
@@ -522,7 +521,7 @@ void MissionRun::Summarise() {
   res_.fused = fused_acc_.Stats();
   res_.within_3sigma_fraction = axis_samples_ > 0 ? static_cast<double>(within_) / axis_samples_ : 0.0;
   res_.trustworthy_fraction = trust_n_ > 0 ? static_cast<double>(trusted_) / trust_n_ : 0.0;
-  res_.status = worst_ == 0 ? "ok" : (worst_ == 1 ? "degraded" : "failed");
+  res_.status = worst_;
   res_.nees_mean = nees_n_ > 0 ? nees_sum_ / nees_n_ : 0.0;
   res_.final_state = proc_.Attitude();
   if (!g_.t_s.empty()) {
@@ -622,7 +621,7 @@ std::string MissionResult::Text() const {
                 bias_error_end_dph, bias_sigma_dph.x(), bias_sigma_dph.y(), bias_sigma_dph.z(), bias_error_start_dph);
   s += b;
   if (std::any_of(final_state.faults.begin(), final_state.faults.end(),
-                  [](const FaultEvent& f) { return f.status == "isolated"; })) {
+                  [](const FaultEvent& f) { return f.status == FaultStatus::kIsolated; })) {
     // The truth is the image of all gyros' slow errors (the failed one's step included); the
     // estimate is that of the gyros still in use, so their difference is not an error.
     s += "  (bias truth covers every gyro, the failed one included; after an isolation it is not the estimate's truth)\n";
@@ -635,13 +634,13 @@ std::string MissionResult::Text() const {
     for (const auto& f : final_state.faults) {
       std::snprintf(b, sizeof b,
                     "  FDI: %s gyro %d, %s from %.2f s, detected at %.2f s (%s), isolated at %.2f s (%s), %.2f deg/h\n",
-                    f.status.c_str(), f.gyro, f.shape.c_str(), f.t_onset_s, f.t_detect_s, f.test.c_str(), f.t_isolate_s,
+                    FaultStatusName(f.status), f.gyro, f.shape.c_str(), f.t_onset_s, f.t_detect_s, f.test.c_str(), f.t_isolate_s,
                     f.method.c_str(), f.fault_dph);
       s += b;
     }
     s += "  gyros in use " + in_use + "\n";
   }
-  s += "  status: " + status;
+  s += std::string("  status: ") + FusionStatusName(status);
   for (const auto& [k, v] : status_s) s += ", " + k + " " + std::to_string(v).substr(0, std::to_string(v).find('.') + 2) + " s";
   s += "\n";
   std::snprintf(b, sizeof b,
@@ -677,7 +676,7 @@ Json MissionResult::ToJson() const {
   const auto qt = ToWxyz(q_truth_final);
   Vec3 sigma;
   for (int i = 0; i < 3; ++i) sigma[i] = std::sqrt(final_state.covariance_rad2(i, i)) * kRadToArcsec;
-  return {{"status", frames_solved > 0 ? status : "no_star_solution"},
+  return {{"status", frames_solved > 0 ? FusionStatusName(status) : "no_star_solution"},
           {"status_s", status_s},
           {"frames", frames},
           {"frames_solved", frames_solved},

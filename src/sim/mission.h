@@ -85,7 +85,7 @@ struct MissionResult {
   // Of per-axis errors at gyro samples after score_after_s: within 3 sigma, or the status not ok
   // (issue 16's measure: wrong only while the unit says so).
   double trustworthy_fraction = 0;
-  std::string status = "ok";           // worst processor status after the first fix: ok, degraded, failed
+  FusionStatus status = FusionStatus::kOk;  // worst processor status after the first fix
   std::map<std::string, double> status_s;  // time (s) in each status after the first fix
   double nees_mean = 0;                // fused attitude NEES (3 dof) at frame times after score_after_s
   Vec3 bias_truth_dph = Vec3::Zero(), bias_dph = Vec3::Zero(), bias_sigma_dph = Vec3::Zero();

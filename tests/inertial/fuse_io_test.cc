@@ -70,7 +70,7 @@ TEST(FuseIo, GyroCountMismatchAndNoStarData) {
   EXPECT_THROW(Fuse(log, st, DefaultFourFogUnit(), FuseOptions{}), InputError);
   log.rates_dph = {GyroVec::Zero(4), GyroVec::Zero(4)};
   st.t_s = {5.0};
-  EXPECT_EQ(Fuse(log, st, DefaultFourFogUnit(), FuseOptions{}).status, "no_star_data");
+  EXPECT_EQ(Fuse(log, st, DefaultFourFogUnit(), FuseOptions{}).status, FuseStatus::kNoStarData);
 }
 
 }  // namespace

@@ -41,14 +41,14 @@ Outcome RunCase(const Case& c, uint64_t seed) {
       continue;
     }
     const FaultEvent& f = s.fused.faults[i];
-    o.isolated_right &= f.gyro == c.faults[i].gyro && f.status == "isolated";
-    std::snprintf(b, sizeof b, " | g%d %s: detect +%.2f s (%s), isolate +%.2f s, %s %.1f", f.gyro, f.status.c_str(),
+    o.isolated_right &= f.gyro == c.faults[i].gyro && f.status == FaultStatus::kIsolated;
+    std::snprintf(b, sizeof b, " | g%d %s: detect +%.2f s (%s), isolate +%.2f s, %s %.1f", f.gyro, FaultStatusName(f.status),
                   f.t_detect_s - c.faults[i].t_s, f.test.c_str(),
                   f.t_isolate_s >= 0 ? f.t_isolate_s - c.faults[i].t_s : -1.0, f.shape.c_str(), f.fault_dph);
     line += b;
   }
   std::printf("%-30s trustworthy %6.2f%% (ok outside 3 sigma %.2f s, %.1f-%.1f s), status %s%s\n", c.name.c_str(),
-              100 * o.trust, o.bad_s, o.first_bad, o.last_bad, s.fused.status.c_str(), line.c_str());
+              100 * o.trust, o.bad_s, o.first_bad, o.last_bad, FuseStatusName(s.fused.status), line.c_str());
   return o;
 }
 

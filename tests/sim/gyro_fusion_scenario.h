@@ -57,7 +57,7 @@ inline double TrustworthyFraction(const FusionScore& s, double t_from_s, double*
     if (f.t_s < t_from_s) continue;
     bool fine = true;
     for (int a = 0; a < 3; ++a) {
-      const bool ok_axis = std::abs(s.att_err_rad[k][a]) <= 3 * f.sigma_rad[a] || f.status != "ok";
+      const bool ok_axis = std::abs(s.att_err_rad[k][a]) <= 3 * f.sigma_rad[a] || f.status != FusionStatus::kOk;
       good += ok_axis;
       fine &= ok_axis;
     }

@@ -29,7 +29,7 @@ TEST(GyroFusion, OneHourSlewBiasWithinTwoHundredthsDegPerHour) {
     sc.seed = seed;
     sc.bias_instability_dph = 0;
     const auto s = RunFusionScenario(sc, 1800.0);
-    ASSERT_EQ(s.fused.status, "fused");
+    ASSERT_EQ(s.fused.status, FuseStatus::kFused);
     const size_t k30 = IndexAt(s.fused, 1800.0);
     for (int a = 0; a < 3; ++a) {
       const double e = s.fused.samples[k30].bias_dph[a] - s.sim.body_bias_dph[k30][a];
@@ -123,7 +123,7 @@ TEST_P(GyroFaultTest, StepOfTwentyDegPerHourDetectedIsolatedAndSolutionContinues
               f.t_isolate_s, f.method.c_str(), f.fault_dph);
   EXPECT_GE(f.t_detect_s, 600.0);
   EXPECT_LE(f.t_detect_s, 660.0);
-  EXPECT_EQ(f.status, "isolated");
+  EXPECT_EQ(f.status, FaultStatus::kIsolated);
   EXPECT_EQ(f.gyro, gyro);
   EXPECT_NEAR(f.fault_dph, 20.0, 3.0);
   std::vector<int> expected;
@@ -230,7 +230,7 @@ std::string FaultsText(const FuseResult& r) {
   char b[256];
   for (const auto& f : r.faults) {
     std::snprintf(b, sizeof b, "[%s gyro %d %s onset %.1f detect %.1f isolate %.1f %s step %.1f ramp %.2f size %.1f] ",
-                  f.status.c_str(), f.gyro, f.test.c_str(), f.t_onset_s, f.t_detect_s, f.t_isolate_s, f.shape.c_str(),
+                  FaultStatusName(f.status), f.gyro, f.test.c_str(), f.t_onset_s, f.t_detect_s, f.t_isolate_s, f.shape.c_str(),
                   f.step_dph, f.ramp_dph_per_s, f.fault_dph);
     out += b;
   }
@@ -253,18 +253,18 @@ TEST(GyroFusion, RampThenSecondFaultStayTrustworthy) {
   double bad_s = 0;
   const double frac = TrustworthyFraction(s, 10.0, &bad_s);
   std::printf("ramp + step: %.2f%% trustworthy (%.1f s ok but outside 3 sigma), status %s, %s\n", 100 * frac, bad_s,
-              s.fused.status.c_str(), FaultsText(s.fused).c_str());
+              FuseStatusName(s.fused.status), FaultsText(s.fused).c_str());
   EXPECT_GE(frac, 0.99);
   ASSERT_EQ(s.fused.faults.size(), 2u);
   EXPECT_EQ(s.fused.faults[0].gyro, 2);
-  EXPECT_EQ(s.fused.faults[0].status, "isolated");
+  EXPECT_EQ(s.fused.faults[0].status, FaultStatus::kIsolated);
   EXPECT_EQ(s.fused.faults[0].shape, "ramp");
   EXPECT_NEAR(s.fused.faults[0].ramp_dph_per_s, 10.0, 1.5);
   EXPECT_LT(s.fused.faults[0].t_detect_s, 105.0);
   EXPECT_GT(s.fused.faults[1].t_detect_s, 250.0);
   EXPECT_LT(s.fused.faults[1].t_detect_s, 280.0);
   EXPECT_EQ(s.fused.faults[1].test, "star_innovation");
-  EXPECT_NE(s.fused.status, "fused");
+  EXPECT_NE(s.fused.status, FuseStatus::kFused);
 }
 
 }  // namespace

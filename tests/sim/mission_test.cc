@@ -55,7 +55,7 @@ TEST(OnlineFusion, ReproducesBatchFuseIncludingAFault) {
   sc.seed = 5;
   sc.faults = {GyroFault{2, 400.0, 20.0, 0.0}};
   const auto s = testing::RunFusionScenario(sc, 800.0);
-  ASSERT_EQ(s.fused.status, "degraded");  // between detection and isolation
+  ASSERT_EQ(s.fused.status, FuseStatus::kDegraded);  // between detection and isolation
   const GyroUnit unit = testing::ScenarioUnit(sc.rate_hz, sc.bias_instability_dph);
   const Replay on = ReplayOnline(s.sim, unit, FuseOptions{});
   ASSERT_EQ(on.q.size(), s.fused.samples.size());
@@ -69,7 +69,7 @@ TEST(OnlineFusion, ReproducesBatchFuseIncludingAFault) {
   ASSERT_EQ(on.faults.size(), s.fused.faults.size());
   ASSERT_EQ(on.faults.size(), 1u);
   EXPECT_EQ(on.faults[0].gyro, 2);
-  EXPECT_EQ(on.faults[0].status, "isolated");
+  EXPECT_EQ(on.faults[0].status, FaultStatus::kIsolated);
   EXPECT_DOUBLE_EQ(on.faults[0].t_detect_s, s.fused.faults[0].t_detect_s);
   EXPECT_DOUBLE_EQ(on.faults[0].t_isolate_s, s.fused.faults[0].t_isolate_s);
 }
@@ -191,7 +191,7 @@ TEST(Mission, RampingGyroIsIsolatedAndTrackingTakesNoCorruptedPrior) {
   ASSERT_EQ(r.final_state.faults.size(), 1u);
   const FaultEvent& f = r.final_state.faults[0];
   EXPECT_EQ(f.gyro, 2);
-  EXPECT_EQ(f.status, "isolated");
+  EXPECT_EQ(f.status, FaultStatus::kIsolated);
   EXPECT_EQ(f.shape, "ramp");
   EXPECT_NEAR(f.ramp_dph_per_s, 10.0, 2.0);
   EXPECT_GT(f.t_detect_s, 32.0);
@@ -203,14 +203,14 @@ TEST(Mission, RampingGyroIsIsolatedAndTrackingTakesNoCorruptedPrior) {
   // sigma (98.1%); over the 120 s default mission 99.8% (docs/results.md).
   EXPECT_GE(r.trustworthy_fraction, 0.97);
   EXPECT_LT(r.fused.cross_max_arcsec, 60.0);
-  EXPECT_EQ(r.status, "degraded");
+  EXPECT_EQ(r.status, FusionStatus::kDegraded);
   const Json j = r.ToJson();
   EXPECT_EQ(j["status"], "degraded");
   EXPECT_GT(j["status_s"]["degraded"].get<double>(), 0.0);
   EXPECT_EQ(j["faults"][0]["shape"], "ramp");
   EXPECT_NEAR(j["faults"][0]["t_onset_s"].get<double>(), 32.0, 3.0);
   // The fault-free mission stays ok.
-  EXPECT_EQ(Runs().one.status, "ok");
+  EXPECT_EQ(Runs().one.status, FusionStatus::kOk);
   EXPECT_EQ(Runs().one.ToJson()["status"], "ok");
 }
 
@@ -358,7 +358,7 @@ ThermalScore RunThermal(double floor_dph_per_sqrt_h) {
   FuseOptions fo;
   fo.bias_drift_floor_dph_per_sqrt_h = floor_dph_per_sqrt_h;
   const FuseResult r = Fuse(log, st, unit, fo);
-  EXPECT_EQ(r.status, "fused");
+  EXPECT_EQ(r.status, FuseStatus::kFused);
   EXPECT_EQ(r.samples.size(), sim.t_s.size());
   // Truth: the body image of the gyros' slow errors (turn-on bias + flicker + thermal).
   double err2 = 0, nees = 0, lo = 1e9, hi = -1e9, drift2 = 0;
