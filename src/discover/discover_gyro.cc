@@ -664,7 +664,7 @@ TelegraphHmm FitTelegraphHmm(const VectorXd& v, const LevelSplit& start) {
       if (i < m - 1) g0t += post0[i], g1t += 1 - post0[i];
     }
     const double g1 = m - g0;
-    if (!(g0 > 1e-6 && g1 > 1e-6)) break;  // one state left: the white-noise model
+    if (!(g0t > 1e-6 && g1t > 1e-6)) break;  // one state left: the white-noise model
     h.mu0 = g0v / g0, h.mu1 = g1v / g1;
     h.a01 = std::clamp(x01 / g0t, 1e-6, 0.5), h.a10 = std::clamp(x10 / g1t, 1e-6, 0.5);
     double sq = 0;
@@ -837,6 +837,7 @@ GyroResidual TestResidual(const Design& d, const std::vector<NoiseModel>& nm, co
       return hx.loglik + g.NegLogLik(x) + 0.5 * (m - 1) * std::log(2 * kPi);
     };
     const double llr_obs = llr(v, hmm);
+    if (!std::isfinite(llr_obs)) continue;  // a degenerate fit is no evidence (no replicate exceeds a NaN)
     Rng rng(0x5eed0000ULL + static_cast<uint64_t>(r));
     const double sd_w = std::sqrt(g.var_w), sd_g = std::sqrt(g.var_g), sd_x = std::sqrt(g.var_g * (1 - g.phi * g.phi));
     const double sd_rw = std::sqrt(g.q_rw);
@@ -853,7 +854,7 @@ GyroResidual TestResidual(const Design& d, const std::vector<NoiseModel>& nm, co
       z.array() -= z.mean();
       const LevelSplit zs = SplitLevels(z);
       if (running(exceed_split, done_split)) exceed_split += zs.ratio <= obs.ratio, ++done_split;
-      exceed_hmm += llr(z, FitTelegraphHmm(z, zs)) >= llr_obs, ++done_hmm;
+      exceed_hmm += !(llr(z, FitTelegraphHmm(z, zs)) < llr_obs), ++done_hmm;  // a NaN replicate counts against
     }
     auto p_of = [](int exceed, int done) {
       return exceed >= kExceed ? exceed / static_cast<double>(done) : (exceed + 1.0) / (done + 1.0);
