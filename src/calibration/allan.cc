@@ -424,7 +424,7 @@ NoiseFit FitNoiseTerms(const AllanCurve& curve, const NoiseFitOptions& options) 
   int n_enabled = 0;
   for (bool e : enabled) n_enabled += e;
   if (static_cast<int>(idx.size()) < n_enabled + 1) {
-    fit.status = "too_few_points";
+    fit.status = FitStatus::kTooFewPoints;
     fit.message = "need at least " + std::to_string(n_enabled + 1) + " positive Allan points, have " +
                   std::to_string(idx.size());
     if (k > 0 && std::all_of(curve.adev.begin(), curve.adev.end(), [](double v) { return v == 0; })) {
@@ -437,7 +437,7 @@ NoiseFit FitNoiseTerms(const AllanCurve& curve, const NoiseFitOptions& options) 
   Eigen::VectorXd model;
   const TermSetFit best = FitTermsIteratively(s, enabled, penalty, options, &model);
   if (!std::isfinite(best.cost) || best.set.empty()) {
-    fit.status = "too_few_points";
+    fit.status = FitStatus::kTooFewPoints;
     fit.message = "no non-negative fit of the noise model";
     return fit;
   }
@@ -451,7 +451,7 @@ NoiseFit FitNoiseTerms(const AllanCurve& curve, const NoiseFitOptions& options) 
   for (int j = 0; j < 5; ++j) ReportTerm(curve, idx, s, model, best, j, inflate, options.dominance, terms[j]);
   fit.model_adev.resize(k);
   for (size_t i = 0; i < k; ++i) fit.model_adev[i] = curve.tau_s[i] > 0 ? fit.ModelAdev(curve.tau_s[i]) : 0;
-  fit.status = "fitted";
+  fit.status = FitStatus::kFitted;
   return fit;
 }
 

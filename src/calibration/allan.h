@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "calibration/fit_status.h"
+
 namespace ssiu {
 
 // The power-law noise that governs the statistics of one Allan point (IEEE 952 Annex C naming; the
@@ -94,7 +96,7 @@ struct NoiseFitOptions {
 };
 
 struct NoiseFit {
-  std::string status;   // "fitted" or "too_few_points"
+  FitStatus status = FitStatus::kTooFewPoints;
   std::string message;
   NoiseTerm quantization;      // Q
   NoiseTerm arw;               // N

@@ -482,7 +482,7 @@ Json AllanReportJson(const AllanCurve& c, const NoiseFit& fit, const Json& prove
   j["noise"] = noise;
   j["model_adev"] = dph(fit.model_adev);
   Json f;
-  f["status"] = fit.status;
+  f["status"] = FitStatusName(fit.status);
   f["message"] = fit.message;
   f["chi2_per_dof"] = fit.chi2_per_dof;
   f["points_used"] = fit.points_used;
@@ -518,7 +518,7 @@ void WriteAllanPlot(const std::string& path, const AllanCurve& c, const NoiseFit
   data.line = false;
   data.markers = true;
   series.push_back(data);
-  if (fit.status == "fitted" && !c.tau_s.empty()) {
+  if (fit.status == FitStatus::kFitted && !c.tau_s.empty()) {
     // The model and each fitted term on a fine grid over the curve's tau range.
     std::vector<double> grid;
     const double t0 = c.tau_s.front(), t1 = c.tau_s.back();

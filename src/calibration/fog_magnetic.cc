@@ -162,7 +162,7 @@ MagneticResult FitMagneticSensitivity(const TurntableData& log, const MagneticOp
     }
   }
   MagneticResult res;
-  res.status = "fitted";
+  res.status = FitStatus::kFitted;
   res.file = log.file;
   res.w_phi_dph = kEarthRateDph * std::cos(o.latitude_deg * kDegToRad);
 
@@ -295,7 +295,7 @@ Json MagneticResultToJson(const MagneticResult& f) {
     dw.push_back({{"azimuth_deg", d.azimuth_deg}, {"t_start_s", d.t_start_s}, {"t_end_s", d.t_end_s},
                   {"wx_dph", d.wx_dph}, {"wy_dph", d.wy_dph}, {"samples", d.samples}});
   }
-  return Json{{"status", f.status},
+  return Json{{"status", FitStatusName(f.status)},
               {"file", f.file},
               {"w_phi_dph", f.w_phi_dph},
               {"x", axis(f.x)},

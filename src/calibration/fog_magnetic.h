@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "calibration/fit_status.h"
 #include "core/json.h"
 
 namespace ssiu {
@@ -58,7 +59,7 @@ struct AxisHarmonicFit {
 };
 
 struct MagneticResult {
-  std::string status;  // "fitted"
+  FitStatus status = FitStatus::kFitted;  // always fitted (bad input throws)
   std::string file;
   std::vector<DwellMean> dwells;
   double w_phi_dph = 0;

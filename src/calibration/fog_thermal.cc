@@ -538,7 +538,7 @@ ThermalFitResult FitThermalDrift(const std::vector<ThermalRun>& runs, const Ther
   int n = 0;
   const std::vector<Bins> bins = BinRuns(runs, options, &n);
   ThermalFitResult res;
-  res.status = "fitted";
+  res.status = FitStatus::kFitted;
   res.n_bins = n;
 
   // 1. The noise model, from the residuals of ordinary least squares with all ten terms.
@@ -599,7 +599,7 @@ Json ThermalEvaluationToJson(const ThermalEvaluation& e) {
 
 Json ThermalFitToJson(const ThermalFitResult& fit, const ThermalFitOptions& options) {
   Json j = ThermalEvaluationToJson(fit.evaluation);
-  j["status"] = fit.status;
+  j["status"] = FitStatusName(fit.status);
   j["message"] = fit.message;
   Json terms = Json::object(), sigma = Json::object();
   for (int k = 0; k < kTerms; ++k) {

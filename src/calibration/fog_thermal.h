@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "calibration/fit_status.h"
 #include "core/json.h"
 #include "inertial/fog_error_model.h"
 
@@ -95,7 +96,7 @@ struct ThermalEvaluation {
 };
 
 struct ThermalFitResult {
-  std::string status;  // "fitted"
+  FitStatus status = FitStatus::kFitted;  // always fitted (bad input throws)
   std::string message;
   ThermalDriftModel model;                     // kept terms only (others 0)
   std::array<double, ThermalDriftModel::kNumTerms> sigma_dph{};

@@ -98,8 +98,8 @@ void Run(const Opts& o) {
   // Human summary on stderr (stdout may carry the JSON).
   std::fprintf(stderr, "%s: %zu Allan points, tau %.3g..%.3g s, edf from %s; fit %s\n", title.c_str(), curve.tau_s.size(),
                curve.tau_s.empty() ? 0.0 : curve.tau_s.front(), curve.tau_s.empty() ? 0.0 : curve.tau_s.back(),
-               curve.edf_source.c_str(), fit.status.c_str());
-  if (fit.status != "fitted") {
+               curve.edf_source.c_str(), ssiu::FitStatusName(fit.status));
+  if (fit.status != ssiu::FitStatus::kFitted) {
     std::fprintf(stderr, "  %s\n", fit.message.c_str());
     return;
   }

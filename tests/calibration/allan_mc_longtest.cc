@@ -25,7 +25,7 @@ TEST(AllanMonteCarlo, ArwAndRrwAcceptanceAndSigmaCalibration) {
       v = n * std::sqrt(fs) * rng.Normal() + b;
     }
     const NoiseFit f = FitNoiseTerms(OverlappingAllanDeviation(r, fs));
-    ASSERT_EQ(f.status, "fitted");
+    ASSERT_EQ(f.status, FitStatus::kFitted);
     const double en = f.arw.value / n, ek = f.rrw.value / k;
     arw_ok += std::abs(en - 1) <= 0.10;
     rrw_ok += std::abs(ek - 1) <= 0.30;
@@ -70,7 +70,7 @@ TEST(AllanMonteCarlo, BiasInstabilityOfFlickerOverSeeds) {
     }
     for (double& v : r) v += n * std::sqrt(fs) * rng.Normal();
     const NoiseFit f = FitNoiseTerms(OverlappingAllanDeviation(r, fs));
-    ASSERT_EQ(f.status, "fitted");
+    ASSERT_EQ(f.status, FitStatus::kFitted);
     const double e = f.bias_instability.value / b;
     order_ok += e > 0.5 && e < 2;
     sb += e / runs;

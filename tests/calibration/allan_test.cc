@@ -145,7 +145,7 @@ TEST(FitNoiseTerms, RecoversArwAndRrwOfKnownStrength) {
   AddRandomWalk(&r, k, kFs, &rng);
   const AllanCurve c = OverlappingAllanDeviation(r, kFs);
   const NoiseFit f = FitNoiseTerms(c);
-  ASSERT_EQ(f.status, "fitted") << f.message;
+  ASSERT_EQ(f.status, FitStatus::kFitted) << f.message;
   EXPECT_NEAR(f.arw.value / n, 1.0, 0.10);
   EXPECT_NEAR(f.rrw.value / k, 1.0, 0.30);
   EXPECT_TRUE(f.arw.significant);
@@ -176,7 +176,7 @@ TEST(FitNoiseTerms, ArwAndRrwOverSeveralSeedsAndSigmaOrder) {
     AddWhite(&r, n, kFs, &rng);
     AddRandomWalk(&r, k, kFs, &rng);
     const NoiseFit f = FitNoiseTerms(OverlappingAllanDeviation(r, kFs));
-    ASSERT_EQ(f.status, "fitted");
+    ASSERT_EQ(f.status, FitStatus::kFitted);
     EXPECT_NEAR(f.arw.value / n, 1.0, 0.10) << "seed " << seed;
     EXPECT_NEAR(f.rrw.value / k, 1.0, 0.30) << "seed " << seed;
     rrw.push_back(f.rrw.value);
@@ -203,7 +203,7 @@ TEST(FitNoiseTerms, BiasInstabilityOfFlickerNoiseHasTheRightMagnitude) {
   AddWhite(&r, n, kFs, &rng);
   const AllanCurve c = OverlappingAllanDeviation(r, kFs);
   const NoiseFit f = FitNoiseTerms(c);
-  ASSERT_EQ(f.status, "fitted");
+  ASSERT_EQ(f.status, FitStatus::kFitted);
   EXPECT_GT(f.bias_instability.value, b / 2);
   EXPECT_LT(f.bias_instability.value, b * 2);
   EXPECT_TRUE(f.bias_instability.significant);
@@ -221,7 +221,7 @@ TEST(FitNoiseTerms, RecoversQuantizationAndRateRamp) {
   AddWhite(&r, n, kFs, &rng);
   for (size_t i = 0; i < r.size(); ++i) r[i] += ramp * i / kFs;
   const NoiseFit f = FitNoiseTerms(OverlappingAllanDeviation(r, kFs));
-  ASSERT_EQ(f.status, "fitted");
+  ASSERT_EQ(f.status, FitStatus::kFitted);
   EXPECT_NEAR(f.quantization.value / q, 1.0, 0.10);
   EXPECT_NEAR(f.arw.value / n, 1.0, 0.10);
   EXPECT_NEAR(f.rate_ramp.value / ramp, 1.0, 0.10);
@@ -236,13 +236,13 @@ TEST(FitNoiseTerms, TooFewPointsIsAStatusNotACrash) {
   c.adev = {1, 0.7, 0.5};
   c.edf = {10, 5, 2};
   const NoiseFit f = FitNoiseTerms(c);
-  EXPECT_EQ(f.status, "too_few_points");
+  EXPECT_EQ(f.status, FitStatus::kTooFewPoints);
   NoiseFitOptions o;
   o.dominance = 2;
   EXPECT_THROW(FitNoiseTerms(c, o), InputError);
   // A constant signal: zero deviation everywhere is reported, not fitted.
   const NoiseFit z = FitNoiseTerms(OverlappingAllanDeviation(std::vector<double>(1000, 3.0), kFs));
-  EXPECT_EQ(z.status, "too_few_points");
+  EXPECT_EQ(z.status, FitStatus::kTooFewPoints);
   EXPECT_THAT(z.message, ::testing::HasSubstr("constant signal"));
 }
 
@@ -380,7 +380,7 @@ TEST_P(RealFogCurve, ArwMatchesDatasheetMagnitude) {
     const CurveFile cf = ReadAllanCurveFile(path, o);
     EXPECT_EQ(cf.curve.edf_source, "rel_error");
     const NoiseFit f = FitNoiseTerms(cf.curve);
-    ASSERT_EQ(f.status, "fitted") << f.message;
+    ASSERT_EQ(f.status, FitStatus::kFitted) << f.message;
     const GyroNoiseTerms g = ToGyroUnits(f);
     EXPECT_GT(g.arw_deg_per_sqrt_h.value, p.arw_lo) << p.file << " " << axis;
     EXPECT_LT(g.arw_deg_per_sqrt_h.value, p.arw_hi) << p.file << " " << axis;
@@ -411,7 +411,7 @@ TEST(RealImuUtilsCurve, OneColumnAdevWithTauFileInDegPerHour) {
   const CurveFile cf = ReadAllanCurveFile(adev, o);
   EXPECT_EQ(cf.curve.edf_source, "formula");
   const NoiseFit f = FitNoiseTerms(cf.curve);
-  ASSERT_EQ(f.status, "fitted");
+  ASSERT_EQ(f.status, FitStatus::kFitted);
   // A MEMS IMU: angle random walk between 0.05 and 5 deg/sqrt(h).
   const GyroNoiseTerms g = ToGyroUnits(f);
   EXPECT_GT(g.arw_deg_per_sqrt_h.value, 0.05);
