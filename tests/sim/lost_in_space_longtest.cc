@@ -1,10 +1,12 @@
 // Issue 14 acceptance and calibration at full size (label long; figures in docs/results.md):
 // 1000 Kelvins-style scenes, and >= 10^4 trials each of random centroid sets, star-free rendered
-// frames and frames with the focal length 5-15 % wrong in tolerance mode, at max-false-prob 1e-2,
-// 1e-3 and the default. LIS_TRIALS overrides the trial count (e.g. for a quick look), LIS_SEED the first seed.
+// frames and frames with the focal length 5-15 % wrong in tolerance mode, at max-false-prob 1e-3
+// and the default. LIS_TRIALS overrides the trial count (e.g. for a quick look), LIS_SEED the first
+// seed, LIS_ALPHA the star-free frames' thresholds (one alone).
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <vector>
 
 #include "detect/detect.h"
 #include "lis_campaign.h"
@@ -26,7 +28,17 @@ TEST(LostInSpaceLong, KelvinsScenes1000) {
     std::printf("Kelvins scenes at %g: %d scenes, >= 4 stars %d/%d (%.1f%%), 3 stars %d/%d, wrong %d\n", alpha, c.scenes,
                 c.solved4, c.with4, 100.0 * c.solved4 / std::max(1, c.with4), c.solved3, c.with3, c.wrong);
     for (const auto& [k, v] : c.by_stars) std::printf("  %d stars: %d/%d\n", k, v.second, v.first);
-    EXPECT_EQ(c.wrong, 0);
+    if (alpha <= IdentifyOptions{}.max_false_match_prob) {
+      EXPECT_EQ(c.wrong, 0);
+    } else {
+      // Above the default a wrong match at the threshold's rate is what the threshold allows (1e-3: one
+      // 4-star scene of the 1000, chance 4.4e-4).
+      EXPECT_LE(c.wrong, 3);
+    }
+    // Issue 14 acceptance at the default threshold: >= 95% of the scenes with >= 4 true stars.
+    if (alpha == IdentifyOptions{}.max_false_match_prob && c.scenes >= 1000) {
+      EXPECT_GE(c.solved4, 0.95 * c.with4);
+    }
   }
 }
 
@@ -35,7 +47,7 @@ TEST(LostInSpaceLong, KelvinsScenes1000) {
 TEST(LostInSpaceLong, KelvinsScenesFluxNoise) {
   for (double noise : {0.2, 0.5})
     for (bool photometry : {true, false}) {
-    for (double alpha : {1e-5, 1e-3}) {
+    for (double alpha : {IdentifyOptions{}.max_false_match_prob, 1e-3}) {
       IdentifyOptions io = KelvinsIdentifyOptions();
       io.max_false_match_prob = alpha;
       io.use_photometry = photometry;
@@ -73,7 +85,9 @@ TEST(LostInSpaceLong, CalibrationStarFreeFrames) {
   const Camera cam = MakeCamera(512, 512, 8.0);
   const StarIdentifier& id = BscIdentifier(8.0);
   StarCatalog empty;
-  for (double alpha : {1e-3, IdentifyOptions{}.max_false_match_prob}) {
+  std::vector<double> alphas = {1e-3, IdentifyOptions{}.max_false_match_prob};
+  if (std::getenv("LIS_ALPHA")) alphas = {std::atof(std::getenv("LIS_ALPHA"))};  // one threshold alone (a long run)
+  for (double alpha : alphas) {
     int n = 0, solved = 0;
     for (int k = 0; k < Trials(10000); ++k) {
       FrameSimOptions fo;
