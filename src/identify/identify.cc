@@ -563,31 +563,176 @@ std::vector<int> StarIdentifier::StarsWithin(const Vec3& u, double radius_rad) c
   return index_->StarsWithin(u, radius_rad);
 }
 
+namespace {
+
+// Step 1 of docs/identify.md: the focal-length scale searched, as the range [lo, hi] of f_true /
+// f_nominal: +/- the tolerance, or with an unknown FOV the range's focal lengths around their
+// geometric mean (the camera returned then has that mean focal length).
+Camera SearchedCamera(const Camera& camera_in, const IdentifyOptions& o, const SolverCatalog& catalog, double* scale_lo,
+                      double* scale_hi) {
+  Camera camera = camera_in;
+  *scale_lo = 1 - o.fov_tolerance_pct / 100.0, *scale_hi = 1 + o.fov_tolerance_pct / 100.0;
+  if (!o.FovRange()) return camera;
+  const double cat_min = catalog.fov_min_deg > 0 ? catalog.fov_min_deg : catalog.fov_deg;
+  if (o.fov_max_deg > catalog.fov_deg * (1 + kCatalogFovTolerance) || o.fov_min_deg < cat_min * (1 - kCatalogFovTolerance)) {
+    char msg[200];
+    std::snprintf(msg, sizeof msg, "built for fields of view %.2f-%.2f deg, the search needs %.2f-%.2f deg", cat_min,
+                  catalog.fov_deg, o.fov_min_deg, o.fov_max_deg);
+    throw InputError(catalog.source, msg);
+  }
+  const double f_hi = 0.5 * camera.width / std::tan(0.5 * o.fov_min_deg * kDegToRad);
+  const double f_lo = 0.5 * camera.width / std::tan(0.5 * o.fov_max_deg * kDegToRad);
+  const double f0 = std::sqrt(f_lo * f_hi);
+  camera.ScaleFocal(f0 / camera.focal_length_px);
+  *scale_lo = f_lo / f0;
+  *scale_hi = f_hi / f0;
+  return camera;
+}
+
+// Angles between the k_pat brightest centroids (row-major k_pat x k_pat), once: a deep search forms
+// each pair's side in many triangles.
+std::vector<double> PatternAngles(const std::vector<Centroid>& centroids, const Context& ctx, const Camera& camera,
+                                  int k_pat) {
+  std::vector<Vec3> u(k_pat);
+  for (int i = 0; i < k_pat; ++i) {
+    const auto& c = centroids[ctx.order[i]];
+    u[i] = camera.Unproject(Vec2(c.x_px, c.y_px));
+  }
+  std::vector<double> ang(static_cast<size_t>(k_pat) * k_pat, 0.0);
+  for (int i = 0; i < k_pat; ++i)
+    for (int j = i + 1; j < k_pat; ++j) ang[i * k_pat + j] = ang[j * k_pat + i] = Angle(u[i], u[j]);
+  return ang;
+}
+
+// An observed triangle (pattern vertices vtx, sides side[i] opposite vertex i, longest s_max) put
+// against a catalog triangle (unit vectors r, sides cside) under the vertex correspondence pm.
+struct TriangleMatch {
+  const int* vtx;
+  const int* pm;
+  const double* side;
+  const double* cside;
+  const Vec3* const* r;
+  double side_sigma;  // 1-sigma of a side from the triangle's centroid noise (rad)
+  double s_max;
+  double scale0;      // observed / catalog longest side
+};
+
+// Step 3 of docs/identify.md: observed vertex vtx[i] <-> catalog vertex pm[i] is a hypothesis when
+// opposite sides agree, each within side_sigmas of its own error, and the handedness is the same (a
+// rotation cannot mirror a triangle); then *cam (its focal length scaled by the sides when searched),
+// *rot (Wahba on the three pairs) and the centroids and catalog stars of the triangle.
+bool TriangleHypothesis(const Context& ctx, const IdentifyOptions& o, const std::vector<Centroid>& centroids,
+                        const CatalogTriangle& t, const TriangleMatch& m, bool focal_searched, Camera* cam, Mat3* rot,
+                        int tri_c[3], int tri_s[3]) {
+  const int* pm = m.pm;
+  // A side's error (two centroids' errors along it) has a sigma <= sqrt(2) sig_tri / f. With the
+  // focal length searched the sides are compared after the scale of the longest, which adds its error
+  // times the side ratio rho: sigma <= sqrt(2) sig_tri sqrt(1 + rho^2) / f. (Before: 2 tol_side = 8
+  // sqrt(2) sigmas, looser than the key box, so every box hit was a hypothesis; docs/identify.md step
+  // 2 has the gain.)
+  for (int i = 0; i < 3; ++i) {
+    const double rho = focal_searched ? m.side[i] / m.s_max : 0.0;
+    const double lim = o.side_sigmas * m.side_sigma * std::sqrt(1 + rho * rho);
+    if (!(std::abs(m.side[i] / (focal_searched ? m.scale0 : 1.0) - m.cside[pm[i]]) <= lim)) return false;
+  }
+  if (focal_searched) {
+    // Least-squares scale over the three sides of this correspondence.
+    double num = 0, den = 0;
+    for (int i = 0; i < 3; ++i) num += m.side[i] * m.cside[pm[i]], den += m.cside[pm[i]] * m.cside[pm[i]];
+    cam->ScaleFocal(num / den);
+  }
+  Vec3 bv[3];
+  for (int i = 0; i < 3; ++i) {
+    tri_c[i] = ctx.order[m.vtx[i]];
+    tri_s[i] = t.v[pm[i]];
+    const auto& cc = centroids[tri_c[i]];
+    bv[i] = cam->Unproject(Vec2(cc.x_px, cc.y_px));
+  }
+  const double db = bv[0].dot(bv[1].cross(bv[2]));
+  const double dr = m.r[pm[0]]->dot(m.r[pm[1]]->cross(*m.r[pm[2]]));
+  if (db * dr <= 0) return false;
+  std::vector<VectorPair> pairs;
+  for (int i = 0; i < 3; ++i) pairs.push_back({bv[i], *m.r[pm[i]], 1.0});
+  *rot = SolveWahbaSvd(pairs).toRotationMatrix();
+  return true;
+}
+
+// The chance terms of a hypothesis that passed the threshold (step 4): u the per-centroid hit
+// probability at the test's worst distance, hyp its index h, seq_factor H, k the matches in the test.
+struct ChanceTerms {
+  double u = 0, prob = 1, phot = 1, seq_factor = 1;
+  int hyp = 0, k = 0;
+};
+
+// Step 5: an accepted hypothesis refined on its matches (and focal length); then the match least
+// consistent with the others left out while it is an outlier, refit and re-matched without it: one
+// wrong match (or a star far from its catalog position) can turn a refit, and with a free scale the
+// roll of a small clump of stars, by far more than the reported sigma. A rejected extra match is no
+// evidence: the chance is recomputed without it. False: the hypothesis is not kept after all.
+bool FinishHypothesis(const Context& ctx, const IdentifyOptions& o, const Camera& cam, const Mat3& rot,
+                      HypothesisTest ht, const ChanceTerms& ct, bool focal_searched, size_t n_centroids,
+                      Identification* out) {
+  std::vector<int> test_extras;  // centroids of the test's extra matches (its evidence)
+  for (size_t i = 3; i < ht.v.matches.size(); ++i) test_extras.push_back(ht.v.matches[i].centroid);
+  const std::vector<StarMatch> ht_matches = ht.v.matches;
+  Refined rf = Refine(ctx, o, cam, rot, std::move(ht.v));
+  std::vector<char> excluded(n_centroids, 0);
+  int rejected = 0, lost_evidence = 0;
+  for (int worst; (worst = WorstOutlier(ctx, o, rf.v.matches, rf.cam, rf.r, focal_searched)) >= 0;) {
+    if (++rejected > kMaxOutliers || rf.v.matches.size() <= 3) break;
+    const int ci = rf.v.matches[worst].centroid;
+    excluded[ci] = 1;
+    lost_evidence += static_cast<int>(std::count(test_extras.begin(), test_extras.end(), ci));
+    rf.v.matches.erase(rf.v.matches.begin() + worst);
+    rf = Refine(ctx, o, rf.cam, rf.r, std::move(rf.v), &excluded);
+  }
+  if (rejected > kMaxOutliers || static_cast<int>(rf.v.matches.size()) < o.min_matches) return false;
+  double prob_final = ct.prob, phot_final = ct.phot;
+  if (lost_evidence > 0) {
+    // The test again without the rejected evidence (u kept: an upper bound).
+    const int j = ht.extra - lost_evidence;
+    if (j + 3 < o.min_matches) return false;
+    std::vector<StarMatch> kept(ht_matches.begin(), ht_matches.begin() + 3);
+    for (size_t i = 3; i < ht_matches.size(); ++i)
+      if (!excluded[ht_matches[i].centroid]) kept.push_back(ht_matches[i]);
+    phot_final = PhotometricFactor(ctx, kept);
+    prob_final = std::min(1.0, BinomialTail(ctx.m - 3, ct.u, j) * CountFactor(j) * phot_final * ct.hyp * ct.seq_factor);
+    if (prob_final >= o.max_false_match_prob) return false;
+  }
+  out->status = "solved";
+  out->q_inertial_from_sensor = Quat(rf.r).normalized();
+  if (out->q_inertial_from_sensor.w() < 0) out->q_inertial_from_sensor.coeffs() *= -1;
+  out->focal_length_px = rf.cam.focal_length_px;
+  out->focal_length_y_px = rf.cam.FocalYPx();
+  out->false_match_probability = prob_final;
+  out->photometric_factor = phot_final;
+  out->focal_length_fitted = focal_searched;
+  if (focal_searched) {
+    // The scale's 1-sigma from the pixel fit's normal equations (rotation and scale jointly).
+    const Eigen::Matrix4d h = Linearize(ctx, rf.v.matches, rf.cam, rf.r).h;
+    const double var = h.ldlt().solve(Vec4::UnitW())[3];
+    out->focal_length_sigma_px = var > 0 ? std::sqrt(var) * rf.cam.focal_length_px : std::nan("");
+  }
+  out->outliers_rejected = rejected;
+  out->matches = std::move(rf.v.matches);
+  out->hypotheses = ct.hyp;
+  out->catalog_stars_in_field = rf.v.n_cat;
+  out->message = std::to_string(out->matches.size()) + " stars matched (" + std::to_string(ct.k) + " in the test";
+  if (rejected > 0) out->message += ", " + std::to_string(rejected) + " left out as inconsistent";
+  out->message += ")";
+  return true;
+}
+
+}  // namespace
+
 Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, const Camera& camera_in,
                                         const IdentifyOptions& o) const {
   const auto t0 = Clock::now();
   o.Check();
   camera_in.Check();
   CheckCentroids(centroids);
-  // The focal-length scale searched, as the range [lo, hi] of f_true / f_nominal: +/- the tolerance,
-  // or with an unknown FOV the range's focal lengths around their geometric mean (the nominal one).
-  Camera camera = camera_in;
-  double scale_lo = 1 - o.fov_tolerance_pct / 100.0, scale_hi = 1 + o.fov_tolerance_pct / 100.0;
-  if (o.FovRange()) {
-    const double cat_min = catalog_.fov_min_deg > 0 ? catalog_.fov_min_deg : catalog_.fov_deg;
-    if (o.fov_max_deg > catalog_.fov_deg * (1 + kCatalogFovTolerance) || o.fov_min_deg < cat_min * (1 - kCatalogFovTolerance)) {
-      char msg[200];
-      std::snprintf(msg, sizeof msg, "built for fields of view %.2f-%.2f deg, the search needs %.2f-%.2f deg", cat_min,
-                    catalog_.fov_deg, o.fov_min_deg, o.fov_max_deg);
-      throw InputError(catalog_.source, msg);
-    }
-    const double f_hi = 0.5 * camera.width / std::tan(0.5 * o.fov_min_deg * kDegToRad);
-    const double f_lo = 0.5 * camera.width / std::tan(0.5 * o.fov_max_deg * kDegToRad);
-    const double f0 = std::sqrt(f_lo * f_hi);
-    camera.ScaleFocal(f0 / camera.focal_length_px);
-    scale_lo = f_lo / f0;
-    scale_hi = f_hi / f0;
-  }
+  double scale_lo = 1, scale_hi = 1;
+  const Camera camera = SearchedCamera(camera_in, o, catalog_, &scale_lo, &scale_hi);
   const bool focal_searched = o.FocalSearched();
   Identification out;
   // Unknown FOV: no focal length until one is found (null in the JSON).
@@ -603,15 +748,7 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
   if (index_->Empty()) throw InputError(catalog_.source, "catalog has no pattern index");
   const Context ctx = MakeContext(this, centroids, o);
   const int k_pat = std::min(o.pattern_centroids, n);
-  std::vector<Vec3> u(k_pat);
-  for (int i = 0; i < k_pat; ++i) {
-    const auto& c = centroids[ctx.order[i]];
-    u[i] = camera.Unproject(Vec2(c.x_px, c.y_px));
-  }
-  // Angles between pattern centroids, once (a deep search forms each pair's side in many triangles).
-  std::vector<double> ang(static_cast<size_t>(k_pat) * k_pat, 0.0);
-  for (int i = 0; i < k_pat; ++i)
-    for (int j = i + 1; j < k_pat; ++j) ang[i * k_pat + j] = ang[j * k_pat + i] = Angle(u[i], u[j]);
+  const std::vector<double> ang = PatternAngles(centroids, ctx, camera, k_pat);
   // Side tolerances hold along both axes; angles are at the nominal focal length (the side checks
   // against the catalog, in true angles, are then looser by the scale at most).
   const double f = camera.FocalMinPx();
@@ -673,41 +810,11 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
           const double scale0 = s[2] / t.longest_rad;  // observed / catalog angle ~ f_true / f_nominal
           if (scale0 < scale_lo - tol_side / s[2] || scale0 > scale_hi + tol_side / s[2]) continue;
           for (const auto& pm : kPerm) {
-            // Observed vertex vtx[i] <-> catalog vertex pm[i]: opposite sides must agree, each within
-            // side_sigmas of its own error. A side's error (two centroids' errors along it) has a
-            // sigma <= sqrt(2) sig_tri / f. With the focal length searched the sides are compared after
-            // the scale of the longest, which adds its error times the side ratio rho: sigma <=
-            // sqrt(2) sig_tri sqrt(1 + rho^2) / f. (Before: 2 tol_side = 8 sqrt(2) sigmas, looser than
-            // the key box, so every box hit was a hypothesis; docs/identify.md step 2 has the gain.)
-            bool ok = true;
-            for (int i = 0; i < 3 && ok; ++i) {
-              const double rho = focal_searched ? side[i] / s[2] : 0.0;
-              const double lim = o.side_sigmas * side_sigma * std::sqrt(1 + rho * rho);
-              ok = std::abs(side[i] / (focal_searched ? scale0 : 1.0) - cside[pm[i]]) <= lim;
-            }
-            if (!ok) continue;
+            TriangleMatch tm{vtx, pm, side, cside, r, side_sigma, s[2], scale0};
             Camera cam = camera;
-            if (focal_searched) {
-              // Least-squares scale over the three sides of this correspondence.
-              double num = 0, den = 0;
-              for (int i = 0; i < 3; ++i) num += side[i] * cside[pm[i]], den += cside[pm[i]] * cside[pm[i]];
-              cam.ScaleFocal(num / den);
-            }
-            Vec3 bv[3];
+            Mat3 rot;
             int tri_c[3], tri_s[3];
-            for (int i = 0; i < 3; ++i) {
-              tri_c[i] = ctx.order[vtx[i]];
-              tri_s[i] = t.v[pm[i]];
-              const auto& cc = centroids[tri_c[i]];
-              bv[i] = cam.Unproject(Vec2(cc.x_px, cc.y_px));
-            }
-            // Same handedness: a rotation cannot mirror the triangle.
-            const double db = bv[0].dot(bv[1].cross(bv[2]));
-            const double dr = r[pm[0]]->dot(r[pm[1]]->cross(*r[pm[2]]));
-            if (db * dr <= 0) continue;
-            std::vector<VectorPair> pairs;
-            for (int i = 0; i < 3; ++i) pairs.push_back({bv[i], *r[pm[i]], 1.0});
-            const Mat3 rot = SolveWahbaSvd(pairs).toRotationMatrix();
+            if (!TriangleHypothesis(ctx, o, centroids, t, tm, focal_searched, &cam, &rot, tri_c, tri_s)) continue;
             if (++hyp > o.max_hypotheses) {
               hyp = o.max_hypotheses;
               return give_up("gave up after " + std::to_string(o.max_hypotheses) + " hypotheses");
@@ -736,59 +843,10 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
             const double prob = std::min(1.0, BinomialTail(ctx.m - 3, u, ht.extra) * j_factor * phot * hyp * seq_factor);
             if (prob < best_prob) best_prob = prob, best_k = k;
             if (prob >= o.max_false_match_prob) continue;
-            // Accepted: refine the attitude (and focal length) on the matches and re-match. Then
-            // leave out the match least consistent with the others while it is an outlier, refit and
-            // re-match without it: one wrong match (or a star far from its catalog position) can
-            // turn a refit, and with a free scale the roll of a small clump of stars, by far more
-            // than the reported sigma.
-            std::vector<int> test_extras;  // centroids of the test's extra matches (its evidence)
-            for (size_t i = 3; i < ht.v.matches.size(); ++i) test_extras.push_back(ht.v.matches[i].centroid);
-            const std::vector<StarMatch> ht_matches = ht.v.matches;
-            Refined rf = Refine(ctx, o, cam, rot, std::move(ht.v));
-            std::vector<char> excluded(centroids.size(), 0);
-            int rejected = 0, lost_evidence = 0;
-            for (int worst; (worst = WorstOutlier(ctx, o, rf.v.matches, rf.cam, rf.r, focal_searched)) >= 0;) {
-              if (++rejected > kMaxOutliers || rf.v.matches.size() <= 3) break;
-              const int ci = rf.v.matches[worst].centroid;
-              excluded[ci] = 1;
-              lost_evidence += static_cast<int>(std::count(test_extras.begin(), test_extras.end(), ci));
-              rf.v.matches.erase(rf.v.matches.begin() + worst);
-              rf = Refine(ctx, o, rf.cam, rf.r, std::move(rf.v), &excluded);
-            }
-            if (rejected > kMaxOutliers || static_cast<int>(rf.v.matches.size()) < o.min_matches) continue;
-            double prob_final = prob, phot_final = phot;
-            if (lost_evidence > 0) {
-              // A rejected extra match is no evidence: the test again without it (u kept: an upper bound).
-              const int j = ht.extra - lost_evidence;
-              if (j + 3 < o.min_matches) continue;
-              std::vector<StarMatch> kept(ht_matches.begin(), ht_matches.begin() + 3);
-              for (size_t i = 3; i < ht_matches.size(); ++i)
-                if (!excluded[ht_matches[i].centroid]) kept.push_back(ht_matches[i]);
-              phot_final = PhotometricFactor(ctx, kept);
-              prob_final = std::min(1.0, BinomialTail(ctx.m - 3, u, j) * CountFactor(j) * phot_final * hyp * seq_factor);
-              if (prob_final >= o.max_false_match_prob) continue;
-            }
-            out.status = "solved";
-            out.q_inertial_from_sensor = Quat(rf.r).normalized();
-            if (out.q_inertial_from_sensor.w() < 0) out.q_inertial_from_sensor.coeffs() *= -1;
-            out.focal_length_px = rf.cam.focal_length_px;
-            out.focal_length_y_px = rf.cam.FocalYPx();
-            out.false_match_probability = prob_final;
-            out.photometric_factor = phot_final;
-            out.focal_length_fitted = focal_searched;
-            if (focal_searched) {
-              // The scale's 1-sigma from the pixel fit's normal equations (rotation and scale jointly).
-              const Eigen::Matrix4d h = Linearize(ctx, rf.v.matches, rf.cam, rf.r).h;
-              const double var = h.ldlt().solve(Vec4::UnitW())[3];
-              out.focal_length_sigma_px = var > 0 ? std::sqrt(var) * rf.cam.focal_length_px : std::nan("");
-            }
-            out.outliers_rejected = rejected;
-            out.matches = std::move(rf.v.matches);
-            out.hypotheses = hyp;
-            out.catalog_stars_in_field = rf.v.n_cat;
-            out.message = std::to_string(out.matches.size()) + " stars matched (" + std::to_string(k) + " in the test";
-            if (rejected > 0) out.message += ", " + std::to_string(rejected) + " left out as inconsistent";
-            out.message += ")";
+            // Accepted: refined, outliers left out (FinishHypothesis).
+            if (!FinishHypothesis(ctx, o, cam, rot, std::move(ht), {u, prob, phot, seq_factor, hyp, k}, focal_searched,
+                                  centroids.size(), &out))
+              continue;
             out.timing_ms["identify"] = MsSince(t0);
             return out;
           }
