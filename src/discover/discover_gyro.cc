@@ -1092,9 +1092,11 @@ GyroBenchLog ReadGyroBenchLog(const std::string& path) {
   return log;
 }
 
-GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDiscoverOptions& o) {
-  o.Check();
-  if (logs.empty()) throw InputError("", "no gyro log given");
+namespace {
+
+// 1. The design: every log's bins stacked (offset per log), the regressor columns, the measured rate
+// minus the reference, and one bias column per log.
+Design BuildDesign(const std::vector<GyroBenchLog>& logs, const GyroDiscoverOptions& o) {
   Design d;
   for (const auto& log : logs) {
     CheckGyroBenchLog(log);
@@ -1116,10 +1118,21 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
       d.base(i, r) = 1;
     }
   }
+  return d;
+}
+
+// 2. Which columns the data can test; standardises the usable ones in d->cols (scale: their RMS) and
+// returns the columns of the full model.
+std::vector<int> UsableColumns(Design* design, const GyroDiscoverOptions& o, std::vector<bool>* usable_out,
+                               std::vector<double>* scale_out) {
+  Design& d = *design;
+  const int l = static_cast<int>(d.bins.size());
   // Applicability: a column is usable when it is not (nearly) a per-log constant. Regressors are
   // standardised (scaled to unit RMS after removing per-log means) for conditioning.
-  std::vector<bool> usable(kNumCols, false);
-  std::vector<double> scale(kNumCols, 1.0);
+  std::vector<bool>& usable = *usable_out;
+  std::vector<double>& scale = *scale_out;
+  usable.assign(kNumCols, false);
+  scale.assign(kNumCols, 1.0);
   for (int c = 0; c < kNumCols; ++c) {
     double ss = 0, ss_raw = 0;
     for (int r = 0; r < l; ++r) {
@@ -1161,6 +1174,309 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
     if (usable[c] && c != kMis) full_cols.push_back(c);  // misalignment is nested in the harmonic
   }
   if (!usable[kMagSin] && usable[kMis]) full_cols.push_back(kMis);
+  return full_cols;
+}
+
+// One-sided normal quantile at tail probability p, by bisection on erfc (which keeps tiny tail
+// probabilities).
+double GainZMin(double p) {
+  double z_lo = 0, z_hi = 40;
+  for (int it = 0; it < 100; ++it) {
+    const double mid = 0.5 * (z_lo + z_hi);
+    (0.5 * std::erfc(mid / std::sqrt(2.0)) > p ? z_lo : z_hi) = mid;
+  }
+  return 0.5 * (z_lo + z_hi);
+}
+
+// The scan's statistic at one step position.
+struct StepPoint {
+  int log;
+  double t_s, w;
+};
+
+// The located step of `bias_step`: the best over the scans so far (best_step keeps an earlier pass's
+// when no position beats zero), the positions tried and the profile of the last scan.
+struct StepScan {
+  VectorXd best_step;
+  double best_step_t = 0, best_w = 0;
+  int positions = 0, best_step_log = 0;
+  std::vector<StepPoint> profile;
+};
+
+// Step scan: a step in one log's bias at a bin boundary (5 %..95 % of the log), on the base model's
+// whitened residual base_res (bias columns bw), statistic scaled by sigma2_f = sigma^2 x inflation.
+void ScanStep(const Design& d, const std::vector<NoiseModel>& nm, const MatrixXd& bw, const VectorXd& base_res,
+              double sigma2_f, StepScan* sc) {
+  const int l = static_cast<int>(d.bins.size());
+  sc->best_w = 0;
+  sc->positions = 0;
+  sc->profile.clear();
+  for (int r = 0; r < l; ++r) {
+    const int m = static_cast<int>(d.bins[r].t_s.size());
+    const VectorXd cw = bw.col(r).segment(d.offset[r], m);
+    const VectorXd rr = base_res.segment(d.offset[r], m);
+    for (int j = std::max(1, m / 20); j < m - m / 20; ++j) {
+      VectorXd st = VectorXd::Zero(m);
+      st.tail(m - j).setOnes();
+      VectorXd sw = nm[r].Whiten(st);
+      sw -= (cw.dot(sw) / cw.squaredNorm()) * cw;
+      const double ss = sw.squaredNorm();
+      if (ss <= 0) continue;
+      ++sc->positions;
+      const double proj = rr.dot(sw);
+      const double w = proj * proj / ss / sigma2_f;
+      sc->profile.push_back({r, 0.5 * (d.bins[r].t_s[j - 1] + d.bins[r].t_s[j]), w});
+      if (w > sc->best_w) {
+        sc->best_w = w;
+        sc->best_step = VectorXd::Zero(d.n);
+        sc->best_step.segment(d.offset[r] + j, m - j).setOnes();
+        sc->best_step_t = 0.5 * (d.bins[r].t_s[j - 1] + d.bins[r].t_s[j]);
+        sc->best_step_log = r;
+      }
+    }
+  }
+}
+
+// The located sinusoid of `periodic_drift` (kept across passes as StepScan's step).
+struct PeriodicScan {
+  VectorXd best_sin, best_cos;
+  double best_freq = 0, best_pw = 0, positions = 0;
+  int best_periodic_log = 0;
+};
+
+// Periodic scan: a sinusoid in one log's drift, periods from 4 bins to duration / min_cycles
+// (the GLS periodogram, frequency step 1/4 of the Fourier spacing, refined by golden section);
+// the number of independent frequencies (range x duration) is the Bonferroni count.
+void ScanPeriodic(const Design& d, const std::vector<NoiseModel>& nm, const MatrixXd& bw, const VectorXd& base_res,
+                  const GyroDiscoverOptions& o, int pass, double sigma2_f, PeriodicScan* sc) {
+  const int l = static_cast<int>(d.bins.size());
+  sc->best_pw = 0;
+  sc->positions = 0;
+  for (int r = 0; r < l; ++r) {
+    const int m = static_cast<int>(d.bins[r].t_s.size());
+    const double dur = d.bins[r].t_s.back() - d.bins[r].t_s.front() + d.bins[r].bin_s;
+    const double f_lo = o.periodic_min_cycles / dur, f_hi = 0.25 / d.bins[r].bin_s;
+    if (m < 24 || f_hi <= f_lo) continue;
+    sc->positions += (f_hi - f_lo) * dur;
+    // First pass: the plain periodogram of the base residual. The noise model of that pass was
+    // fitted with the sinusoid still in the residual: its wander would whiten the sinusoid away.
+    NoiseModel white;
+    white.Prepare(m);
+    const NoiseModel& noise = pass == 0 ? white : nm[r];
+    VectorXd cw = bw.col(r).segment(d.offset[r], m), rr = base_res.segment(d.offset[r], m);
+    if (pass == 0) {
+      cw.setOnes();
+      rr = d.y.segment(d.offset[r], m);
+      rr.array() -= rr.mean();
+    }
+    const auto [f_best, w_best] = ScanSinusoid(d.bins[r], noise, cw, rr, sigma2_f, f_lo, f_hi);
+    if (w_best > sc->best_pw) {
+      sc->best_pw = w_best;
+      sc->best_freq = f_best;
+      sc->best_periodic_log = r;
+      VectorXd sn, cs;
+      BinSinusoid(d.bins[r], f_best, &sn, &cs);
+      sc->best_sin = VectorXd::Zero(d.n), sc->best_cos = VectorXd::Zero(d.n);
+      sc->best_sin.segment(d.offset[r], m) = sn;
+      sc->best_cos.segment(d.offset[r], m) = cs;
+    }
+  }
+}
+
+// rate_random_walk on the long logs (walk_logs): the candidate, the noise models with the walk (nm_walk,
+// the others' as nm), the walk strength's ln-sigma and log of the most significant log, the summed
+// negative log-likelihood.
+struct WalkTest {
+  GyroCandidate candidate;
+  std::vector<NoiseModel> nm_walk;
+  double lnq_sigma = 1, nll = 0;
+  int log = 0;
+};
+
+WalkTest TestRandomWalk(const Design& d, const GyroDiscoverOptions& o, const std::vector<NoiseModel>& nm,
+                        const std::vector<int>& walk_logs, double alpha_each, double n_eff) {
+  WalkTest w;
+  w.nm_walk = nm;
+  GyroCandidate& c = w.candidate;
+  c.cause = "rate_random_walk";
+  c.dof = 1;
+  c.applicable = !walk_logs.empty();
+  // On the base-model residuals: the slow regressors of the full model would absorb most of a
+  // walk. A deterministic cause then shows here too; it is sorted out by the BIC below.
+  double p_min = 1;
+  for (int r : walk_logs) {
+    const int m = static_cast<int>(d.bins[r].t_s.size());
+    VectorXd v = d.y.segment(d.offset[r], m);
+    v.array() -= v.mean();
+    const NoiseMle h0 = FitNoiseMle(v, d.bins[r].bin_s, o.wander_tau_max_s, nm[r], false);
+    // The likelihood is flat in ln q near q = 0: start from several walk strengths.
+    NoiseMle h1;
+    h1.nll = std::numeric_limits<double>::infinity();
+    for (double rel : {1e-5, 1e-3, 1e-2, 1e-1}) {
+      NoiseModel start = h0.model;
+      start.q_rw = rel * (h0.model.var_w + h0.model.var_g);
+      NoiseMle h = FitNoiseMle(v, d.bins[r].bin_s, o.wander_tau_max_s, start, true);
+      if (h.nll < h1.nll) h1 = h;
+    }
+    const double lr = std::max(0.0, 2 * (h0.nll - h1.nll));
+    w.nll += h1.nll;
+    const double p = std::min(1.0, walk_logs.size() * 0.5 * ChiSquaredSurvival(lr, 1));
+    w.nm_walk[r] = h1.model;
+    w.nm_walk[r].diffuse_level = false;
+    w.nm_walk[r].Prepare(m);
+    if (p < p_min || r == walk_logs.front()) {
+      p_min = p;
+      c.statistic = lr;
+      w.lnq_sigma = h1.ln_q_sigma;
+      w.log = r;
+    }
+  }
+  if (c.applicable) {
+    c.p_value = p_min;
+    c.significant = p_min < alpha_each;
+    c.delta_bic = c.statistic - std::log(n_eff);
+  }
+  return w;
+}
+
+// A candidate's fit: GLS, raw design, columns, the inflation it was scored with.
+struct Fitted {
+  LsFit gls;
+  MatrixXd x;  // raw (unwhitened) design of base + cause
+  std::vector<int> cols;  // its Col columns (empty for the located ones)
+  double inflation = 1;
+};
+
+// 4. A significant candidate's BIC of the exact likelihood (noise model refitted by maximum likelihood
+// on each log's residual), position_cost: ln(positions scanned) of the located candidates.
+double CandidateBic(const Design& d, const GyroDiscoverOptions& o, const std::vector<NoiseModel>& nm,
+                    const GyroCandidate& c, const std::vector<int>& walk_logs, double walk_nll,
+                    std::map<std::string, Fitted>* fits, const std::map<std::string, double>& position_cost) {
+  const int l = static_cast<int>(d.bins.size());
+  double bic = 0;
+  if (c.cause == "rate_random_walk") {
+    // The short logs keep their base noise model: only the long ones carry the walk.
+    bic = 2 * walk_nll + 4.0 * walk_logs.size() * std::log(static_cast<double>(d.n));
+    for (int r = 0; r < l; ++r) {
+      if (std::find(walk_logs.begin(), walk_logs.end(), r) != walk_logs.end()) continue;
+      const int m = static_cast<int>(d.bins[r].t_s.size());
+      VectorXd v = d.y.segment(d.offset[r], m);
+      v.array() -= v.mean();
+      bic += 2 * FitNoiseMle(v, d.bins[r].bin_s, o.wander_tau_max_s, nm[r], false).nll + 3.0 * std::log(double(d.n));
+    }
+  } else {
+    const Fitted& ft = (*fits)[Key(c)];
+    const LsFit g = SolveLs(WhitenRows(d, nm, ft.x), WhitenRows(d, nm, d.y));
+    const VectorXd e = d.y - ft.x * g.beta;
+    for (int r = 0; r < l; ++r) {
+      const int m = static_cast<int>(d.bins[r].t_s.size());
+      bic += 2 * FitNoiseMle(e.segment(d.offset[r], m), d.bins[r].bin_s, o.wander_tau_max_s, nm[r], false).nll;
+    }
+    bic += (3.0 * l + c.dof) * std::log(static_cast<double>(d.n));
+    if (position_cost.count(c.cause)) bic += 2 * position_cost.at(c.cause);
+  }
+  return bic;
+}
+
+// 5. A candidate's parameters with their sigmas, its held-out gain, and whether the parameters lie
+// within the physical bounds.
+struct Evaluation {
+  std::map<std::string, double> parameters, sigmas;
+  CvResult cv;
+  std::string out_of_bounds;  // empty when within the bounds
+};
+
+// rate_random_walk's parameter and held-out gain (the walk q_rw per bin, of log walk_log).
+void EvaluateWalk(const Design& d, const GyroDiscoverOptions& o, const std::vector<int>& walk_logs,
+                  const std::vector<double>& log_var, double q, int walk_log, double walk_lnq_sigma, Evaluation* ev) {
+  auto& par = ev->parameters;
+  auto& sig = ev->sigmas;
+  // K from the walk's variance per bin: q = K^2 bin (K in dph/sqrt(s)).
+  const double bin = d.bins[walk_log].bin_s;
+  const double k_dph_sqrt_h = std::sqrt(q / bin) * 60.0;
+  par["K_dph_per_sqrt_h"] = k_dph_sqrt_h;
+  sig["K_dph_per_sqrt_h"] = 0.5 * k_dph_sqrt_h * walk_lnq_sigma;
+  // Held-out one-step prediction of the second half's bins: constant bias (base) vs an
+  // exponentially smoothed level with its factor tuned on the first half (local-level model).
+  double best_ratio = -1;
+  ev->cv.z = -std::numeric_limits<double>::infinity();
+  for (int rr : walk_logs) {
+    const int mm = static_cast<int>(d.bins[rr].t_s.size());
+    const VectorXd z = d.y.segment(d.offset[rr], mm);
+    const int half = mm / 2;
+    // Squared one-step errors from `from` to `to` with smoothing factor a (0: constant level).
+    auto one_step = [&](double a, int from, int to, double level, std::vector<double>* e2) {
+      double ss = 0;
+      for (int i = from; i < to; ++i) {
+        const double e = z(i) - level;
+        ss += e * e;
+        if (e2) e2->push_back(e * e);
+        level += a * e;
+      }
+      return ss;
+    };
+    double best_a = 0, best_ss = std::numeric_limits<double>::infinity();
+    for (double a = 0.002; a <= 0.5; a *= 1.25) {
+      const double ss = one_step(a, 1, half, z(0), nullptr);
+      if (ss < best_ss) best_ss = ss, best_a = a;
+    }
+    const double mean_first = z.head(half).mean();
+    double level = z(0);
+    for (int i = 1; i < half; ++i) level += best_a * (z(i) - level);
+    std::vector<double> eb, ea;
+    const double sb = one_step(0.0, half, mm, mean_first, &eb), sa = one_step(best_a, half, mm, level, &ea);
+    const int nblk = o.cv_blocks / 2;
+    std::vector<double> blk(nblk, 0.0);
+    for (size_t i = 0; i < eb.size(); ++i) blk[i * nblk / eb.size()] += (eb[i] - ea[i]) / log_var[rr];
+    ev->cv.z = std::max(ev->cv.z, BlockZ(blk));
+    ev->cv.z_blocks = ev->cv.z;  // already the blocks' own scatter
+    if (sb / sa > best_ratio) {  // the log where the level model predicts best carries the figure
+      best_ratio = sb / sa;
+      ev->cv.rms_before = std::sqrt(sb / (mm - half));
+      ev->cv.rms_after = std::sqrt(sa / (mm - half));
+    }
+  }
+}
+
+// Physical bounds (the table of docs/discrepancy.md): empty when cause's parameters par lie within
+// them, else the first parameter beyond.
+std::string OutOfBounds(const std::string& cause, const std::map<std::string, double>& par) {
+  struct Bound {
+    const char* cause;
+    const char* parameter;
+    double max_abs;
+  };
+  static const Bound kBounds[] = {
+      {"temperature", "K10_dph", 5},          {"temperature", "K20_dph", 5},
+      {"temperature", "swing_ratio", 5},      {"temperature_gradient", "K01_dph", 5},
+      {"magnetic_field", "amplitude_dph", 2}, {"magnetic_field", "sensitivity_bn_dph_per_ut", 0.1},
+      {"magnetic_field", "sensitivity_be_dph_per_ut", 0.1}, {"magnetic_field", "sensitivity_bh_dph_per_ut", 0.1},
+      {"magnetic_field", "swing_ratio", 5},   {"misalignment", "misalignment_arcsec", 3600},
+      {"scale_factor", "scale_factor_ppm", 1e4}, {"scale_factor_asymmetry", "scale_factor_ppm", 1e4},
+      {"scale_factor_asymmetry", "asymmetry_ppm", 1e4}, {"time_delay", "delay_s", 0.1},
+      {"bias_step", "step_dph", 10},          {"periodic_drift", "amplitude_dph", 10},
+      {"rate_random_walk", "K_dph_per_sqrt_h", 2},
+  };
+  for (const auto& bd : kBounds) {
+    if (cause != bd.cause || !par.count(bd.parameter)) continue;
+    const double v = par.at(bd.parameter);
+    if (!(std::abs(v) <= bd.max_abs)) {
+      return std::string(bd.parameter) + " = " + std::to_string(v) + " beyond " + std::to_string(bd.max_abs);
+    }
+  }
+  return "";
+}
+
+}  // namespace
+
+GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDiscoverOptions& o) {
+  o.Check();
+  if (logs.empty()) throw InputError("", "no gyro log given");
+  Design d = BuildDesign(logs, o);
+  const int l = static_cast<int>(logs.size());
+  std::vector<bool> usable;
+  std::vector<double> scale;
+  const std::vector<int> full_cols = UsableColumns(&d, o, &usable, &scale);
 
   // Two passes: the step of `bias_step` and the sinusoid of `periodic_drift` are located with the
   // noise model of the full model, then added to the full model (so that they do not inflate the
@@ -1173,15 +1489,14 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
   VectorXd yw, base_res;
   LsFit full, base;
   double sigma2 = 1, f = 1;
-  VectorXd best_step, best_sin, best_cos;
-  double best_step_t = 0, best_w = 0, best_freq = 0, best_pw = 0;
-  int positions = 0, best_step_log = 0, best_periodic_log = 0;
-  double periodic_positions = 0;
-  struct StepPoint {
-    int log;
-    double t_s, w;
-  };
-  std::vector<StepPoint> step_profile;  // the scan's statistic at every position (last pass)
+  StepScan step_scan;
+  PeriodicScan periodic_scan;
+  VectorXd &best_step = step_scan.best_step, &best_sin = periodic_scan.best_sin, &best_cos = periodic_scan.best_cos;
+  double &best_step_t = step_scan.best_step_t, &best_w = step_scan.best_w, &best_freq = periodic_scan.best_freq;
+  double& periodic_positions = periodic_scan.positions;
+  int &positions = step_scan.positions, &best_step_log = step_scan.best_step_log;
+  int &best_periodic_log = periodic_scan.best_periodic_log;
+  std::vector<StepPoint>& step_profile = step_scan.profile;  // the scan's statistic at every position (last pass)
   for (int pass = 0; pass < 2; ++pass) {
     // 1. OLS of the full model -> per-log noise model.
     // The located step and sinusoid join the full model in the second pass, so that they do not
@@ -1211,68 +1526,8 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
     bw = WhitenRows(d, nm, d.base);
     base = SolveLs(bw, yw);
     base_res = yw - bw * base.beta;
-    // Step scan: a step in one log's bias at a bin boundary (5 %..95 % of the log).
-    best_w = 0;
-    positions = 0;
-    step_profile.clear();
-    for (int r = 0; r < l; ++r) {
-      const int m = static_cast<int>(d.bins[r].t_s.size());
-      const VectorXd cw = bw.col(r).segment(d.offset[r], m);
-      const VectorXd rr = base_res.segment(d.offset[r], m);
-      for (int j = std::max(1, m / 20); j < m - m / 20; ++j) {
-        VectorXd st = VectorXd::Zero(m);
-        st.tail(m - j).setOnes();
-        VectorXd sw = nm[r].Whiten(st);
-        sw -= (cw.dot(sw) / cw.squaredNorm()) * cw;
-        const double ss = sw.squaredNorm();
-        if (ss <= 0) continue;
-        ++positions;
-        const double proj = rr.dot(sw);
-        const double w = proj * proj / ss / (sigma2 * f);
-        step_profile.push_back({r, 0.5 * (d.bins[r].t_s[j - 1] + d.bins[r].t_s[j]), w});
-        if (w > best_w) {
-          best_w = w;
-          best_step = VectorXd::Zero(d.n);
-          best_step.segment(d.offset[r] + j, m - j).setOnes();
-          best_step_t = 0.5 * (d.bins[r].t_s[j - 1] + d.bins[r].t_s[j]);
-          best_step_log = r;
-        }
-      }
-    }
-    // Periodic scan: a sinusoid in one log's drift, periods from 4 bins to duration / min_cycles
-    // (the GLS periodogram, frequency step 1/4 of the Fourier spacing, refined by golden section);
-    // the number of independent frequencies (range x duration) is the Bonferroni count.
-    best_pw = 0;
-    periodic_positions = 0;
-    for (int r = 0; r < l; ++r) {
-      const int m = static_cast<int>(d.bins[r].t_s.size());
-      const double dur = d.bins[r].t_s.back() - d.bins[r].t_s.front() + d.bins[r].bin_s;
-      const double f_lo = o.periodic_min_cycles / dur, f_hi = 0.25 / d.bins[r].bin_s;
-      if (m < 24 || f_hi <= f_lo) continue;
-      periodic_positions += (f_hi - f_lo) * dur;
-      // First pass: the plain periodogram of the base residual. The noise model of that pass was
-      // fitted with the sinusoid still in the residual: its wander would whiten the sinusoid away.
-      NoiseModel white;
-      white.Prepare(m);
-      const NoiseModel& noise = pass == 0 ? white : nm[r];
-      VectorXd cw = bw.col(r).segment(d.offset[r], m), rr = base_res.segment(d.offset[r], m);
-      if (pass == 0) {
-        cw.setOnes();
-        rr = d.y.segment(d.offset[r], m);
-        rr.array() -= rr.mean();
-      }
-      const auto [f_best, w_best] = ScanSinusoid(d.bins[r], noise, cw, rr, sigma2 * f, f_lo, f_hi);
-      if (w_best > best_pw) {
-        best_pw = w_best;
-        best_freq = f_best;
-        best_periodic_log = r;
-        VectorXd sn, cs;
-        BinSinusoid(d.bins[r], f_best, &sn, &cs);
-        best_sin = VectorXd::Zero(d.n), best_cos = VectorXd::Zero(d.n);
-        best_sin.segment(d.offset[r], m) = sn;
-        best_cos.segment(d.offset[r], m) = cs;
-      }
-    }
+    ScanStep(d, nm, bw, base_res, sigma2 * f, &step_scan);
+    ScanPeriodic(d, nm, bw, base_res, o, pass, sigma2 * f, &periodic_scan);
   }
   res.variance_inflation = f;
   res.n_eff = d.n / f;
@@ -1317,12 +1572,6 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
   for (const auto& s : specs) tested += !spec_cols(s).empty();
   const double alpha_each = o.alpha / std::max(tested, 1);
   res.alpha_per_candidate = alpha_each;
-  struct Fitted {
-    LsFit gls;
-    MatrixXd x;  // raw (unwhitened) design of base + cause
-    std::vector<int> cols;  // its Col columns (empty for the located ones)
-    double inflation = 1;
-  };
   std::map<std::string, Fitted> fits;
   std::map<std::string, double> position_cost;  // ln(positions scanned) of the located candidates
   // Every deterministic candidate and the located step and sinusoid against the base model, with
@@ -1380,79 +1629,18 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
   // the base noise model (white + Gauss-Markov wander with tau <= wander_tau_max_s), both by
   // maximum likelihood on each long log's base-model residuals. q = 0 lies on the boundary, so the
   // LR follows 0.5 chi2_0 + 0.5 chi2_1 (Self & Liang 1987).
-  std::vector<NoiseModel> nm_walk = nm;
-  double walk_lnq_sigma = 1, walk_nll = 0;
-  int walk_log = 0;
-  {
-    GyroCandidate c;
-    c.cause = "rate_random_walk";
-    c.dof = 1;
-    c.applicable = !walk_logs.empty();
-    // On the base-model residuals: the slow regressors of the full model would absorb most of a
-    // walk. A deterministic cause then shows here too; it is sorted out by the BIC below.
-    double p_min = 1;
-    for (int r : walk_logs) {
-      const int m = static_cast<int>(d.bins[r].t_s.size());
-      VectorXd v = d.y.segment(d.offset[r], m);
-      v.array() -= v.mean();
-      const NoiseMle h0 = FitNoiseMle(v, d.bins[r].bin_s, o.wander_tau_max_s, nm[r], false);
-      // The likelihood is flat in ln q near q = 0: start from several walk strengths.
-      NoiseMle h1;
-      h1.nll = std::numeric_limits<double>::infinity();
-      for (double rel : {1e-5, 1e-3, 1e-2, 1e-1}) {
-        NoiseModel start = h0.model;
-        start.q_rw = rel * (h0.model.var_w + h0.model.var_g);
-        NoiseMle h = FitNoiseMle(v, d.bins[r].bin_s, o.wander_tau_max_s, start, true);
-        if (h.nll < h1.nll) h1 = h;
-      }
-      const double lr = std::max(0.0, 2 * (h0.nll - h1.nll));
-      walk_nll += h1.nll;
-      const double p = std::min(1.0, walk_logs.size() * 0.5 * ChiSquaredSurvival(lr, 1));
-      nm_walk[r] = h1.model;
-      nm_walk[r].diffuse_level = false;
-      nm_walk[r].Prepare(m);
-      if (p < p_min || r == walk_logs.front()) {
-        p_min = p;
-        c.statistic = lr;
-        walk_lnq_sigma = h1.ln_q_sigma;
-        walk_log = r;
-      }
-    }
-    if (c.applicable) {
-      c.p_value = p_min;
-      c.significant = p_min < alpha_each;
-      c.delta_bic = c.statistic - std::log(res.n_eff);
-    }
-    res.candidates.push_back(c);
-  }
+  WalkTest walk = TestRandomWalk(d, o, nm, walk_logs, alpha_each, res.n_eff);
+  const std::vector<NoiseModel>& nm_walk = walk.nm_walk;
+  const double walk_lnq_sigma = walk.lnq_sigma, walk_nll = walk.nll;
+  const int walk_log = walk.log;
+  res.candidates.push_back(walk.candidate);
   // 4. Order of the significant candidates: the smallest BIC of the exact likelihood (noise model
   // refitted by maximum likelihood on each log's residual), so that a deterministic cause and a
   // random walk, or a step and a walk, compete on the same footing.
   std::vector<GyroCandidate*> order;
   for (auto& c : res.candidates) {
     if (!c.applicable || !c.significant) continue;
-    double bic = 0;
-    if (c.cause == "rate_random_walk") {
-      // The short logs keep their base noise model: only the long ones carry the walk.
-      bic = 2 * walk_nll + 4.0 * walk_logs.size() * std::log(static_cast<double>(d.n));
-      for (int r = 0; r < l; ++r) {
-        if (std::find(walk_logs.begin(), walk_logs.end(), r) != walk_logs.end()) continue;
-        const int m = static_cast<int>(d.bins[r].t_s.size());
-        VectorXd v = d.y.segment(d.offset[r], m);
-        v.array() -= v.mean();
-        bic += 2 * FitNoiseMle(v, d.bins[r].bin_s, o.wander_tau_max_s, nm[r], false).nll + 3.0 * std::log(double(d.n));
-      }
-    } else {
-      const Fitted& ft = fits[Key(c)];
-      const LsFit g = SolveLs(WhitenRows(d, nm, ft.x), WhitenRows(d, nm, d.y));
-      const VectorXd e = d.y - ft.x * g.beta;
-      for (int r = 0; r < l; ++r) {
-        const int m = static_cast<int>(d.bins[r].t_s.size());
-        bic += 2 * FitNoiseMle(e.segment(d.offset[r], m), d.bins[r].bin_s, o.wander_tau_max_s, nm[r], false).nll;
-      }
-      bic += (3.0 * l + c.dof) * std::log(static_cast<double>(d.n));
-      if (position_cost.count(c.cause)) bic += 2 * position_cost[c.cause];
-    }
+    const double bic = CandidateBic(d, o, nm, c, walk_logs, walk_nll, &fits, position_cost);
     c.bic = bic;
     order.push_back(&c);
   }
@@ -1480,71 +1668,15 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
 
   // 5. Gates, in BIC order: the first candidate whose parameters lie within the physical bounds and
   // whose held-out improvement is significant is named.
-  // One-sided normal quantile at gain_alpha / l (Bonferroni over the logs), by bisection on erfc
-  // (which keeps tiny tail probabilities).
-  double z_lo = 0, z_hi = 40;
-  for (int it = 0; it < 100; ++it) {
-    const double mid = 0.5 * (z_lo + z_hi);
-    (0.5 * std::erfc(mid / std::sqrt(2.0)) > o.gain_alpha / l ? z_lo : z_hi) = mid;
-  }
-  const double z_min = 0.5 * (z_lo + z_hi);
+  const double z_min = GainZMin(o.gain_alpha / l);  // Bonferroni over the logs
   res.gain_z_min = z_min;
-  struct Evaluation {
-    std::map<std::string, double> parameters, sigmas;
-    CvResult cv;
-    std::string out_of_bounds;  // empty when within the bounds
-  };
   auto evaluate = [&](const GyroCandidate& cand) {
     const std::string& cause = cand.cause;
     Evaluation ev;
     auto& par = ev.parameters;
     auto& sig = ev.sigmas;
     if (cause == "rate_random_walk") {
-      // K from the walk's variance per bin: q = K^2 bin (K in dph/sqrt(s)).
-      const double q = nm_walk[walk_log].q_rw, bin = d.bins[walk_log].bin_s;
-      const double k_dph_sqrt_h = std::sqrt(q / bin) * 60.0;
-      par["K_dph_per_sqrt_h"] = k_dph_sqrt_h;
-      sig["K_dph_per_sqrt_h"] = 0.5 * k_dph_sqrt_h * walk_lnq_sigma;
-      // Held-out one-step prediction of the second half's bins: constant bias (base) vs an
-      // exponentially smoothed level with its factor tuned on the first half (local-level model).
-      double best_ratio = -1;
-      ev.cv.z = -std::numeric_limits<double>::infinity();
-      for (int rr : walk_logs) {
-        const int mm = static_cast<int>(d.bins[rr].t_s.size());
-        const VectorXd z = d.y.segment(d.offset[rr], mm);
-        const int half = mm / 2;
-        // Squared one-step errors from `from` to `to` with smoothing factor a (0: constant level).
-        auto one_step = [&](double a, int from, int to, double level, std::vector<double>* e2) {
-          double ss = 0;
-          for (int i = from; i < to; ++i) {
-            const double e = z(i) - level;
-            ss += e * e;
-            if (e2) e2->push_back(e * e);
-            level += a * e;
-          }
-          return ss;
-        };
-        double best_a = 0, best_ss = std::numeric_limits<double>::infinity();
-        for (double a = 0.002; a <= 0.5; a *= 1.25) {
-          const double ss = one_step(a, 1, half, z(0), nullptr);
-          if (ss < best_ss) best_ss = ss, best_a = a;
-        }
-        const double mean_first = z.head(half).mean();
-        double level = z(0);
-        for (int i = 1; i < half; ++i) level += best_a * (z(i) - level);
-        std::vector<double> eb, ea;
-        const double sb = one_step(0.0, half, mm, mean_first, &eb), sa = one_step(best_a, half, mm, level, &ea);
-        const int nblk = o.cv_blocks / 2;
-        std::vector<double> blk(nblk, 0.0);
-        for (size_t i = 0; i < eb.size(); ++i) blk[i * nblk / eb.size()] += (eb[i] - ea[i]) / log_var[rr];
-        ev.cv.z = std::max(ev.cv.z, BlockZ(blk));
-        ev.cv.z_blocks = ev.cv.z;  // already the blocks' own scatter
-        if (sb / sa > best_ratio) {  // the log where the level model predicts best carries the figure
-          best_ratio = sb / sa;
-          ev.cv.rms_before = std::sqrt(sb / (mm - half));
-          ev.cv.rms_after = std::sqrt(sa / (mm - half));
-        }
-      }
+      EvaluateWalk(d, o, walk_logs, log_var, nm_walk[walk_log].q_rw, walk_log, walk_lnq_sigma, &ev);
     } else {
       // Parameters (GLS, sigma scaled by the residual variance and the inflation).
       const Fitted& fit = fits[Key(cand)];
@@ -1650,31 +1782,7 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
       }
       ev.cv = CrossValidate(d, nm, fit.x, o.cv_blocks);
     }
-    // Physical bounds (the table of docs/discrepancy.md).
-    struct Bound {
-      const char* cause;
-      const char* parameter;
-      double max_abs;
-    };
-    static const Bound kBounds[] = {
-        {"temperature", "K10_dph", 5},          {"temperature", "K20_dph", 5},
-        {"temperature", "swing_ratio", 5},      {"temperature_gradient", "K01_dph", 5},
-        {"magnetic_field", "amplitude_dph", 2}, {"magnetic_field", "sensitivity_bn_dph_per_ut", 0.1},
-        {"magnetic_field", "sensitivity_be_dph_per_ut", 0.1}, {"magnetic_field", "sensitivity_bh_dph_per_ut", 0.1},
-        {"magnetic_field", "swing_ratio", 5},   {"misalignment", "misalignment_arcsec", 3600},
-        {"scale_factor", "scale_factor_ppm", 1e4}, {"scale_factor_asymmetry", "scale_factor_ppm", 1e4},
-        {"scale_factor_asymmetry", "asymmetry_ppm", 1e4}, {"time_delay", "delay_s", 0.1},
-        {"bias_step", "step_dph", 10},          {"periodic_drift", "amplitude_dph", 10},
-        {"rate_random_walk", "K_dph_per_sqrt_h", 2},
-    };
-    for (const auto& bd : kBounds) {
-      if (cause != bd.cause || !par.count(bd.parameter)) continue;
-      const double v = par.at(bd.parameter);
-      if (!(std::abs(v) <= bd.max_abs)) {
-        ev.out_of_bounds = std::string(bd.parameter) + " = " + std::to_string(v) + " beyond " + std::to_string(bd.max_abs);
-        break;
-      }
-    }
+    ev.out_of_bounds = OutOfBounds(cause, par);
     return ev;
   };
 
