@@ -1438,6 +1438,121 @@ void EvaluateWalk(const Design& d, const GyroDiscoverOptions& o, const std::vect
   }
 }
 
+// A fitted candidate's parameters (GLS, sigma scaled by the residual variance and the inflation) and
+// its held-out gain; the located step's and sinusoid's from their scans.
+void EvaluateFitted(const Design& d, const GyroDiscoverOptions& o, const std::vector<NoiseModel>& nm, const Fitted& fit,
+                    const std::string& cause, const std::vector<double>& scale, const StepScan& step_scan,
+                    const PeriodicScan& periodic_scan, Evaluation* ev) {
+  const int l = static_cast<int>(d.bins.size());
+  auto& par = ev->parameters;
+  auto& sig = ev->sigmas;
+  const double best_step_t = step_scan.best_step_t, best_w = step_scan.best_w, best_freq = periodic_scan.best_freq;
+  const int best_step_log = step_scan.best_step_log, best_periodic_log = periodic_scan.best_periodic_log;
+  const std::vector<StepPoint>& step_profile = step_scan.profile;
+  const VectorXd &best_sin = periodic_scan.best_sin, &best_cos = periodic_scan.best_cos;
+  const LsFit& g = fit.gls;
+  const int dof_res = std::max(1, d.n - static_cast<int>(fit.x.cols()));
+  const double s2 = g.rss / dof_res * fit.inflation;
+  auto pos = [&](int col) {
+    return l + static_cast<int>(std::find(fit.cols.begin(), fit.cols.end(), col) - fit.cols.begin());
+  };
+  auto has = [&](int col) { return std::find(fit.cols.begin(), fit.cols.end(), col) != fit.cols.end(); };
+  auto est = [&](int col, double unscale, const std::string& name) {
+    const int j = pos(col);
+    par[name] = g.beta(j) / unscale;
+    sig[name] = std::sqrt(g.cov_unscaled(j, j) * s2) / unscale;
+  };
+  // A harmonic e_s sin x + e_c cos x = S sin(x + phi) from coefficient rows js, jc.
+  // Its covariance from `gc` (for periodic_drift: the fit with the frequency free).
+  auto harmonic = [&](int js, int jc, double us, double uc, const LsFit& gc) {
+    const double es = g.beta(js) / us, ec = g.beta(jc) / uc;
+    Eigen::Matrix2d cov;
+    cov << gc.cov_unscaled(js, js) / (us * us), gc.cov_unscaled(js, jc) / (us * uc),
+        gc.cov_unscaled(jc, js) / (us * uc), gc.cov_unscaled(jc, jc) / (uc * uc);
+    cov *= s2;
+    const double amp = std::hypot(es, ec);
+    const Eigen::Vector2d da(es / amp, ec / amp), dp(-ec / (amp * amp), es / (amp * amp));
+    par["amplitude_dph"] = amp;
+    sig["amplitude_dph"] = std::sqrt(da.dot(cov * da));
+    par["phase_deg"] = std::atan2(ec, es) * kRadToDeg;
+    sig["phase_deg"] = std::sqrt(dp.dot(cov * dp)) * kRadToDeg;
+  };
+  // Largest swing of one term against the swing of their sum (over all bins): correlated
+  // regressors that cancel each other (absurd coefficients) show as a ratio >> 1.
+  auto swing_ratio = [&](const std::vector<std::vector<int>>& groups) {
+    VectorXd total = VectorXd::Zero(d.n);
+    double worst = 0;
+    for (const auto& grp : groups) {
+      VectorXd t = VectorXd::Zero(d.n);
+      for (int col : grp) {
+        if (has(col)) t += d.cols.col(col) * g.beta(pos(col));
+      }
+      total += t;
+      worst = std::max(worst, t.maxCoeff() - t.minCoeff());
+    }
+    const double range = total.maxCoeff() - total.minCoeff();
+    return range > 0 ? worst / range : 1.0;
+  };
+  if (cause == "temperature") {
+    est(kT1, scale[kT1], "K10_dph");
+    est(kT2, scale[kT2], "K20_dph");
+    par["swing_ratio"] = swing_ratio({{kT1}, {kT2}});
+  } else if (cause == "temperature_gradient") {
+    est(kG1, scale[kG1], "K01_dph");
+  } else if (cause == "magnetic_field") {
+    // f = e_sin sin(psi) + e_cos cos(psi) = S sin(psi + phi); the logged field's sensitivities.
+    if (has(kMagSin) && has(kMagCos)) harmonic(pos(kMagSin), pos(kMagCos), scale[kMagSin], scale[kMagCos], g);
+    if (has(kBn)) est(kBn, scale[kBn], "sensitivity_bn_dph_per_ut");
+    if (has(kBe)) est(kBe, scale[kBe], "sensitivity_be_dph_per_ut");
+    if (has(kBh)) est(kBh, scale[kBh], "sensitivity_bh_dph_per_ut");
+    par["swing_ratio"] = swing_ratio({{kMagSin, kMagCos}, {kBn}, {kBe}, {kBh}});
+  } else if (cause == "misalignment") {
+    est(kMis, scale[kMis], "misalignment_arcsec");
+  } else if (cause == "scale_factor") {
+    est(kScale, scale[kScale], "scale_factor_ppm");
+  } else if (cause == "scale_factor_asymmetry") {
+    // drift = s ref + a |ref| (ppm): scale factor s + a for positive rates, s - a for negative.
+    const int js = pos(kScale), ja = pos(kAbsRef);
+    const double us = scale[kScale], ua = scale[kAbsRef];
+    const double s = g.beta(js) / us, a = g.beta(ja) / ua;
+    const double vs = g.cov_unscaled(js, js) * s2 / (us * us), va = g.cov_unscaled(ja, ja) * s2 / (ua * ua);
+    const double csa = g.cov_unscaled(js, ja) * s2 / (us * ua);
+    par["scale_factor_ppm"] = s, sig["scale_factor_ppm"] = std::sqrt(vs);
+    par["asymmetry_ppm"] = 2 * a, sig["asymmetry_ppm"] = 2 * std::sqrt(va);
+    par["scale_factor_positive_ppm"] = s + a, sig["scale_factor_positive_ppm"] = std::sqrt(std::max(0.0, vs + va + 2 * csa));
+    par["scale_factor_negative_ppm"] = s - a, sig["scale_factor_negative_ppm"] = std::sqrt(std::max(0.0, vs + va - 2 * csa));
+  } else if (cause == "time_delay") {
+    est(kDelay, scale[kDelay], "delay_s");
+  } else if (cause == "bias_step") {
+    par["step_dph"] = g.beta(l), sig["step_dph"] = std::sqrt(g.cov_unscaled(l, l) * s2);
+    // Step time: the positions whose statistic is within 1 of the best (a profile-likelihood
+    // interval, Delta chi^2 = 1); half its width, at least one bin.
+    double t_lo = best_step_t, t_hi = best_step_t;
+    for (const auto& sp : step_profile) {
+      if (sp.log == best_step_log && sp.w >= best_w - 1) t_lo = std::min(t_lo, sp.t_s), t_hi = std::max(t_hi, sp.t_s);
+    }
+    par["step_time_s"] = best_step_t;
+    sig["step_time_s"] = std::max(d.bins[best_step_log].bin_s, 0.5 * (t_hi - t_lo));
+  } else if (cause == "periodic_drift") {
+    // Period sigma: the GLS covariance with the derivative in frequency added (linearised).
+    const LogBins& b = d.bins[best_periodic_log];
+    VectorXd dcol = VectorXd::Zero(d.n);
+    for (size_t k = 0; k < b.t_s.size(); ++k) {
+      const int i = d.offset[best_periodic_log] + static_cast<int>(k);
+      const double tt = 2 * kPi * b.t_s[k];
+      dcol(i) = tt * (g.beta(l) * best_cos(i) - g.beta(l + 1) * best_sin(i));
+    }
+    MatrixXd xd(d.n, fit.x.cols() + 1);
+    xd << fit.x, dcol;
+    const LsFit gd = SolveLs(WhitenRows(d, nm, xd), WhitenRows(d, nm, d.y));
+    const double sf = std::sqrt(gd.cov_unscaled(fit.x.cols(), fit.x.cols()) * s2);
+    harmonic(l, l + 1, 1.0, 1.0, gd);  // phase at t_s = 0: its sigma grows with the frequency's
+    par["period_s"] = 1 / best_freq, sig["period_s"] = sf / (best_freq * best_freq);
+    par["frequency_hz"] = best_freq, sig["frequency_hz"] = sf;
+  }
+  ev->cv = CrossValidate(d, nm, fit.x, o.cv_blocks);
+}
+
 // Physical bounds (the table of docs/discrepancy.md): empty when cause's parameters par lie within
 // them, else the first parameter beyond.
 std::string OutOfBounds(const std::string& cause, const std::map<std::string, double>& par) {
@@ -1492,11 +1607,9 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
   StepScan step_scan;
   PeriodicScan periodic_scan;
   VectorXd &best_step = step_scan.best_step, &best_sin = periodic_scan.best_sin, &best_cos = periodic_scan.best_cos;
-  double &best_step_t = step_scan.best_step_t, &best_w = step_scan.best_w, &best_freq = periodic_scan.best_freq;
-  double& periodic_positions = periodic_scan.positions;
-  int &positions = step_scan.positions, &best_step_log = step_scan.best_step_log;
-  int &best_periodic_log = periodic_scan.best_periodic_log;
-  std::vector<StepPoint>& step_profile = step_scan.profile;  // the scan's statistic at every position (last pass)
+  double &best_freq = periodic_scan.best_freq, &periodic_positions = periodic_scan.positions;
+  int& positions = step_scan.positions;
+  int& best_periodic_log = periodic_scan.best_periodic_log;
   for (int pass = 0; pass < 2; ++pass) {
     // 1. OLS of the full model -> per-log noise model.
     // The located step and sinusoid join the full model in the second pass, so that they do not
@@ -1673,116 +1786,12 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
   auto evaluate = [&](const GyroCandidate& cand) {
     const std::string& cause = cand.cause;
     Evaluation ev;
-    auto& par = ev.parameters;
-    auto& sig = ev.sigmas;
     if (cause == "rate_random_walk") {
       EvaluateWalk(d, o, walk_logs, log_var, nm_walk[walk_log].q_rw, walk_log, walk_lnq_sigma, &ev);
     } else {
-      // Parameters (GLS, sigma scaled by the residual variance and the inflation).
-      const Fitted& fit = fits[Key(cand)];
-      const LsFit& g = fit.gls;
-      const int dof_res = std::max(1, d.n - static_cast<int>(fit.x.cols()));
-      const double s2 = g.rss / dof_res * fit.inflation;
-      auto pos = [&](int col) {
-        return l + static_cast<int>(std::find(fit.cols.begin(), fit.cols.end(), col) - fit.cols.begin());
-      };
-      auto has = [&](int col) { return std::find(fit.cols.begin(), fit.cols.end(), col) != fit.cols.end(); };
-      auto est = [&](int col, double unscale, const std::string& name) {
-        const int j = pos(col);
-        par[name] = g.beta(j) / unscale;
-        sig[name] = std::sqrt(g.cov_unscaled(j, j) * s2) / unscale;
-      };
-      // A harmonic e_s sin x + e_c cos x = S sin(x + phi) from coefficient rows js, jc.
-      // Its covariance from `gc` (for periodic_drift: the fit with the frequency free).
-      auto harmonic = [&](int js, int jc, double us, double uc, const LsFit& gc) {
-        const double es = g.beta(js) / us, ec = g.beta(jc) / uc;
-        Eigen::Matrix2d cov;
-        cov << gc.cov_unscaled(js, js) / (us * us), gc.cov_unscaled(js, jc) / (us * uc),
-            gc.cov_unscaled(jc, js) / (us * uc), gc.cov_unscaled(jc, jc) / (uc * uc);
-        cov *= s2;
-        const double amp = std::hypot(es, ec);
-        const Eigen::Vector2d da(es / amp, ec / amp), dp(-ec / (amp * amp), es / (amp * amp));
-        par["amplitude_dph"] = amp;
-        sig["amplitude_dph"] = std::sqrt(da.dot(cov * da));
-        par["phase_deg"] = std::atan2(ec, es) * kRadToDeg;
-        sig["phase_deg"] = std::sqrt(dp.dot(cov * dp)) * kRadToDeg;
-      };
-      // Largest swing of one term against the swing of their sum (over all bins): correlated
-      // regressors that cancel each other (absurd coefficients) show as a ratio >> 1.
-      auto swing_ratio = [&](const std::vector<std::vector<int>>& groups) {
-        VectorXd total = VectorXd::Zero(d.n);
-        double worst = 0;
-        for (const auto& grp : groups) {
-          VectorXd t = VectorXd::Zero(d.n);
-          for (int col : grp) {
-            if (has(col)) t += d.cols.col(col) * g.beta(pos(col));
-          }
-          total += t;
-          worst = std::max(worst, t.maxCoeff() - t.minCoeff());
-        }
-        const double range = total.maxCoeff() - total.minCoeff();
-        return range > 0 ? worst / range : 1.0;
-      };
-      if (cause == "temperature") {
-        est(kT1, scale[kT1], "K10_dph");
-        est(kT2, scale[kT2], "K20_dph");
-        par["swing_ratio"] = swing_ratio({{kT1}, {kT2}});
-      } else if (cause == "temperature_gradient") {
-        est(kG1, scale[kG1], "K01_dph");
-      } else if (cause == "magnetic_field") {
-        // f = e_sin sin(psi) + e_cos cos(psi) = S sin(psi + phi); the logged field's sensitivities.
-        if (has(kMagSin) && has(kMagCos)) harmonic(pos(kMagSin), pos(kMagCos), scale[kMagSin], scale[kMagCos], g);
-        if (has(kBn)) est(kBn, scale[kBn], "sensitivity_bn_dph_per_ut");
-        if (has(kBe)) est(kBe, scale[kBe], "sensitivity_be_dph_per_ut");
-        if (has(kBh)) est(kBh, scale[kBh], "sensitivity_bh_dph_per_ut");
-        par["swing_ratio"] = swing_ratio({{kMagSin, kMagCos}, {kBn}, {kBe}, {kBh}});
-      } else if (cause == "misalignment") {
-        est(kMis, scale[kMis], "misalignment_arcsec");
-      } else if (cause == "scale_factor") {
-        est(kScale, scale[kScale], "scale_factor_ppm");
-      } else if (cause == "scale_factor_asymmetry") {
-        // drift = s ref + a |ref| (ppm): scale factor s + a for positive rates, s - a for negative.
-        const int js = pos(kScale), ja = pos(kAbsRef);
-        const double us = scale[kScale], ua = scale[kAbsRef];
-        const double s = g.beta(js) / us, a = g.beta(ja) / ua;
-        const double vs = g.cov_unscaled(js, js) * s2 / (us * us), va = g.cov_unscaled(ja, ja) * s2 / (ua * ua);
-        const double csa = g.cov_unscaled(js, ja) * s2 / (us * ua);
-        par["scale_factor_ppm"] = s, sig["scale_factor_ppm"] = std::sqrt(vs);
-        par["asymmetry_ppm"] = 2 * a, sig["asymmetry_ppm"] = 2 * std::sqrt(va);
-        par["scale_factor_positive_ppm"] = s + a, sig["scale_factor_positive_ppm"] = std::sqrt(std::max(0.0, vs + va + 2 * csa));
-        par["scale_factor_negative_ppm"] = s - a, sig["scale_factor_negative_ppm"] = std::sqrt(std::max(0.0, vs + va - 2 * csa));
-      } else if (cause == "time_delay") {
-        est(kDelay, scale[kDelay], "delay_s");
-      } else if (cause == "bias_step") {
-        par["step_dph"] = g.beta(l), sig["step_dph"] = std::sqrt(g.cov_unscaled(l, l) * s2);
-        // Step time: the positions whose statistic is within 1 of the best (a profile-likelihood
-        // interval, Delta chi^2 = 1); half its width, at least one bin.
-        double t_lo = best_step_t, t_hi = best_step_t;
-        for (const auto& sp : step_profile) {
-          if (sp.log == best_step_log && sp.w >= best_w - 1) t_lo = std::min(t_lo, sp.t_s), t_hi = std::max(t_hi, sp.t_s);
-        }
-        par["step_time_s"] = best_step_t;
-        sig["step_time_s"] = std::max(d.bins[best_step_log].bin_s, 0.5 * (t_hi - t_lo));
-      } else if (cause == "periodic_drift") {
-        // Period sigma: the GLS covariance with the derivative in frequency added (linearised).
-        const LogBins& b = d.bins[best_periodic_log];
-        VectorXd dcol = VectorXd::Zero(d.n);
-        for (size_t k = 0; k < b.t_s.size(); ++k) {
-          const int i = d.offset[best_periodic_log] + static_cast<int>(k);
-          const double tt = 2 * kPi * b.t_s[k];
-          dcol(i) = tt * (g.beta(l) * best_cos(i) - g.beta(l + 1) * best_sin(i));
-        }
-        MatrixXd xd(d.n, fit.x.cols() + 1);
-        xd << fit.x, dcol;
-        const LsFit gd = SolveLs(WhitenRows(d, nm, xd), WhitenRows(d, nm, d.y));
-        const double sf = std::sqrt(gd.cov_unscaled(fit.x.cols(), fit.x.cols()) * s2);
-        harmonic(l, l + 1, 1.0, 1.0, gd);  // phase at t_s = 0: its sigma grows with the frequency's
-        par["period_s"] = 1 / best_freq, sig["period_s"] = sf / (best_freq * best_freq);
-        par["frequency_hz"] = best_freq, sig["frequency_hz"] = sf;
-      }
-      ev.cv = CrossValidate(d, nm, fit.x, o.cv_blocks);
+      EvaluateFitted(d, o, nm, fits[Key(cand)], cause, scale, step_scan, periodic_scan, &ev);
     }
-    ev.out_of_bounds = OutOfBounds(cause, par);
+    ev.out_of_bounds = OutOfBounds(cause, ev.parameters);
     return ev;
   };
 
