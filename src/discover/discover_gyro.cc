@@ -1582,6 +1582,39 @@ std::string OutOfBounds(const std::string& cause, const std::map<std::string, do
   return "";
 }
 
+// 5. The gates of an evaluated candidate: its held-out gain and verdict; true when it is named.
+bool JudgeCandidate(const Evaluation& ev, double z_min, const GyroDiscoverOptions& o, GyroCandidate* c) {
+  c->evaluated = true;
+  c->gain = ev.cv.rms_after > 0 ? ev.cv.rms_before / ev.cv.rms_after : 1.0;
+  c->gain_z = ev.cv.z;
+  c->gain_z_blocks = ev.cv.z_blocks;
+  if (!ev.out_of_bounds.empty()) {
+    c->verdict = "outside bounds: " + ev.out_of_bounds;
+  } else if (!(c->gain > 1 && c->gain_z > z_min)) {
+    c->verdict = "held-out gain not significant";
+  } else if (!(c->gain_z_blocks > o.min_block_z)) {
+    // The modelled z rests on the fitted noise; judged by the held-out blocks' own scatter the
+    // improvement must show too (a realisation with more slow power than the bounded wander, e.g. a
+    // telegraph bias with long dwells, inflates the modelled z of any slow regressor).
+    c->verdict = "held-out gain not seen in the blocks";
+  } else {
+    c->verdict = "named";
+  }
+  return c->verdict == "named";
+}
+
+// 6. The noise model of each log of the residual e_fit (per-log mean removed).
+void RefitResidualNoise(const Design& d, const GyroDiscoverOptions& o, const VectorXd& e_fit,
+                        std::vector<NoiseModel>* noise_fit) {
+  const int l = static_cast<int>(d.bins.size());
+  for (int r = 0; r < l; ++r) {
+    const int m = static_cast<int>(d.bins[r].t_s.size());
+    VectorXd v = e_fit.segment(d.offset[r], m);
+    v.array() -= v.mean();
+    (*noise_fit)[r] = FitNoise(v, o.max_noise_lag, std::exp(-d.bins[r].bin_s / o.wander_tau_max_s));
+  }
+}
+
 }  // namespace
 
 GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDiscoverOptions& o) {
@@ -1803,24 +1836,7 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
       if (chosen || std::find(tried.begin(), tried.end(), Key(*c)) != tried.end()) continue;
       tried.push_back(Key(*c));
       Evaluation ev = evaluate(*c);
-      c->evaluated = true;
-      c->gain = ev.cv.rms_after > 0 ? ev.cv.rms_before / ev.cv.rms_after : 1.0;
-      c->gain_z = ev.cv.z;
-      c->gain_z_blocks = ev.cv.z_blocks;
-      if (!ev.out_of_bounds.empty()) {
-        c->verdict = "outside bounds: " + ev.out_of_bounds;
-      } else if (!(c->gain > 1 && c->gain_z > z_min)) {
-        c->verdict = "held-out gain not significant";
-      } else if (!(c->gain_z_blocks > o.min_block_z)) {
-        // The modelled z rests on the fitted noise; judged by the held-out blocks' own scatter the
-        // improvement must show too (a realisation with more slow power than the bounded wander, e.g. a
-        // telegraph bias with long dwells, inflates the modelled z of any slow regressor).
-        c->verdict = "held-out gain not seen in the blocks";
-      } else {
-        c->verdict = "named";
-        chosen = c;
-        chosen_ev = ev;
-      }
+      if (JudgeCandidate(ev, z_min, o, c)) chosen = c, chosen_ev = ev;
     }
     if (chosen) break;
   }
@@ -1851,12 +1867,7 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
   if (!chosen || chosen->cause != "rate_random_walk") {
     // The noise model of this model's residual: the full model's one was fitted without the terms of
     // every candidate (and the best noise sinusoid), so it misses part of the wander left here.
-    for (int r = 0; r < l; ++r) {
-      const int m = static_cast<int>(d.bins[r].t_s.size());
-      VectorXd v = e_fit.segment(d.offset[r], m);
-      v.array() -= v.mean();
-      noise_fit[r] = FitNoise(v, o.max_noise_lag, std::exp(-d.bins[r].bin_s / o.wander_tau_max_s));
-    }
+    RefitResidualNoise(d, o, e_fit, &noise_fit);
   }
   const bool periodic = chosen && chosen->cause == "periodic_drift";
   res.residual = TestResidual(d, noise_fit, e_fit, o, periodic ? best_freq : 0.0, best_periodic_log);
