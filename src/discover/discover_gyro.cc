@@ -1347,6 +1347,75 @@ struct Fitted {
   double inflation = 1;
 };
 
+// A candidate's usable columns: none when a required one is not usable.
+std::vector<int> SpecColumns(const CandidateSpec& sp, const std::vector<bool>& usable) {
+  std::vector<int> cols;
+  for (int c : sp.required) {
+    if (!usable[c]) return cols;
+  }
+  for (int c : sp.cols) {
+    if (usable[c]) cols.push_back(c);
+  }
+  return cols;
+}
+
+// 3. Every deterministic candidate (specs) and the located step and sinusoid against the base model, with
+// GLS under the per-log noise models `noise` and the inflation of the full model's (x_full) whitened
+// residuals; their fits go to *fits, the located ones' ln(positions scanned) to *position_cost.
+std::vector<GyroCandidate> TestCandidates(const Design& d, const GyroDiscoverOptions& o,
+                                          const std::vector<NoiseModel>& noise, const MatrixXd& x_full,
+                                          const std::vector<CandidateSpec>& specs, const std::vector<bool>& usable,
+                                          double alpha_each, const StepScan& step_scan,
+                                          const PeriodicScan& periodic_scan, std::map<std::string, Fitted>* fits,
+                                          std::map<std::string, double>* position_cost) {
+  const bool step_ok = step_scan.best_step.size() == d.n, periodic_ok = periodic_scan.best_sin.size() == d.n;
+  std::vector<GyroCandidate> out;
+  const VectorXd y_w = WhitenRows(d, noise, d.y);
+  const MatrixXd xf_w = WhitenRows(d, noise, x_full);
+  const LsFit fl = SolveLs(xf_w, y_w);
+  const double s2 = fl.rss / std::max(1, d.n - static_cast<int>(x_full.cols()));
+  const double infl = VarianceInflation(d, y_w - xf_w * fl.beta, o.max_noise_lag);
+  const double n_eff = d.n / infl;
+  const LsFit b0 = SolveLs(WhitenRows(d, noise, d.base), y_w);
+  auto score = [&](GyroCandidate* c, const MatrixXd& x, const std::vector<int>& cols, double extra_cost) {
+    const LsFit g = SolveLs(WhitenRows(d, noise, x), y_w);
+    c->statistic = std::max(0.0, (b0.rss - g.rss) / (s2 * infl));
+    c->delta_bic = d.n * std::log(b0.rss / g.rss) / infl - c->dof * std::log(n_eff) - extra_cost;
+    (*fits)[Key(*c)] = {g, x, cols, infl};
+  };
+  for (const auto& sp : specs) {
+    GyroCandidate c;
+    c.cause = sp.cause;
+    c.model = sp.model;
+    const std::vector<int> cols = SpecColumns(sp, usable);
+    c.dof = static_cast<int>(cols.size());
+    c.applicable = !cols.empty();
+    if (c.applicable) {
+      score(&c, Assemble(d, cols, {}), cols, 0.0);
+      c.p_value = ChiSquaredSurvival(c.statistic, c.dof);
+      c.significant = c.p_value < alpha_each;
+    }
+    out.push_back(c);
+  }
+  // The located ones: p-values Bonferroni-corrected for the positions tried, which cost in the BIC.
+  auto located = [&](const std::string& cause, bool ok, const std::vector<VectorXd>& cols, double npos) {
+    GyroCandidate c;
+    c.cause = cause;
+    c.dof = static_cast<int>(cols.size());
+    c.applicable = ok;
+    if (ok) {
+      (*position_cost)[cause] = std::log(std::max(npos, 1.0));
+      score(&c, Assemble(d, {}, cols), {}, (*position_cost)[cause]);
+      c.p_value = std::min(1.0, std::max(npos, 1.0) * ChiSquaredSurvival(c.statistic, c.dof));
+      c.significant = c.p_value < alpha_each;
+    }
+    out.push_back(c);
+  };
+  located("bias_step", step_ok, {step_scan.best_step}, step_scan.positions);
+  located("periodic_drift", periodic_ok, {periodic_scan.best_sin, periodic_scan.best_cos}, periodic_scan.positions);
+  return out;
+}
+
 // 4. A significant candidate's BIC of the exact likelihood (noise model refitted by maximum likelihood
 // on each log's residual), position_cost: ln(positions scanned) of the located candidates.
 double CandidateBic(const Design& d, const GyroDiscoverOptions& o, const std::vector<NoiseModel>& nm,
@@ -1640,8 +1709,7 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
   StepScan step_scan;
   PeriodicScan periodic_scan;
   VectorXd &best_step = step_scan.best_step, &best_sin = periodic_scan.best_sin, &best_cos = periodic_scan.best_cos;
-  double &best_freq = periodic_scan.best_freq, &periodic_positions = periodic_scan.positions;
-  int& positions = step_scan.positions;
+  double& best_freq = periodic_scan.best_freq;
   int& best_periodic_log = periodic_scan.best_periodic_log;
   for (int pass = 0; pass < 2; ++pass) {
     // 1. OLS of the full model -> per-log noise model.
@@ -1698,16 +1766,7 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
       {"scale_factor_asymmetry", "", {kScale, kAbsRef}, {kScale, kAbsRef}},
       {"time_delay", "", {kDelay}, {kDelay}},
   };
-  auto spec_cols = [&](const CandidateSpec& sp) {
-    std::vector<int> cols;
-    for (int c : sp.required) {
-      if (!usable[c]) return cols;
-    }
-    for (int c : sp.cols) {
-      if (usable[c]) cols.push_back(c);
-    }
-    return cols;
-  };
+  auto spec_cols = [&](const CandidateSpec& sp) { return SpecColumns(sp, usable); };
   // Logs long enough to tell a random walk of the bias from the bounded wander.
   std::vector<int> walk_logs;
   for (int r = 0; r < l; ++r) {
@@ -1722,54 +1781,7 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
   std::map<std::string, double> position_cost;  // ln(positions scanned) of the located candidates
   // Every deterministic candidate and the located step and sinusoid against the base model, with
   // GLS under the per-log noise models `noise` and the inflation of the full model's whitened residuals.
-  auto test_all = [&](const std::vector<NoiseModel>& noise) {
-    std::vector<GyroCandidate> out;
-    const VectorXd y_w = WhitenRows(d, noise, d.y);
-    const MatrixXd xf_w = WhitenRows(d, noise, x_full);
-    const LsFit fl = SolveLs(xf_w, y_w);
-    const double s2 = fl.rss / std::max(1, d.n - static_cast<int>(x_full.cols()));
-    const double infl = VarianceInflation(d, y_w - xf_w * fl.beta, o.max_noise_lag);
-    const double n_eff = d.n / infl;
-    const LsFit b0 = SolveLs(WhitenRows(d, noise, d.base), y_w);
-    auto score = [&](GyroCandidate* c, const MatrixXd& x, const std::vector<int>& cols, double extra_cost) {
-      const LsFit g = SolveLs(WhitenRows(d, noise, x), y_w);
-      c->statistic = std::max(0.0, (b0.rss - g.rss) / (s2 * infl));
-      c->delta_bic = d.n * std::log(b0.rss / g.rss) / infl - c->dof * std::log(n_eff) - extra_cost;
-      fits[Key(*c)] = {g, x, cols, infl};
-    };
-    for (const auto& sp : specs) {
-      GyroCandidate c;
-      c.cause = sp.cause;
-      c.model = sp.model;
-      const std::vector<int> cols = spec_cols(sp);
-      c.dof = static_cast<int>(cols.size());
-      c.applicable = !cols.empty();
-      if (c.applicable) {
-        score(&c, Assemble(d, cols, {}), cols, 0.0);
-        c.p_value = ChiSquaredSurvival(c.statistic, c.dof);
-        c.significant = c.p_value < alpha_each;
-      }
-      out.push_back(c);
-    }
-    // The located ones: p-values Bonferroni-corrected for the positions tried, which cost in the BIC.
-    auto located = [&](const std::string& cause, bool ok, const std::vector<VectorXd>& cols, double npos) {
-      GyroCandidate c;
-      c.cause = cause;
-      c.dof = static_cast<int>(cols.size());
-      c.applicable = ok;
-      if (ok) {
-        position_cost[cause] = std::log(std::max(npos, 1.0));
-        score(&c, Assemble(d, {}, cols), {}, position_cost[cause]);
-        c.p_value = std::min(1.0, std::max(npos, 1.0) * ChiSquaredSurvival(c.statistic, c.dof));
-        c.significant = c.p_value < alpha_each;
-      }
-      out.push_back(c);
-    };
-    located("bias_step", step_ok, {best_step}, positions);
-    located("periodic_drift", periodic_ok, {best_sin, best_cos}, periodic_positions);
-    return out;
-  };
-  res.candidates = test_all(nm);
+  res.candidates = TestCandidates(d, o, nm, x_full, specs, usable, alpha_each, step_scan, periodic_scan, &fits, &position_cost);
 
   // rate_random_walk: likelihood ratio of the noise model with a random walk of the bias against
   // the base noise model (white + Gauss-Markov wander with tau <= wander_tau_max_s), both by
