@@ -1684,6 +1684,32 @@ void RefitResidualNoise(const Design& d, const GyroDiscoverOptions& o, const Vec
   }
 }
 
+// 1. The per-log noise model of the full model's OLS residual e_ols (and each log's variance).
+void FitLogNoise(const Design& d, const GyroDiscoverOptions& o, const VectorXd& e_ols, std::vector<NoiseModel>* nm,
+                 std::vector<double>* log_var) {
+  const int l = static_cast<int>(d.bins.size());
+  nm->clear();
+  log_var->clear();
+  for (int r = 0; r < l; ++r) {
+    const int m = static_cast<int>(d.bins[r].t_s.size());
+    const double phi_max = std::exp(-d.bins[r].bin_s / o.wander_tau_max_s);
+    nm->push_back(FitNoise(e_ols.segment(d.offset[r], m), o.max_noise_lag, phi_max));
+    log_var->push_back(nm->back().var_w + nm->back().var_g);
+  }
+}
+
+// Evidence: the noise of the longest log.
+void ReportLongestLogNoise(const Design& d, const std::vector<NoiseModel>& nm, GyroDiscovery* res) {
+  const int l = static_cast<int>(d.bins.size());
+  int best = 0;
+  for (int r = 1; r < l; ++r) {
+    if (d.bins[r].t_s.size() * d.bins[r].bin_s > d.bins[best].t_s.size() * d.bins[best].bin_s) best = r;
+  }
+  res->noise_white_dph = std::sqrt(nm[best].var_w);
+  res->noise_wander_dph = std::sqrt(nm[best].var_g);
+  res->noise_wander_tau_s = nm[best].phi > 0 ? -d.bins[best].bin_s / std::log(nm[best].phi) : 0.0;
+}
+
 }  // namespace
 
 GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDiscoverOptions& o) {
@@ -1722,14 +1748,7 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
     const LsFit ols = SolveLs(x_full, d.y);
     if (!ols.ok) throw InputError(logs.front().file, "degenerate regressors");
     const VectorXd e_ols = d.y - x_full * ols.beta;
-    nm.clear();
-    log_var.clear();
-    for (int r = 0; r < l; ++r) {
-      const int m = static_cast<int>(d.bins[r].t_s.size());
-      const double phi_max = std::exp(-d.bins[r].bin_s / o.wander_tau_max_s);
-      nm.push_back(FitNoise(e_ols.segment(d.offset[r], m), o.max_noise_lag, phi_max));
-      log_var.push_back(nm.back().var_w + nm.back().var_g);
-    }
+    FitLogNoise(d, o, e_ols, &nm, &log_var);
     // 2. GLS of the full model; effective sample size from the whitened residuals.
     yw = WhitenRows(d, nm, d.y);
     const MatrixXd xw_full = WhitenRows(d, nm, x_full);
@@ -1745,15 +1764,7 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
   }
   res.variance_inflation = f;
   res.n_eff = d.n / f;
-  {  // evidence: noise of the longest log
-    int best = 0;
-    for (int r = 1; r < l; ++r) {
-      if (d.bins[r].t_s.size() * d.bins[r].bin_s > d.bins[best].t_s.size() * d.bins[best].bin_s) best = r;
-    }
-    res.noise_white_dph = std::sqrt(nm[best].var_w);
-    res.noise_wander_dph = std::sqrt(nm[best].var_g);
-    res.noise_wander_tau_s = nm[best].phi > 0 ? -d.bins[best].bin_s / std::log(nm[best].phi) : 0.0;
-  }
+  ReportLongestLogNoise(d, nm, &res);
 
   // 3. Candidates.
   const std::vector<CandidateSpec> specs = {
