@@ -1710,6 +1710,25 @@ void ReportLongestLogNoise(const Design& d, const std::vector<NoiseModel>& nm, G
   res->noise_wander_tau_s = nm[best].phi > 0 ? -d.bins[best].bin_s / std::log(nm[best].phi) : 0.0;
 }
 
+// A nested candidate replaced by the wider one when the wider's extra terms are significant at alpha.
+GyroCandidate* Upgrade(GyroCandidate* c, std::vector<GyroCandidate>* candidates, double alpha) {
+  const std::map<std::string, std::string> wider = {{"misalignment", "magnetic_field"},
+                                                    {"scale_factor", "scale_factor_asymmetry"}};
+  if (!wider.count(c->cause)) return c;
+  GyroCandidate* w = nullptr;
+  for (auto& cand : *candidates) {
+    if (cand.cause == wider.at(c->cause)) {
+      w = &cand;
+      break;
+    }
+  }
+  if (w && w->applicable && w->significant && w->dof > c->dof &&
+      ChiSquaredSurvival(w->statistic - c->statistic, w->dof - c->dof) < alpha) {
+    return w;
+  }
+  return c;
+}
+
 }  // namespace
 
 GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDiscoverOptions& o) {
@@ -1814,26 +1833,11 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
     order.push_back(&c);
   }
   std::sort(order.begin(), order.end(), [](const GyroCandidate* a, const GyroCandidate* b) { return a->bic < b->bic; });
-  auto find = [&](const std::string& cause) -> GyroCandidate* {
-    for (auto& c : res.candidates) {
-      if (c.cause == cause) return &c;
-    }
-    return nullptr;
-  };
   // Nested pairs: misalignment is a harmonic of fixed phase inside magnetic_field, scale_factor is
   // scale_factor_asymmetry with equal scale factors for both signs. The larger model is taken when
   // its extra terms are themselves significant (chi^2 of the difference, a follow-up test at alpha).
-  auto upgrade = [&](GyroCandidate* c) {
-    const std::map<std::string, std::string> wider = {{"misalignment", "magnetic_field"},
-                                                      {"scale_factor", "scale_factor_asymmetry"}};
-    if (!wider.count(c->cause)) return c;
-    GyroCandidate* w = find(wider.at(c->cause));
-    if (w && w->applicable && w->significant && w->dof > c->dof &&
-        ChiSquaredSurvival(w->statistic - c->statistic, w->dof - c->dof) < o.alpha) {
-      return w;
-    }
-    return c;
-  };
+  auto upgrade = [&](GyroCandidate* c) { return Upgrade(c, &res.candidates, o.alpha); };
+
 
   // 5. Gates, in BIC order: the first candidate whose parameters lie within the physical bounds and
   // whose held-out improvement is significant is named.
