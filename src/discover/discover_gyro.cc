@@ -1729,6 +1729,35 @@ GyroCandidate* Upgrade(GyroCandidate* c, std::vector<GyroCandidate>* candidates,
   return c;
 }
 
+// 6. The chosen cause's report (or the base's), and the residual e_fit of its model with its noise model
+// (the walk's for rate_random_walk).
+void ReportChosen(const Design& d, const GyroDiscoverOptions& o, const GyroCandidate* chosen,
+                  const Evaluation& chosen_ev, const std::vector<NoiseModel>& nm,
+                  const std::vector<NoiseModel>& nm_walk, const std::map<std::string, Fitted>& fits,
+                  GyroDiscovery* res, VectorXd* e_fit, std::vector<NoiseModel>* noise_fit) {
+  if (!chosen) {
+    res->cause = "none";
+    const CvResult cv = CrossValidate(d, nm, d.base, o.cv_blocks);
+    res->rms_before_dph = res->rms_after_dph = cv.rms_before;
+    res->gain = 1;
+  } else {
+    res->cause = chosen->cause;
+    res->parameters = chosen_ev.parameters;
+    res->sigmas = chosen_ev.sigmas;
+    res->parameters.erase("swing_ratio");
+    res->rms_before_dph = chosen_ev.cv.rms_before;
+    res->rms_after_dph = chosen_ev.cv.rms_after;
+    res->gain = chosen->gain;
+    res->gain_z = chosen->gain_z;
+    if (chosen->cause == "rate_random_walk") {
+      *noise_fit = nm_walk;  // the walk is in the noise model: its innovations are the residual
+    } else {
+      const Fitted& ft = fits.at(Key(*chosen));
+      *e_fit = d.y - ft.x * ft.gls.beta;
+    }
+  }
+}
+
 }  // namespace
 
 GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDiscoverOptions& o) {
@@ -1870,27 +1899,7 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
   // 6. The residual of the chosen model (or of the base) against its noise model.
   VectorXd e_fit = d.y - d.base * base.beta;
   std::vector<NoiseModel> noise_fit = nm;
-  if (!chosen) {
-    res.cause = "none";
-    const CvResult cv = CrossValidate(d, nm, d.base, o.cv_blocks);
-    res.rms_before_dph = res.rms_after_dph = cv.rms_before;
-    res.gain = 1;
-  } else {
-    res.cause = chosen->cause;
-    res.parameters = chosen_ev.parameters;
-    res.sigmas = chosen_ev.sigmas;
-    res.parameters.erase("swing_ratio");
-    res.rms_before_dph = chosen_ev.cv.rms_before;
-    res.rms_after_dph = chosen_ev.cv.rms_after;
-    res.gain = chosen->gain;
-    res.gain_z = chosen->gain_z;
-    if (chosen->cause == "rate_random_walk") {
-      noise_fit = nm_walk;  // the walk is in the noise model: its innovations are the residual
-    } else {
-      const Fitted& ft = fits[Key(*chosen)];
-      e_fit = d.y - ft.x * ft.gls.beta;
-    }
-  }
+  ReportChosen(d, o, chosen, chosen_ev, nm, nm_walk, fits, &res, &e_fit, &noise_fit);
   if (!chosen || chosen->cause != "rate_random_walk") {
     // The noise model of this model's residual: the full model's one was fitted without the terms of
     // every candidate (and the best noise sinusoid), so it misses part of the wander left here.
