@@ -1758,6 +1758,33 @@ void ReportChosen(const Design& d, const GyroDiscoverOptions& o, const GyroCandi
   }
 }
 
+// Logs long enough to tell a random walk of the bias from the bounded wander.
+std::vector<int> WalkLogs(const Design& d, const GyroDiscoverOptions& o) {
+  std::vector<int> walk_logs;
+  for (int r = 0; r < static_cast<int>(d.bins.size()); ++r) {
+    if (d.bins[r].t_s.back() - d.bins[r].t_s.front() + d.bins[r].bin_s >= o.rrw_min_log_s) walk_logs.push_back(r);
+  }
+  return walk_logs;
+}
+
+// Step 4: the significant candidates ordered by the smallest BIC of the exact likelihood (noise
+// model refitted by maximum likelihood on each log's residual), so that a deterministic cause and a
+// random walk, or a step and a walk, compete on the same footing. Sets each one's bic.
+std::vector<GyroCandidate*> BicOrder(const Design& d, const GyroDiscoverOptions& o, const std::vector<NoiseModel>& nm,
+                                     const std::vector<int>& walk_logs, double walk_nll,
+                                     const std::map<std::string, double>& position_cost,
+                                     std::map<std::string, Fitted>* fits, std::vector<GyroCandidate>* candidates) {
+  std::vector<GyroCandidate*> order;
+  for (auto& c : *candidates) {
+    if (!c.applicable || !c.significant) continue;
+    const double bic = CandidateBic(d, o, nm, c, walk_logs, walk_nll, fits, position_cost);
+    c.bic = bic;
+    order.push_back(&c);
+  }
+  std::sort(order.begin(), order.end(), [](const GyroCandidate* a, const GyroCandidate* b) { return a->bic < b->bic; });
+  return order;
+}
+
 }  // namespace
 
 GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDiscoverOptions& o) {
@@ -1825,15 +1852,10 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
       {"scale_factor_asymmetry", "", {kScale, kAbsRef}, {kScale, kAbsRef}},
       {"time_delay", "", {kDelay}, {kDelay}},
   };
-  auto spec_cols = [&](const CandidateSpec& sp) { return SpecColumns(sp, usable); };
-  // Logs long enough to tell a random walk of the bias from the bounded wander.
-  std::vector<int> walk_logs;
-  for (int r = 0; r < l; ++r) {
-    if (d.bins[r].t_s.back() - d.bins[r].t_s.front() + d.bins[r].bin_s >= o.rrw_min_log_s) walk_logs.push_back(r);
-  }
+  const std::vector<int> walk_logs = WalkLogs(d, o);
   const bool step_ok = best_step.size() == d.n, periodic_ok = best_sin.size() == d.n;
   int tested = step_ok + periodic_ok + !walk_logs.empty();
-  for (const auto& s : specs) tested += !spec_cols(s).empty();
+  for (const auto& s : specs) tested += !SpecColumns(s, usable).empty();
   const double alpha_each = o.alpha / std::max(tested, 1);
   res.alpha_per_candidate = alpha_each;
   std::map<std::string, Fitted> fits;
@@ -1851,22 +1873,12 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
   const double walk_lnq_sigma = walk.lnq_sigma, walk_nll = walk.nll;
   const int walk_log = walk.log;
   res.candidates.push_back(walk.candidate);
-  // 4. Order of the significant candidates: the smallest BIC of the exact likelihood (noise model
-  // refitted by maximum likelihood on each log's residual), so that a deterministic cause and a
-  // random walk, or a step and a walk, compete on the same footing.
-  std::vector<GyroCandidate*> order;
-  for (auto& c : res.candidates) {
-    if (!c.applicable || !c.significant) continue;
-    const double bic = CandidateBic(d, o, nm, c, walk_logs, walk_nll, &fits, position_cost);
-    c.bic = bic;
-    order.push_back(&c);
-  }
-  std::sort(order.begin(), order.end(), [](const GyroCandidate* a, const GyroCandidate* b) { return a->bic < b->bic; });
+  // 4. Order of the significant candidates (BicOrder).
+  const std::vector<GyroCandidate*> order = BicOrder(d, o, nm, walk_logs, walk_nll, position_cost, &fits, &res.candidates);
   // Nested pairs: misalignment is a harmonic of fixed phase inside magnetic_field, scale_factor is
   // scale_factor_asymmetry with equal scale factors for both signs. The larger model is taken when
   // its extra terms are themselves significant (chi^2 of the difference, a follow-up test at alpha).
   auto upgrade = [&](GyroCandidate* c) { return Upgrade(c, &res.candidates, o.alpha); };
-
 
   // 5. Gates, in BIC order: the first candidate whose parameters lie within the physical bounds and
   // whose held-out improvement is significant is named.
