@@ -30,7 +30,8 @@ void BM_TrackerView1024(benchmark::State& state) {
   const ssiu::Mask& m = OrionMask();
   uint64_t seed = 1;
   for (auto _ : state) {
-    ssiu::Image16 img = ssiu::RenderTrackerView(m, ssiu::PlatePose{}, ssiu::Quat::Identity(), ssiu::TrackerViewOptions{}, seed++);
+    ssiu::Image16 img =
+        ssiu::RenderTrackerView(m, ssiu::PlatePose{}, ssiu::Quat::Identity(), ssiu::TrackerViewOptions{}, seed++);
     benchmark::DoNotOptimize(img.pixels.data());
   }
 }

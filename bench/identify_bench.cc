@@ -95,7 +95,8 @@ void RunLostInSpace(benchmark::State& state, Fixture& f) {
     const double roll_limit = std::max(60.0, 5 * r.attitude.sigma_roll_rad * kRadToArcsec);
     if (r.status == "solved" && (e.cross_rad * kRadToArcsec > 60 || std::abs(e.roll_rad) * kRadToArcsec > roll_limit)) {
       ++wrong;
-      std::fprintf(stderr, "WRONG (%.1f deg): frame %zu (seed %zu) cross %.1f, roll %.1f arcsec, %zu matches, chance %.2g\n",
+      std::fprintf(stderr,
+                   "WRONG (%.1f deg): frame %zu (seed %zu) cross %.1f, roll %.1f arcsec, %zu matches, chance %.2g\n",
                    f.cam.FovXRad() * kRadToDeg, k, 777 + k, e.cross_rad * kRadToArcsec, e.roll_rad * kRadToArcsec,
                    r.identification.matches.size(), r.identification.false_match_probability);
     }
@@ -136,7 +137,6 @@ void BM_LostInSpaceNarrow8Deg(benchmark::State& state) {
   RunLostInSpace(state, f);
 }
 BENCHMARK(BM_LostInSpaceNarrow8Deg)->Iterations(400)->Unit(benchmark::kMillisecond);
-
 
 // Kelvins-style scenes (issue 14): 10 x 7.5 deg, 1920 x 1440 px, BSC stars to V 6, 20 microradian
 // centroid noise (with its sigma), 0-80 false objects as bright as the stars; default options but
@@ -233,7 +233,8 @@ void BM_TrackingUpdate(benchmark::State& state) {
   const auto& c = f.frames[0];
   const Identification lis = f.id->Identify(c, f.cam, so.identify);
   for (auto _ : state) {
-    const Identification r = f.id->MatchWithAttitude(c, f.cam, lis.q_inertial_from_sensor, so.track_search_radius_px, so.identify);
+    const Identification r =
+        f.id->MatchWithAttitude(c, f.cam, lis.q_inertial_from_sensor, so.track_search_radius_px, so.identify);
     benchmark::DoNotOptimize(SolveAttitude(r));
   }
 }

@@ -1,15 +1,15 @@
 // Whole frame to quaternion: read a 1024x1024 16-bit frame, detect, identify, QUEST (simulated
 // frames at random attitudes, 16.6 deg FOV). Argument 0: PNG (zlib inflate dominates the read);
-// argument 1: FITS (uncompressed, as a frame grabber or the unit's processor would hand it over). Counters split the CPU time into the read (PNG
-// decode) and the solve (detect + identify + QUEST), and give the detection alone with the
+// argument 1: FITS (uncompressed, as a frame grabber or the unit's processor would hand it over). Counters split the
+// CPU time into the read (PNG decode) and the solve (detect + identify + QUEST), and give the detection alone with the
 // solver's options, measured on the same frames after the timed loop.
 //   taskset -c 1 build/bench/solve_bench --benchmark_filter=FrameToQuaternion
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
 #include <chrono>
-#include <ctime>
 #include <cstdio>
+#include <ctime>
 #include <memory>
 #include <string>
 #include <vector>

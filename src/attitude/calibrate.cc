@@ -70,7 +70,8 @@ void Solve(const std::vector<Obs>& obs, const CamMask& mask, int n_frames, Fit* 
   for (int k = 0; k < kCam; ++k)
     if (mask[k]) fi.push_back(k);
   const int nc = static_cast<int>(fi.size()), n = nc + 3 * n_frames;
-  const std::array<double, kCam> step = {1e-4 * f->cam.focal_length_px, 1e-4 * f->cam.FocalYPx(), 1e-3, 1e-3, 1e-6, 1e-6, 1e-6, 1e-6};
+  const std::array<double, kCam> step = {
+      1e-4 * f->cam.focal_length_px, 1e-4 * f->cam.FocalYPx(), 1e-3, 1e-3, 1e-6, 1e-6, 1e-6, 1e-6};
   auto cost = [&](const Camera& cam, const std::vector<Mat3>& rot) {
     double c = 0;
     for (size_t i = 0; i < obs.size(); ++i) {
@@ -189,7 +190,8 @@ Fit FitAll(const Camera& cam0, const std::vector<Mat3>& rot0, const std::vector<
     int dropped = 0;
     for (size_t i = 0; i < obs.size(); ++i) {
       Vec2 r;
-      const bool ok = Residual(f.cam, f.rot[obs[i].frame], obs[i], &r) && r.norm() / obs[i].sigma_px <= outlier_sigmas * scale;
+      const bool ok =
+          Residual(f.cam, f.rot[obs[i].frame], obs[i], &r) && r.norm() / obs[i].sigma_px <= outlier_sigmas * scale;
       if (f.used[i] && !ok) ++dropped;
       f.used[i] = ok;
     }
@@ -225,8 +227,9 @@ SolvedSet SolveAll(const StarIdentifier& id, const std::vector<CalibrationFrame>
 }
 
 // The matches of the solved frames as observations; rot0 their attitudes.
-std::vector<Obs> Observations(const std::vector<CalibrationFrame>& frames, const SolvedSet& s, const CalibrateOptions& o,
-                              const std::vector<char>& include, std::vector<int>* fit_frame, std::vector<Mat3>* rot0) {
+std::vector<Obs> Observations(const std::vector<CalibrationFrame>& frames, const SolvedSet& s,
+                              const CalibrateOptions& o, const std::vector<char>& include, std::vector<int>* fit_frame,
+                              std::vector<Mat3>* rot0) {
   std::vector<Obs> obs;
   fit_frame->clear();
   rot0->clear();
@@ -266,7 +269,8 @@ Fit SelectAndFit(const Camera& cam0, const std::vector<Mat3>& rot0, const std::v
   const double spp = std::max(SigmaOf(f, 2), SigmaOf(f, 3));
   if (!(spp <= o.max_principal_point_sigma_px)) {
     std::snprintf(buf, sizeof buf,
-                  "principal_point: sigma %.3g px > %.3g px (degenerate with the frames' attitudes for this field); held at the guess",
+                  "principal_point: sigma %.3g px > %.3g px (degenerate with the frames' attitudes for this field); "
+                  "held at the guess",
                   spp, o.max_principal_point_sigma_px);
     unobservable->push_back(buf);
     hold({2, 3});
@@ -275,7 +279,8 @@ Fit SelectAndFit(const Camera& cam0, const std::vector<Mat3>& rot0, const std::v
   for (int k : {0, 1}) {
     const double s = SigmaOf(f, k) / CamVector(f.cam)[k] * 100;
     if (!(s <= o.max_focal_sigma_pct)) {
-      std::snprintf(buf, sizeof buf, "%s: sigma %.3g %% > %.3g %%; held at the guess", kNames[k], s, o.max_focal_sigma_pct);
+      std::snprintf(buf, sizeof buf, "%s: sigma %.3g %% > %.3g %%; held at the guess", kNames[k], s,
+                    o.max_focal_sigma_pct);
       unobservable->push_back(buf);
       hold({k});
       f = FitAll(f.cam, f.rot, obs, mask, n_frames, o.outlier_sigmas);
@@ -375,7 +380,8 @@ CameraCalibration CalibrateCamera(const StarIdentifier& id, const std::vector<Ca
     if (s.solved < 2 || static_cast<int>(obs.size()) < 3 * kCam) break;
     out.unobservable.clear();
     out.dropped.clear();
-    fit = SelectAndFit(out.guess, rot0, obs, static_cast<int>(fit_frame.size()), o, &out.unobservable, &out.dropped, &mask);
+    fit = SelectAndFit(out.guess, rot0, obs, static_cast<int>(fit_frame.size()), o, &out.unobservable, &out.dropped,
+                       &mask);
     cam = fit.cam;
     fitted = true;
   }
@@ -412,7 +418,8 @@ CameraCalibration CalibrateCamera(const StarIdentifier& id, const std::vector<Ca
   // Held-out frames: the camera fitted without them, their attitudes fitted alone with it and with the guess.
   if (o.holdout_every >= 2 && fit_frame.size() >= static_cast<size_t>(2 * o.holdout_every)) {
     std::vector<char> train(nf, 0), test(nf, 0);
-    for (size_t k = 0; k < fit_frame.size(); ++k) (k % o.holdout_every == static_cast<size_t>(o.holdout_every - 1) ? test : train)[fit_frame[k]] = 1;
+    for (size_t k = 0; k < fit_frame.size(); ++k)
+      (k % o.holdout_every == static_cast<size_t>(o.holdout_every - 1) ? test : train)[fit_frame[k]] = 1;
     std::vector<int> tf;
     std::vector<Mat3> tr;
     const std::vector<Obs> tobs = Observations(frames, s, o, train, &tf, &tr);
@@ -471,8 +478,8 @@ CameraCalibration CalibrateCamera(const StarIdentifier& id, const std::vector<Ca
     out.frames.push_back(cf);
   }
   char buf[200];
-  std::snprintf(buf, sizeof buf, "%d of %d frames solved with the fitted camera; %d stars, RMS %.3f px", out.frames_solved, nf,
-                out.stars_used, out.rms_px);
+  std::snprintf(buf, sizeof buf, "%d of %d frames solved with the fitted camera; %d stars, RMS %.3f px",
+                out.frames_solved, nf, out.stars_used, out.rms_px);
   out.message = buf;
   return out;
 }
@@ -540,7 +547,8 @@ HeadAlignment AlignHeads(const std::vector<std::vector<AttitudeSolution>>& att, 
     std::vector<Mat3> cov;
     for (const auto& e : att) {
       if (static_cast<int>(e.size()) != nh || e[0].status != "solved" || e[h].status != "solved") continue;
-      const Mat3 r1 = e[0].q_inertial_from_sensor.toRotationMatrix(), rh = e[h].q_inertial_from_sensor.toRotationMatrix();
+      const Mat3 r1 = e[0].q_inertial_from_sensor.toRotationMatrix(),
+                 rh = e[h].q_inertial_from_sensor.toRotationMatrix();
       const Mat3 a = rh.transpose() * r1;
       est.push_back(m1 * r1.transpose() * rh);
       cov.push_back(e[h].covariance_rad2 + a * e[0].covariance_rad2 * a.transpose());

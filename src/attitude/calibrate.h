@@ -23,12 +23,12 @@ struct CalibrateOptions {
   // Focal length of the guess known to +/- this percent (the frames are solved with this tolerance
   // until the first fit; later rounds use 1 %).
   double fov_tolerance_pct = 5.0;
-  int rounds = 3;                    // solve-and-fit rounds
+  int rounds = 3;  // solve-and-fit rounds
   // k1, k2, p1, p2 kept when |value| > this x its sigma; the principal point when it is this many
   // sigmas off the guess's (else held at the guess).
   double significance_sigmas = 3.0;
-  double outlier_sigmas = 5.0;       // matches further than this (x the fit's scatter) are left out
-  int holdout_every = 4;             // every n-th frame is held out for the before/after residuals; 0 = none
+  double outlier_sigmas = 5.0;  // matches further than this (x the fit's scatter) are left out
+  int holdout_every = 4;        // every n-th frame is held out for the before/after residuals; 0 = none
   // A parameter whose sigma exceeds these is reported unobservable and held at the guess (e.g. the
   // principal point of a narrow field, degenerate with the frames' attitudes).
   double max_principal_point_sigma_px = 10.0;
@@ -48,11 +48,11 @@ struct CalibrationFrame {
 
 struct CalibratedFrame {
   std::string name;
-  std::string status;          // the solve's status with the fitted camera
+  std::string status;  // the solve's status with the fitted camera
   Quat q_inertial_from_sensor = Quat::Identity();
   Mat3 covariance_rad2 = Mat3::Zero();
   int matches = 0;
-  double rms_px = 0;           // fit residual RMS (per axis) of this frame's matches
+  double rms_px = 0;  // fit residual RMS (per axis) of this frame's matches
   bool held_out = false;
 };
 
@@ -64,11 +64,11 @@ struct CameraCalibration {
   // Fitted parameters, in covariance order: fx_px, fy_px, cx_px, cy_px, k1, k2, p1, p2 (those fitted).
   std::vector<std::string> parameters;
   std::map<std::string, double> value, sigma;
-  Eigen::MatrixXd covariance;  // of `parameters`, scaled by the fit's reduced chi-square when > 1
+  Eigen::MatrixXd covariance;             // of `parameters`, scaled by the fit's reduced chi-square when > 1
   std::vector<std::string> unobservable;  // "name: why"
   std::vector<std::string> dropped;       // distortion terms (and principal point) left out as not significant
   int frames_solved = 0, stars_used = 0;
-  double rms_px = 0;              // all frames, fitted camera (per axis)
+  double rms_px = 0;  // all frames, fitted camera (per axis)
   double reduced_chi2 = 0;
   int held_out_frames = 0;
   double held_out_rms_before_px = 0;  // held-out frames, guess camera (attitude fitted per frame)
@@ -88,7 +88,7 @@ struct HeadAlignment {
   std::vector<Quat> q_body_sensor;
   std::vector<Mat3> covariance_rad2;  // of the mount's small rotation, in that head's sensor axes
   std::vector<int> epochs_used;
-  std::vector<double> chi2_per_dof;   // scatter of the epochs about the mean vs their covariance
+  std::vector<double> chi2_per_dof;  // scatter of the epochs about the mean vs their covariance
 };
 HeadAlignment AlignHeads(const std::vector<std::vector<AttitudeSolution>>& attitudes, const std::vector<Quat>& mounts);
 

@@ -1,8 +1,7 @@
 #include "attitude/overlay.h"
 
-#include <opencv2/imgproc.hpp>
-
 #include <algorithm>
+#include <opencv2/imgproc.hpp>
 #include <set>
 #include <vector>
 
@@ -11,15 +10,16 @@
 
 namespace ssiu {
 
-void WriteSolveOverlay(const std::string& path, const ImageView& image, const Camera& camera,
-                       const StarIdentifier& id, const SolveResult& r) {
+void WriteSolveOverlay(const std::string& path, const ImageView& image, const Camera& camera, const StarIdentifier& id,
+                       const SolveResult& r) {
   // Stretch: median background to 1st..99.8th percentile of the pixel values.
   std::vector<uint16_t> v;
   v.reserve(static_cast<size_t>(image.width) * image.height / 16 + 1);
   for (int y = 0; y < image.height; y += 4)
     for (int x = 0; x < image.width; x += 4) v.push_back(image.at(x, y));
   std::sort(v.begin(), v.end());
-  const double lo = v.empty() ? 0 : v[v.size() / 100], hi = v.empty() ? 1 : std::max<double>(v[v.size() * 998 / 1000], lo + 1);
+  const double lo = v.empty() ? 0 : v[v.size() / 100],
+               hi = v.empty() ? 1 : std::max<double>(v[v.size() * 998 / 1000], lo + 1);
   cv::Mat img(image.height, image.width, CV_8UC3);
   for (int y = 0; y < image.height; ++y)
     for (int x = 0; x < image.width; ++x) {
@@ -27,11 +27,14 @@ void WriteSolveOverlay(const std::string& path, const ImageView& image, const Ca
       img.at<cv::Vec3b>(y, x) = {g, g, g};
     }
   const cv::Scalar green(0, 220, 0), yellow(0, 220, 220), red(0, 0, 255), blue(255, 128, 0);
-  auto pt = [](double x, double y) { return cv::Point(static_cast<int>(std::lround(x)), static_cast<int>(std::lround(y))); };
+  auto pt = [](double x, double y) {
+    return cv::Point(static_cast<int>(std::lround(x)), static_cast<int>(std::lround(y)));
+  };
   std::set<int> matched;
   for (const auto& m : r.identification.matches) matched.insert(m.centroid);
   for (size_t i = 0; i < r.centroids.size(); ++i)
-    if (!matched.count(static_cast<int>(i))) cv::circle(img, pt(r.centroids[i].x_px, r.centroids[i].y_px), 7, yellow, 1);
+    if (!matched.count(static_cast<int>(i)))
+      cv::circle(img, pt(r.centroids[i].x_px, r.centroids[i].y_px), 7, yellow, 1);
   for (const auto& rj : r.detections.rejected) {
     const cv::Point p = pt(rj.x_px, rj.y_px);
     cv::drawMarker(img, p, red, cv::MARKER_TILTED_CROSS, 10, 1);
@@ -55,7 +58,8 @@ void WriteSolveOverlay(const std::string& path, const ImageView& image, const Ca
   }
   const std::string title = r.status + "  " + r.message;
   cv::putText(img, title, cv::Point(10, 24), cv::FONT_HERSHEY_SIMPLEX, 0.6, r.status == "solved" ? green : red, 2);
-  cv::putText(img, "green: matched (star_id)  yellow: unmatched detection  blue: predicted, not detected  red: rejected",
+  cv::putText(img,
+              "green: matched (star_id)  yellow: unmatched detection  blue: predicted, not detected  red: rejected",
               cv::Point(10, image.height - 12), cv::FONT_HERSHEY_PLAIN, 1.0, cv::Scalar(255, 255, 255), 1);
   WritePng(path, img);
 }

@@ -10,7 +10,7 @@
 
 namespace ssiu {
 
-void WriteSolveOverlay(const std::string& path, const ImageView& image, const Camera& camera,
-                       const StarIdentifier& id, const SolveResult& result);
+void WriteSolveOverlay(const std::string& path, const ImageView& image, const Camera& camera, const StarIdentifier& id,
+                       const SolveResult& result);
 
 }  // namespace ssiu

@@ -140,7 +140,8 @@ AttitudeSolution SolveQuest(const std::vector<WahbaObservation>& obs) {
   out.q_inertial_from_sensor = FromSensorToInertial(a);
   out.covariance_rad2 = QuestCovariance(obs);
   SetSigmas(&out);
-  for (const auto& o : obs) out.loss += 0.5 * (o.b_sensor - a * o.r_inertial).squaredNorm() / (o.sigma_rad * o.sigma_rad);
+  for (const auto& o : obs)
+    out.loss += 0.5 * (o.b_sensor - a * o.r_inertial).squaredNorm() / (o.sigma_rad * o.sigma_rad);
   return out;
 }
 
@@ -183,12 +184,12 @@ void MultiHeadOptions::Check() const {
     throw InputError("multi-head options", "mount_tolerance_arcsec must be in [0, 36000)");
 }
 
-MultiHeadSolution SolveMultiHeadChecked(const std::vector<Identification>& heads, const std::vector<Quat>& q_body_from_sensor,
-                                        const MultiHeadOptions& o) {
+MultiHeadSolution SolveMultiHeadChecked(const std::vector<Identification>& heads,
+                                        const std::vector<Quat>& q_body_from_sensor, const MultiHeadOptions& o) {
   o.Check();
   if (heads.size() != q_body_from_sensor.size())
-    throw InputError("multi-head", std::to_string(heads.size()) + " heads but " + std::to_string(q_body_from_sensor.size()) +
-                                       " mounts");
+    throw InputError("multi-head", std::to_string(heads.size()) + " heads but " +
+                                       std::to_string(q_body_from_sensor.size()) + " mounts");
   const size_t n = heads.size();
   MultiHeadSolution out;
   out.head_status.resize(n);
@@ -277,8 +278,10 @@ MultiHeadSolution SolveMultiHeadChecked(const std::vector<Identification>& heads
     out.attitude.covariance_rad2 = info.inverse();
     SetSigmas(&out.attitude);
   }
-  out.message = std::to_string(used) + " of " + std::to_string(n) + " heads fused, " + std::to_string(obs.size()) + " stars";
-  if (used < ns) out.message += "; " + std::to_string(ns - used) + " solved head(s) disagree with the others (wrong solve or mount)";
+  out.message =
+      std::to_string(used) + " of " + std::to_string(n) + " heads fused, " + std::to_string(obs.size()) + " stars";
+  if (used < ns)
+    out.message += "; " + std::to_string(ns - used) + " solved head(s) disagree with the others (wrong solve or mount)";
   return out;
 }
 

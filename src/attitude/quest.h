@@ -27,9 +27,9 @@ struct AttitudeSolution {
   std::string status = "no_match";  // as the identification's status
   Quat q_inertial_from_sensor = Quat::Identity();
   Mat3 covariance_rad2 = Mat3::Zero();  // of dtheta in the sensor/body frame
-  double sigma_cross_rad = 0;  // RMS of the two cross-boresight axes' 1-sigma
-  double sigma_roll_rad = 0;   // about +Z (boresight)
-  double loss = 0;             // Wahba loss, sum (1/sigma^2)|b - A r|^2 / 2
+  double sigma_cross_rad = 0;           // RMS of the two cross-boresight axes' 1-sigma
+  double sigma_roll_rad = 0;            // about +Z (boresight)
+  double loss = 0;                      // Wahba loss, sum (1/sigma^2)|b - A r|^2 / 2
   int num_observations = 0;
 };
 
@@ -66,14 +66,16 @@ struct MultiHeadOptions {
 };
 
 struct MultiHeadSolution {
-  AttitudeSolution attitude;             // body attitude (q_inertial_from_sensor = inertial <- body), body-axis covariance
-  std::vector<std::string> head_status;  // per head: "used", "inconsistent", or its own status (no_match, too_few_stars)
+  AttitudeSolution attitude;  // body attitude (q_inertial_from_sensor = inertial <- body), body-axis covariance
+  std::vector<std::string>
+      head_status;  // per head: "used", "inconsistent", or its own status (no_match, too_few_stars)
   std::vector<Quat> q_inertial_from_body_per_head;  // each solved head's own body attitude (identity otherwise)
-  double false_match_probability = 1.0;  // of the fused heads together: sum of theirs (union bound)
+  double false_match_probability = 1.0;             // of the fused heads together: sum of theirs (union bound)
   std::string message;
 };
 
-MultiHeadSolution SolveMultiHeadChecked(const std::vector<Identification>& heads, const std::vector<Quat>& q_body_from_sensor,
+MultiHeadSolution SolveMultiHeadChecked(const std::vector<Identification>& heads,
+                                        const std::vector<Quat>& q_body_from_sensor,
                                         const MultiHeadOptions& options = {});
 // The fused attitude of SolveMultiHeadChecked with default options.
 AttitudeSolution SolveMultiHead(const std::vector<Identification>& heads, const std::vector<Quat>& q_body_from_sensor);

@@ -66,8 +66,8 @@ StarIdentifier MakeIdentifierForCamera(const std::string& dir, const Camera& cam
   return StarIdentifier(LoadOrBuildCatalogIn(dir, src, b, /*rebuild_damaged=*/false));
 }
 
-StarIdentifier MakeIdentifierForFovRange(const std::string& dir, const Camera& cam, double fov_min_deg, double fov_max_deg,
-                                         double mag_max, const std::string& source) {
+StarIdentifier MakeIdentifierForFovRange(const std::string& dir, const Camera& cam, double fov_min_deg,
+                                         double fov_max_deg, double mag_max, const std::string& source) {
   CatalogBuildOptions b;
   // Horizontal FOVs; a sensor taller than wide needs the vertical one (square pixels assumed here).
   b.fov_deg = std::ceil(fov_max_deg * std::max(1.0, static_cast<double>(cam.height) / cam.width) * 10) / 10;
@@ -137,7 +137,8 @@ SolveResult SolveFrame(const StarIdentifier& id, const ImageView& image, const C
   options.Check();
   if (image.width != camera.width || image.height != camera.height) {
     throw InputError("camera", "image is " + std::to_string(image.width) + "x" + std::to_string(image.height) +
-                                   " but the camera is " + std::to_string(camera.width) + "x" + std::to_string(camera.height));
+                                   " but the camera is " + std::to_string(camera.width) + "x" +
+                                   std::to_string(camera.height));
   }
   const auto t0 = Clock::now();
   DetectOptions dopt = options.detect;
@@ -171,7 +172,8 @@ Json SolveResultToJson(const SolveResult& r) {
   j["sigma_roll_arcsec"] = NumOrNull(ok ? r.attitude.sigma_roll_rad * kRadToArcsec : nan);
   j["focal_length_px"] = NumOrNull(r.identification.focal_length_px);
   j["focal_length_y_px"] = NumOrNull(r.identification.focal_length_y_px);
-  j["focal_length_sigma_px"] = NumOrNull(ok && r.identification.focal_length_fitted ? r.identification.focal_length_sigma_px : nan);
+  j["focal_length_sigma_px"] =
+      NumOrNull(ok && r.identification.focal_length_fitted ? r.identification.focal_length_sigma_px : nan);
   j["outliers_rejected"] = r.identification.outliers_rejected;
   j["false_match_probability"] = r.identification.false_match_probability;
   j["photometric_factor"] = r.identification.photometric_factor;
@@ -180,7 +182,11 @@ Json SolveResultToJson(const SolveResult& r) {
     for (const auto& s : r.identification.matches) {
       const Vec3 pred = r.attitude.q_inertial_from_sensor.conjugate() * s.r_inertial;
       const double res = std::atan2(pred.cross(s.b_sensor).norm(), pred.dot(s.b_sensor));
-      m.push_back({{"x_px", s.x_px}, {"y_px", s.y_px}, {"star_id", s.star_id}, {"mag", s.mag}, {"residual_arcsec", res * kRadToArcsec}});
+      m.push_back({{"x_px", s.x_px},
+                   {"y_px", s.y_px},
+                   {"star_id", s.star_id},
+                   {"mag", s.mag},
+                   {"residual_arcsec", res * kRadToArcsec}});
     }
   }
   j["matches"] = m;
@@ -306,7 +312,8 @@ std::string TanWcsHeader(const Quat& q, const Camera& cam) {
     const int n = 40;
     for (int i = 0; i <= n; ++i) {
       for (int k = 0; k <= n; ++k) {
-        const double x = -0.5 + (cam.width * 1.04) * (i / double(n) - 0.02), y = -0.5 + (cam.height * 1.04) * (k / double(n) - 0.02);
+        const double x = -0.5 + (cam.width * 1.04) * (i / double(n) - 0.02),
+                     y = -0.5 + (cam.height * 1.04) * (k / double(n) - 0.02);
         const Vec3 d = cam.Unproject(Vec2(x, y));
         dist.push_back(Vec2(x - cam.cx_px, y - cam.cy_px));
         pin.push_back(Vec2(cam.focal_length_px * d.x() / d.z(), cam.FocalYPx() * d.y() / d.z()));
@@ -315,9 +322,11 @@ std::string TanWcsHeader(const Quat& q, const Camera& cam) {
     const double scale = 0.5 * std::max(cam.width, cam.height);
     auto write = [&](const SipFit& f, const std::string& a, const std::string& b, const char* what) {
       card(a + "_ORDER", std::to_string(f.order), what);
-      for (const auto& t : f.a) card(a + "_" + std::to_string(int(t[0])) + "_" + std::to_string(int(t[1])), num(t[2]), "");
+      for (const auto& t : f.a)
+        card(a + "_" + std::to_string(int(t[0])) + "_" + std::to_string(int(t[1])), num(t[2]), "");
       card(b + "_ORDER", std::to_string(f.order), what);
-      for (const auto& t : f.b) card(b + "_" + std::to_string(int(t[0])) + "_" + std::to_string(int(t[1])), num(t[2]), "");
+      for (const auto& t : f.b)
+        card(b + "_" + std::to_string(int(t[0])) + "_" + std::to_string(int(t[1])), num(t[2]), "");
     };
     write(FitSip(dist, pin, 2, scale), "A", "B", "SIP: distorted -> pinhole pixel offsets");
     write(FitSip(pin, dist, 1, scale), "AP", "BP", "SIP inverse: pinhole -> distorted");
@@ -341,7 +350,8 @@ SolveResult Tracker::Update(const std::vector<Centroid>& centroids, double t_s) 
       const Vec3 th = w_sensor_rad_s_ * dt;
       if (th.norm() > 0) q_pred = q_last_ * Quat(Eigen::AngleAxisd(th.norm(), th.normalized()));
     }
-    r.identification = id_.MatchWithAttitude(centroids, camera_, q_pred, options_.track_search_radius_px, options_.identify);
+    r.identification =
+        id_.MatchWithAttitude(centroids, camera_, q_pred, options_.track_search_radius_px, options_.identify);
     r.mode = "tracking";
   }
   if (!locked_ || r.identification.status != "solved") {

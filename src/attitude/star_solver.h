@@ -44,7 +44,7 @@ struct SolveOptions {
   // Identification itself does not need them (the field's differential aberration is < 4 arcsec).
   // Tracker::Update and the unit processor take sky.time as the time of t_s = 0.
   SkyCorrections sky;
-  void Check() const;                    // throws InputError naming the field
+  void Check() const;  // throws InputError naming the field
 };
 
 struct SolveResult {

@@ -59,7 +59,10 @@ double NormalQuantile(double p) {
   double lo = -40, hi = 40;
   for (int i = 0; i < 200; ++i) {
     const double mid = 0.5 * (lo + hi);
-    if (0.5 * std::erfc(-mid / std::sqrt(2.0)) < p) lo = mid; else hi = mid;
+    if (0.5 * std::erfc(-mid / std::sqrt(2.0)) < p)
+      lo = mid;
+    else
+      hi = mid;
   }
   return 0.5 * (lo + hi);
 }
@@ -68,10 +71,14 @@ double NormalQuantile(double p) {
 
 const char* AllanNoiseName(AllanNoise noise) {
   switch (noise) {
-    case AllanNoise::kQuantization: return "quantization";
-    case AllanNoise::kWhiteRate: return "white_rate";
-    case AllanNoise::kFlickerRate: return "flicker_rate";
-    case AllanNoise::kRandomWalkRate: return "random_walk_rate";
+    case AllanNoise::kQuantization:
+      return "quantization";
+    case AllanNoise::kWhiteRate:
+      return "white_rate";
+    case AllanNoise::kFlickerRate:
+      return "flicker_rate";
+    case AllanNoise::kRandomWalkRate:
+      return "random_walk_rate";
   }
   return "unknown";
 }
@@ -110,7 +117,10 @@ double ChiSquaredQuantile(double p, double dof) {
   double lo = std::log(1e-300), hi = std::log(dof + 200 * std::sqrt(dof) + 1000);
   for (int i = 0; i < 200; ++i) {
     const double mid = 0.5 * (lo + hi);
-    if (RegularizedGammaP(0.5 * dof, 0.5 * std::exp(mid)) < p) lo = mid; else hi = mid;
+    if (RegularizedGammaP(0.5 * dof, 0.5 * std::exp(mid)) < p)
+      lo = mid;
+    else
+      hi = mid;
     if (hi - lo < 1e-13) break;
   }
   return std::exp(0.5 * (lo + hi));
@@ -154,7 +164,7 @@ std::vector<AllanNoise> IdentifyNoiseBySlope(const std::vector<double>& tau, con
     if (a == b) continue;
     if (!(adev[a] > 0) || !(adev[b] > 0)) continue;
     const double mu = 2 * std::log(adev[b] / adev[a]) / std::log(tau[b] / tau[a]);
-    out[i] = mu < -1.5 ? AllanNoise::kQuantization
+    out[i] = mu < -1.5   ? AllanNoise::kQuantization
              : mu < -0.5 ? AllanNoise::kWhiteRate
              : mu < 0.5  ? AllanNoise::kFlickerRate
                          : AllanNoise::kRandomWalkRate;
@@ -180,7 +190,7 @@ AllanCurve OverlappingAllanDeviation(const std::vector<double>& rate, double fs,
   const size_t n = rate.size();
   if (n < options.min_samples) {
     throw InputError("too few samples for an Allan deviation: " + std::to_string(n) + " < " +
-                                std::to_string(options.min_samples));
+                     std::to_string(options.min_samples));
   }
   const double tau0 = 1 / fs;
   // Phase (integrated rate) of the mean-removed rate: the mean does not change the Allan variance and
@@ -201,7 +211,8 @@ AllanCurve OverlappingAllanDeviation(const std::vector<double>& rate, double fs,
   std::vector<size_t> ms;
   const size_t m_max = (n - 1) / 2;
   for (int k = 0;; ++k) {
-    const size_t m = static_cast<size_t>(std::llround(std::pow(10.0, static_cast<double>(k) / options.points_per_decade)));
+    const size_t m =
+        static_cast<size_t>(std::llround(std::pow(10.0, static_cast<double>(k) / options.points_per_decade)));
     if (m > m_max) break;
     if (ms.empty() || m != ms.back()) ms.push_back(m);
   }
@@ -225,7 +236,8 @@ AllanCurve OverlappingAllanDeviation(const std::vector<double>& rate, double fs,
     c.adev.push_back(std::sqrt(avar));
   }
   c.noise = IdentifyNoiseBySlope(c.tau_s, c.adev);
-  for (size_t i = 0; i < ms.size(); ++i) c.edf.push_back(ConservativeAvarEdf(c.noise[i], np, static_cast<double>(ms[i])));
+  for (size_t i = 0; i < ms.size(); ++i)
+    c.edf.push_back(ConservativeAvarEdf(c.noise[i], np, static_cast<double>(ms[i])));
   SetConfidenceIntervals(&c, options.confidence);
   return c;
 }
@@ -265,8 +277,8 @@ void FindFloor(const AllanCurve& curve, double floor_min_edf, NoiseFit* fit) {
       // 1-sigma of an ADEV point: adev / sqrt(2 edf) (delta method on the chi-squared avar).
       fit->adev_min_sigma = curve.edf[i] > 0 ? curve.adev[i] / std::sqrt(2 * curve.edf[i]) : 0;
       // Still falling there: no flat region was reached, so the floor only bounds B from above.
-      fit->adev_min_is_upper_bound =
-          i < curve.noise.size() && (curve.noise[i] == AllanNoise::kWhiteRate || curve.noise[i] == AllanNoise::kQuantization);
+      fit->adev_min_is_upper_bound = i < curve.noise.size() && (curve.noise[i] == AllanNoise::kWhiteRate ||
+                                                                curve.noise[i] == AllanNoise::kQuantization);
     }
   }
 }
@@ -274,11 +286,16 @@ void FindFloor(const AllanCurve& curve, double floor_min_edf, NoiseFit* fit) {
 // Basis of the IEEE 952 Annex C model in the squared coefficients c = (Q^2, N^2, B^2, K^2, R^2).
 double NoiseBasis(int j, double t) {
   switch (j) {
-    case 0: return 3 / (t * t);
-    case 1: return 1 / t;
-    case 2: return kFlickerFactor;
-    case 3: return t / 3;
-    default: return t * t / 2;
+    case 0:
+      return 3 / (t * t);
+    case 1:
+      return 1 / t;
+    case 2:
+      return kFlickerFactor;
+    case 3:
+      return t / 3;
+    default:
+      return t * t / 2;
   }
 }
 
@@ -425,8 +442,8 @@ NoiseFit FitNoiseTerms(const AllanCurve& curve, const NoiseFitOptions& options) 
   for (bool e : enabled) n_enabled += e;
   if (static_cast<int>(idx.size()) < n_enabled + 1) {
     fit.status = FitStatus::kTooFewPoints;
-    fit.message = "need at least " + std::to_string(n_enabled + 1) + " positive Allan points, have " +
-                  std::to_string(idx.size());
+    fit.message =
+        "need at least " + std::to_string(n_enabled + 1) + " positive Allan points, have " + std::to_string(idx.size());
     if (k > 0 && std::all_of(curve.adev.begin(), curve.adev.end(), [](double v) { return v == 0; })) {
       fit.message += " (the Allan deviation is zero at every tau: a constant signal)";
     }

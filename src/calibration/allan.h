@@ -39,9 +39,9 @@ struct AllanCurve {
   std::vector<double> adev;     // in the input rate unit
   std::vector<double> adev_lo;  // confidence interval, same unit
   std::vector<double> adev_hi;
-  std::vector<double> edf;      // equivalent degrees of freedom of each Allan variance
+  std::vector<double> edf;        // equivalent degrees of freedom of each Allan variance
   std::vector<AllanNoise> noise;  // noise type assumed for edf at each point
-  std::string edf_source;       // "formula", "file", "rel_error" or "assumed"
+  std::string edf_source;         // "formula", "file", "rel_error" or "assumed"
 };
 
 // Overlapping Allan deviation (IEEE Std 952-1997 Annex C; NIST SP 1065, overlapping ADEV) of equally spaced
@@ -73,11 +73,11 @@ double ChiSquaredSurvival(double x, double dof);
 
 // One fitted noise coefficient.
 struct NoiseTerm {
-  double value = 0;      // coefficient (units in the header comment); 0 when the fit excluded it
-  double sigma = 0;      // 1-sigma uncertainty
-  double tau_min_s = 0;  // tau range where this term carries >= `dominance` of the model variance
-  double tau_max_s = 0;  //   (both 0 when it dominates nowhere)
-  double max_fraction = 0;  // largest share of the model Allan variance this term carries on the curve
+  double value = 0;          // coefficient (units in the header comment); 0 when the fit excluded it
+  double sigma = 0;          // 1-sigma uncertainty
+  double tau_min_s = 0;      // tau range where this term carries >= `dominance` of the model variance
+  double tau_max_s = 0;      //   (both 0 when it dominates nowhere)
+  double max_fraction = 0;   // largest share of the model Allan variance this term carries on the curve
   bool significant = false;  // dominant at two or more points and value > 2 sigma
 };
 
@@ -85,13 +85,13 @@ struct NoiseFitOptions {
   bool fit_quantization = true;
   bool fit_bias_instability = true;
   bool fit_rate_ramp = true;
-  double tau_min_s = 0;     // fit only the points with tau in [tau_min_s, tau_max_s] (0 = no limit)
+  double tau_min_s = 0;  // fit only the points with tau in [tau_min_s, tau_max_s] (0 = no limit)
   double tau_max_s = 0;
-  double dominance = 0.5;   // share of the model variance for a term to "support" a tau
-  int iterations = 6;       // reweighting passes (weights from the model, not the noisy data)
+  double dominance = 0.5;     // share of the model variance for a term to "support" a tau
+  int iterations = 6;         // reweighting passes (weights from the model, not the noisy data)
   double model_error = 0.02;  // relative ADEV error floor added to each point's statistical error
   double floor_min_edf = 10;  // the curve's floor (adev_min) is sought among points with this edf
-  double term_penalty = -1; // chi-squared cost of each term in model selection; < 0 = ln(effective points)
+  double term_penalty = -1;   // chi-squared cost of each term in model selection; < 0 = ln(effective points)
   void Check() const;
 };
 
@@ -105,11 +105,11 @@ struct NoiseFit {
   NoiseTerm rate_ramp;         // R
   double chi2_per_dof = 0;     // of the final weighted fit (points treated as independent)
   size_t points_used = 0;
-  double adev_min = 0;         // floor of the curve (see floor_min_edf) and its tau: B = adev_min / 0.664
+  double adev_min = 0;  // floor of the curve (see floor_min_edf) and its tau: B = adev_min / 0.664
   double tau_at_min_s = 0;
-  double adev_min_sigma = 0;   // its 1-sigma from the point's edf
+  double adev_min_sigma = 0;             // its 1-sigma from the point's edf
   bool adev_min_is_upper_bound = false;  // the curve still falls (white noise) at its floor
-  std::vector<double> model_adev;  // the fitted model at the curve's taus
+  std::vector<double> model_adev;        // the fitted model at the curve's taus
   // The fitted model's Allan deviation at tau (IEEE 952 Annex C model without the sinusoidal term).
   double ModelAdev(double tau_s) const;
 };

@@ -9,10 +9,10 @@
 #include <set>
 #include <sstream>
 
-#include "plot/plot.h"
 #include "core/csv.h"
 #include "core/error.h"
 #include "core/types.h"
+#include "plot/plot.h"
 
 namespace ssiu {
 namespace {
@@ -124,7 +124,8 @@ int ColumnIndex(const TextTable& t, const std::string& name) {
   return -1;
 }
 
-std::vector<double> NumericColumn(const TextTable& t, int col, const std::vector<size_t>& rows, const std::string& file) {
+std::vector<double> NumericColumn(const TextTable& t, int col, const std::vector<size_t>& rows,
+                                  const std::string& file) {
   std::vector<double> out;
   out.reserve(rows.size());
   for (size_t r : rows) {
@@ -159,28 +160,38 @@ Json TermJson(const NoiseTerm& t, const std::string& unit) {
 
 const char* RateUnitName(RateUnit unit) {
   switch (unit) {
-    case RateUnit::kRadPerS: return "rad/s";
-    case RateUnit::kDegPerS: return "deg/s";
-    case RateUnit::kDegPerH: return "deg/h";
+    case RateUnit::kRadPerS:
+      return "rad/s";
+    case RateUnit::kDegPerS:
+      return "deg/s";
+    case RateUnit::kDegPerH:
+      return "deg/h";
   }
   return "?";
 }
 
 double RateUnitToRadPerS(RateUnit unit) {
   switch (unit) {
-    case RateUnit::kRadPerS: return 1.0;
-    case RateUnit::kDegPerS: return kPi / 180.0;
-    case RateUnit::kDegPerH: return kPi / 180.0 / 3600.0;
+    case RateUnit::kRadPerS:
+      return 1.0;
+    case RateUnit::kDegPerS:
+      return kPi / 180.0;
+    case RateUnit::kDegPerH:
+      return kPi / 180.0 / 3600.0;
   }
   return 1.0;
 }
 
 bool RateUnitFromName(const std::string& column, RateUnit* unit) {
   const std::string c = Lower(column);
-  if (EndsWith(c, "_dph") || EndsWith(c, "_deg_h") || EndsWith(c, "_deg_per_h")) *unit = RateUnit::kDegPerH;
-  else if (EndsWith(c, "_dps") || EndsWith(c, "_deg_s") || EndsWith(c, "_deg_per_s")) *unit = RateUnit::kDegPerS;
-  else if (EndsWith(c, "_rps") || EndsWith(c, "_rad_s") || EndsWith(c, "_rad_per_s")) *unit = RateUnit::kRadPerS;
-  else return false;
+  if (EndsWith(c, "_dph") || EndsWith(c, "_deg_h") || EndsWith(c, "_deg_per_h"))
+    *unit = RateUnit::kDegPerH;
+  else if (EndsWith(c, "_dps") || EndsWith(c, "_deg_s") || EndsWith(c, "_deg_per_s"))
+    *unit = RateUnit::kDegPerS;
+  else if (EndsWith(c, "_rps") || EndsWith(c, "_rad_s") || EndsWith(c, "_rad_per_s"))
+    *unit = RateUnit::kRadPerS;
+  else
+    return false;
   return true;
 }
 
@@ -326,7 +337,8 @@ std::vector<std::string> AdevColumnNames(const TextTable& t) {
   for (const auto& h : t.header) {
     const std::string l = Lower(h);
     if (l.rfind("adev", 0) == 0 && l.find("lci") == std::string::npos && l.find("uci") == std::string::npos &&
-        l.find("_lo") == std::string::npos && l.find("_hi") == std::string::npos && l.find("err") == std::string::npos) {
+        l.find("_lo") == std::string::npos && l.find("_hi") == std::string::npos &&
+        l.find("err") == std::string::npos) {
       adev_names.push_back(h);
     }
   }
@@ -355,8 +367,10 @@ CurveColumns ReadHeaderedColumns(const TextTable& t, const std::string& path, co
       v = std::sqrt(v);
     }
   }
-  if (ColumnIndex(t, "edf") >= 0) cc.edf = NumericColumn(t, ColumnIndex(t, "edf"), cc.rows, path);
-  else if (ColumnIndex(t, "rel_error") >= 0) cc.rel = NumericColumn(t, ColumnIndex(t, "rel_error"), cc.rows, path);
+  if (ColumnIndex(t, "edf") >= 0)
+    cc.edf = NumericColumn(t, ColumnIndex(t, "edf"), cc.rows, path);
+  else if (ColumnIndex(t, "rel_error") >= 0)
+    cc.rel = NumericColumn(t, ColumnIndex(t, "rel_error"), cc.rows, path);
   return cc;
 }
 
@@ -366,14 +380,16 @@ void CheckCurvePoints(const CurveColumns& cc, const std::string& path, const Cur
   if (tau.size() < 3) throw InputError(path, "too few Allan points (" + std::to_string(tau.size()) + ")");
   for (size_t i = 0; i < tau.size(); ++i) {
     if (!(tau[i] > 0)) {
-      throw InputError(path, "column '" + out.tau_column + "': tau must be > 0 (row " + std::to_string(cc.rows[i] + 1) + ")");
+      throw InputError(path,
+                       "column '" + out.tau_column + "': tau must be > 0 (row " + std::to_string(cc.rows[i] + 1) + ")");
     }
     if (i > 0 && !(tau[i] > tau[i - 1])) {
-      throw InputError(path, "column '" + out.tau_column + "' is not strictly increasing at row " +
-                                 std::to_string(cc.rows[i] + 1));
+      throw InputError(
+          path, "column '" + out.tau_column + "' is not strictly increasing at row " + std::to_string(cc.rows[i] + 1));
     }
     if (!(cc.adev[i] >= 0)) {
-      throw InputError(path, "column '" + out.adev_column + "': negative value at row " + std::to_string(cc.rows[i] + 1));
+      throw InputError(path,
+                       "column '" + out.adev_column + "': negative value at row " + std::to_string(cc.rows[i] + 1));
     }
   }
 }
@@ -408,7 +424,8 @@ CurveFile ReadAllanCurveFile(const std::string& path, const CurveFileOptions& o)
   const TextTable t = ReadTextTable(path);
   CurveFile out;
   out.file = path;
-  const CurveColumns cc = t.has_header ? ReadHeaderedColumns(t, path, o, &out) : ReadHeaderlessColumns(t, path, o, &out);
+  const CurveColumns cc =
+      t.has_header ? ReadHeaderedColumns(t, path, o, &out) : ReadHeaderlessColumns(t, path, o, &out);
   // Unit.
   if (!o.unit.empty()) {
     out.unit = ParseRateUnit(o.unit, path);
@@ -424,7 +441,7 @@ CurveFile ReadAllanCurveFile(const std::string& path, const CurveFileOptions& o)
   c.noise = IdentifyNoiseBySlope(c.tau_s, c.adev);
   // The sample rate and length behind the curve: the options', else the file's comment values; a
   // duration sets the length (at the rate of the first tau when no rate is known).
-  double fs = o.sample_rate_hz > 0 ? o.sample_rate_hz
+  double fs = o.sample_rate_hz > 0                ? o.sample_rate_hz
               : t.comment_values.count("freq_hz") ? t.comment_values.at("freq_hz")
                                                   : 0;
   double n = o.n > 0 ? o.n : t.comment_values.count("n") ? t.comment_values.at("n") : 0;

@@ -12,8 +12,8 @@
 namespace ssiu {
 
 enum class RateUnit { kRadPerS, kDegPerS, kDegPerH };
-const char* RateUnitName(RateUnit unit);     // "rad/s", "deg/s", "deg/h"
-double RateUnitToRadPerS(RateUnit unit);     // a value in `unit` times this is in rad/s
+const char* RateUnitName(RateUnit unit);  // "rad/s", "deg/s", "deg/h"
+double RateUnitToRadPerS(RateUnit unit);  // a value in `unit` times this is in rad/s
 // Unit from a column name's suffix (_dph, _dps, _rps, _rad_s, _deg_s, _deg_h); false if none.
 bool RateUnitFromName(const std::string& column, RateUnit* unit);
 // "rad/s", "deg/s", "deg/h" (also "rps", "dps", "dph"); InputError naming `file` otherwise.
@@ -33,11 +33,11 @@ RateLog ReadRateLog(const std::string& path, const std::string& column, const st
                     double sample_rate_hz = 0);
 
 struct CurveFileOptions {
-  std::string tau_column;   // "" = autodetect (tau_s, tau, ...)
-  std::string adev_column;  // "" = autodetect (adev*, else avar*)
-  std::string channel;      // rows of this channel (needed when the file holds several)
-  std::string tau_file;     // taus in a separate one-column file (imu_utils layout)
-  std::string unit;         // "" = from the ADEV column name
+  std::string tau_column;     // "" = autodetect (tau_s, tau, ...)
+  std::string adev_column;    // "" = autodetect (adev*, else avar*)
+  std::string channel;        // rows of this channel (needed when the file holds several)
+  std::string tau_file;       // taus in a separate one-column file (imu_utils layout)
+  std::string unit;           // "" = from the ADEV column name
   double sample_rate_hz = 0;  // with n or duration_s: edf from the formulas (else from the file)
   double n = 0;               // rate samples behind the curve
   double duration_s = 0;      // log length behind the curve (n = duration * rate)
@@ -70,6 +70,7 @@ GyroNoiseTerms ToGyroUnits(const NoiseFit& fit_rad_s);
 Json AllanReportJson(const AllanCurve& curve_rad_s, const NoiseFit& fit, const Json& provenance, double confidence);
 
 // Log-log plot of ADEV in deg/h with error bars, the fitted model and its dominant terms.
-void WriteAllanPlot(const std::string& path, const AllanCurve& curve_rad_s, const NoiseFit& fit, const std::string& title);
+void WriteAllanPlot(const std::string& path, const AllanCurve& curve_rad_s, const NoiseFit& fit,
+                    const std::string& title);
 
 }  // namespace ssiu

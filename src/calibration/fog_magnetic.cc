@@ -28,8 +28,8 @@ struct LinearFit {
 };
 
 LinearFit FitHarmonic(const std::vector<double>& psi_rad, const std::vector<double>& f,
-                      const std::vector<double>& t_mid_s, const std::vector<double>& var_white,
-                      double wander_sigma, double wander_tau_s) {
+                      const std::vector<double>& t_mid_s, const std::vector<double>& var_white, double wander_sigma,
+                      double wander_tau_s) {
   const int n = static_cast<int>(f.size());
   Eigen::MatrixXd a(n, 3), sigma(n, n);
   Eigen::VectorXd y(n);
@@ -292,8 +292,12 @@ Json MagneticResultToJson(const MagneticResult& f) {
   };
   Json dw = Json::array();
   for (const auto& d : f.dwells) {
-    dw.push_back({{"azimuth_deg", d.azimuth_deg}, {"t_start_s", d.t_start_s}, {"t_end_s", d.t_end_s},
-                  {"wx_dph", d.wx_dph}, {"wy_dph", d.wy_dph}, {"samples", d.samples}});
+    dw.push_back({{"azimuth_deg", d.azimuth_deg},
+                  {"t_start_s", d.t_start_s},
+                  {"t_end_s", d.t_end_s},
+                  {"wx_dph", d.wx_dph},
+                  {"wy_dph", d.wy_dph},
+                  {"samples", d.samples}});
   }
   return Json{{"status", FitStatusName(f.status)},
               {"file", f.file},

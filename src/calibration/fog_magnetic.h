@@ -30,11 +30,11 @@ struct TurntableData {
 TurntableData ReadTurntableLog(const std::string& path);
 
 struct MagneticOptions {
-  double latitude_deg = 50.05;     // Kharkov
-  double settle_s = 60.0;          // excluded after the table stops at a new azimuth
-  double min_dwell_s = 60.0;       // a dwell shorter than this (after settling) is dropped
-  double azimuth_tol_deg = 0.01;   // azimuth steadier than this = the table is at rest
-  int min_positions = 8;           // distinct azimuths needed (3 parameters per axis + dof)
+  double latitude_deg = 50.05;    // Kharkov
+  double settle_s = 60.0;         // excluded after the table stops at a new azimuth
+  double min_dwell_s = 60.0;      // a dwell shorter than this (after settling) is dropped
+  double azimuth_tol_deg = 0.01;  // azimuth steadier than this = the table is at rest
+  int min_positions = 8;          // distinct azimuths needed (3 parameters per axis + dof)
   // Slow bias wander of the FOGs (first-order Gauss-Markov, e.g. from their Allan deviation). The
   // azimuth advances with time, so wander aliases into the harmonics; the fit is GLS with this
   // covariance on top of the white part measured within each dwell. 0 = white noise only.
@@ -51,11 +51,11 @@ struct DwellMean {
 
 struct AxisHarmonicFit {
   double dw_dph = 0, dw_sigma_dph = 0;
-  double s_dph = 0, s_sigma_dph = 0;      // signed amplitude, phase kept within +-90 deg
+  double s_dph = 0, s_sigma_dph = 0;  // signed amplitude, phase kept within +-90 deg
   double phi_deg = 0, phi_sigma_deg = 0;
-  double e_cos_dph = 0, e_sin_dph = 0;    // f = dw + e_cos cos(psi) + e_sin sin(psi)
+  double e_cos_dph = 0, e_sin_dph = 0;  // f = dw + e_cos cos(psi) + e_sin sin(psi)
   double residual_rms_dph = 0;
-  double variance_inflation = 1;          // chi^2/dof of the GLS fit when above 1
+  double variance_inflation = 1;  // chi^2/dof of the GLS fit when above 1
 };
 
 struct MagneticResult {
@@ -65,12 +65,12 @@ struct MagneticResult {
   double w_phi_dph = 0;
   AxisHarmonicFit x, y;
   double dpsi0_deg = 0, dpsi0_sigma_deg = 0;
-  double scale_departure_dph = 0, scale_departure_sigma_dph = 0;  // |conformal part| - W_phi
-  double anticonformal_c_dph = 0, anticonformal_d_dph = 0;        // (E_x1 - E_y2)/2, (E_x2 + E_y1)/2
+  double scale_departure_dph = 0, scale_departure_sigma_dph = 0;    // |conformal part| - W_phi
+  double anticonformal_c_dph = 0, anticonformal_d_dph = 0;          // (E_x1 - E_y2)/2, (E_x2 + E_y1)/2
   double magnetic_measure_dph = 0, magnetic_measure_sigma_dph = 0;  // hypot(c, d): departure from S_x = -S_y
   double magnetic_amplitude_x_dph = 0, magnetic_amplitude_y_dph = 0;
   double magnetic_amplitude_dph = 0, magnetic_amplitude_sigma_dph = 0;  // max of the two axes
-  double magnetic_chi2 = 0;        // of (c, d, scale departure) against zero, 3 degrees of freedom
+  double magnetic_chi2 = 0;          // of (c, d, scale departure) against zero, 3 degrees of freedom
   bool consistent_with_zero = true;  // chi2 below its 99.73 % point (14.16)
 };
 

@@ -30,9 +30,8 @@ double TickStep(double range, int target) {
 }  // namespace
 
 void WriteFogPlotPng(const std::string& path, const FogPlot& plot) {
-  static const cv::Scalar kColors[] = {{180, 80, 20}, {30, 30, 200}, {40, 150, 40},
-                                       {150, 40, 150}, {20, 140, 200}, {90, 90, 90},
-                                       {0, 100, 180}, {120, 160, 0}};
+  static const cv::Scalar kColors[] = {{180, 80, 20},  {30, 30, 200}, {40, 150, 40}, {150, 40, 150},
+                                       {20, 140, 200}, {90, 90, 90},  {0, 100, 180}, {120, 160, 0}};
   cv::Mat img(plot.height_px, plot.width_px, CV_8UC3, cv::Scalar(255, 255, 255));
   const int left = 90, right = 20, top = 40, bottom = 60;
   const int w = plot.width_px - left - right, h = plot.height_px - top - bottom;

@@ -301,8 +301,8 @@ std::vector<Bins> BinRuns(const std::vector<ThermalRun>& runs, const ThermalFitO
     n += static_cast<int>(bins.back().t_s.size());
   }
   if (n < 4 * kTerms) {
-    throw InputError(runs.front().file, "too few " + std::to_string(options.bin_s) + " s bins (" +
-                                            std::to_string(n) + ", need >= " + std::to_string(4 * kTerms) + ")");
+    throw InputError(runs.front().file, "too few " + std::to_string(options.bin_s) + " s bins (" + std::to_string(n) +
+                                            ", need >= " + std::to_string(4 * kTerms) + ")");
   }
   *n_out = n;
   return bins;
@@ -394,8 +394,8 @@ WhitenedRuns Prewhiten(const std::vector<Bins>& bins, const BinNoise& noise, dou
       MatrixXd sigma(m, m);
       for (int i = 0; i < m; ++i) {
         for (int j = 0; j < m; ++j) {
-          sigma(i, j) = noise.var_g * std::pow(noise.phi, std::abs(b.t_s[i] - b.t_s[j]) / bin_s) +
-                        (i == j ? noise.var_w : 0.0);
+          sigma(i, j) =
+              noise.var_g * std::pow(noise.phi, std::abs(b.t_s[i] - b.t_s[j]) / bin_s) + (i == j ? noise.var_w : 0.0);
         }
       }
       Eigen::LLT<MatrixXd> llt(sigma / noise.gamma0);
@@ -554,7 +554,8 @@ ThermalFitResult FitThermalDrift(const std::vector<ThermalRun>& runs, const Ther
   std::vector<int> all(kTerms);
   std::iota(all.begin(), all.end(), 0);
   const SubsetFit full = SolveSubset(whitened.total, all);
-  if (!full.ok) throw InputError(runs.front().file, "the ten regressors are degenerate (temperature programme too poor)");
+  if (!full.ok)
+    throw InputError(runs.front().file, "the ten regressors are degenerate (temperature programme too poor)");
   MeasureVarianceInflation(whitened, full, options, &res);
   const double inflate = res.variance_inflation;
   const double n_eff = n / inflate;
@@ -650,9 +651,10 @@ Json ThermalFitToJson(const ThermalFitResult& fit, const ThermalFitOptions& opti
 ThermalModelFile ThermalModelFromJson(const Json& j, const std::string& file) {
   ThermalModelFile m;
   // The file `fog thermal --json` writes: every key it writes is allowed; the model is in 'terms' and 'model'.
-  CheckKeys(j, {"terms", "model", "sigma", "status", "message", "tested", "candidates", "validation_agrees", "selection",
-                "drift_before_dph", "drift_after_dph", "angle_error_before_deg", "angle_error_after_deg", "gain",
-                "holdout", "comment"},
+  CheckKeys(j,
+            {"terms", "model", "sigma", "status", "message", "tested", "candidates", "validation_agrees", "selection",
+             "drift_before_dph", "drift_after_dph", "angle_error_before_deg", "angle_error_after_deg", "gain",
+             "holdout", "comment"},
             file);
   if (!j.contains("terms") || !j.at("terms").is_object()) throw InputError(file, "missing object 'terms'");
   const Json& terms = j.at("terms");

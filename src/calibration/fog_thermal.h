@@ -54,10 +54,10 @@ TemperatureEstimate EstimateTemperatureRate(const std::vector<double>& t_s, cons
 struct ThermalFitOptions {
   double bin_s = 60.0;
   TemperatureRateOptions rate;
-  bool prewhiten = true;  // GLS with the fitted white + Gauss-Markov noise model
+  bool prewhiten = true;              // GLS with the fitted white + Gauss-Markov noise model
   bool effective_sample_size = true;  // n_eff from the whitened residuals' autocorrelation
-  int max_noise_lag = 60;  // lags (bins) used for the noise model and the effective sample size
-  int validate_top = 6;    // candidates (best BIC) scored by leave-one-run-out validation
+  int max_noise_lag = 60;             // lags (bins) used for the noise model and the effective sample size
+  int validate_top = 6;               // candidates (best BIC) scored by leave-one-run-out validation
   void Check() const;
 };
 
@@ -70,7 +70,7 @@ struct DriftBand {
 struct ThermalTermStat {
   std::string name;
   bool kept = false;
-  double estimate_dph = 0, sigma_dph = 0;            // selected model (0 when not kept)
+  double estimate_dph = 0, sigma_dph = 0;  // selected model (0 when not kept)
   double full_estimate_dph = 0, full_sigma_dph = 0, full_t = 0;
   double delta_bic_toggle = 0;
 };
@@ -98,18 +98,18 @@ struct ThermalEvaluation {
 struct ThermalFitResult {
   FitStatus status = FitStatus::kFitted;  // always fitted (bad input throws)
   std::string message;
-  ThermalDriftModel model;                     // kept terms only (others 0)
+  ThermalDriftModel model;  // kept terms only (others 0)
   std::array<double, ThermalDriftModel::kNumTerms> sigma_dph{};
   std::array<bool, ThermalDriftModel::kNumTerms> kept{};
-  std::vector<ThermalTermStat> tested;         // all ten
-  std::vector<ThermalCandidate> candidates;    // best by BIC, with validation
-  bool validation_agrees = true;               // the BIC choice has the lowest CV RMS (within 5 %)
+  std::vector<ThermalTermStat> tested;       // all ten
+  std::vector<ThermalCandidate> candidates;  // best by BIC, with validation
+  bool validation_agrees = true;             // the BIC choice has the lowest CV RMS (within 5 %)
   int n_bins = 0;
   double n_eff = 0;
   double noise_white_dph = 0, noise_wander_dph = 0, noise_wander_tau_s = 0;  // fitted noise model
-  double whitened_r1 = 0;                      // lag-1 autocorrelation left after prewhitening
-  double variance_inflation = 1;               // n / n_eff from the whitened residuals
-  ThermalEvaluation evaluation;                // on the fitted runs
+  double whitened_r1 = 0;         // lag-1 autocorrelation left after prewhitening
+  double variance_inflation = 1;  // n / n_eff from the whitened residuals
+  ThermalEvaluation evaluation;   // on the fitted runs
 };
 
 ThermalFitResult FitThermalDrift(const std::vector<ThermalRun>& runs, const ThermalFitOptions& options);

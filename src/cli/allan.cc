@@ -1,12 +1,13 @@
 // `ssiu allan LOG.csv --column NAME --json OUT [--plot OUT.png]`: overlapping Allan deviation of one
 // rate column with confidence intervals and the fitted IEEE 952 noise terms; or, with --curve, the
 // same fit on an Allan curve computed elsewhere (e.g. ../shared/data/gyro/).
+#include "calibration/allan.h"
+
 #include <cmath>
 #include <cstdio>
 #include <memory>
 #include <string>
 
-#include "calibration/allan.h"
 #include "calibration/allan_io.h"
 #include "cli/command.h"
 #include "core/error.h"
@@ -42,7 +43,8 @@ void CheckNonNegative(double v, const char* flag) {
 }
 
 void Run(const Opts& o) {
-  if (o.log.empty() == o.curve.empty()) throw ssiu::InputError("", "give either a LOG.csv with --column, or --curve FILE");
+  if (o.log.empty() == o.curve.empty())
+    throw ssiu::InputError("", "give either a LOG.csv with --column, or --curve FILE");
   CheckNonNegative(o.sample_rate_hz, "--sample-rate-hz");
   CheckNonNegative(o.duration_s, "--duration-s");
   CheckNonNegative(o.n, "--n");
@@ -59,11 +61,13 @@ void Run(const Opts& o) {
     ao.points_per_decade = o.points_per_decade;
     ao.confidence = o.confidence;
     if (log.rate_rad_s.size() < ao.min_samples) {
-      throw ssiu::InputError(o.log, "column '" + o.column + "': too few samples (" + std::to_string(log.rate_rad_s.size()) +
-                                        ", need " + std::to_string(ao.min_samples) + ")");
+      throw ssiu::InputError(o.log, "column '" + o.column + "': too few samples (" +
+                                        std::to_string(log.rate_rad_s.size()) + ", need " +
+                                        std::to_string(ao.min_samples) + ")");
     }
     curve = ssiu::OverlappingAllanDeviation(log.rate_rad_s, log.sample_rate_hz, ao);
-    provenance = {{"file", o.log}, {"column", o.column}, {"source", "log"}, {"rate_unit", ssiu::RateUnitName(log.unit)}};
+    provenance = {
+        {"file", o.log}, {"column", o.column}, {"source", "log"}, {"rate_unit", ssiu::RateUnitName(log.unit)}};
     title = o.log + " : " + o.column;
   } else {
     ssiu::CurveFileOptions co;
@@ -78,9 +82,12 @@ void Run(const Opts& o) {
     co.confidence = o.confidence;
     const ssiu::CurveFile cf = ssiu::ReadAllanCurveFile(o.curve, co);
     curve = cf.curve;
-    provenance = {{"file", o.curve},           {"column", cf.adev_column},
-                  {"channel", cf.channel},     {"source", "curve"},
-                  {"rate_unit", ssiu::RateUnitName(cf.unit)}, {"tau_column", cf.tau_column}};
+    provenance = {{"file", o.curve},
+                  {"column", cf.adev_column},
+                  {"channel", cf.channel},
+                  {"source", "curve"},
+                  {"rate_unit", ssiu::RateUnitName(cf.unit)},
+                  {"tau_column", cf.tau_column}};
     title = o.curve + (cf.channel.empty() ? "" : " : " + cf.channel);
   }
   ssiu::NoiseFitOptions fo;
@@ -91,14 +98,16 @@ void Run(const Opts& o) {
   fo.fit_rate_ramp = !o.no_rate_ramp;
   fo.fit_bias_instability = !o.no_bias_instability;
   if (!(fo.model_error >= 0 && fo.model_error < 1)) throw ssiu::InputError("--model-error", "must be in [0, 1)");
-  if (fo.tau_max_s > 0 && fo.tau_max_s <= fo.tau_min_s) throw ssiu::InputError("--tau-max-s", "must exceed --tau-min-s");
+  if (fo.tau_max_s > 0 && fo.tau_max_s <= fo.tau_min_s)
+    throw ssiu::InputError("--tau-max-s", "must exceed --tau-min-s");
   const ssiu::NoiseFit fit = ssiu::FitNoiseTerms(curve, fo);
   if (!o.json.empty()) ssiu::WriteJsonFile(o.json, ssiu::AllanReportJson(curve, fit, provenance, o.confidence));
   if (!o.plot.empty()) ssiu::WriteAllanPlot(o.plot, curve, fit, title);
   // Human summary on stderr (stdout may carry the JSON).
-  std::fprintf(stderr, "%s: %zu Allan points, tau %.3g..%.3g s, edf from %s; fit %s\n", title.c_str(), curve.tau_s.size(),
-               curve.tau_s.empty() ? 0.0 : curve.tau_s.front(), curve.tau_s.empty() ? 0.0 : curve.tau_s.back(),
-               curve.edf_source.c_str(), ssiu::FitStatusName(fit.status));
+  std::fprintf(stderr, "%s: %zu Allan points, tau %.3g..%.3g s, edf from %s; fit %s\n", title.c_str(),
+               curve.tau_s.size(), curve.tau_s.empty() ? 0.0 : curve.tau_s.front(),
+               curve.tau_s.empty() ? 0.0 : curve.tau_s.back(), curve.edf_source.c_str(),
+               ssiu::FitStatusName(fit.status));
   if (fit.status != ssiu::FitStatus::kFitted) {
     std::fprintf(stderr, "  %s\n", fit.message.c_str());
     return;
@@ -107,8 +116,8 @@ void Run(const Opts& o) {
   PrintTerm("quantization", g.quantization_arcsec, "arcsec");
   PrintTerm("angle random walk", g.arw_deg_per_sqrt_h, "deg/sqrt(h)");
   PrintTerm("bias instability", g.bias_instability_dph, "deg/h");
-  PrintTerm(fit.adev_min_is_upper_bound ? "bias instab. floor <=" : "bias instab. (floor)", g.bias_instability_floor_dph,
-            "deg/h");
+  PrintTerm(fit.adev_min_is_upper_bound ? "bias instab. floor <=" : "bias instab. (floor)",
+            g.bias_instability_floor_dph, "deg/h");
   PrintTerm("rate random walk", g.rrw_deg_per_h_per_sqrt_h, "deg/h/sqrt(h)");
   PrintTerm("rate ramp", g.rate_ramp_deg_per_h2, "deg/h^2");
 }
@@ -123,7 +132,8 @@ SSIU_REGISTER_COMMAND(allan, [](CLI::App& root) {
   auto o = std::make_shared<Opts>();
   cmd->add_option("log", o->log, "Gyro log CSV with t_s and a rate column");
   cmd->add_option("--column", o->column, "Rate column of the log (unit from its name: _dph, _dps, _rps)");
-  cmd->add_option("--curve", o->curve, "Fit an Allan curve computed elsewhere instead of a log (CSV, or one-column ADEV with --tau-file)");
+  cmd->add_option("--curve", o->curve,
+                  "Fit an Allan curve computed elsewhere instead of a log (CSV, or one-column ADEV with --tau-file)");
   cmd->add_option("--json", o->json, "Output JSON file, - for stdout");
   cmd->add_option("--plot", o->plot, "Output PNG of the curve and the fitted terms");
   cmd->add_option("--unit", o->unit, "Rate unit when not in the column name: rad/s, deg/s or deg/h");

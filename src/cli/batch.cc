@@ -145,7 +145,8 @@ bool BatchFlags::given() const {
 }
 
 void AddBatchFlags(CLI::App* cmd, BatchFlags* f, const std::string& record) {
-  f->list_opt = cmd->add_option("--list", f->list, "Batch: a file with one input path per line (after the positional ones)");
+  f->list_opt =
+      cmd->add_option("--list", f->list, "Batch: a file with one input path per line (after the positional ones)");
   f->jsonl_opt = cmd->add_option(
       "--jsonl", f->jsonl,
       "Batch: JSON Lines, one object per input in input order: " + record +

@@ -1,11 +1,12 @@
 // `ssiu calibrate`: star frames + a camera guess -> fitted camera.json (fx, fy, principal point,
 // distortion) with covariance and held-out residuals; with --heads, each head's camera and its
 // q_body_sensor relative to head 1 -> heads.json.
+#include "attitude/calibrate.h"
+
 #include <cmath>
 #include <iostream>
 #include <memory>
 
-#include "attitude/calibrate.h"
 #include "cli/command.h"
 #include "core/attitude.h"
 #include "core/error.h"
@@ -49,8 +50,8 @@ void PrintCalibration(const std::string& what, const CameraCalibration& c) {
     std::cerr << "  " << p << " = " << c.value.at(p) << " +/- " << c.sigma.at(p) << "\n";
   for (const auto& u : c.unobservable) std::cerr << "  unobservable: " << u << "\n";
   if (c.held_out_frames > 0)
-    std::cerr << "  held-out frames " << c.held_out_frames << ": RMS " << c.held_out_rms_before_px << " px with the guess, "
-              << c.held_out_rms_after_px << " px fitted\n";
+    std::cerr << "  held-out frames " << c.held_out_frames << ": RMS " << c.held_out_rms_before_px
+              << " px with the guess, " << c.held_out_rms_after_px << " px fitted\n";
 }
 
 void RunSingle(const Opts& o) {
@@ -84,7 +85,8 @@ void RunHeads(const Opts& o) {
   for (size_t h = 0; h < nh; ++h) {
     const StarIdentifier id = IdentifierFor(o, cams[h]);
     std::vector<CalibrationFrame> frames;
-    for (size_t e = 0; e < ne; ++e) frames.push_back({o.frames[e * nh + h], CentroidsOf(o.frames[e * nh + h], o.cal.solve)});
+    for (size_t e = 0; e < ne; ++e)
+      frames.push_back({o.frames[e * nh + h], CentroidsOf(o.frames[e * nh + h], o.cal.solve)});
     cals.push_back(CalibrateCamera(id, frames, cams[h], o.cal));
     for (size_t e = 0; e < ne; ++e) {
       const CalibratedFrame& f = cals.back().frames[e];
@@ -119,27 +121,32 @@ void RunHeads(const Opts& o) {
 }
 
 SSIU_REGISTER_COMMAND(calibrate, [](CLI::App& root) {
-  auto* cmd = root.add_subcommand(
-      "calibrate",
-      "Fit the camera (fx, fy, principal point, distortion) to solved star frames; with --heads also each head's alignment");
+  auto* cmd = root.add_subcommand("calibrate",
+                                  "Fit the camera (fx, fy, principal point, distortion) to solved star frames; with "
+                                  "--heads also each head's alignment");
   auto o = std::make_shared<Opts>();
-  cmd->add_option("frames", o->frames, "Frames (PNG/TIFF/FITS) or centroid CSVs; with --heads one per head, epoch by epoch")
+  cmd->add_option("frames", o->frames,
+                  "Frames (PNG/TIFF/FITS) or centroid CSVs; with --heads one per head, epoch by epoch")
       ->required();
   cmd->add_option("--camera", o->camera, "camera.json: the guess (e.g. from the lens focal length and pixel pitch)");
   cmd->add_option("--heads", o->heads, "heads.json: each head's camera guess and q_body_sensor (head 0's is kept)");
   cmd->add_option("--out", o->out, "Fitted camera.json (with --heads: heads.json)")->required();
-  cmd->add_option("--json", o->json, "Report JSON (parameters, sigmas, covariance, held-out residuals, frames), - for stdout");
-  cmd->add_option("--fov-tolerance-pct", o->cal.fov_tolerance_pct, "Focal length of the guess known to +/- this percent")
+  cmd->add_option("--json", o->json,
+                  "Report JSON (parameters, sigmas, covariance, held-out residuals, frames), - for stdout");
+  cmd->add_option("--fov-tolerance-pct", o->cal.fov_tolerance_pct,
+                  "Focal length of the guess known to +/- this percent")
       ->capture_default_str();
   cmd->add_option("--rounds", o->cal.rounds, "Solve-and-fit rounds")->capture_default_str();
-  cmd->add_option("--holdout-every", o->cal.holdout_every, "Every n-th solved frame held out for the residuals (0 = none)")
+  cmd->add_option("--holdout-every", o->cal.holdout_every,
+                  "Every n-th solved frame held out for the residuals (0 = none)")
       ->capture_default_str();
   cmd->add_option("--significance-sigmas", o->cal.significance_sigmas, "Distortion terms kept above this significance")
       ->capture_default_str();
   cmd->add_option("--catalog", o->catalog, "Solver catalog directory (built there if absent; default: cache)");
   cmd->add_option("--mag-max", o->mag_max, "Catalog magnitude limit when it is built (0 = from the FOV)");
   cmd->add_option("--source", o->source, "Source catalog when it is built (default: by FOV)");
-  cmd->add_option("--threshold-sigma", o->cal.solve.detect.threshold_sigma, "Detection threshold")->capture_default_str();
+  cmd->add_option("--threshold-sigma", o->cal.solve.detect.threshold_sigma, "Detection threshold")
+      ->capture_default_str();
   cmd->add_option("--systematic-px", o->cal.solve.identify.systematic_px, "Unmodelled position error while solving")
       ->capture_default_str();
   cmd->callback([o] {

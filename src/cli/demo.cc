@@ -1,12 +1,13 @@
 // `ssiu demo`: the main job on the built-in default: simulate a frame from the catalog, detect its
 // stars and report against the truth.
+#include "sim/demo.h"
+
 #include <cstdio>
 #include <memory>
 
 #include "cli/command.h"
 #include "core/attitude.h"
 #include "core/catalog.h"
-#include "sim/demo.h"
 
 SSIU_REGISTER_COMMAND(demo, [](CLI::App& root) {
   CLI::App* cmd = root.add_subcommand("demo", "Simulate a frame from the catalog, detect and report the errors");

@@ -1,5 +1,7 @@
 // `ssiu detect`: star centroids, background/noise and rejected interferers of one frame, as JSON; many
 // frames (or a batch flag) are a batch, one JSON line per frame (cli/batch.h).
+#include "detect/detect.h"
+
 #include <algorithm>
 #include <cmath>
 #include <iostream>
@@ -10,7 +12,6 @@
 #include "cli/smear_flags.h"
 #include "core/camera.h"
 #include "core/error.h"
-#include "detect/detect.h"
 #include "detect/detect_json.h"
 
 namespace ssiu::cli {
@@ -61,8 +62,8 @@ Json DetectOne(const Opts& o, const Setup& s, const std::string& path, Detection
   const Frame fr = o.dark.empty() ? ReadFrame(path) : SubtractDark(ReadFrame(path), s.dark);
   // Detect() needs 16x16 pixels for its background tiles (the smallest camera.json allows).
   if (fr.image.width < 16 || fr.image.height < 16) {
-    throw InputError(path, "image is " + Size(fr.image.width, fr.image.height) +
-                               ": too small for star detection (at least 16x16)");
+    throw InputError(
+        path, "image is " + Size(fr.image.width, fr.image.height) + ": too small for star detection (at least 16x16)");
   }
   if (!o.camera.empty() && (s.cam.width != fr.image.width || s.cam.height != fr.image.height)) {
     throw InputError(path, "image is " + Size(fr.image.width, fr.image.height) + " but " + o.camera + " says " +
@@ -102,9 +103,9 @@ void Run(const Opts& o) {
 }
 
 // --csv columns of a batch (docs/detection.md "Batch").
-const std::vector<std::string> kBatchColumns = {"file",    "status",       "width",     "height",
-                                                "num_stars", "num_rejected", "background_adu", "noise_adu",
-                                                "psf_sigma_px", "time_ms",   "message"};
+const std::vector<std::string> kBatchColumns = {"file",         "status",       "width",          "height",
+                                                "num_stars",    "num_rejected", "background_adu", "noise_adu",
+                                                "psf_sigma_px", "time_ms",      "message"};
 
 void RunBatchDetect(const Opts& o, const std::vector<std::string>& inputs) {
   if (!o.json.empty()) throw InputError("--json", "is one frame's output: a batch writes --jsonl and/or --csv");

@@ -7,17 +7,17 @@
 #include <string>
 #include <vector>
 
+#include "attitude/star_solver.h"
 #include "calibration/allan_io.h"
+#include "cli/command.h"
+#include "core/camera.h"
+#include "core/error.h"
+#include "core/image.h"
+#include "core/json.h"
 #include "discover/discover_allan.h"
 #include "discover/discover_frames.h"
 #include "discover/discover_gyro.h"
 #include "discover/frame_compare.h"
-#include "attitude/star_solver.h"
-#include "core/camera.h"
-#include "core/error.h"
-#include "core/image.h"
-#include "cli/command.h"
-#include "core/json.h"
 
 namespace {
 
@@ -46,7 +46,8 @@ struct AllanOpts {
 
 SSIU_REGISTER_COMMAND(discover_allan, [](CLI::App& root) {
   auto* discover = ssiu::cli::GetOrAddSubcommand(root, "discover", "Find what the model gets wrong in measured data");
-  auto* cmd = discover->add_subcommand("allan", "Where the default gyro noise model (ARW + bias instability) leaves a measured Allan curve");
+  auto* cmd = discover->add_subcommand(
+      "allan", "Where the default gyro noise model (ARW + bias instability) leaves a measured Allan curve");
   auto o = std::make_shared<AllanOpts>();
   cmd->add_option("--curve", o->curve, "Allan curve file (as for `ssiu allan --curve`)")->required();
   cmd->add_option("--channel", o->channel, "Channel within the file");
@@ -76,7 +77,8 @@ SSIU_REGISTER_COMMAND(discover_allan, [](CLI::App& root) {
     ssiu::Json j;
     j["file"] = o->curve;
     j["channel"] = cf.channel;
-    j["base_model"] = {{"arw_deg_per_sqrt_h", d.base_arw * dph / 60}, {"bias_instability_dph", d.base_bias_instability * dph}};
+    j["base_model"] = {{"arw_deg_per_sqrt_h", d.base_arw * dph / 60},
+                       {"bias_instability_dph", d.base_bias_instability * dph}};
     j["chi2_per_dof_before"] = d.chi2_per_dof_before;
     j["chi2_per_dof_after"] = d.chi2_per_dof_after;
     j["departures_tau_s"] = ssiu::Json::array();
@@ -98,9 +100,10 @@ SSIU_REGISTER_COMMAND(discover_allan, [](CLI::App& root) {
 SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
   auto* discover = ssiu::cli::GetOrAddSubcommand(root, "discover", "Find what the model gets wrong in measured data");
   auto* cmd = discover->add_subcommand(
-      "frames", "Solve every frame, fit star residual and flux patterns, name the camera-model cause (a cause is "
-                "named only within physical bounds and with a significant held-out gain; `unexplained` when the star "
-                "positions or fluxes keep structure over the field that no cause explains)");
+      "frames",
+      "Solve every frame, fit star residual and flux patterns, name the camera-model cause (a cause is "
+      "named only within physical bounds and with a significant held-out gain; `unexplained` when the star "
+      "positions or fluxes keep structure over the field that no cause explains)");
   auto o = std::make_shared<FrameOpts>();
   cmd->add_option("frames", o->frames, "Frames (PNG/TIFF/FITS)")->required();
   cmd->add_option("--camera", o->camera, "camera.json (the model under test)")->required();
@@ -117,8 +120,9 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
   cmd->add_option("--residual-alpha", o->opt.residual_alpha,
                   "False-alarm probability of the residual tests behind `unexplained` (position and flux maps)")
       ->capture_default_str();
-  o->psf_flag = cmd->add_option("--psf-sigma-px", o->psf_sigma_px,
-                  "The model's PSF sigma, px (default: camera.json \"psf_sigma_px\"; absent: psf_shape not tested)");
+  o->psf_flag = cmd->add_option(
+      "--psf-sigma-px", o->psf_sigma_px,
+      "The model's PSF sigma, px (default: camera.json \"psf_sigma_px\"; absent: psf_shape not tested)");
   cmd->add_option("--defects", o->defects, "Known defect map PNG (0 good): repaired before detection, not a cause");
   cmd->add_option("--defects-out", o->defects_out, "Write the persistent hot pixels found as a defect map PNG");
   cmd->add_option("--compare-sim", o->compare_sim,
@@ -149,7 +153,8 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
     const ssiu::StarIdentifier id = ssiu::MakeIdentifierForCamera(o->catalog, cam, o->fov_tolerance_pct);
     std::vector<ssiu::Frame> frames;
     for (const auto& f : o->frames) {
-      frames.push_back(o->dark.empty() ? ssiu::ReadFrame(f) : ssiu::SubtractDark(ssiu::ReadFrame(f), ssiu::ReadFrame(o->dark)));
+      frames.push_back(o->dark.empty() ? ssiu::ReadFrame(f)
+                                       : ssiu::SubtractDark(ssiu::ReadFrame(f), ssiu::ReadFrame(o->dark)));
     }
     std::vector<ssiu::ImageView> views;
     for (const auto& f : frames) views.push_back(f.image.view());
@@ -172,9 +177,10 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
       const ssiu::FrameResidual& r = d.residual;
       summary << "  residual structure (" << r.finding << ", p " << r.p_value << ")"
               << (d.partial_cause.empty() ? "" : " after " + d.partial_cause) << ": positions rms "
-              << r.position_rms_arcsec << " arcsec, largest " << r.position_max_arcsec << " arcsec at (" << r.position_max_x_px
-              << ", " << r.position_max_y_px << ") px; fluxes rms " << r.photometry_rms_mag << " mag, largest "
-              << r.photometry_max_mag << " mag at (" << r.photometry_max_x_px << ", " << r.photometry_max_y_px << ") px\n";
+              << r.position_rms_arcsec << " arcsec, largest " << r.position_max_arcsec << " arcsec at ("
+              << r.position_max_x_px << ", " << r.position_max_y_px << ") px; fluxes rms " << r.photometry_rms_mag
+              << " mag, largest " << r.photometry_max_mag << " mag at (" << r.photometry_max_x_px << ", "
+              << r.photometry_max_y_px << ") px\n";
     }
     ssiu::Json j = ssiu::FrameDiscoveryToJson(d);
     j["frame_status"] = ssiu::Json::object();
@@ -192,7 +198,8 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
       co2.sim = ssiu::FitSimOptions(before.measured, co.sim);
       co2.sim.bit_depth = frames.front().bit_depth;
       const ssiu::Camera cam2 = d.fitted_camera;
-      const ssiu::SolvedFrameSet set2 = ssiu::SolveFrameSet(id, views, o->frames, cam2, so, known.empty() ? nullptr : &known);
+      const ssiu::SolvedFrameSet set2 =
+          ssiu::SolveFrameSet(id, views, o->frames, cam2, so, known.empty() ? nullptr : &known);
       const ssiu::FrameComparison after = ssiu::CompareWithSimulation(set2, views, cam2, sky, id, so, co2);
       ssiu::Json cj;
       cj["model"] = {{"camera", ssiu::CameraToJson(cam)}, {"sim_options", ssiu::FrameSimOptionsToJson(co.sim)}};
@@ -244,7 +251,8 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
   cmd->add_option("--max-bins", o->opt.max_bins_per_log, "Bins per log at most")->capture_default_str();
   cmd->add_option("--wander-tau-max-s", o->opt.wander_tau_max_s, "Longest correlation time of the base wander, s")
       ->capture_default_str();
-  cmd->add_option("--cv-blocks", o->opt.cv_blocks, "Blocks per log for the cross-validated gain")->capture_default_str();
+  cmd->add_option("--cv-blocks", o->opt.cv_blocks, "Blocks per log for the cross-validated gain")
+      ->capture_default_str();
   cmd->add_option("--gain-alpha", o->opt.gain_alpha,
                   "One-sided false-alarm probability of the held-out gain's significance gate")
       ->capture_default_str();

@@ -26,7 +26,8 @@ void MakeDir(const std::string& dir) {
 void PlotThermal(const std::string& dir, const ssiu::ThermalEvaluation& ev, const std::string& tag) {
   MakeDir(dir);
   ssiu::FogPlot drift{"Drift error without and with compensation (" + tag + ")", "time, min", "drift, deg/h", {}};
-  ssiu::FogPlot angle{"Accumulated angle error without and with compensation (" + tag + ")", "time, min", "angle, deg", {}};
+  ssiu::FogPlot angle{
+      "Accumulated angle error without and with compensation (" + tag + ")", "time, min", "angle, deg", {}};
   double offset = 0;
   for (size_t r = 0; r < ev.runs.size(); ++r) {
     const auto& s = ev.runs[r];
@@ -93,13 +94,13 @@ SSIU_REGISTER_COMMAND(fog_thermal, [](CLI::App& root) {
       if (t.kept) summary << " " << t.name << "=" << t.estimate_dph << "+-" << t.sigma_dph;
     }
     summary << "; fitted runs: band " << fit.evaluation.before.peak_dph << " -> " << fit.evaluation.after.peak_dph
-              << " deg/h (gain " << fit.evaluation.gain << ")\n";
+            << " deg/h (gain " << fit.evaluation.gain << ")\n";
     if (!held.empty()) {
       const ssiu::ThermalEvaluation hev = ssiu::EvaluateThermalModel(held, fit.model, o->fit);
       j["holdout"] = ssiu::ThermalEvaluationToJson(hev);
       summary << "fog thermal: held-out runs: band " << hev.before.peak_dph << " -> " << hev.after.peak_dph
-                << " deg/h (gain " << hev.gain << "), angle " << hev.angle_error_before_deg << " -> "
-                << hev.angle_error_after_deg << " deg\n";
+              << " deg/h (gain " << hev.gain << "), angle " << hev.angle_error_before_deg << " -> "
+              << hev.angle_error_after_deg << " deg\n";
       if (!o->plot.empty()) PlotThermal(o->plot, hev, "holdout");
     }
     if (!o->plot.empty()) PlotThermal(o->plot, fit.evaluation, "fitted");
@@ -123,7 +124,8 @@ SSIU_REGISTER_COMMAND(fog_compensate, [](CLI::App& root) {
     // The reference is only needed for the summary; a log without it is compensated all the same.
     const ssiu::CsvTable probe = ssiu::ReadCsv(o->log);
     const bool has_ref = probe.Has("ref_dph") || std::isfinite(o->latitude_deg);
-    const ssiu::ThermalRun run = ssiu::ReadThermalRun(o->log, has_ref ? o->latitude_deg : 0.0, has_ref ? o->axis : "east");
+    const ssiu::ThermalRun run =
+        ssiu::ReadThermalRun(o->log, has_ref ? o->latitude_deg : 0.0, has_ref ? o->axis : "east");
     const ssiu::ThermalCompensation c = ssiu::CompensateThermalRun(run, m.model, m.rate);
     ssiu::WriteCsv(o->out, {"t_s", "w_dph", "w_comp_dph", "model_dph", "temp_c", "rate_c_per_min"},
                    {c.t_s, c.w_dph, c.w_comp_dph, c.model_dph, c.temp_c, c.rate_c_per_min});
@@ -143,7 +145,8 @@ SSIU_REGISTER_COMMAND(fog_magnetic, [](CLI::App& root) {
   auto* fog = ssiu::cli::GetOrAddSubcommand(root, "fog", "FOG bench calibration (thermal drift, magnetic sensitivity)");
   auto* cmd = fog->add_subcommand("magnetic", "Turntable test: trim error and magnetic sensitivity (SSIU eqs. 2-4)");
   auto o = std::make_shared<MagneticOpts>();
-  cmd->add_option("logs", o->logs, "One or two turntable CSVs t_s,wx_dph,wy_dph,azimuth_deg (e.g. before/after shielding)")
+  cmd->add_option("logs", o->logs,
+                  "One or two turntable CSVs t_s,wx_dph,wy_dph,azimuth_deg (e.g. before/after shielding)")
       ->required()
       ->expected(1, 2);
   cmd->add_option("--latitude-deg", o->fit.latitude_deg, "Bench latitude")->capture_default_str();
@@ -151,7 +154,8 @@ SSIU_REGISTER_COMMAND(fog_magnetic, [](CLI::App& root) {
   cmd->add_option("--min-positions", o->fit.min_positions, "Distinct azimuths required")->capture_default_str();
   cmd->add_option("--wander-dph", o->fit.wander_sigma_dph, "FOG bias wander sigma (Gauss-Markov), deg/h; 0 = none")
       ->capture_default_str();
-  cmd->add_option("--wander-tau-s", o->fit.wander_tau_s, "Correlation time of the bias wander, s")->capture_default_str();
+  cmd->add_option("--wander-tau-s", o->fit.wander_tau_s, "Correlation time of the bias wander, s")
+      ->capture_default_str();
   cmd->add_option("--json", o->json, "Output JSON, - for stdout");
   cmd->add_option("--plot", o->plot, "Directory for the PNG figures");
   cmd->callback([o] {
@@ -161,9 +165,9 @@ SSIU_REGISTER_COMMAND(fog_magnetic, [](CLI::App& root) {
     std::ostringstream summary;  // printed after the outputs, as in `fog thermal`
     for (const auto& f : fits) {
       summary << "fog magnetic: " << f.file << ": dpsi0 " << f.dpsi0_deg << "+-" << f.dpsi0_sigma_deg
-                << " deg, magnetic amplitude " << f.magnetic_amplitude_dph << "+-" << f.magnetic_amplitude_sigma_dph
-                << " deg/h, chi2 " << f.magnetic_chi2 << (f.consistent_with_zero ? " (consistent with zero)" : "")
-                << "\n";
+              << " deg, magnetic amplitude " << f.magnetic_amplitude_dph << "+-" << f.magnetic_amplitude_sigma_dph
+              << " deg/h, chi2 " << f.magnetic_chi2 << (f.consistent_with_zero ? " (consistent with zero)" : "")
+              << "\n";
     }
     std::vector<ssiu::MagneticCurves> curves;
     for (const auto& f : fits) curves.push_back(ssiu::MagneticFitCurves(f));
@@ -174,8 +178,10 @@ SSIU_REGISTER_COMMAND(fog_magnetic, [](CLI::App& root) {
         dx = std::max(dx, std::abs(curves[1].mag_x_dph[i] - curves[0].mag_x_dph[i]));
         dy = std::max(dy, std::abs(curves[1].mag_y_dph[i] - curves[0].mag_y_dph[i]));
       }
-      j["difference"] = {{"magnetic_x_peak_dph", dx}, {"magnetic_y_peak_dph", dy},
-                         {"magnetic_amplitude_change_dph", fits[1].magnetic_amplitude_dph - fits[0].magnetic_amplitude_dph}};
+      j["difference"] = {
+          {"magnetic_x_peak_dph", dx},
+          {"magnetic_y_peak_dph", dy},
+          {"magnetic_amplitude_change_dph", fits[1].magnetic_amplitude_dph - fits[0].magnetic_amplitude_dph}};
     }
     if (!o->plot.empty()) {
       MakeDir(o->plot);

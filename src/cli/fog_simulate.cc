@@ -13,7 +13,8 @@ ssiu::MagneticSensitivity ParseSensitivity(const std::string& s, const std::stri
   if (s.empty()) return m;
   std::istringstream in(s);
   char c1 = 0, c2 = 0;
-  if (!(in >> m.along_dph_per_ut >> c1 >> m.across_dph_per_ut >> c2 >> m.vertical_dph_per_ut) || c1 != ',' || c2 != ',') {
+  if (!(in >> m.along_dph_per_ut >> c1 >> m.across_dph_per_ut >> c2 >> m.vertical_dph_per_ut) || c1 != ',' ||
+      c2 != ',') {
     throw ssiu::InputError(flag, "expected ALONG,ACROSS,VERTICAL in deg/h per microtesla");
   }
   return m;
@@ -34,7 +35,8 @@ SSIU_REGISTER_COMMAND(fog_simulate, [](CLI::App& root) {
     auto out = std::make_shared<std::string>();
     o->drift = ssiu::CampaignDriftModel();
     cmd->add_option("--out", *out, "Output CSV")->required();
-    cmd->add_option("--seed", o->seed, "Random seed (each seed gives another temperature programme)")->capture_default_str();
+    cmd->add_option("--seed", o->seed, "Random seed (each seed gives another temperature programme)")
+        ->capture_default_str();
     cmd->add_option("--duration-s", o->duration_s, "Run length, s")->capture_default_str();
     cmd->add_option("--dt-s", o->dt_s, "Sample interval, s")->capture_default_str();
     cmd->add_option("--white-noise-dph", o->white_noise_dph, "Per-sample white noise, deg/h")->capture_default_str();

@@ -1,4 +1,6 @@
 // `ssiu fuse`: star-tracker quaternions + gyro log -> attitude, gyro biases and fault events (MEKF).
+#include "inertial/fuse.h"
+
 #include <cmath>
 #include <iostream>
 #include <memory>
@@ -6,7 +8,6 @@
 
 #include "cli/command.h"
 #include "core/error.h"
-#include "inertial/fuse.h"
 
 namespace ssiu::cli {
 namespace {
@@ -52,8 +53,8 @@ void Run(Opts o) {
             << r.noise.value("rrw_dph_per_sqrt_h", 0.0) << " deg/h/sqrt(h) -> bias walk "
             << r.noise.value("bias_walk_dph_per_sqrt_h", 0.0) << " deg/h/sqrt(h), initial bias sigma "
             << o.fuse.init_bias_sigma_dph << " deg/h\n";
-  std::cerr << "fuse: " << FuseStatusName(r.status) << ": " << r.message << "; bias [" << r.bias_dph.x() << ", " << r.bias_dph.y()
-            << ", " << r.bias_dph.z() << "] deg/h\n";
+  std::cerr << "fuse: " << FuseStatusName(r.status) << ": " << r.message << "; bias [" << r.bias_dph.x() << ", "
+            << r.bias_dph.y() << ", " << r.bias_dph.z() << "] deg/h\n";
 }
 
 }  // namespace
@@ -79,9 +80,11 @@ SSIU_REGISTER_COMMAND(fuse, [](CLI::App& root) {
   cmd->add_option("--bias-instability-dph", o->bias_instability,
                   "Bias instability (flicker floor) of every gyro/axis, deg/h (overrides --noise)")
       ->each([o](const std::string&) { o->bias_instability_given = true; });
-  cmd->add_option("--rrw-dph-per-sqrt-h", o->rrw, "Rate random walk of every gyro/axis, deg/h/sqrt(h) (overrides --noise)")
+  cmd->add_option("--rrw-dph-per-sqrt-h", o->rrw,
+                  "Rate random walk of every gyro/axis, deg/h/sqrt(h) (overrides --noise)")
       ->each([o](const std::string&) { o->rrw_given = true; });
-  cmd->add_option("--init-bias-sigma-dph", o->fuse.init_bias_sigma_dph, "Prior 1 sigma of each body-axis bias (default 10)")
+  cmd->add_option("--init-bias-sigma-dph", o->fuse.init_bias_sigma_dph,
+                  "Prior 1 sigma of each body-axis bias (default 10)")
       ->each([o](const std::string&) { o->init_bias_sigma_given = true; });
   cmd->add_option("--json", o->json, "Result JSON (bias_dph, bias_sigma_dph, faults, ...), - for stdout");
   cmd->add_option("--out", o->out, "Attitude CSV: t_s,qw,qx,qy,qz,sigma_{x,y,z}_arcsec,b{x,y,z}_dph");

@@ -21,7 +21,8 @@ struct Opts {
 
 SSIU_REGISTER_COMMAND(groundtest_mask, [](CLI::App& root) {
   auto* gt = GetOrAddSubcommand(root, "groundtest", "Star-tracker ground test: mask, reference, compare, simulate");
-  auto* cmd = gt->add_subcommand("mask", "Design the star-sky mask plate for a collimator (mask.json, mask.svg, mask.png)");
+  auto* cmd =
+      gt->add_subcommand("mask", "Design the star-sky mask plate for a collimator (mask.json, mask.svg, mask.png)");
   auto o = std::make_shared<Opts>();
   cmd->add_option("--camera", o->camera, "Tracker camera.json")->required();
   cmd->add_option("--collimator-focal-mm", o->mask.collimator_focal_mm, "Collimator focal length (mm)")->required();
@@ -30,12 +31,13 @@ SSIU_REGISTER_COMMAND(groundtest_mask, [](CLI::App& root) {
   cmd->add_option("--roll-deg", o->roll_deg, "Design roll")->capture_default_str();
   cmd->add_option("--mag-max", o->mask.mag_max, "Faintest star drilled (0 = the solver catalog's limit)");
   cmd->add_option("--margin-deg", o->mask.margin_deg, "Star field beyond the FOV on each side")->capture_default_str();
-  cmd->add_option("--hole-min-mm", o->mask.hole_min_diameter_mm, "Hole diameter of the faintest star (0 = 0.2 pixel footprint)");
+  cmd->add_option("--hole-min-mm", o->mask.hole_min_diameter_mm,
+                  "Hole diameter of the faintest star (0 = 0.2 pixel footprint)");
   cmd->add_option("--hole-max-mm", o->mask.hole_max_diameter_mm, "Largest hole (0 = 2 pixel footprints)");
   cmd->add_option("--tag-size-mm", o->mask.tag_size_mm, "Fiducial black-square side (0 = 12% of the field)");
   cmd->add_option("--first-tag-id", o->mask.first_tag_id, "tag36h11 ids first..first+7")->capture_default_str();
   cmd->add_flag("--predistort", o->mask.compensate_distortion,
-               "Pre-distort the holes for a tracker that does not model its lens distortion (camera.json's)");
+                "Pre-distort the holes for a tracker that does not model its lens distortion (camera.json's)");
   cmd->add_option("--dpi", o->dpi, "Resolution of mask.png")->capture_default_str();
   cmd->add_option("--catalog", o->catalog, "Solver catalog directory (default: cache)");
   cmd->add_option("--source", o->source, "Source catalog when it is built (default: by FOV)");

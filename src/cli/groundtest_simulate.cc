@@ -40,15 +40,20 @@ SSIU_REGISTER_COMMAND(groundtest_simulate, [](CLI::App& root) {
   cmd->add_option("--step-s", o->sim.step_s, "Time between pictures")->capture_default_str();
   cmd->add_option("--max-angle-deg", o->sim.max_angle_deg, "Stand az/el spread")->capture_default_str();
   cmd->add_option("--misalignment-arcmin", o->mis, "Hidden stand-to-tracker misalignment x,y,z (sensor axes)")
-      ->expected(3)->delimiter(',');
-  cmd->add_option("--encoder-sigma-arcsec", o->sim.encoder_sigma_arcsec, "Encoder noise per axis")->capture_default_str();
+      ->expected(3)
+      ->delimiter(',');
+  cmd->add_option("--encoder-sigma-arcsec", o->sim.encoder_sigma_arcsec, "Encoder noise per axis")
+      ->capture_default_str();
   cmd->add_option("--plate-shift-mm", o->sim.plate_shift_mm, "Plate displacement in its holder")->capture_default_str();
   cmd->add_option("--plate-turn-deg", o->sim.plate_turn_deg, "Plate in-plane turn")->capture_default_str();
   cmd->add_option("--defocus-px", o->sim.view.detector.defocus_radius_px, "Defocus disk radius")->capture_default_str();
   cmd->add_option("--psf-sigma-px", o->sim.view.detector.psf_sigma_px, "Gaussian PSF sigma")->capture_default_str();
-  cmd->add_option("--background-e-per-s", o->sim.view.detector.background_e_per_s, "Uniform background")->capture_default_str();
-  cmd->add_option("--stray-gradient", o->sim.view.stray_gradient, "Stray-light gradient across the frame")->capture_default_str();
-  cmd->add_option("--stray-glow-e-per-s", o->sim.view.stray_glow_e_per_s, "Stray-light glow peak")->capture_default_str();
+  cmd->add_option("--background-e-per-s", o->sim.view.detector.background_e_per_s, "Uniform background")
+      ->capture_default_str();
+  cmd->add_option("--stray-gradient", o->sim.view.stray_gradient, "Stray-light gradient across the frame")
+      ->capture_default_str();
+  cmd->add_option("--stray-glow-e-per-s", o->sim.view.stray_glow_e_per_s, "Stray-light glow peak")
+      ->capture_default_str();
   cmd->add_option("--photo-noise-dn", o->sim.photo.noise_dn, "Aux photo pixel noise")->capture_default_str();
   cmd->add_option("--photo-tag-family", o->tag_family, "Draw another tag family on the photos (tests)");
   cmd->add_flag("--photo-hide-tags", o->hide_tags, "Draw the photos without fiducials (tests)");
@@ -71,7 +76,8 @@ SSIU_REGISTER_COMMAND(groundtest_simulate, [](CLI::App& root) {
       const StandPicture& p = s.pictures[i];
       WritePng16(Indexed(o->out, "frame", i), p.frame);
       WritePng8(Indexed(o->out, "photo", i), so.aux.camera.width, so.aux.camera.height, p.photo);
-      enc[0].push_back(p.t_s), enc[1].push_back(p.enc_az_deg), enc[2].push_back(p.enc_el_deg), enc[3].push_back(p.enc_rot_deg);
+      enc[0].push_back(p.t_s), enc[1].push_back(p.enc_az_deg), enc[2].push_back(p.enc_el_deg),
+          enc[3].push_back(p.enc_rot_deg);
     }
     WriteCsv(o->out + "/encoders.csv", {"t_s", "az_deg", "el_deg", "rot_deg"}, enc);
     WriteJsonFile(o->out + "/aux_camera.json", AuxCameraToJson(so.aux));

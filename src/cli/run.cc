@@ -37,15 +37,15 @@ SSIU_REGISTER_COMMAND(run, [](CLI::App& root) {
     if (!opts->out.empty()) {  // before the mission runs, and as bad input (not a filesystem exception)
       std::error_code ec;
       std::filesystem::create_directories(opts->out, ec);
-      if (!std::filesystem::is_directory(opts->out, ec)) throw ssiu::InputError(opts->out, "cannot create output directory");
+      if (!std::filesystem::is_directory(opts->out, ec))
+        throw ssiu::InputError(opts->out, "cannot create output directory");
     }
     std::printf("ssiu run: %s, %.0f s, %zu head(s), frames at %.3g Hz, %d gyros at %.0f Hz, seed %llu\n",
                 opts->config.empty() ? "built-in default mission" : opts->config.c_str(), config.duration_s,
                 config.heads.size(), config.frame_rate_hz, config.unit.size(), config.unit.rate_hz,
                 static_cast<unsigned long long>(config.seed));
     std::fflush(stdout);
-    const ssiu::MissionResult r =
-        ssiu::RunMission(config, ssiu::LoadXplanetBsc(ssiu::DefaultBscPath()), opts->out);
+    const ssiu::MissionResult r = ssiu::RunMission(config, ssiu::LoadXplanetBsc(ssiu::DefaultBscPath()), opts->out);
     std::fputs(r.Text().c_str(), stdout);
     if (!opts->json.empty()) {
       ssiu::Json j = r.ToJson();

@@ -78,10 +78,15 @@ void Run(const Opts& o, const std::vector<std::pair<std::string, CLI::Option*>>&
       if (o.centroids_only) {
         const RaDecRoll a = RaDecRollFromQuat(sc.q_inertial_from_sensor);
         const auto qw = ToWxyz(sc.q_inertial_from_sensor);
-        Json truth = {{"q", {qw[0], qw[1], qw[2], qw[3]}}, {"ra_deg", a.ra_rad * kRadToDeg},
-                      {"dec_deg", a.dec_rad * kRadToDeg}, {"roll_deg", a.roll_rad * kRadToDeg},
-                      {"seed", seed}, {"true_stars", sc.true_stars}, {"false_objects", sc.false_objects},
-                      {"centroids", std::string(name) + "_centroids.csv"}, {"catalog", cat.source}};
+        Json truth = {{"q", {qw[0], qw[1], qw[2], qw[3]}},
+                      {"ra_deg", a.ra_rad * kRadToDeg},
+                      {"dec_deg", a.dec_rad * kRadToDeg},
+                      {"roll_deg", a.roll_rad * kRadToDeg},
+                      {"seed", seed},
+                      {"true_stars", sc.true_stars},
+                      {"false_objects", sc.false_objects},
+                      {"centroids", std::string(name) + "_centroids.csv"},
+                      {"catalog", cat.source}};
         WriteJsonFile(base + ".json", truth);
         std::cout << base << "_centroids.csv: " << sc.true_stars << " stars, " << sc.false_objects
                   << " false objects\n";
@@ -134,8 +139,9 @@ SSIU_REGISTER_COMMAND(simulate_frame, [](CLI::App& root) {
   cmd->add_option("--flux-noise-mag", o->scene.flux_noise_mag,
                   "Centroid lists: 1-sigma scatter (mag) of every flux about 10^(-0.4 V) (photometric noise)")
       ->capture_default_str();
-  cmd->add_option("--time", o->time,
-                  "Frame UTC time, ISO 8601: stars drawn with proper motion to that date and aberration (docs/simulator.md)");
+  cmd->add_option(
+      "--time", o->time,
+      "Frame UTC time, ISO 8601: stars drawn with proper motion to that date and aberration (docs/simulator.md)");
   cmd->add_flag("--no-proper-motion", o->no_proper_motion, "With --time: no proper motion");
   cmd->add_flag("--no-aberration", o->no_aberration, "With --time: no stellar aberration");
   auto flags = std::make_shared<std::vector<std::pair<std::string, CLI::Option*>>>();

@@ -45,7 +45,8 @@ SSIU_REGISTER_COMMAND(simulate_gyro, [](CLI::App& root) {
   using namespace ssiu::cli;
   CLI::App* sim = GetOrAddSubcommand(root, "simulate", "Simulate data (star frames, gyro logs)");
   CLI::App* cmd = sim->add_subcommand(
-      "gyro", "Simulate a redundant FOG unit: DIR/gyro.csv, truth.csv, rates.csv (true rates and biases), st.csv, unit.json");
+      "gyro",
+      "Simulate a redundant FOG unit: DIR/gyro.csv, truth.csv, rates.csv (true rates and biases), st.csv, unit.json");
   auto o = std::make_shared<Opts>();
   cmd->add_option("--unit", o->unit, "unit.json (default: four navigation-grade FOGs, 3 orthogonal + 1 skewed)");
   cmd->add_option("--profile", o->profile,

@@ -8,8 +8,9 @@ void AddSkyFlags(CLI::App* cmd, SkyFlags* f) {
   cmd->add_option("--time", f->time,
                   "Frame UTC time, ISO 8601 (mid-exposure; default: FITS DATE-OBS): proper motion to that date "
                   "and annual aberration are removed");
-  cmd->add_option("--velocity-kms", f->velocity_kms,
-                  "Spacecraft velocity relative to the Earth, X,Y,Z km/s (ICRS): its aberration is removed too (needs a time)");
+  cmd->add_option(
+      "--velocity-kms", f->velocity_kms,
+      "Spacecraft velocity relative to the Earth, X,Y,Z km/s (ICRS): its aberration is removed too (needs a time)");
 }
 
 SkyCorrections SkyFromFlags(const SkyFlags& f, const Frame* frame) {
@@ -22,7 +23,8 @@ SkyCorrections SkyFromFlags(const SkyFlags& f, const Frame* frame) {
   if (!f.velocity_kms.empty()) {
     s.velocity_m_s = ParseVelocityKms(f.velocity_kms, "--velocity-kms");
     s.have_velocity = true;
-    if (!s.time.valid()) throw InputError("--velocity-kms", "needs the frame time (--time, or a FITS frame's DATE-OBS)");
+    if (!s.time.valid())
+      throw InputError("--velocity-kms", "needs the frame time (--time, or a FITS frame's DATE-OBS)");
   }
   s.Check();
   return s;

@@ -46,8 +46,9 @@ void AddSolverFlags(CLI::App* cmd, Opts* o) {
       ->delimiter(',');
   cmd->add_option("--max-false-prob", o->solve.identify.max_false_match_prob, "Accept below this chance probability")
       ->capture_default_str();
-  cmd->add_flag_callback("--no-photometry", [o] { o->solve.identify.use_photometry = false; },
-                         "Lost in space: leave the centroids' fluxes out of the chance probability (geometry only)");
+  cmd->add_flag_callback(
+      "--no-photometry", [o] { o->solve.identify.use_photometry = false; },
+      "Lost in space: leave the centroids' fluxes out of the chance probability (geometry only)");
   cmd->add_option("--timeout-ms", o->solve.identify.timeout_ms,
                   "Lost in space: stop the hypothesis search after this much CPU time, no_match (0 = no limit)")
       ->capture_default_str();
@@ -75,8 +76,8 @@ void PrintSummary(const std::string& what, const SolveResult& r) {
   std::cerr << what << ": " << r.status;
   if (r.status == "solved") {
     const RaDecRoll a = RaDecRollFromQuat(r.attitude.q_inertial_from_sensor);
-    std::cerr << " ra " << a.ra_rad * kRadToDeg << " dec " << a.dec_rad * kRadToDeg << " roll " << a.roll_rad * kRadToDeg
-              << " deg, " << r.identification.matches.size() << " stars";
+    std::cerr << " ra " << a.ra_rad * kRadToDeg << " dec " << a.dec_rad * kRadToDeg << " roll "
+              << a.roll_rad * kRadToDeg << " deg, " << r.identification.matches.size() << " stars";
   }
   std::cerr << " (" << r.message << ")\n";
 }
@@ -120,10 +121,24 @@ void RunSingle(const Opts& o) {
 }
 
 // --csv columns of a batch (docs/identify.md "Batch"); the cells come from the record's JSON.
-const std::vector<std::string> kBatchColumns = {
-    "file",     "status",   "mode",     "ra_deg",   "dec_deg", "roll_deg", "q_w",         "q_x",
-    "q_y",      "q_z",      "sigma_cross_arcsec",  "sigma_roll_arcsec",    "focal_length_px",
-    "num_centroids",        "num_matches",         "false_match_probability", "time_ms", "message"};
+const std::vector<std::string> kBatchColumns = {"file",
+                                                "status",
+                                                "mode",
+                                                "ra_deg",
+                                                "dec_deg",
+                                                "roll_deg",
+                                                "q_w",
+                                                "q_x",
+                                                "q_y",
+                                                "q_z",
+                                                "sigma_cross_arcsec",
+                                                "sigma_roll_arcsec",
+                                                "focal_length_px",
+                                                "num_centroids",
+                                                "num_matches",
+                                                "false_match_probability",
+                                                "time_ms",
+                                                "message"};
 
 std::vector<std::string> BatchRow(const std::string& file, const Json& j) {
   const Json& q = j["q"];
@@ -169,7 +184,8 @@ void RunBatchSolve(const Opts& o, const std::vector<std::string>& inputs) {
 void RunHeads(const Opts& o) {
   const std::vector<OpticalHead> hs = ReadHeadsFile(o.heads);
   if (o.frames.size() != hs.size())
-    throw InputError(o.heads, "lists " + std::to_string(hs.size()) + " heads but " + std::to_string(o.frames.size()) + " frames were given");
+    throw InputError(o.heads, "lists " + std::to_string(hs.size()) + " heads but " + std::to_string(o.frames.size()) +
+                                  " frames were given");
   // --rate-dps is the body's rate here: each head sees it in its own axes (as the unit's processor
   // hands the gyro rate to each head).
   const Vec3 w_body_rad_s = o.smear.given() ? SmearRateRadS(o.smear, true) : Vec3::Zero();
@@ -233,7 +249,11 @@ void RunHeads(const Opts& o) {
       const Vec3 pred = s.q_inertial_from_sensor.conjugate() * m.r_inertial;  // body axes
       const Vec3 b = rm * m.b_sensor;
       const double res = std::atan2(pred.cross(b).norm(), pred.dot(b));
-      matches.push_back({{"head", h}, {"x_px", m.x_px}, {"y_px", m.y_px}, {"star_id", m.star_id}, {"mag", m.mag},
+      matches.push_back({{"head", h},
+                         {"x_px", m.x_px},
+                         {"y_px", m.y_px},
+                         {"star_id", m.star_id},
+                         {"mag", m.mag},
                          {"residual_arcsec", res * kRadToArcsec}});
     }
   }
@@ -255,7 +275,8 @@ SSIU_REGISTER_COMMAND(solve, [](CLI::App& root) {
                   "frame per head");
   cmd->add_option("--camera", o->camera, "camera.json");
   cmd->add_option("--catalog", o->catalog, "Solver catalog directory (built there if absent; default: cache)");
-  cmd->add_option("--centroids", o->centroids, "CSV x_px,y_px[,flux][,sigma_px] instead of a frame (repeat for a batch)")
+  cmd->add_option("--centroids", o->centroids,
+                  "CSV x_px,y_px[,flux][,sigma_px] instead of a frame (repeat for a batch)")
       ->expected(1)
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   o->json_opt = cmd->add_option("--json", o->json, "Output JSON of one input, - for stdout")->capture_default_str();
@@ -283,7 +304,8 @@ SSIU_REGISTER_COMMAND(solve, [](CLI::App& root) {
       if (o->solve.identify.fov_tolerance_pct > 0)
         throw InputError("--fov-range-deg", "give --fov-range-deg or --fov-tolerance-pct, not both");
       const double lo = o->fov_range_deg[0], hi = o->fov_range_deg[1];
-      if (!(lo > 0.5 && lo < hi && hi < 90)) throw InputError("--fov-range-deg", "must be MIN,MAX with 0.5 < MIN < MAX < 90 deg");
+      if (!(lo > 0.5 && lo < hi && hi < 90))
+        throw InputError("--fov-range-deg", "must be MIN,MAX with 0.5 < MIN < MAX < 90 deg");
       o->solve.identify.fov_min_deg = lo;
       o->solve.identify.fov_max_deg = hi;
     }

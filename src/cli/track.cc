@@ -31,9 +31,12 @@ SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
   cmd->add_option("--json", o->json, "Output JSON (list of per-frame results), - for stdout")->capture_default_str();
   cmd->add_option("--dt-s", o->dt_s, "Time between frames (s)")->capture_default_str();
   cmd->add_option("--dark", o->dark, "Dark/median frame subtracted before detection");
-  cmd->add_option("--fov-tolerance-pct", o->solve.identify.fov_tolerance_pct, "Focal length uncertainty (%), first frame");
-  cmd->add_option("--search-radius-px", o->solve.track_search_radius_px, "Tracking search radius")->capture_default_str();
-  cmd->add_option("--systematic-px", o->solve.identify.systematic_px, "Unmodelled position error")->capture_default_str();
+  cmd->add_option("--fov-tolerance-pct", o->solve.identify.fov_tolerance_pct,
+                  "Focal length uncertainty (%), first frame");
+  cmd->add_option("--search-radius-px", o->solve.track_search_radius_px, "Tracking search radius")
+      ->capture_default_str();
+  cmd->add_option("--systematic-px", o->solve.identify.systematic_px, "Unmodelled position error")
+      ->capture_default_str();
   AddSmearFlags(cmd, &o->smear, "sensor axes, the same for every frame");
   AddSkyFlags(cmd, &o->sky);
   cmd->callback([o] {

@@ -119,8 +119,9 @@ void SkyCorrections::Check() const {
   if (!velocity_m_s.allFinite() || velocity_m_s.norm() > 1e5)
     throw InputError("velocity", "spacecraft velocity must be finite and below 100 km/s");
   if (have_velocity && !time.valid())
-    throw InputError("velocity", "a spacecraft velocity needs the frame time (--time or FITS DATE-OBS): the annual "
-                                 "aberration is the larger part");
+    throw InputError("velocity",
+                     "a spacecraft velocity needs the frame time (--time or FITS DATE-OBS): the annual "
+                     "aberration is the larger part");
 }
 
 Vec3 ParseVelocityKms(const std::string& text, const std::string& where) {

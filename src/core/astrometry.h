@@ -60,11 +60,11 @@ Vec3 PropagateProperMotion(const CatalogStar& star, double from_year, double to_
 // What brings catalog directions to the apparent directions of a frame (docs/identify.md, "Time and
 // motion"): without a time, nothing (positions at the catalog epoch, no aberration).
 struct SkyCorrections {
-  UtcTime time;                        // frame time (mid-exposure); !valid() = unknown
-  bool proper_motion = true;           // propagate catalog positions to the frame's date
-  bool annual_aberration = true;       // the Earth's barycentric velocity
-  bool have_velocity = false;          // spacecraft velocity relative to the Earth given
-  Vec3 velocity_m_s = Vec3::Zero();    // ICRS axes
+  UtcTime time;                      // frame time (mid-exposure); !valid() = unknown
+  bool proper_motion = true;         // propagate catalog positions to the frame's date
+  bool annual_aberration = true;     // the Earth's barycentric velocity
+  bool have_velocity = false;        // spacecraft velocity relative to the Earth given
+  Vec3 velocity_m_s = Vec3::Zero();  // ICRS axes
   bool active() const { return time.valid(); }
   // Observer velocity relative to the barycentre (m/s): Earth's (when annual_aberration) + spacecraft's.
   Vec3 ObserverVelocityMS() const;

@@ -25,8 +25,7 @@ Quat QuatFromRaDecRoll(double ra_rad, double dec_rad, double roll_rad) {
   // X = west = -east, Y = -north, Z = boresight (east, north: local tangent basis at the boresight).
   const Vec3 z = UnitFromRaDec(ra_rad, dec_rad);
   const Vec3 east(-std::sin(ra_rad), std::cos(ra_rad), 0.0);
-  const Vec3 north(-std::sin(dec_rad) * std::cos(ra_rad), -std::sin(dec_rad) * std::sin(ra_rad),
-                   std::cos(dec_rad));
+  const Vec3 north(-std::sin(dec_rad) * std::cos(ra_rad), -std::sin(dec_rad) * std::sin(ra_rad), std::cos(dec_rad));
   Mat3 r0;
   r0.col(0) = -east;
   r0.col(1) = -north;

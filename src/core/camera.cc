@@ -15,15 +15,17 @@ void Camera::Check(const std::string& source) const {
   if (!std::isfinite(focal_length_px) || focal_length_px < 10 || focal_length_px > 1e6) {
     throw InputError(source, "focal_length_px must be 10..1e6 pixels");
   }
-  if (!std::isfinite(focal_length_y_px) || (focal_length_y_px != 0 && (focal_length_y_px < 10 || focal_length_y_px > 1e6))) {
+  if (!std::isfinite(focal_length_y_px) ||
+      (focal_length_y_px != 0 && (focal_length_y_px < 10 || focal_length_y_px > 1e6))) {
     throw InputError(source, "focal_length_y_px must be 10..1e6 pixels");
   }
-  if (!std::isfinite(cx_px) || !std::isfinite(cy_px) || cx_px < -0.5 || cy_px < -0.5 ||
-      cx_px > width - 0.5 || cy_px > height - 0.5) {
+  if (!std::isfinite(cx_px) || !std::isfinite(cy_px) || cx_px < -0.5 || cy_px < -0.5 || cx_px > width - 0.5 ||
+      cy_px > height - 0.5) {
     throw InputError(source, "principal_point must lie inside the image");
   }
   for (double k : {distortion.k1, distortion.k2, distortion.k3, distortion.p1, distortion.p2}) {
-    if (!std::isfinite(k) || std::abs(k) > 10) throw InputError(source, "distortion coefficients must be finite, |k| <= 10");
+    if (!std::isfinite(k) || std::abs(k) > 10)
+      throw InputError(source, "distortion coefficients must be finite, |k| <= 10");
   }
   if (!std::isfinite(gain_e_per_adu) || gain_e_per_adu < 0) throw InputError(source, "gain_e_per_adu must be >= 0");
 }
@@ -96,14 +98,16 @@ Camera MakeCamera(int width, int height, double fov_x_deg) {
 
 Camera CameraFromJson(const Json& j, const std::string& source, double fov_x_deg_if_no_focal) {
   if (!j.is_object()) throw InputError(source, "camera must be a JSON object");
-  CheckKeys(j, {"width", "height", "focal_length_px", "focal_length_mm", "pixel_pitch_um", "principal_point",
-                "distortion", "gain_e_per_adu", "psf_sigma_px", "psf_ellipticity", "psf_angle_deg", "focal_length_y_px"},
+  CheckKeys(j,
+            {"width", "height", "focal_length_px", "focal_length_mm", "pixel_pitch_um", "principal_point", "distortion",
+             "gain_e_per_adu", "psf_sigma_px", "psf_ellipticity", "psf_angle_deg", "focal_length_y_px"},
             source);
   Camera c;
   c.width = static_cast<int>(JsonInt(j, "width", 16, 65536, source));
   c.height = static_cast<int>(JsonInt(j, "height", 16, 65536, source));
   if (j.contains("focal_length_px")) {
-    if (j.contains("focal_length_mm")) throw InputError(source, "give 'focal_length_px' or 'focal_length_mm', not both");
+    if (j.contains("focal_length_mm"))
+      throw InputError(source, "give 'focal_length_px' or 'focal_length_mm', not both");
     c.focal_length_px = JsonNumber(j, "focal_length_px", source);
   } else if (j.contains("focal_length_mm")) {
     const double f_mm = JsonNumber(j, "focal_length_mm", source);
@@ -113,7 +117,8 @@ Camera CameraFromJson(const Json& j, const std::string& source, double fov_x_deg
   } else if (fov_x_deg_if_no_focal > 0) {
     // Unknown field of view: a placeholder the solver replaces; square pixels (an fy alone has no fx).
     if (j.contains("focal_length_y_px"))
-      throw InputError(source, "field 'focal_length_y_px' needs 'focal_length_px' (without a focal length pixels are square)");
+      throw InputError(source,
+                       "field 'focal_length_y_px' needs 'focal_length_px' (without a focal length pixels are square)");
     c.focal_length_px = 0.5 * c.width / std::tan(0.5 * fov_x_deg_if_no_focal * kDegToRad);
   } else {
     throw InputError(source, "missing field 'focal_length_px' (or 'focal_length_mm' + 'pixel_pitch_um')");

@@ -22,10 +22,10 @@ struct Camera {
   // fy (camera.json `focal_length_y_px`, for non-square pixels); 0 = square pixels, fy = fx. Read it
   // through FocalYPx() and scale both with ScaleFocal().
   double focal_length_y_px = 0;
-  double cx_px = 511.5;             // principal point; default is the image centre
+  double cx_px = 511.5;  // principal point; default is the image centre
   double cy_px = 511.5;
   Distortion distortion;
-  double gain_e_per_adu = 0;        // optional: 0 = unknown
+  double gain_e_per_adu = 0;  // optional: 0 = unknown
 
   // Throws InputError naming `source` and the field when a value is absurd.
   void Check(const std::string& source = "camera") const;

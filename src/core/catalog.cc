@@ -29,7 +29,8 @@ StarCatalog LoadXplanetBsc(const std::string& path, double mag_max) {
     if (first == std::string::npos || line[first] == '#') continue;
     // Name is quoted and may contain spaces: take the numbers before and after it.
     const auto q1 = line.find('"'), q2 = line.rfind('"');
-    if (q1 == std::string::npos || q2 == q1) throw InputError(path, "line " + std::to_string(line_no) + ": no quoted name");
+    if (q1 == std::string::npos || q2 == q1)
+      throw InputError(path, "line " + std::to_string(line_no) + ": no quoted name");
     std::istringstream head(line.substr(0, q1)), tail(line.substr(q2 + 1));
     double dec_deg = 0, ra_h = 0, mag = 0;
     long hr = 0;

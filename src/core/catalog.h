@@ -18,7 +18,7 @@ struct CatalogStar {
   StarId id = kInvalidStarId;
   double ra_rad = 0;
   double dec_rad = 0;
-  double mag = 0;  // visual magnitude V
+  double mag = 0;             // visual magnitude V
   Vec3 unit = Vec3::UnitX();  // unit vector (ICRS) at the catalog's epoch
   // Proper motion (rad per Julian year; pm_ra is mu_alpha * cos(dec)); 0 when the source has none.
   double pm_ra_rad_per_yr = 0, pm_dec_rad_per_yr = 0;

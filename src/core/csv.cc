@@ -50,8 +50,8 @@ const std::vector<double>& CsvTable::Column(const std::string& name) const {
   for (size_t i = 0; i < header.size(); ++i) {
     if (header[i] != name) continue;
     if (first_bad_row_[i] >= 0) {
-      throw InputError(file, "row " + std::to_string(first_bad_row_[i]) + ", column '" + name + "': " +
-                                 (why_bad_[i].empty() ? "not a finite decimal number" : why_bad_[i]));
+      throw InputError(file, "row " + std::to_string(first_bad_row_[i]) + ", column '" + name +
+                                 "': " + (why_bad_[i].empty() ? "not a finite decimal number" : why_bad_[i]));
     }
     return columns_[i];
   }
@@ -115,7 +115,8 @@ CsvTable ReadCsv(const std::string& path) {
     std::string text;
   };
   std::vector<Bound> bounds(names.size());
-  for (size_t i = 0; i < names.size(); ++i) bounds[i].on = PhysicalBound(names[i], &bounds[i].lo, &bounds[i].hi, &bounds[i].text);
+  for (size_t i = 0; i < names.size(); ++i)
+    bounds[i].on = PhysicalBound(names[i], &bounds[i].lo, &bounds[i].hi, &bounds[i].text);
   long row = 0;
   while (std::getline(in, line)) {
     if (Trim(line).empty()) continue;

@@ -1,10 +1,9 @@
 #include "core/image.h"
 
-
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -87,7 +86,7 @@ Frame ReadFits(const std::string& path) {
     fr.file = path;
     fr.image = Image16(static_cast<int>(w), static_cast<int>(h));
     if (Cfitsio().read_pix(f, TUSHORT, first, static_cast<LONGLONG>(fr.image.pixels.size()), nullptr,
-                      fr.image.pixels.data(), &anynul, &status)) {
+                           fr.image.pixels.data(), &anynul, &status)) {
       throw fail("cannot read FITS pixel data (truncated?)");
     }
     Cfitsio().close_file(f, &status);
@@ -207,8 +206,8 @@ void CheckFrameContent(const Frame& fr) {
     throw InputError(fr.file, "image is constant (every pixel = " + std::to_string(hi) + "): no signal");
   }
   if (n_sat * 2 > px.size()) {
-    throw InputError(fr.file, "image is saturated (" + std::to_string(100 * n_sat / px.size()) +
-                                  "% of pixels at full scale)");
+    throw InputError(fr.file,
+                     "image is saturated (" + std::to_string(100 * n_sat / px.size()) + "% of pixels at full scale)");
   }
 }
 
@@ -220,7 +219,8 @@ ImageLimits ImageLimits::FromEnvironment() {
     char* end = nullptr;
     const double d = std::strtod(v, &end);
     if (*end != '\0' || !(d >= static_cast<double>(lo) && d <= static_cast<double>(hi))) {
-      throw InputError(name, std::string("must be a number in [") + std::to_string(lo) + ", " + std::to_string(hi) + "], not '" + v + "'");
+      throw InputError(name, std::string("must be a number in [") + std::to_string(lo) + ", " + std::to_string(hi) +
+                                 "], not '" + v + "'");
     }
     *out = static_cast<int64_t>(d) * unit;
   };
@@ -234,12 +234,15 @@ bool DeclaredImageSize(const std::string& path, int64_t* width, int64_t* height)
   unsigned char b[32] = {0};
   in.read(reinterpret_cast<char*>(b), sizeof b);
   const std::streamsize n = in.gcount();
-  auto be32 = [&](int i) { return (uint32_t(b[i]) << 24) | (uint32_t(b[i + 1]) << 16) | (uint32_t(b[i + 2]) << 8) | b[i + 3]; };
+  auto be32 = [&](int i) {
+    return (uint32_t(b[i]) << 24) | (uint32_t(b[i + 1]) << 16) | (uint32_t(b[i + 2]) << 8) | b[i + 3];
+  };
   if (n >= 24 && b[0] == 0x89 && b[1] == 'P' && b[2] == 'N' && b[3] == 'G' && std::string(b + 12, b + 16) == "IHDR") {
     *width = be32(16), *height = be32(20);  // PNG 11.2.2: IHDR is the first chunk
     return true;
   }
-  if (n >= 8 && ((b[0] == 'I' && b[1] == 'I' && b[2] == 42 && b[3] == 0) || (b[0] == 'M' && b[1] == 'M' && b[2] == 0 && b[3] == 42))) {
+  if (n >= 8 && ((b[0] == 'I' && b[1] == 'I' && b[2] == 42 && b[3] == 0) ||
+                 (b[0] == 'M' && b[1] == 'M' && b[2] == 0 && b[3] == 42))) {
     // TIFF 6.0 section 2: the first IFD's ImageWidth (256) and ImageLength (257), SHORT or LONG.
     const bool le = b[0] == 'I';
     auto u = [&](const unsigned char* p, int bytes) {
@@ -296,8 +299,9 @@ Frame ReadFrame(const std::string& path, const ImageLimits& limits) {
   }
   int64_t w = 0, h = 0;
   if (DeclaredImageSize(path, &w, &h) && (w > limits.max_side_px || h > limits.max_side_px)) {
-    throw InputError(path, "declares " + std::to_string(w) + " x " + std::to_string(h) + " pixels, more than the limit of " +
-                               std::to_string(limits.max_side_px) + " per side (SSIU_MAX_IMAGE_SIDE_PX)");
+    throw InputError(path, "declares " + std::to_string(w) + " x " + std::to_string(h) +
+                               " pixels, more than the limit of " + std::to_string(limits.max_side_px) +
+                               " per side (SSIU_MAX_IMAGE_SIDE_PX)");
   }
   Frame fr = (IsFitsName(path) || HasFitsMagic(path)) ? ReadFits(path) : ReadRaster(path, limits.max_side_px);
   if (fr.image.width > limits.max_side_px || fr.image.height > limits.max_side_px) {
@@ -332,7 +336,8 @@ void CheckPngOutputName(const std::string& path) {
   }
 }
 
-std::string PngBytes(const void* pixels, int width, int height, int channels, int depth, size_t stride_bytes, int level) {
+std::string PngBytes(const void* pixels, int width, int height, int channels, int depth, size_t stride_bytes,
+                     int level) {
   if ((depth != 8 && depth != 16) || channels < 1 || channels > 4 || width < 1 || height < 1 ||
       stride_bytes < static_cast<size_t>(width) * channels * (depth / 8)) {
     throw std::invalid_argument("PngBytes: only 8/16-bit images of 1-4 channels");
@@ -355,10 +360,12 @@ std::string PngBytes(const void* pixels, int width, int height, int channels, in
       }
     }
   }
-  return EncodePng(depth == 8 ? static_cast<const void*>(narrow.data()) : wide.data(), width, height, channels, depth, level);
+  return EncodePng(depth == 8 ? static_cast<const void*>(narrow.data()) : wide.data(), width, height, channels, depth,
+                   level);
 }
 
-void WritePng(const std::string& path, const void* pixels, int width, int height, int channels, int depth, size_t stride_bytes) {
+void WritePng(const std::string& path, const void* pixels, int width, int height, int channels, int depth,
+              size_t stride_bytes) {
   // The format is PNG whatever the name says: a name with another extension is a usage error (once an
   // OpenCV exception, exit 2), a name without one (or a device such as /dev/stdout) is fine.
   CheckPngOutputName(path);
@@ -388,7 +395,7 @@ void WriteFits16(const std::string& path, const Image16& image) {
     Cfitsio().create_img(f, USHORT_IMG, 2, naxes, &status);
     long first[2] = {1, 1};
     Cfitsio().write_pix(f, TUSHORT, first, static_cast<LONGLONG>(image.pixels.size()),
-                   const_cast<uint16_t*>(image.pixels.data()), &status);
+                        const_cast<uint16_t*>(image.pixels.data()), &status);
     Cfitsio().close_file(f, &status);
     if (status) throw InputError(path, "cannot write FITS file");
   });

@@ -38,12 +38,12 @@ struct Image16 {
 struct Frame {
   std::string file;
   Image16 image;
-  int bit_depth = 16;           // 8 or 16 (FITS: 16 after conversion)
+  int bit_depth = 16;             // 8 or 16 (FITS: 16 after conversion)
   double saturation_adu = 65535;  // full-scale value in stored counts
   double value_scale = 1.0;
   double value_offset = 0.0;
   std::string grey_conversion = "none";  // how colour was reduced to grey, e.g. "mean_rgb"
-  std::string date_obs;         // FITS DATE-OBS as written (the frame's UTC time); "" when absent
+  std::string date_obs;                  // FITS DATE-OBS as written (the frame's UTC time); "" when absent
 };
 
 // Reads PNG/TIFF (8/16-bit; grey, or RGB/RGBA reduced to grey by the mean of R, G, B) or FITS
@@ -77,10 +77,12 @@ Frame SubtractDark(const Frame& frame, const Frame& dark, double pedestal_adu = 
 // written or its name has an extension other than .png.
 // Pixels: `channels` (1-4, OpenCV's order: grey, BGR, BGRA) of `depth` bits (8 or 16, native
 // order) each, rows stride_bytes apart (core/image_cv.h takes a cv::Mat).
-void WritePng(const std::string& path, const void* pixels, int width, int height, int channels, int depth, size_t stride_bytes);
+void WritePng(const std::string& path, const void* pixels, int width, int height, int channels, int depth,
+              size_t stride_bytes);
 // The PNG file of such an image, deflated at `level` (libdeflate, 1-12); std::invalid_argument for
 // another type. No OpenCV codec involved.
-std::string PngBytes(const void* pixels, int width, int height, int channels, int depth, size_t stride_bytes, int level = 6);
+std::string PngBytes(const void* pixels, int width, int height, int channels, int depth, size_t stride_bytes,
+                     int level = 6);
 // InputError unless `path` names a PNG (extension .png, or none): checked before work is done.
 void CheckPngOutputName(const std::string& path);
 void WritePng16(const std::string& path, const Image16& image);

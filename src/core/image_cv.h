@@ -3,7 +3,6 @@
 #pragma once
 
 #include <opencv2/core.hpp>
-
 #include <stdexcept>
 #include <string>
 
@@ -14,7 +13,8 @@ namespace ssiu {
 // 8/16-bit, 1-4 channels (grey, BGR, BGRA); std::invalid_argument for another type.
 inline std::string PngBytes(const cv::Mat& m, int level = 6) {
   const int depth = m.depth() == CV_8U ? 8 : m.depth() == CV_16U ? 16 : 0;
-  if (depth == 0 || m.dims != 2 || m.empty()) throw std::invalid_argument("PngBytes: only 8/16-bit images of 1-4 channels");
+  if (depth == 0 || m.dims != 2 || m.empty())
+    throw std::invalid_argument("PngBytes: only 8/16-bit images of 1-4 channels");
   return PngBytes(m.data, m.cols, m.rows, m.channels(), depth, m.step[0], level);
 }
 

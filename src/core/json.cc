@@ -59,7 +59,8 @@ size_t EditDistance(const std::string& a, const std::string& b) {
     for (size_t k = 1; k <= m; ++k) {
       const size_t cost = a[i - 1] == b[k - 1] ? 0 : 1;
       d[i][k] = std::min({d[i - 1][k] + 1, d[i][k - 1] + 1, d[i - 1][k - 1] + cost});
-      if (i > 1 && k > 1 && a[i - 1] == b[k - 2] && a[i - 2] == b[k - 1]) d[i][k] = std::min(d[i][k], d[i - 2][k - 2] + 1);
+      if (i > 1 && k > 1 && a[i - 1] == b[k - 2] && a[i - 2] == b[k - 1])
+        d[i][k] = std::min(d[i][k], d[i - 2][k - 2] + 1);
     }
   }
   return d[n][m];
@@ -141,8 +142,8 @@ int64_t JsonInt(const Json& j, const std::string& key, int64_t lo, int64_t hi, c
   const double d = JsonNumber(j, key, file);
   // Compared as doubles before any conversion; lo and hi are far inside +-2^53 in practice.
   if (!(d >= static_cast<double>(lo) && d <= static_cast<double>(hi)) || d != std::floor(d)) {
-    throw InputError(file, Field(key) + " must be a whole number in [" + std::to_string(lo) + ", " +
-                               std::to_string(hi) + "]");
+    throw InputError(
+        file, Field(key) + " must be a whole number in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
   }
   return static_cast<int64_t>(d);
 }

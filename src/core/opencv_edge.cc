@@ -25,7 +25,8 @@ std::string ExecutableDir() {
 Lookup Load() {
   std::string tried;
   const char* env = std::getenv("SSIU_OPENCV_EDGE");
-  for (const std::string& path : {std::string(env && *env ? env : ""), ExecutableDir() + kModule, std::string(SSIU_OPENCV_EDGE_PATH)}) {
+  for (const std::string& path :
+       {std::string(env && *env ? env : ""), ExecutableDir() + kModule, std::string(SSIU_OPENCV_EDGE_PATH)}) {
     if (path.empty()) continue;
     if (void* lib = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL)) {  // kept loaded until exit
       if (auto fn = reinterpret_cast<Lookup>(dlsym(lib, kLookup))) return fn;
@@ -33,7 +34,8 @@ Lookup Load() {
     }
     tried += std::string(tried.empty() ? "" : "; ") + dlerror();
   }
-  throw std::runtime_error(std::string("cannot load ") + kModule + " (OpenCV drawing and ground-test geometry; set SSIU_OPENCV_EDGE): " + tried);
+  throw std::runtime_error(std::string("cannot load ") + kModule +
+                           " (OpenCV drawing and ground-test geometry; set SSIU_OPENCV_EDGE): " + tried);
 }
 
 }  // namespace
@@ -41,7 +43,8 @@ Lookup Load() {
 void* OpenCvEdgeSymbol(const char* name) {
   static const Lookup lookup = Load();  // C++11: initialised once, thread-safe; retried if it threw
   void* fn = lookup(name);
-  if (!fn) throw std::runtime_error(std::string(kModule) + " has no function " + name + " (a module from another build?)");
+  if (!fn)
+    throw std::runtime_error(std::string(kModule) + " has no function " + name + " (a module from another build?)");
   return fn;
 }
 

@@ -107,7 +107,8 @@ void WriteFileAtomic(const std::string& path, const std::function<void(std::ostr
 }
 
 void WriteFileAtomic(const std::string& path, const std::string& bytes) {
-  WriteFileAtomic(path, [&](std::ostream& out) { out.write(bytes.data(), static_cast<std::streamsize>(bytes.size())); });
+  WriteFileAtomic(path,
+                  [&](std::ostream& out) { out.write(bytes.data(), static_cast<std::streamsize>(bytes.size())); });
 }
 
 void WriteFileViaTemp(const std::string& path, const std::function<void(const std::string& temp_path)>& write) {

@@ -121,7 +121,8 @@ bool ReadChunks(uint8_t* b, size_t size, const std::string& path, PngLayout* png
     if (pos + 12 > size) Corrupt(path, "file truncated (no IEND chunk)");
     const uint32_t len = Be32(b + pos);
     const std::string type(reinterpret_cast<const char*>(b + pos + 4), 4);
-    if (len > 0x7fffffffu || pos + 12 + len > size) Corrupt(path, "chunk '" + type + "' runs past the end of the file (truncated)");
+    if (len > 0x7fffffffu || pos + 12 + len > size)
+      Corrupt(path, "chunk '" + type + "' runs past the end of the file (truncated)");
     const uint8_t* data = b + pos + 8;
     const bool critical = (b[pos + 4] & 0x20) == 0;
     // Critical chunks must pass their CRC (as libpng requires); ancillary ones are not read.
@@ -137,7 +138,8 @@ bool ReadChunks(uint8_t* b, size_t size, const std::string& path, PngLayout* png
       if (data[10] != 0 || data[11] != 0) Corrupt(path, "IHDR compression or filter method is not 0");
       // Colour, palette, alpha, interlaced or sub-byte depths: libpng (raster_codec.h).
       if (data[9] != 0 || (depth != 8 && depth != 16) || data[12] != 0) return false;
-      if (w > 65536 || h > 65536) Corrupt(path, "IHDR size " + std::to_string(w) + "x" + std::to_string(h) + " is too large");
+      if (w > 65536 || h > 65536)
+        Corrupt(path, "IHDR size " + std::to_string(w) + "x" + std::to_string(h) + " is too large");
     } else if (type == "tRNS" && !idat_seen) {
       return false;  // transparency: left to libpng, which turns it into an alpha channel
     } else if (type == "IDAT") {
@@ -201,7 +203,8 @@ bool DecodeGreyPng(std::vector<uint8_t>& bytes, const std::string& path, Frame* 
   const size_t row_bytes = static_cast<size_t>(w) * (png.depth / 8);
   const size_t raw_bytes = (row_bytes + 1) * h;
   // Deflate expands at most ~1032:1: refuse before allocating what a short file cannot fill.
-  if (raw_bytes / 1032 > png.idat_end - png.idat_begin + 64) Corrupt(path, "IDAT holds fewer bytes than IHDR's size needs (truncated)");
+  if (raw_bytes / 1032 > png.idat_end - png.idat_begin + 64)
+    Corrupt(path, "IDAT holds fewer bytes than IHDR's size needs (truncated)");
   Frame fr;
   fr.file = path;
   fr.bit_depth = png.depth;

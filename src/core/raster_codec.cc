@@ -4,10 +4,10 @@
 #include <png.h>
 #include <tiffio.h>
 
+#include <algorithm>
 #include <cstdarg>
 #include <cstdio>
 #include <cstdlib>
-#include <algorithm>
 #include <cstring>
 #include <memory>
 #include <new>
@@ -177,15 +177,22 @@ uint64_t Filter(int type, const uint8_t* c, const uint8_t* p, size_t n, size_t b
     const int a = x >= bpp ? c[x - bpp] : 0, up = p[x], ul = x >= bpp ? p[x - bpp] : 0;
     int pred = 0;
     switch (type) {
-      case 1: pred = a; break;
-      case 2: pred = up; break;
-      case 3: pred = (a + up) >> 1; break;
+      case 1:
+        pred = a;
+        break;
+      case 2:
+        pred = up;
+        break;
+      case 3:
+        pred = (a + up) >> 1;
+        break;
       case 4: {
         const int pa = std::abs(up - ul), pb = std::abs(a - ul), pc = std::abs(a + up - 2 * ul);
         pred = (pa <= pb && pa <= pc) ? a : (pb <= pc ? up : ul);
         break;
       }
-      default: break;
+      default:
+        break;
     }
     out[x] = static_cast<uint8_t>(c[x] - pred);
     sum += static_cast<uint64_t>(std::abs(static_cast<int8_t>(out[x])));
@@ -251,7 +258,8 @@ RasterSamples DecodeTiff(const std::string& path, int64_t max_side_px) {
   out.width = static_cast<int>(w);
   out.height = static_cast<int>(h);
   const bool plain = (bits == 8 || bits == 16) && format == SAMPLEFORMAT_UINT && planar == PLANARCONFIG_CONTIG &&
-                     spp >= 1 && spp <= 4 && (photo == PHOTOMETRIC_MINISBLACK || (photo == PHOTOMETRIC_RGB && spp >= 3));
+                     spp >= 1 && spp <= 4 &&
+                     (photo == PHOTOMETRIC_MINISBLACK || (photo == PHOTOMETRIC_RGB && spp >= 3));
   if (plain) {
     out.channels = spp;
     out.depth = bits;
@@ -264,7 +272,8 @@ RasterSamples DecodeTiff(const std::string& path, int64_t max_side_px) {
       if (tw == 0 || th == 0) throw Undecodable(path, "tile size is zero");
       std::vector<uint8_t> tile(static_cast<size_t>(tiff.TileSize(t)));
       const size_t tile_row = static_cast<size_t>(tw) * spp;
-      if (tile.size() < tile_row * th * (bits / 8)) throw Undecodable(path, "tile size does not match the tile's pixels");
+      if (tile.size() < tile_row * th * (bits / 8))
+        throw Undecodable(path, "tile size does not match the tile's pixels");
       for (uint32_t ty = 0; ty < h; ty += th)
         for (uint32_t tx = 0; tx < w; tx += tw) {
           if (tiff.ReadTile(t, tile.data(), tx, ty, 0, 0) < 0) throw Undecodable(path, err);

@@ -2,9 +2,9 @@
 // (std::mt19937_64 is fully specified; the std distributions are not, so they are not used).
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <algorithm>
 #include <random>
 
 namespace ssiu {

@@ -209,7 +209,8 @@ void BackgroundGrid::RowLevels(int y, std::vector<float>* out, double k_sigma, d
 void BackgroundGrid::BoxThresholdAtCentres(double k, std::vector<float>* rows) const {
   const double nbox = 2 * box_half + 1;
   rows->resize(static_cast<size_t>(ny) * width);
-  for (int j = 0; j < ny; ++j) RowCombinationAt(j, rows->data() + static_cast<size_t>(j) * width, nbox * nbox, k, box_sigma);
+  for (int j = 0; j < ny; ++j)
+    RowCombinationAt(j, rows->data() + static_cast<size_t>(j) * width, nbox * nbox, k, box_sigma);
 }
 
 void BackgroundGrid::CentreRowsOf(int y, int* j0, int* j1, float* ay) const {

@@ -51,8 +51,10 @@ DefectMap BuildDefectMap(const std::vector<ImageView>& frames, const DefectMapOp
   m.mask.assign(hot.size(), 0);
   const size_t need = frames.size() / 2 + 1;
   for (size_t i = 0; i < hot.size(); ++i) {
-    if (hot[i] >= need) m.mask[i] = 1;
-    else if (dead[i] >= need) m.mask[i] = 2;
+    if (hot[i] >= need)
+      m.mask[i] = 1;
+    else if (dead[i] >= need)
+      m.mask[i] = 2;
   }
   return m;
 }
@@ -78,13 +80,18 @@ DefectMap LoadDefectMap(const std::string& path) {
   const int scale = f.bit_depth == 8 ? 1 : 257;
   for (size_t i = 0; i < m.mask.size(); ++i) {
     const int v = f.image.pixels[i];
-    if (v == 0) m.mask[i] = 0;
-    else if (v == 255 * scale) m.mask[i] = 1;
-    else if (v == 128 * scale) m.mask[i] = 2;
-    else if (v == 64 * scale) m.mask[i] = 3;
+    if (v == 0)
+      m.mask[i] = 0;
+    else if (v == 255 * scale)
+      m.mask[i] = 1;
+    else if (v == 128 * scale)
+      m.mask[i] = 2;
+    else if (v == 64 * scale)
+      m.mask[i] = 3;
     else {
-      throw InputError(path, "not a defect map: pixel (" + std::to_string(i % m.width) + ", " + std::to_string(i / m.width) +
-                                 ") is " + std::to_string(v) + "; a map holds only 0 (good), 255 (hot), 128 (dead) and 64 (other)" +
+      throw InputError(path, "not a defect map: pixel (" + std::to_string(i % m.width) + ", " +
+                                 std::to_string(i / m.width) + ") is " + std::to_string(v) +
+                                 "; a map holds only 0 (good), 255 (hot), 128 (dead) and 64 (other)" +
                                  (scale > 1 ? " times 257" : ""));
     }
   }

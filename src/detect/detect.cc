@@ -1,5 +1,6 @@
 #include "detect/detect.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -7,8 +8,6 @@
 #include <cstring>
 #include <numeric>
 #include <stdexcept>
-
-#include <Eigen/Dense>
 
 #include "core/error.h"
 #include "detect/background.h"
@@ -19,9 +18,7 @@ namespace ssiu {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double MsSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
+double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 // A horizontal run of above-threshold pixels [x0, x1] in row y, and its blob label.
 struct Run {
@@ -98,8 +95,8 @@ class PixelMask {
 
 // A local maximum of the 3x3-summed image inside a blob.
 struct Peak {
-  int x, y;          // brightest raw pixel at the peak
-  double score;      // 3x3 sum above background
+  int x, y;      // brightest raw pixel at the peak
+  double score;  // 3x3 sum above background
   size_t blob;
   double nearest_px = 1e9;  // distance to the nearest other peak of the blob
 };
@@ -415,9 +412,11 @@ PeakShape ClassifySpikes(const ImageView& img, const BackgroundGrid& bg, const D
           }
         }
       }
-      if (img.at(pk.x, pk.y) >= sat || !opt.reject_hot_pixels || p <= 3 * nmax + 5 * sigma_n || nmax < 5 * sigma_n) break;
+      if (img.at(pk.x, pk.y) >= sat || !opt.reject_hot_pixels || p <= 3 * nmax + 5 * sigma_n || nmax < 5 * sigma_n)
+        break;
       bad->Set(pk.x, pk.y);
-      rejected->push_back({static_cast<double>(pk.x), static_cast<double>(pk.y), RejectReason::kHotPixel, "on_source", p});
+      rejected->push_back(
+          {static_cast<double>(pk.x), static_cast<double>(pk.y), RejectReason::kHotPixel, "on_source", p});
       pk.x = bx;
       pk.y = by;
     }
@@ -449,7 +448,8 @@ PeakShape ClassifySpikes(const ImageView& img, const BackgroundGrid& bg, const D
     if (ps.is_spike[pi]) continue;
     for (size_t q = bp->first[peaks[pi].blob]; q < bp->first[peaks[pi].blob + 1]; ++q) {
       if (q != pi && !ps.is_spike[q]) {
-        peaks[pi].nearest_px = std::min(peaks[pi].nearest_px, std::hypot(peaks[q].x - peaks[pi].x, peaks[q].y - peaks[pi].y));
+        peaks[pi].nearest_px =
+            std::min(peaks[pi].nearest_px, std::hypot(peaks[q].x - peaks[pi].x, peaks[q].y - peaks[pi].y));
       }
     }
   }
@@ -465,7 +465,8 @@ std::vector<Candidate> FitCandidates(const ImageView& img, const ImageView& view
   const int w = img.width, h = img.height;
   const double sat = opt.saturation_adu;
   const std::vector<Peak>& peaks = bp.peaks;
-  const int fit_r = std::max(3, static_cast<int>(std::ceil(2.5 * psf_guess)));  // +-2.5 sigma holds the position information
+  const int fit_r =
+      std::max(3, static_cast<int>(std::ceil(2.5 * psf_guess)));  // +-2.5 sigma holds the position information
   std::vector<size_t> order;
   for (size_t pi = 0; pi < peaks.size(); ++pi) {
     if (!ps.is_spike[pi]) order.push_back(pi);
@@ -603,12 +604,18 @@ void ReportDefects(const ImageView& view, const BackgroundGrid& bg, const Detect
 
 const char* RejectReasonName(RejectReason r) {
   switch (r) {
-    case RejectReason::kHotPixel: return "hot_pixel";
-    case RejectReason::kDeadPixel: return "dead_pixel";
-    case RejectReason::kDefectMap: return "defect_map";
-    case RejectReason::kCosmicRay: return "cosmic_ray";
-    case RejectReason::kStreak: return "streak";
-    case RejectReason::kExtended: return "extended";
+    case RejectReason::kHotPixel:
+      return "hot_pixel";
+    case RejectReason::kDeadPixel:
+      return "dead_pixel";
+    case RejectReason::kDefectMap:
+      return "defect_map";
+    case RejectReason::kCosmicRay:
+      return "cosmic_ray";
+    case RejectReason::kStreak:
+      return "streak";
+    case RejectReason::kExtended:
+      return "extended";
   }
   return "unknown";
 }
@@ -617,7 +624,8 @@ void DetectOptions::Check() const {
   auto need = [](bool ok, const char* what) {
     if (!ok) throw InputError(std::string("DetectOptions: ") + what);
   };
-  need(std::isfinite(threshold_sigma) && threshold_sigma >= 2 && threshold_sigma <= 100, "threshold_sigma must be in [2, 100]");
+  need(std::isfinite(threshold_sigma) && threshold_sigma >= 2 && threshold_sigma <= 100,
+       "threshold_sigma must be in [2, 100]");
   need(std::isfinite(min_snr) && min_snr >= 0, "min_snr must be >= 0");
   need(tile_px >= 8 && tile_px <= 1024, "tile_px must be in [8, 1024]");
   need(std::isfinite(psf_sigma_px) && psf_sigma_px >= 0 && psf_sigma_px < 50, "psf_sigma_px must be in [0, 50)");

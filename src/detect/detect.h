@@ -34,17 +34,17 @@ struct DetectOptions {
   // active, each star is fitted as the PSF smeared along its predicted path (detect/smear.h) and the
   // shape tests allow that smear, not more: cosmic rays and streaks that do not match stay rejected.
   ExpectedSmear smear;
-  void Check() const;             // throws InputError naming the field
+  void Check() const;  // throws InputError naming the field
 };
 
 struct StarDetection {
-  double x_px = 0, y_px = 0;      // centroid, pixel (0,0) = centre of the top-left pixel
-  double flux_adu = 0;            // background-subtracted total flux
-  double peak_adu = 0;            // brightest pixel above background
-  double snr = 0;                 // flux / its 1-sigma noise
-  int npix = 0;                   // pixels above threshold in the blob
+  double x_px = 0, y_px = 0;  // centroid, pixel (0,0) = centre of the top-left pixel
+  double flux_adu = 0;        // background-subtracted total flux
+  double peak_adu = 0;        // brightest pixel above background
+  double snr = 0;             // flux / its 1-sigma noise
+  int npix = 0;               // pixels above threshold in the blob
   bool saturated = false;
-  double sigma_px = 0;            // fitted Gaussian sigma (0 if not fitted)
+  double sigma_px = 0;                    // fitted Gaussian sigma (0 if not fitted)
   double x_sigma_px = 0, y_sigma_px = 0;  // centroid 1-sigma from the fit's covariance
 };
 
@@ -54,15 +54,15 @@ const char* RejectReasonName(RejectReason r);  // "hot_pixel", "dead_pixel", ...
 struct Rejection {
   double x_px = 0, y_px = 0;
   RejectReason reason = RejectReason::kExtended;
-  std::string detail;             // e.g. "blended_pair", "saturated_extended"
+  std::string detail;  // e.g. "blended_pair", "saturated_extended"
   double flux_adu = 0;
 };
 
 struct Detections {
   int width = 0, height = 0;
-  double background_adu = 0;      // median of the tile backgrounds
-  double noise_adu = 0;           // median of the tile noise sigmas
-  double psf_sigma_px = 0;        // PSF sigma used (estimated or given)
+  double background_adu = 0;         // median of the tile backgrounds
+  double noise_adu = 0;              // median of the tile noise sigmas
+  double psf_sigma_px = 0;           // PSF sigma used (estimated or given)
   std::vector<StarDetection> stars;  // brightest first
   std::vector<Rejection> rejected;
   std::map<std::string, double> timing_ms;
@@ -71,13 +71,12 @@ struct Detections {
 // A static defect map: nonzero = defective pixel (hot, dead, or otherwise unusable).
 struct DefectMap {
   int width = 0, height = 0;
-  std::vector<uint8_t> mask;      // row-major; 0 good, 1 hot, 2 dead, 3 other
+  std::vector<uint8_t> mask;  // row-major; 0 good, 1 hot, 2 dead, 3 other
   bool empty() const { return mask.empty(); }
   uint8_t at(int x, int y) const { return mask[static_cast<size_t>(y) * width + x]; }
 };
 
-Detections Detect(const ImageView& image, const DetectOptions& options = {},
-                  const DefectMap* defects = nullptr);
+Detections Detect(const ImageView& image, const DetectOptions& options = {}, const DefectMap* defects = nullptr);
 
 // Builds a defect map from dark or median frames: pixels that stand out from their local
 // background by more than `sigma` noise sigmas in most of the frames (hot: above, dead: below).

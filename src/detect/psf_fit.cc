@@ -1,10 +1,9 @@
 #include "detect/psf_fit.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <vector>
-
-#include <Eigen/Dense>
 
 #include "detect/smear.h"
 
@@ -14,8 +13,8 @@ namespace {
 // Normal equations J'WJ and J'Wr of the five-parameter fit (x, y, A, B, sigma) from 15 + 5 scalar
 // sums, shared by the still and the smeared model (scalars rather than an Eigen matrix: they vectorise).
 struct NormalSums {
-  double h00 = 0, h01 = 0, h02 = 0, h03 = 0, h04 = 0, h11 = 0, h12 = 0, h13 = 0, h14 = 0, h22 = 0, h23 = 0,
-         h24 = 0, h33 = 0, h34 = 0, h44 = 0;
+  double h00 = 0, h01 = 0, h02 = 0, h03 = 0, h04 = 0, h11 = 0, h12 = 0, h13 = 0, h14 = 0, h22 = 0, h23 = 0, h24 = 0,
+         h33 = 0, h34 = 0, h44 = 0;
   double g0 = 0, g1 = 0, g2 = 0, g3 = 0, g4 = 0;
   // One pixel: weight, weighted residual and the Jacobian (x, y, A, sigma; B's column is 1).
   void Add(double wgt, double wr, double j0, double j1, double j2, double j4) {
@@ -42,14 +41,14 @@ struct NormalSums {
     g4 += wr * j4;
   }
   void Fill(Eigen::Matrix<double, 5, 5>* jtj, Eigen::Matrix<double, 5, 1>* jtr) const {
-      if (jtj) {
-        *jtj << h00, h01, h02, h03, h04,  //
-            h01, h11, h12, h13, h14,      //
-            h02, h12, h22, h23, h24,      //
-            h03, h13, h23, h33, h34,      //
-            h04, h14, h24, h34, h44;
-      }
-      if (jtr) *jtr << g0, g1, g2, g3, g4;
+    if (jtj) {
+      *jtj << h00, h01, h02, h03, h04,  //
+          h01, h11, h12, h13, h14,      //
+          h02, h12, h22, h23, h24,      //
+          h03, h13, h23, h33, h34,      //
+          h04, h14, h24, h34, h44;
+    }
+    if (jtr) *jtr << g0, g1, g2, g3, g4;
   }
 };
 
@@ -512,8 +511,8 @@ class PsfFitter {
   std::vector<double> w_cur_, w_new_;  // pixel weights at the current iterate and the trial
   Profile fx_, fy_;
   SmearModel sm_;
-  double sw_ = 0;                       // moment sum of the start
-  double start_x_ = 0, start_y_ = 0;   // the moments' centre (the fallback of a failed fit)
+  double sw_ = 0;                     // moment sum of the start
+  double start_x_ = 0, start_y_ = 0;  // the moments' centre (the fallback of a failed fit)
   double cx_ = 0, cy_ = 0, s_ = 0, amp_ = 0, bkg_ = 0;
   Mat5 info_;
   double fit_chi2_ = -1;  // chi2 at the solution; < 0 when there is none (moments only)

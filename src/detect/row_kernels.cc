@@ -17,14 +17,13 @@ SSIU_CLONES uint16_t RowMin(const uint16_t* __restrict row, int n) {
   return m;
 }
 
-SSIU_CLONES void SlideColumnSums(int32_t* __restrict cs, const uint16_t* __restrict add,
-                                 const uint16_t* __restrict sub, int n) {
+SSIU_CLONES void SlideColumnSums(int32_t* __restrict cs, const uint16_t* __restrict add, const uint16_t* __restrict sub,
+                                 int n) {
   for (int x = 0; x < n; ++x) cs[x] += static_cast<int32_t>(add[x]) - static_cast<int32_t>(sub[x]);
 }
 
-SSIU_CLONES bool BoxAboveThreshold(const int32_t* __restrict cs, const float* __restrict t0,
-                                   const float* __restrict t1, float ay, int half, int n,
-                                   uint8_t* __restrict above) {
+SSIU_CLONES bool BoxAboveThreshold(const int32_t* __restrict cs, const float* __restrict t0, const float* __restrict t1,
+                                   float ay, int half, int n, uint8_t* __restrict above) {
   const float by = 1.0f - ay;
   if (half == 1) {
     for (int x = 1; x < n - 1; ++x) {

@@ -16,7 +16,6 @@ void SlideColumnSums(int32_t* cs, const uint16_t* add, const uint16_t* sub, int 
 // above[x] = box sum at x > t0[x] + ay * (t1[x] - t0[x]) for x in [half, n - half), where the box
 // sum is cs[x - half] + ... + cs[x + half]; the threshold is linear in ay between two precomputed
 // rows (bilinear background: rows at tile centres). Returns whether any pixel is above.
-bool BoxAboveThreshold(const int32_t* cs, const float* t0, const float* t1, float ay, int half, int n,
-                       uint8_t* above);
+bool BoxAboveThreshold(const int32_t* cs, const float* t0, const float* t1, float ay, int half, int n, uint8_t* above);
 
 }  // namespace ssiu

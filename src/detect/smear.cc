@@ -44,8 +44,7 @@ double SmearNeaFactor(double length_px, double sigma_px) {
   // int p^2 dx (1-D) = int_{-L}^{L} (1/L)(1 - |u|/L) N(u; 0, s2^2) du, closed form with x = L / s2.
   const double x = l / s2;
   const double phi_half = 0.5 * std::erf(x / std::sqrt(2.0));  // Phi(x) - 1/2
-  const double integral =
-      2.0 / l * (phi_half - s2 / (l * std::sqrt(2 * kPi)) * (1.0 - std::exp(-0.5 * x * x)));
+  const double integral = 2.0 / l * (phi_half - s2 / (l * std::sqrt(2 * kPi)) * (1.0 - std::exp(-0.5 * x * x)));
   const double unsmeared = 1.0 / (s2 * std::sqrt(2 * kPi));
   return unsmeared / integral;
 }

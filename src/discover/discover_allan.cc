@@ -33,7 +33,8 @@ AllanDiscrepancy CompareAllanToDefaultModel(const AllanCurve& curve, const Allan
     const double s_avar = 2 * curve.adev[i] * sig[i];
     double share = 1;
     if (n > 1) {
-      const double lo = i > 0 ? std::log2(curve.tau_s[i] / curve.tau_s[i - 1]) : std::log2(curve.tau_s[1] / curve.tau_s[0]);
+      const double lo =
+          i > 0 ? std::log2(curve.tau_s[i] / curve.tau_s[i - 1]) : std::log2(curve.tau_s[1] / curve.tau_s[0]);
       const double hi = i + 1 < n ? std::log2(curve.tau_s[i + 1] / curve.tau_s[i]) : lo;
       share = std::min(1.0, 0.5 * (lo + hi));
     }

@@ -21,7 +21,7 @@ struct AllanDiscrepancyOptions {
 };
 
 struct AllanDiscrepancy {
-  double base_arw = 0, base_bias_instability = 0;  // in the curve's unit (N: u sqrt(s), B: u)
+  double base_arw = 0, base_bias_instability = 0;          // in the curve's unit (N: u sqrt(s), B: u)
   double chi2_per_dof_before = 0, chi2_per_dof_after = 0;  // points weighted as in FitNoiseTerms' error model
   std::vector<std::pair<double, double>> departures_s;     // tau ranges [lo, hi] where the base departs
   std::vector<std::string> missing_terms;                  // significant extra terms of the full fit

@@ -6,11 +6,11 @@
 #include <cmath>
 #include <limits>
 
-#include "discover/discover_frames_internal.h"
 #include "core/astrometry.h"
 #include "core/error.h"
 #include "core/stats.h"
 #include "core/types.h"
+#include "discover/discover_frames_internal.h"
 
 namespace ssiu {
 namespace {
@@ -50,12 +50,12 @@ Quat Perturbed(const Quat& q, const double* d) {
 }
 
 struct GeoFit {
-  std::vector<double> rot;        // 3 per frame
+  std::vector<double> rot;  // 3 per frame
   double cam[kCam] = {0, 0, 0, 0, 0, 0, 0, 0};
-  double rss = 0;                 // weighted
-  MatrixXd cov_cam;               // unscaled covariance of the active camera parameters
-  VectorXd res;                   // 2 per star, measured - model over the centroid sigma
-  MatrixXd jac;                   // d res / d parameters at the last iteration (rotations, then camera)
+  double rss = 0;    // weighted
+  MatrixXd cov_cam;  // unscaled covariance of the active camera parameters
+  VectorXd res;      // 2 per star, measured - model over the centroid sigma
+  MatrixXd jac;      // d res / d parameters at the last iteration (rotations, then camera)
 };
 
 // Predicted pixel of star s (nullopt-free: behind the camera gives a huge residual).
@@ -421,22 +421,25 @@ class FrameCauseSearch {
   // each other, not unusual cameras. Empty when within them, else why not.
   std::string OutOfBounds(const std::string& cause) {
     if (cause == "vignetting") return vig_v_ >= 0 && vig_v_ <= 0.95 ? "" : "vignetting outside [0, 0.95]";
-    if (cause == "hot_pixels") return hot_.parameters.count("hot_pixel_count") && hot_.parameters.at("hot_pixel_count") >= 1 ? "" : "no pixel";
+    if (cause == "hot_pixels")
+      return hot_.parameters.count("hot_pixel_count") && hot_.parameters.at("hot_pixel_count") >= 1 ? "" : "no pixel";
     if (cause == "psf_shape") {
       const double sg = psf_.parameters.count("psf_sigma_px") ? psf_.parameters.at("psf_sigma_px") : 0;
       const double el = psf_.parameters.count("psf_ellipticity") ? psf_.parameters.at("psf_ellipticity") : 0;
       return sg >= 0.1 && sg <= 10 && el < 0.9 ? "" : "PSF sigma outside [0.1, 10] px or ellipticity >= 0.9";
     }
     const double* g = fits_[cause].cam;
-    if (cause == "focal_length") return std::abs(g[0] / camera_.focal_length_px) <= 0.05 ? "" : "focal length off by > 5 %";
+    if (cause == "focal_length")
+      return std::abs(g[0] / camera_.focal_length_px) <= 0.05 ? "" : "focal length off by > 5 %";
     if (cause == "principal_point")
       return std::abs(g[1]) <= 0.2 * camera_.width && std::abs(g[2]) <= 0.2 * camera_.height
                  ? ""
                  : "principal point moved by > 20 % of the frame";
     if (cause == "lens_distortion") {
       // k1 r^2 at the corner (normalised coordinates): the relative displacement there.
-      const double rc2 = std::pow(std::max(camera_.cx_px, camera_.width - 1 - camera_.cx_px) / camera_.focal_length_px, 2) +
-                         std::pow(std::max(camera_.cy_px, camera_.height - 1 - camera_.cy_px) / camera_.FocalYPx(), 2);
+      const double rc2 =
+          std::pow(std::max(camera_.cx_px, camera_.width - 1 - camera_.cx_px) / camera_.focal_length_px, 2) +
+          std::pow(std::max(camera_.cy_px, camera_.height - 1 - camera_.cy_px) / camera_.FocalYPx(), 2);
       return std::abs((camera_.distortion.k1 + g[3]) * rc2) <= 0.3 ? "" : "k1 moves the corners by > 30 %";
     }
     if (cause == "pixel_aspect") return std::abs(g[4]) <= 0.05 ? "" : "aspect off by > 5 %";
@@ -533,11 +536,12 @@ class FrameCauseSearch {
     }
     // aberration: the uncorrected observer velocity v = b c (km/s, ICRS).
     constexpr double kc_kms = kSpeedOfLightMS / 1000;
-    const char* names[kCam] = {"focal_length_px", "cx_px", "cy_px", "k1", "pixel_aspect",
-                               "velocity_x_kms", "velocity_y_kms", "velocity_z_kms"};
+    const char* names[kCam] = {"focal_length_px", "cx_px",          "cy_px",          "k1",
+                               "pixel_aspect",    "velocity_x_kms", "velocity_y_kms", "velocity_z_kms"};
     // pixel_aspect is fy / fx: the nominal aspect times (1 + da).
     const double aspect0 = camera_.FocalYPx() / camera_.focal_length_px;
-    const double nominal[kCam] = {camera_.focal_length_px, camera_.cx_px, camera_.cy_px, camera_.distortion.k1, aspect0, 0, 0, 0};
+    const double nominal[kCam] = {
+        camera_.focal_length_px, camera_.cx_px, camera_.cy_px, camera_.distortion.k1, aspect0, 0, 0, 0};
     const double unit[kCam] = {1, 1, 1, 1, aspect0, kc_kms, kc_kms, kc_kms};
     for (size_t k = 0; k < idx.size(); ++k) {
       d_.parameters[names[idx[k]]] = nominal[idx[k]] + unit[idx[k]] * g.cam[idx[k]];
@@ -576,7 +580,6 @@ class FrameCauseSearch {
   std::vector<double> vu_, vy_;  // vignetting: squared field radius and flux-magnitude residual
   double vig_s_ = 0, vig_v_ = 0, vig_sigma_ = 0;
 };
-
 
 }  // namespace
 
@@ -618,7 +621,8 @@ SolvedFrameSet SolveFrameSet(const StarIdentifier& id, const std::vector<ImageVi
     std::vector<PixelSource> spikes;
     for (const auto& rej : r.detections.rejected) {
       if (rej.reason == RejectReason::kHotPixel) {
-        spikes.push_back({static_cast<int>(std::lround(rej.x_px)), static_cast<int>(std::lround(rej.y_px)), rej.flux_adu});
+        spikes.push_back(
+            {static_cast<int>(std::lround(rej.x_px)), static_cast<int>(std::lround(rej.y_px)), rej.flux_adu});
       }
     }
     set.spikes.push_back(spikes);
@@ -683,7 +687,8 @@ FrameDiscovery DiscoverFrames(const SolvedFrameSet& set, const Camera& camera, c
   return FrameCauseSearch(set, camera, o).Run();
 }
 
-double discover_internal::FitVignettingLaw(const std::vector<double>& vu, const std::vector<double>& vy, double* sigma) {
+double discover_internal::FitVignettingLaw(const std::vector<double>& vu, const std::vector<double>& vy,
+                                           double* sigma) {
   // y = c + ln(1 - v u) by a 1-D search over v (c is the mean for each v); sigma from the curvature of
   // the sum of squares with the residual scale.
   auto ss_of = [&](double v) {
@@ -745,14 +750,16 @@ Json FrameDiscoveryToJson(const FrameDiscovery& d) {
                {"photometry_max_at_px", {r.photometry_max_x_px, r.photometry_max_y_px}},
                {"photometry_per_mag", r.photometry_per_mag},
                {"grid", r.grid},
-               {"worst_cell", {{"centre_px", {r.cell_x_px, r.cell_y_px}},
-                               {"stars", r.cell_stars},
-                               {"mean_dx_px", r.cell_dx_px},
-                               {"mean_dy_px", r.cell_dy_px},
-                               {"chi2", r.cell_chi2}}}};
+               {"worst_cell",
+                {{"centre_px", {r.cell_x_px, r.cell_y_px}},
+                 {"stars", r.cell_stars},
+                 {"mean_dx_px", r.cell_dx_px},
+                 {"mean_dy_px", r.cell_dy_px},
+                 {"chi2", r.cell_chi2}}}};
     rj["tests"] = Json::array();
     for (const auto& t : r.tests) {
-      rj["tests"].push_back({{"test", t.name}, {"f", t.f}, {"dof", t.dof}, {"dof_residual", t.dof_resid}, {"p_value", t.p_value}});
+      rj["tests"].push_back(
+          {{"test", t.name}, {"f", t.f}, {"dof", t.dof}, {"dof_residual", t.dof_resid}, {"p_value", t.p_value}});
     }
     j["residual"] = rj;
   }
@@ -767,16 +774,18 @@ Json FrameDiscoveryToJson(const FrameDiscovery& d) {
     j["fitted_camera"]["psf_angle_deg"] = d.parameters.at("psf_angle_deg");
   }
   if (d.cause == "hot_pixels") {
-    j["gain_method"] = "held-out frames (even/odd): single-pixel spikes per frame, (before + 1) / (after + 1) after "
-                       "masking the pixels found on the other frames";
+    j["gain_method"] =
+        "held-out frames (even/odd): single-pixel spikes per frame, (before + 1) / (after + 1) after "
+        "masking the pixels found on the other frames";
     j["spikes_per_frame_before"] = d.spikes_before;
     j["spikes_per_frame_after"] = d.spikes_after;
   }
   j["hot_pixels"] = Json::array();
   for (size_t i = 0; i < d.hot_pixels.size(); ++i) {
-    j["hot_pixels"].push_back(
-        {{"x_px", d.hot_pixels[i].x}, {"y_px", d.hot_pixels[i].y}, {"excess_adu", d.hot_pixels[i].excess_adu},
-         {"frames", d.hot_pixel_frames[i]}});
+    j["hot_pixels"].push_back({{"x_px", d.hot_pixels[i].x},
+                               {"y_px", d.hot_pixels[i].y},
+                               {"excess_adu", d.hot_pixels[i].excess_adu},
+                               {"frames", d.hot_pixel_frames[i]}});
   }
   if (d.cause == "hot_pixels") {
     j["fitted_camera"]["hot_pixels"] = Json::array();

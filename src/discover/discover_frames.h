@@ -52,7 +52,7 @@ struct FrameStar {
   // another source in its stamp.
   int stamp_x0 = 0, stamp_y0 = 0, stamp_half = 0;
   std::vector<float> stamp;
-  double noise_adu = 0;  // the frame's background noise
+  double noise_adu = 0;    // the frame's background noise
   bool saturated = false;  // its flux is clipped: left out of the photometric residual test
 };
 
@@ -70,7 +70,7 @@ struct SolvedFrameSet {
   std::vector<FrameStar> stars;
   std::vector<double> background_adu, noise_adu;  // per solved frame (detector's tile medians)
   int width = 0, height = 0;
-  std::vector<std::vector<PixelSource>> spikes;   // per input frame (solved or not)
+  std::vector<std::vector<PixelSource>> spikes;  // per input frame (solved or not)
 };
 
 // Solves each image (SolveFrame, with the known defects repaired when given) and collects the
@@ -85,8 +85,8 @@ SolvedFrameSet SolveFrameSet(const StarIdentifier& id, const std::vector<ImageVi
 struct SpotFit {
   bool ok = false;
   double x_px = 0, y_px = 0, flux_adu = 0, background_adu = 0;
-  double cxx = 0, cyy = 0, cxy = 0;   // px^2 (the PSF's, before pixel integration)
-  double t_px2 = 0, e1 = 0, e2 = 0;   // (cxx + cyy) / 2, (cxx - cyy) / 2t, cxy / t
+  double cxx = 0, cyy = 0, cxy = 0;          // px^2 (the PSF's, before pixel integration)
+  double t_px2 = 0, e1 = 0, e2 = 0;          // (cxx + cyy) / 2, (cxx - cyy) / 2t, cxy / t
   double t_var = 0, e1_var = 0, e2_var = 0;  // formal variances (residual scale)
   double rss_adu2 = 0;
   int n = 0;
@@ -95,8 +95,8 @@ SpotFit FitSpot(const std::vector<float>& stamp, int half, double x_guess, doubl
                 const double* fixed_c = nullptr);
 
 struct FrameDiscoverOptions {
-  double alpha = 0.01;     // family-wise false-alarm probability over the candidates
-  int iterations = 6;      // Gauss-Newton iterations
+  double alpha = 0.01;         // family-wise false-alarm probability over the candidates
+  int iterations = 6;          // Gauss-Newton iterations
   double min_sigma_px = 0.05;  // floor of the centroid sigma used as weight
   // The model's PSF sigma (px; camera.json "psf_sigma_px" or --psf-sigma-px); 0 = psf_shape not tested.
   double psf_sigma_px = 0;
@@ -161,7 +161,7 @@ struct FrameDiscovery {
   std::map<std::string, double> parameters, sigmas;
   Camera fitted_camera;
   double residual_rms_before_arcsec = 0, residual_rms_after_arcsec = 0, gain = 1;  // held-out frames
-  double flux_rms_before_mag = 0, flux_rms_after_mag = 0;                         // vignetting only
+  double flux_rms_before_mag = 0, flux_rms_after_mag = 0;                          // vignetting only
   double stamp_rms_before = 0, stamp_rms_after = 0;  // psf_shape: held-out stamp residual, noise sigmas
   double spikes_before = 0, spikes_after = 0;        // hot_pixels: held-out spikes per frame
   std::vector<PixelSource> hot_pixels;               // persistent pixels (excess: median over frames)

@@ -5,9 +5,9 @@
 #include <map>
 #include <utility>
 
-#include "discover/discover_frames_internal.h"
 #include "core/stats.h"
 #include "core/types.h"
+#include "discover/discover_frames_internal.h"
 
 namespace ssiu {
 
@@ -111,8 +111,8 @@ SpotFit FitSpot(const std::vector<float>& stamp, int half, double x_guess, doubl
       std::copy(p, p + 7, q);
       for (int i = 0; i < np_free; ++i) q[i] += step(i);
       VectorXd r2;
-      if (step.allFinite() && std::abs(q[1] - x_guess) < half && std::abs(q[2] - y_guess) < half && eval(q, &r2, nullptr) &&
-          r2.squaredNorm() <= rss) {
+      if (step.allFinite() && std::abs(q[1] - x_guess) < half && std::abs(q[2] - y_guess) < half &&
+          eval(q, &r2, nullptr) && r2.squaredNorm() <= rss) {
         const double drop = rss - r2.squaredNorm();
         std::copy(q, q + 7, p);
         eval(p, &r, &jac);
@@ -266,7 +266,8 @@ double ShapeChi2(const ShapeModel& m, const FrameDiscoverOptions& o, double s0) 
   cab(0, 0) += ft * ft, cab(1, 1) += ft * ft;
   const Vector2d ab(m.alpha, m.beta);
   const double fe = o.psf_ellipticity_floor * o.psf_ellipticity_floor;
-  return ab.dot(cab.ldlt().solve(ab)) + std::pow(m.e1 - e1m, 2) / (m.e1_var + fe) + std::pow(m.e2 - e2m, 2) / (m.e2_var + fe);
+  return ab.dot(cab.ldlt().solve(ab)) + std::pow(m.e1 - e1m, 2) / (m.e1_var + fe) +
+         std::pow(m.e2 - e2m, 2) / (m.e2_var + fe);
 }
 
 }  // namespace
@@ -285,7 +286,8 @@ CauseResult AnalysePsfShape(const SolvedFrameSet& set, const Camera& camera, con
     const double guess = s.psf_sigma_px > 0 ? s.psf_sigma_px : (o.psf_sigma_px > 0 ? o.psf_sigma_px : 1.0);
     const SpotFit f = FitSpot(s.stamp, s.stamp_half, s.x_px - s.stamp_x0, s.y_px - s.stamp_y0, guess);
     // Keep the fits that say something about the shape (T to better than 30 %).
-    if (!f.ok || !(f.t_px2 > 0.02) || std::sqrt(f.t_var) > 0.3 * f.t_px2 || std::abs(f.e1) > 0.95 || std::abs(f.e2) > 0.95)
+    if (!f.ok || !(f.t_px2 > 0.02) || std::sqrt(f.t_var) > 0.3 * f.t_px2 || std::abs(f.e1) > 0.95 ||
+        std::abs(f.e2) > 0.95)
       continue;
     ShapeStar st;
     st.frame = s.frame, st.index = i;

@@ -9,8 +9,8 @@
 #include <boost/math/distributions/fisher_f.hpp>
 #include <cmath>
 
-#include "discover/discover_frames_internal.h"
 #include "core/types.h"
+#include "discover/discover_frames_internal.h"
 
 namespace ssiu::discover_internal {
 namespace {
@@ -20,7 +20,7 @@ using Eigen::VectorXd;
 
 struct ExtraFit {
   FrameResidualTest test;
-  VectorXd fitted;  // the part of y the extra columns explain (rows of y)
+  VectorXd fitted;    // the part of y the extra columns explain (rows of y)
   double scale2 = 0;  // residual variance of the full fit
 };
 
@@ -104,7 +104,12 @@ class FrameResidualTester {
  public:
   FrameResidualTester(const SolvedFrameSet& set, const Camera& camera, const MatrixXd& jac, const VectorXd& res_w,
                       const FrameDiscoverOptions& o)
-      : set_(set), camera_(camera), jac_(jac), res_w_(res_w), o_(o), ns_(static_cast<int>(set.stars.size())),
+      : set_(set),
+        camera_(camera),
+        jac_(jac),
+        res_w_(res_w),
+        o_(o),
+        ns_(static_cast<int>(set.stars.size())),
         nf_(static_cast<int>(set.q.size())) {}
 
   FrameResidual Run() {
@@ -170,7 +175,8 @@ class FrameResidualTester {
              mag = MatrixXd::Zero(2 * ns, 6);
     for (int i = 0; i < ns; ++i) {
       const auto& s = set_.stars[i];
-      const double w = 1 / sig_[i], a = (px_[i] - camera_.cx_px) / half_diag_, b = (py_[i] - camera_.cy_px) / half_diag_;
+      const double w = 1 / sig_[i], a = (px_[i] - camera_.cx_px) / half_diag_,
+                   b = (py_[i] - camera_.cy_px) / half_diag_;
       const auto m = Monomials(a, b, 0);
       const int c = CellOf(px_[i], py_[i]);
       // Saturated stars are left out of the magnitude columns: their clipped centroids are noise here.
@@ -188,7 +194,8 @@ class FrameResidualTester {
     const MatrixXd jq = wq.asDiagonal() * jac_;
     const VectorXd yq = wq.asDiagonal() * res_w_;
     fits_.push_back(FTestExtra("position_polynomial", jq, wq.asDiagonal() * poly, yq));
-    if (ns >= 4 * o_.residual_min_stars_per_cell) fits_.push_back(FTestExtra("position_cells", jq, wq.asDiagonal() * cells, yq));
+    if (ns >= 4 * o_.residual_min_stars_per_cell)
+      fits_.push_back(FTestExtra("position_cells", jq, wq.asDiagonal() * cells, yq));
     fits_.push_back(FTestExtra("position_magnitude", jq, wq.asDiagonal() * mag, yq));
     for (auto& f : fits_) {
       if (f.test.tested) f.fitted = f.fitted.cwiseQuotient(wq);  // back to res_w's units
@@ -234,7 +241,8 @@ class FrameResidualTester {
     yv = wq.asDiagonal() * yv;
     const size_t first = fits_.size();
     fits_.push_back(FTestExtra("photometry_polynomial", nuis, wq.asDiagonal() * poly, yv));
-    if (np >= 4 * o_.residual_min_stars_per_cell) fits_.push_back(FTestExtra("photometry_cells", nuis, wq.asDiagonal() * cells, yv));
+    if (np >= 4 * o_.residual_min_stars_per_cell)
+      fits_.push_back(FTestExtra("photometry_cells", nuis, wq.asDiagonal() * cells, yv));
     fits_.push_back(FTestExtra("photometry_magnitude", nuis, wq.asDiagonal() * mag, yv));
     for (size_t k = first; k < fits_.size(); ++k) {
       if (fits_[k].test.tested) fits_[k].fitted = fits_[k].fitted.cwiseQuotient(wq);

@@ -204,8 +204,10 @@ VectorXd NelderMead(const std::function<double(const VectorXd&)>& fn, VectorXd x
     if (fr < val[best]) {
       const VectorXd xe = c + 2 * (c - pts[worst]);
       const double fe = fn(xe);
-      if (fe < fr) pts[worst] = xe, val[worst] = fe;
-      else pts[worst] = xr, val[worst] = fr;
+      if (fe < fr)
+        pts[worst] = xe, val[worst] = fe;
+      else
+        pts[worst] = xr, val[worst] = fr;
     } else if (fr < val[second]) {
       pts[worst] = xr, val[worst] = fr;
     } else {
@@ -338,9 +340,9 @@ struct Design {
   std::vector<LogBins> bins;
   std::vector<int> offset;  // first row of each log
   int n = 0;
-  MatrixXd cols;             // n x kNumCols raw regressors
+  MatrixXd cols;  // n x kNumCols raw regressors
   VectorXd y;
-  MatrixXd base;             // n x L per-log bias indicators
+  MatrixXd base;  // n x L per-log bias indicators
 };
 
 // Columns of `names` (kNumCols indices) plus optional extra columns, with the base in front.
@@ -462,7 +464,7 @@ double BlockZ(const std::vector<double>& block_sums) {
 
 struct CvResult {
   double rms_before = 0, rms_after = 0;
-  double z = 0;  // significance of the held-out improvement, largest over logs
+  double z = 0;         // significance of the held-out improvement, largest over logs
   double z_blocks = 0;  // the same from the blocks' own scatter (paired over the blocks), largest over logs
 };
 
@@ -915,8 +917,8 @@ double JumpsTest(const Design& d, const std::vector<NoiseModel>& nm, const Vecto
 // The regression of the whitened residual on every logged column (bin means, zero in logs without it,
 // per-log means removed; chi^2_1 each); fills res->columns and the most significant one, and returns
 // its p Bonferroni-corrected over the columns tested.
-double ColumnTest(const Design& d, const std::vector<NoiseModel>& nm, const VectorXd& e,
-                  const WhitenedResidual& wres, GyroResidual* res) {
+double ColumnTest(const Design& d, const std::vector<NoiseModel>& nm, const VectorXd& e, const WhitenedResidual& wres,
+                  GyroResidual* res) {
   const int l = static_cast<int>(d.bins.size());
   std::map<std::string, VectorXd> cols;
   for (int r = 0; r < l; ++r) {
@@ -1045,7 +1047,8 @@ void CheckGyroBenchLog(const GyroBenchLog& log) {
     if (v.size() != n) throw InputError(log.file, std::string("column ") + name + " has a different length");
     for (size_t i = 0; i < n; ++i) {
       if (!std::isfinite(v[i])) {
-        throw InputError(log.file, std::string("column ") + name + " row " + std::to_string(i + 1) + ": not a finite number");
+        throw InputError(log.file,
+                         std::string("column ") + name + " row " + std::to_string(i + 1) + ": not a finite number");
       }
     }
   };
@@ -1342,7 +1345,7 @@ WalkTest TestRandomWalk(const Design& d, const GyroDiscoverOptions& o, const std
 // A candidate's fit: GLS, raw design, columns, the inflation it was scored with.
 struct Fitted {
   LsFit gls;
-  MatrixXd x;  // raw (unwhitened) design of base + cause
+  MatrixXd x;             // raw (unwhitened) design of base + cause
   std::vector<int> cols;  // its Col columns (empty for the located ones)
   double inflation = 1;
 };
@@ -1588,8 +1591,10 @@ void EvaluateFitted(const Design& d, const GyroDiscoverOptions& o, const std::ve
     const double csa = g.cov_unscaled(js, ja) * s2 / (us * ua);
     par["scale_factor_ppm"] = s, sig["scale_factor_ppm"] = std::sqrt(vs);
     par["asymmetry_ppm"] = 2 * a, sig["asymmetry_ppm"] = 2 * std::sqrt(va);
-    par["scale_factor_positive_ppm"] = s + a, sig["scale_factor_positive_ppm"] = std::sqrt(std::max(0.0, vs + va + 2 * csa));
-    par["scale_factor_negative_ppm"] = s - a, sig["scale_factor_negative_ppm"] = std::sqrt(std::max(0.0, vs + va - 2 * csa));
+    par["scale_factor_positive_ppm"] = s + a,
+    sig["scale_factor_positive_ppm"] = std::sqrt(std::max(0.0, vs + va + 2 * csa));
+    par["scale_factor_negative_ppm"] = s - a,
+    sig["scale_factor_negative_ppm"] = std::sqrt(std::max(0.0, vs + va - 2 * csa));
   } else if (cause == "time_delay") {
     est(kDelay, scale[kDelay], "delay_s");
   } else if (cause == "bias_step") {
@@ -1631,14 +1636,22 @@ std::string OutOfBounds(const std::string& cause, const std::map<std::string, do
     double max_abs;
   };
   static const Bound kBounds[] = {
-      {"temperature", "K10_dph", 5},          {"temperature", "K20_dph", 5},
-      {"temperature", "swing_ratio", 5},      {"temperature_gradient", "K01_dph", 5},
-      {"magnetic_field", "amplitude_dph", 2}, {"magnetic_field", "sensitivity_bn_dph_per_ut", 0.1},
-      {"magnetic_field", "sensitivity_be_dph_per_ut", 0.1}, {"magnetic_field", "sensitivity_bh_dph_per_ut", 0.1},
-      {"magnetic_field", "swing_ratio", 5},   {"misalignment", "misalignment_arcsec", 3600},
-      {"scale_factor", "scale_factor_ppm", 1e4}, {"scale_factor_asymmetry", "scale_factor_ppm", 1e4},
-      {"scale_factor_asymmetry", "asymmetry_ppm", 1e4}, {"time_delay", "delay_s", 0.1},
-      {"bias_step", "step_dph", 10},          {"periodic_drift", "amplitude_dph", 10},
+      {"temperature", "K10_dph", 5},
+      {"temperature", "K20_dph", 5},
+      {"temperature", "swing_ratio", 5},
+      {"temperature_gradient", "K01_dph", 5},
+      {"magnetic_field", "amplitude_dph", 2},
+      {"magnetic_field", "sensitivity_bn_dph_per_ut", 0.1},
+      {"magnetic_field", "sensitivity_be_dph_per_ut", 0.1},
+      {"magnetic_field", "sensitivity_bh_dph_per_ut", 0.1},
+      {"magnetic_field", "swing_ratio", 5},
+      {"misalignment", "misalignment_arcsec", 3600},
+      {"scale_factor", "scale_factor_ppm", 1e4},
+      {"scale_factor_asymmetry", "scale_factor_ppm", 1e4},
+      {"scale_factor_asymmetry", "asymmetry_ppm", 1e4},
+      {"time_delay", "delay_s", 0.1},
+      {"bias_step", "step_dph", 10},
+      {"periodic_drift", "amplitude_dph", 10},
       {"rate_random_walk", "K_dph_per_sqrt_h", 2},
   };
   for (const auto& bd : kBounds) {
@@ -1733,8 +1746,8 @@ GyroCandidate* Upgrade(GyroCandidate* c, std::vector<GyroCandidate>* candidates,
 // (the walk's for rate_random_walk).
 void ReportChosen(const Design& d, const GyroDiscoverOptions& o, const GyroCandidate* chosen,
                   const Evaluation& chosen_ev, const std::vector<NoiseModel>& nm,
-                  const std::vector<NoiseModel>& nm_walk, const std::map<std::string, Fitted>& fits,
-                  GyroDiscovery* res, VectorXd* e_fit, std::vector<NoiseModel>* noise_fit) {
+                  const std::vector<NoiseModel>& nm_walk, const std::map<std::string, Fitted>& fits, GyroDiscovery* res,
+                  VectorXd* e_fit, std::vector<NoiseModel>* noise_fit) {
   if (!chosen) {
     res->cause = "none";
     const CvResult cv = CrossValidate(d, nm, d.base, o.cv_blocks);
@@ -1862,7 +1875,8 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
   std::map<std::string, double> position_cost;  // ln(positions scanned) of the located candidates
   // Every deterministic candidate and the located step and sinusoid against the base model, with
   // GLS under the per-log noise models `noise` and the inflation of the full model's whitened residuals.
-  res.candidates = TestCandidates(d, o, nm, x_full, specs, usable, alpha_each, step_scan, periodic_scan, &fits, &position_cost);
+  res.candidates =
+      TestCandidates(d, o, nm, x_full, specs, usable, alpha_each, step_scan, periodic_scan, &fits, &position_cost);
 
   // rate_random_walk: likelihood ratio of the noise model with a random walk of the bias against
   // the base noise model (white + Gauss-Markov wander with tau <= wander_tau_max_s), both by
@@ -1874,7 +1888,8 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
   const int walk_log = walk.log;
   res.candidates.push_back(walk.candidate);
   // 4. Order of the significant candidates (BicOrder).
-  const std::vector<GyroCandidate*> order = BicOrder(d, o, nm, walk_logs, walk_nll, position_cost, &fits, &res.candidates);
+  const std::vector<GyroCandidate*> order =
+      BicOrder(d, o, nm, walk_logs, walk_nll, position_cost, &fits, &res.candidates);
   // Nested pairs: misalignment is a harmonic of fixed phase inside magnetic_field, scale_factor is
   // scale_factor_asymmetry with equal scale factors for both signs. The larger model is taken when
   // its extra terms are themselves significant (chi^2 of the difference, a follow-up test at alpha).

@@ -67,12 +67,12 @@ GyroBenchLog ReadGyroBenchLog(const std::string& path);
 void CheckGyroBenchLog(const GyroBenchLog& log);
 
 struct GyroDiscoverOptions {
-  double alpha = 0.01;           // family-wise false-alarm probability over all candidates
-  int max_bins_per_log = 1000;   // bin width = max(sample interval, duration / this)
-  TemperatureRateOptions rate;   // T and dT/dt estimation
-  int max_noise_lag = 30;        // bins used for the noise model and the effective sample size
+  double alpha = 0.01;             // family-wise false-alarm probability over all candidates
+  int max_bins_per_log = 1000;     // bin width = max(sample interval, duration / this)
+  TemperatureRateOptions rate;     // T and dT/dt estimation
+  int max_noise_lag = 30;          // bins used for the noise model and the effective sample size
   double wander_tau_max_s = 1800;  // the base model's wander is bounded with correlation time <= this
-  int cv_blocks = 32;            // per log, for the cross-validated gain
+  int cv_blocks = 32;              // per log, for the cross-validated gain
   // Gates (docs/discrepancy.md): a cause is named only when its held-out improvement is significant
   // at gain_alpha (one-sided, Bonferroni over logs) and its parameters lie within the physical bounds.
   double gain_alpha = 0.01;
@@ -87,17 +87,17 @@ struct GyroDiscoverOptions {
   // `unexplained`: the residual of the named cause (or of the base model) is tested against the
   // fitted noise model; family-wise false-alarm probability of the four residual tests.
   double residual_alpha = 0.01;
-  int residual_lags = 10;          // Ljung-Box lags (bins)
+  int residual_lags = 10;  // Ljung-Box lags (bins)
   void Check() const;
 };
 
 struct GyroCandidate {
   std::string cause;
-  std::string model;      // when a cause has several: magnetic_field "azimuth_harmonic" or "logged_field"
-  double statistic = 0;   // Wald chi^2 (deterministic, bias) or likelihood ratio (rate_random_walk)
+  std::string model;     // when a cause has several: magnetic_field "azimuth_harmonic" or "logged_field"
+  double statistic = 0;  // Wald chi^2 (deterministic, bias) or likelihood ratio (rate_random_walk)
   double p_value = 1;
-  double delta_bic = 0;   // BIC(base) - BIC(base + cause) under the GLS whitening; > 0 favours the cause
-  double bic = 0;         // exact-likelihood BIC (noise refitted), significant candidates only; lowest wins
+  double delta_bic = 0;  // BIC(base) - BIC(base + cause) under the GLS whitening; > 0 favours the cause
+  double bic = 0;        // exact-likelihood BIC (noise refitted), significant candidates only; lowest wins
   int dof = 0;
   bool applicable = true;  // false when the logs cannot show it (e.g. no azimuth column)
   bool significant = false;
@@ -136,9 +136,9 @@ struct GyroResidual {
   // the levels of the pieces of constant level (binary segmentation) split into two groups, the
   // within-group share of their variance; and the likelihood ratio of a two-state hidden Markov model
   // against the noise model (the test's statistic; jumps_p its bootstrap p-value, Bonferroni over logs).
-  int jumps = 0;                     // switches between the two groups
+  int jumps = 0;                                                   // switches between the two groups
   double levels_within_ratio = 1, jumps_p = 1, jump_size_dph = 0;  // split's statistic, test's p, levels apart
-  double levels_within_p = 1;        // the level split's bootstrap p-value on the same replicates (that log)
+  double levels_within_p = 1;                 // the level split's bootstrap p-value on the same replicates (that log)
   double telegraph_llr = 0, telegraph_p = 1;  // ln L(HMM) - ln L(noise model) (nats), its bootstrap p-value
   double telegraph_levels_dph = 0, telegraph_dwell_s = 0;  // the HMM's levels apart and mean dwell
   std::vector<double> jump_times_s;

@@ -1,16 +1,15 @@
 #include "discover/frame_compare.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 
-#include <Eigen/Dense>
-
-#include "plot/plot.h"
 #include "core/attitude.h"
 #include "core/error.h"
 #include "core/stats.h"
 #include "core/types.h"
 #include "identify/star_catalog.h"
+#include "plot/plot.h"
 
 namespace ssiu {
 
@@ -289,7 +288,8 @@ FrameSimOptions FitSimOptions(const FieldFigures& m, const FrameSimOptions& base
     f.psf_ellipticity = std::clamp(m.psf_ellipticity, 0.0, 0.95);
     f.psf_angle_deg = m.psf_angle_deg;
   }
-  if (m.zero_point_slope1_adu > 0) f.mag0_flux_e_per_s = m.zero_point_slope1_adu * base.gain_e_per_adu / base.exposure_s;
+  if (m.zero_point_slope1_adu > 0)
+    f.mag0_flux_e_per_s = m.zero_point_slope1_adu * base.gain_e_per_adu / base.exposure_s;
   // Level = bias + sky; the sky is the gradient's amplitude (the least that keeps it >= 0 everywhere),
   // or with a vignetted sky the whole level.
   const bool vignetted = m.background_vignetting > 0.02 && m.background_vignetting < 1 && m.background_centre_adu > 0;
@@ -406,7 +406,9 @@ void WriteComparePlots(const std::string& dir, const std::string& prefix, const 
   sigma.y_label = "sigma (px)";
   scatter(
       "_sigma.png",
-      [](const StarPair& p, const Camera& cam) { return std::hypot(p.x_measured_px - cam.cx_px, p.y_measured_px - cam.cy_px); },
+      [](const StarPair& p, const Camera& cam) {
+        return std::hypot(p.x_measured_px - cam.cx_px, p.y_measured_px - cam.cy_px);
+      },
       [](const StarPair& p, const Camera&) { return p.sigma_measured_px; },
       [](const StarPair& p, const Camera&) { return p.sigma_simulated_px; }, sigma);
 }

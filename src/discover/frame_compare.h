@@ -13,22 +13,22 @@
 #include <string>
 #include <vector>
 
-#include "discover/discover_frames.h"
 #include "attitude/star_solver.h"
 #include "core/camera.h"
 #include "core/catalog.h"
 #include "core/image.h"
 #include "core/json.h"
+#include "discover/discover_frames.h"
 #include "sim/frame_sim.h"
 
 namespace ssiu {
 
 struct FrameCompareOptions {
-  FrameSimOptions sim;      // the simulator model under test
-  uint64_t seed = 1;        // noise seed of the first simulated frame (frame k: seed + k)
-  int tile_px = 64;         // background structure: medians of tiles of this size
+  FrameSimOptions sim;         // the simulator model under test
+  uint64_t seed = 1;           // noise seed of the first simulated frame (frame k: seed + k)
+  int tile_px = 64;            // background structure: medians of tiles of this size
   double match_radius_px = 3;  // a simulated and a measured star are the same star within this
-  void Check() const;       // InputError naming the field
+  void Check() const;          // InputError naming the field
 };
 
 // The figures of one side (measured or simulated), by the same pipeline.
@@ -37,7 +37,7 @@ struct FieldFigures {
   // ln(flux) = ln(zero_point) - 0.4 ln(10) slope V: zero_point = flux of a V = 0 star (ADU), slope 1
   // for a linear sensor in the catalog's band; scatter about the line (mag).
   double zero_point_adu = 0, flux_slope = 0, flux_scatter_mag = 0;
-  double zero_point_slope1_adu = 0;  // the same with the slope held at 1 (the simulator's law)
+  double zero_point_slope1_adu = 0;                 // the same with the slope held at 1 (the simulator's law)
   double psf_sigma_px = 0, psf_e1 = 0, psf_e2 = 0;  // stamp fits (FitSpot), medians
   int psf_stars = 0;
   // The same as ellipticity 1 - minor/major and major-axis angle (from +x towards +y, deg) of the
@@ -59,9 +59,9 @@ struct FieldFigures {
   // The radial term: median over frames of radial_adu and of -radial_adu / level_adu, the sky's
   // vignetting 1 - v (r / r_corner)^2 if the whole level is sky (no bias or offset in it).
   double background_radial_adu = 0, background_vignetting = 0;
-  double background_centre_adu = 0;     // the fit's level at the frame centre (median over frames)
-  double star_u_mean = 0;               // mean (r / r_corner)^2 of the stars in the flux fit
-  double noise_adu = 0;                 // median over frames of the detector's noise sigma
+  double background_centre_adu = 0;  // the fit's level at the frame centre (median over frames)
+  double star_u_mean = 0;            // mean (r / r_corner)^2 of the stars in the flux fit
+  double noise_adu = 0;              // median over frames of the detector's noise sigma
 };
 
 struct StarPair {
@@ -75,9 +75,9 @@ struct StarPair {
 struct FrameComparison {
   FieldFigures measured, simulated;
   std::vector<StarPair> pairs;
-  double position_rms_px = 0;        // measured - simulated centroid of the same star
-  double flux_ratio_median = 0;      // measured / simulated flux of the same star
-  double flux_ratio_scatter_mag = 0; // robust scatter of 2.5 log10 of that ratio
+  double position_rms_px = 0;         // measured - simulated centroid of the same star
+  double flux_ratio_median = 0;       // measured / simulated flux of the same star
+  double flux_ratio_scatter_mag = 0;  // robust scatter of 2.5 log10 of that ratio
   int simulated_solved = 0;
   double attitude_error_median_arcsec = 0;  // simulated frames: solved vs drawn attitude
   std::vector<double> attitude_error_arcsec;
@@ -113,8 +113,8 @@ FrameComparison CompareWithSimulation(const SolvedFrameSet& measured, const std:
                                       const SolveOptions& solve, const FrameCompareOptions& options);
 
 // The simulator options that reproduce the measured figures (the extended model): PSF sigma (centre
-// and corner when their difference is over 3 standard errors, else the median), ellipticity and angle, V = 0 flux (slope held
-// at 1), the background level, gradient and noise. The level goes into the bias except the gradient's
+// and corner when their difference is over 3 standard errors, else the median), ellipticity and angle, V = 0 flux
+// (slope held at 1), the background level, gradient and noise. The level goes into the bias except the gradient's
 // amplitude, which is sky (background_e_per_s, so that the sky stays >= 0 across the frame); the noise
 // into the read noise less that sky's shot noise (a frame alone cannot separate sky shot noise from
 // read noise without the gain; base's gain and exposure are taken as the camera's). A background

@@ -1,7 +1,7 @@
-// The OpenCV edge of this stage (core/opencv_edge.h): residual quivers are drawn by discover_plot.cc in libssiu_opencv.so, loaded
-// on first use.
-#include "discover/discover_frames.h"
+// The OpenCV edge of this stage (core/opencv_edge.h): residual quivers are drawn by discover_plot.cc in
+// libssiu_opencv.so, loaded on first use.
 #include "core/opencv_edge.h"
+#include "discover/discover_frames.h"
 
 namespace ssiu {
 

@@ -4,11 +4,11 @@
 #include <cmath>
 #include <filesystem>
 
-#include "plot/plot.h"
 #include "core/attitude.h"
 #include "core/csv.h"
 #include "core/error.h"
 #include "groundtest/stand.h"
+#include "plot/plot.h"
 
 namespace ssiu {
 
@@ -30,7 +30,8 @@ std::vector<AttitudeSample> ReadAttitudeSeries(const std::string& path) {
       s.sigma_roll_rad = t.Column("sigma_roll_arcsec")[i] * kArcsecToRad;
       // Above half a turn a 1-sigma is meaningless, and 1e300 arcsec turned the weights into 0/0.
       if (!(s.sigma_cross_rad >= 0 && s.sigma_cross_rad <= kPi) || !(s.sigma_roll_rad >= 0 && s.sigma_roll_rad <= kPi))
-        throw InputError(path, "sigma columns: negative or above 648000 arcsec (180 deg) at row " + std::to_string(i + 1));
+        throw InputError(path,
+                         "sigma columns: negative or above 648000 arcsec (180 deg) at row " + std::to_string(i + 1));
     }
     if (t.Has("common_sigma_cross_arcsec") && t.Has("common_sigma_roll_arcsec")) {
       s.common_sigma_cross_rad = t.Column("common_sigma_cross_arcsec")[i] * kArcsecToRad;
@@ -50,7 +51,8 @@ void CompareOptions::Check() const {
 namespace {
 
 // Weighted least-squares line r = a + b (t - t0); returns b and its formal sigma.
-void FitLine(const std::vector<double>& t, const std::vector<double>& r, const std::vector<double>& w, double* b, double* sb) {
+void FitLine(const std::vector<double>& t, const std::vector<double>& r, const std::vector<double>& w, double* b,
+             double* sb) {
   double sw = 0, st = 0;
   for (size_t i = 0; i < t.size(); ++i) sw += w[i], st += w[i] * t[i];
   const double t0 = st / sw;
@@ -70,12 +72,13 @@ CompareResult CompareAttitudes(const std::vector<AttitudeSample>& ref, const std
                                const CompareOptions& o, const std::string& name) {
   o.Check();
   CompareResult r;
-  std::vector<Vec3> sig;  // per-axis 1-sigma of each error, 0 = unknown
+  std::vector<Vec3> sig;        // per-axis 1-sigma of each error, 0 = unknown
   Vec3 common2 = Vec3::Zero();  // sum of the common-mode variances
   bool have_sigmas = true;
   for (const auto& e : est) {
     // Nearest reference in time.
-    auto it = std::lower_bound(ref.begin(), ref.end(), e.t_s, [](const AttitudeSample& a, double t) { return a.t_s < t; });
+    auto it =
+        std::lower_bound(ref.begin(), ref.end(), e.t_s, [](const AttitudeSample& a, double t) { return a.t_s < t; });
     const AttitudeSample* best = nullptr;
     for (auto c : {it, it == ref.begin() ? it : it - 1})
       if (c != ref.end() && std::abs(c->t_s - e.t_s) <= o.time_tolerance_s &&
@@ -167,7 +170,8 @@ CompareResult CompareAttitudes(const std::vector<AttitudeSample>& ref, const std
   };
   stats(rx, wx, &r.x), stats(ry, wy, &r.y), stats(rz, wz, &r.roll);
   r.requirement_cross_rad = o.requirement_arcsec * kArcsecToRad;
-  r.requirement_roll_rad = (o.roll_requirement_arcsec > 0 ? o.roll_requirement_arcsec : 8 * o.requirement_arcsec) * kArcsecToRad;
+  r.requirement_roll_rad =
+      (o.roll_requirement_arcsec > 0 ? o.roll_requirement_arcsec : 8 * o.requirement_arcsec) * kArcsecToRad;
   r.pass = r.rms_cross_rad <= r.requirement_cross_rad && r.roll.rms <= r.requirement_roll_rad;
   char buf[256];
   std::snprintf(buf, sizeof buf, "%s: residual RMS cross %.2f arcsec (req %.2f), roll %.2f arcsec (req %.2f)",
@@ -180,8 +184,11 @@ CompareResult CompareAttitudes(const std::vector<AttitudeSample>& ref, const std
 Json CompareResultToJson(const CompareResult& r) {
   auto as = [](double rad) { return rad * kRadToArcsec; };
   auto axis = [&](const AxisStats& a) {
-    return Json{{"mean_arcsec", as(a.mean)}, {"rms_arcsec", as(a.rms)}, {"max_abs_arcsec", as(a.max_abs)},
-                {"drift_arcsec_per_h", as(a.drift_per_h)}, {"drift_sigma_arcsec_per_h", as(a.drift_sigma_per_h)}};
+    return Json{{"mean_arcsec", as(a.mean)},
+                {"rms_arcsec", as(a.rms)},
+                {"max_abs_arcsec", as(a.max_abs)},
+                {"drift_arcsec_per_h", as(a.drift_per_h)},
+                {"drift_sigma_arcsec_per_h", as(a.drift_sigma_per_h)}};
   };
   Json j;
   j["pictures"] = r.pictures;
@@ -235,7 +242,8 @@ void WriteComparePlots(const CompareResult& r, const std::string& dir) {
   };
   auto hline = [&](const std::string& label, double y, PlotColor c) {
     PlotSeries s;
-    s.label = label, s.x = {t.front(), t.back()}, s.y = {y * kRadToArcsec, y * kRadToArcsec}, s.color = c, s.dashed = true;
+    s.label = label, s.x = {t.front(), t.back()}, s.y = {y * kRadToArcsec, y * kRadToArcsec}, s.color = c,
+    s.dashed = true;
     return s;
   };
   const PlotColor red{200, 40, 40}, blue{40, 70, 200}, green{30, 150, 60};
@@ -246,7 +254,8 @@ void WriteComparePlots(const CompareResult& r, const std::string& dir) {
   WritePlotPng(dir + "/errors.png",
                {series("x", r.error_rad, 0, red, false), series("y", r.error_rad, 1, blue, false),
                 series("roll", r.error_rad, 2, green, false), hline("misalignment x", r.misalignment_rad.x(), red),
-                hline("misalignment y", r.misalignment_rad.y(), blue), hline("misalignment roll", r.misalignment_rad.z(), green)},
+                hline("misalignment y", r.misalignment_rad.y(), blue),
+                hline("misalignment roll", r.misalignment_rad.z(), green)},
                po);
   po.title = "Residuals after removing the misalignment";
   po.y_label = "residual (arcsec)";

@@ -23,7 +23,7 @@ namespace ssiu {
 struct AttitudeSample {
   double t_s = 0;
   Quat q = Quat::Identity();
-  double sigma_cross_rad = 0, sigma_roll_rad = 0;  // 0 = not given
+  double sigma_cross_rad = 0, sigma_roll_rad = 0;                // 0 = not given
   double common_sigma_cross_rad = 0, common_sigma_roll_rad = 0;  // error shared by all pictures (reference.h)
 };
 // t_s,qw,qx,qy,qz[,sigma_cross_arcsec,sigma_roll_arcsec][,common_sigma_cross_arcsec,common_sigma_roll_arcsec];
@@ -32,9 +32,9 @@ struct AttitudeSample {
 std::vector<AttitudeSample> ReadAttitudeSeries(const std::string& path);
 
 struct CompareOptions {
-  double requirement_arcsec = 10.0;       // cross-boresight 1-sigma (RMS) requirement
-  double roll_requirement_arcsec = 0.0;   // 0 = 8 x requirement_arcsec (a typical tracker's roll/cross ratio)
-  double time_tolerance_s = 0.5;          // a computed attitude belongs to the reference within this time
+  double requirement_arcsec = 10.0;      // cross-boresight 1-sigma (RMS) requirement
+  double roll_requirement_arcsec = 0.0;  // 0 = 8 x requirement_arcsec (a typical tracker's roll/cross ratio)
+  double time_tolerance_s = 0.5;         // a computed attitude belongs to the reference within this time
   bool remove_misalignment = true;
   void Check() const;
 };
@@ -47,23 +47,24 @@ struct AxisStats {
 struct CompareResult {
   int pictures = 0, unmatched = 0;
   std::vector<double> t_s;
-  std::vector<Vec3> error_rad;       // per picture, sensor frame, before removal
-  std::vector<Vec3> residual_rad;    // after the misalignment is removed
+  std::vector<Vec3> error_rad;     // per picture, sensor frame, before removal
+  std::vector<Vec3> residual_rad;  // after the misalignment is removed
   Vec3 misalignment_rad = Vec3::Zero();
   Vec3 misalignment_sigma_rad = Vec3::Zero();
-  double birge_ratio = 1;            // sqrt(chi2/dof) of the residuals against the stated sigmas
-  double chi2_per_dof = 0;           // 0 when no sigmas were given
-  AxisStats x, y, roll;              // residuals (rad)
+  double birge_ratio = 1;   // sqrt(chi2/dof) of the residuals against the stated sigmas
+  double chi2_per_dof = 0;  // 0 when no sigmas were given
+  AxisStats x, y, roll;     // residuals (rad)
   double rms_cross_rad = 0, max_cross_rad = 0, rms_total_rad = 0, max_total_rad = 0;
-  double raw_rms_cross_rad = 0, raw_rms_roll_rad = 0;  // before removal
+  double raw_rms_cross_rad = 0, raw_rms_roll_rad = 0;        // before removal
   double mean_sigma_cross_rad = 0, mean_sigma_roll_rad = 0;  // stated (tracker+reference) 1-sigma, RMS
   double requirement_cross_rad = 0, requirement_roll_rad = 0;
   bool pass = false;
   std::string verdict;
 };
 
-CompareResult CompareAttitudes(const std::vector<AttitudeSample>& reference, const std::vector<AttitudeSample>& computed,
-                               const CompareOptions& o, const std::string& computed_name = "computed");
+CompareResult CompareAttitudes(const std::vector<AttitudeSample>& reference,
+                               const std::vector<AttitudeSample>& computed, const CompareOptions& o,
+                               const std::string& computed_name = "computed");
 Json CompareResultToJson(const CompareResult& r);
 // DIR/errors.png (cross-boresight and roll per picture, misalignment lines) and DIR/residuals.png.
 void WriteComparePlots(const CompareResult& r, const std::string& dir);

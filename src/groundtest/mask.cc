@@ -31,9 +31,7 @@ std::array<Vec2, 4> MaskTag::Corners() const {
   return {Vec2(x_mm - h, y_mm + h), Vec2(x_mm + h, y_mm + h), Vec2(x_mm + h, y_mm - h), Vec2(x_mm - h, y_mm - h)};
 }
 
-Vec3 Mask::DirectionOf(double x_mm, double y_mm) const {
-  return Vec3(x_mm, y_mm, collimator_focal_mm).normalized();
-}
+Vec3 Mask::DirectionOf(double x_mm, double y_mm) const { return Vec3(x_mm, y_mm, collimator_focal_mm).normalized(); }
 
 Mask DesignMask(const Camera& camera, const std::vector<CatalogStar>& stars, const Quat& q_design,
                 const MaskOptions& o) {
@@ -73,7 +71,8 @@ Mask DesignMask(const Camera& camera, const std::vector<CatalogStar>& stars, con
     if (d.z() <= 0) continue;
     if (o.compensate_distortion) {
       // The direction whose distorted image is the star's pinhole image.
-      const Vec2 pin(camera.cx_px + camera.focal_length_px * d.x() / d.z(), camera.cy_px + camera.FocalYPx() * d.y() / d.z());
+      const Vec2 pin(camera.cx_px + camera.focal_length_px * d.x() / d.z(),
+                     camera.cy_px + camera.FocalYPx() * d.y() / d.z());
       d = camera.Unproject(pin);
       // Far outside the image the lens model has no inverse: leave out what it cannot show.
       const auto back = camera.Project(d);
@@ -115,7 +114,8 @@ Json MaskToJson(const Mask& m) {
   j["camera"] = CameraToJson(m.camera);
   j["collimator_focal_mm"] = m.collimator_focal_mm;
   const auto q = ToWxyz(m.q_design);
-  j["design"] = {{"q", {q[0], q[1], q[2], q[3]}}, {"ra_deg", m.ra_deg}, {"dec_deg", m.dec_deg}, {"roll_deg", m.roll_deg}};
+  j["design"] = {
+      {"q", {q[0], q[1], q[2], q[3]}}, {"ra_deg", m.ra_deg}, {"dec_deg", m.dec_deg}, {"roll_deg", m.roll_deg}};
   j["frame"] = "plate mm: x right, y down as seen from the collimator lens; hole (x,y) -> direction (x,y,F)/|.|";
   j["field_half_x_mm"] = m.field_half_x_mm, j["field_half_y_mm"] = m.field_half_y_mm;
   j["plate_side_mm"] = 2 * m.plate_half_mm;
@@ -126,8 +126,12 @@ Json MaskToJson(const Mask& m) {
                        {"clamped_holes", m.clamped_holes}};
   Json holes = Json::array();
   for (const auto& h : m.holes)
-    holes.push_back({{"star_id", h.star_id}, {"mag", h.mag}, {"mag_effective", h.mag_effective}, {"x_mm", h.x_mm},
-                     {"y_mm", h.y_mm}, {"diameter_mm", h.diameter_mm}});
+    holes.push_back({{"star_id", h.star_id},
+                     {"mag", h.mag},
+                     {"mag_effective", h.mag_effective},
+                     {"x_mm", h.x_mm},
+                     {"y_mm", h.y_mm},
+                     {"diameter_mm", h.diameter_mm}});
   j["holes"] = holes;
   j["tag_family"] = m.tag_family;
   j["distortion_compensated"] = m.distortion_compensated;
@@ -144,16 +148,18 @@ Json MaskToJson(const Mask& m) {
 Mask MaskFromJson(const Json& j, const std::string& src) {
   if (!j.is_object()) throw InputError(src, "not a mask (JSON object expected)");
   if (!j.contains("format") || j["format"] != "ssiu_mask_v1") throw InputError(src, "format: not ssiu_mask_v1");
-  CheckKeys(j, {"format", "camera", "collimator_focal_mm", "design", "frame", "field_half_x_mm", "field_half_y_mm",
-                "plate_side_mm", "hole_grading", "holes", "tag_family", "distortion_compensated", "tags", "png_dpi",
-                "comment"},
-            src);
+  CheckKeys(
+      j,
+      {"format", "camera", "collimator_focal_mm", "design", "frame", "field_half_x_mm", "field_half_y_mm",
+       "plate_side_mm", "hole_grading", "holes", "tag_family", "distortion_compensated", "tags", "png_dpi", "comment"},
+      src);
   Mask m;
   if (!j.contains("camera")) throw InputError(src, "camera: missing");
   m.camera = CameraFromJson(j["camera"], src + ": camera");
   m.collimator_focal_mm = JsonNumber(j, "collimator_focal_mm", src);
   if (!(m.collimator_focal_mm > 0)) throw InputError(src, "collimator_focal_mm: must be > 0");
-  if (!j.contains("design") || !j["design"].contains("q") || !j["design"]["q"].is_array() || j["design"]["q"].size() != 4)
+  if (!j.contains("design") || !j["design"].contains("q") || !j["design"]["q"].is_array() ||
+      j["design"]["q"].size() != 4)
     throw InputError(src, "design.q: missing or not [w,x,y,z]");
   CheckKeys(j["design"], {"q", "ra_deg", "dec_deg", "roll_deg"}, src + ": design");
   const auto& q = j["design"]["q"];
@@ -188,7 +194,8 @@ Mask MaskFromJson(const Json& j, const std::string& src) {
   }
   m.tag_family = JsonStringOr(j, "tag_family", "tag36h11", src);
   m.distortion_compensated = JsonBoolOr(j, "distortion_compensated", m.distortion_compensated, src);
-  if (!groundtest_internal::CreateFamily(m.tag_family)) throw InputError(src, "tag_family: unknown '" + m.tag_family + "'");
+  if (!groundtest_internal::CreateFamily(m.tag_family))
+    throw InputError(src, "tag_family: unknown '" + m.tag_family + "'");
   if (!j.contains("tags") || !j["tags"].is_array()) throw InputError(src, "tags: missing");
   for (size_t i = 0; i < j["tags"].size(); ++i) {
     const Json& t = j["tags"][i];
@@ -211,8 +218,8 @@ void CheckMaskCamera(const Mask& m, const Camera& c, const std::string& mask_fil
   const Camera& d = m.camera;
   if (d.width != c.width || d.height != c.height ||
       std::abs(d.focal_length_px - c.focal_length_px) > 1e-3 * d.focal_length_px ||
-      std::abs(d.FocalYPx() - c.FocalYPx()) > 1e-3 * d.FocalYPx() ||
-      std::abs(d.cx_px - c.cx_px) > 0.5 || std::abs(d.cy_px - c.cy_px) > 0.5) {
+      std::abs(d.FocalYPx() - c.FocalYPx()) > 1e-3 * d.FocalYPx() || std::abs(d.cx_px - c.cx_px) > 0.5 ||
+      std::abs(d.cy_px - c.cy_px) > 0.5) {
     char buf[256];
     std::snprintf(buf, sizeof buf, "designed for another camera (%dx%d, f %.1f px), not this one (%dx%d, f %.1f px)",
                   d.width, d.height, d.focal_length_px, c.width, c.height, c.focal_length_px);
@@ -224,7 +231,8 @@ std::vector<uint8_t> TagPattern(const std::string& family, int id, int* total_wi
   auto fam = groundtest_internal::CreateFamily(family);
   if (!fam) throw InputError("tag family", "unknown '" + family + "'");
   if (id < 0 || static_cast<uint32_t>(id) >= fam->ncodes)
-    throw InputError("tag id", std::to_string(id) + " outside " + family + " (0.." + std::to_string(fam->ncodes - 1) + ")");
+    throw InputError("tag id",
+                     std::to_string(id) + " outside " + family + " (0.." + std::to_string(fam->ncodes - 1) + ")");
   // Drawn from the family's tables the way libapriltag's apriltag_to_image does (that function's
   // image type is not exported by the Debian library): a one-cell white ring (unless the family has
   // a reversed border), black elsewhere, and the code's 1-bits white at (bit_x, bit_y) from the
@@ -261,21 +269,23 @@ void WriteMaskSvg(const Mask& m, const std::string& path) {
     const double s = 2 * m.plate_half_mm;
     f << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << s << "mm\" height=\"" << s << "mm\" viewBox=\""
       << -m.plate_half_mm << ' ' << -m.plate_half_mm << ' ' << s << ' ' << s << "\">\n";
-    f << "<!-- ssiu star mask: plate mm, x right, y down as seen from the collimator lens; F = " << m.collimator_focal_mm
-      << " mm; design ra " << m.ra_deg << " dec " << m.dec_deg << " roll " << m.roll_deg << " deg -->\n";
+    f << "<!-- ssiu star mask: plate mm, x right, y down as seen from the collimator lens; F = "
+      << m.collimator_focal_mm << " mm; design ra " << m.ra_deg << " dec " << m.dec_deg << " roll " << m.roll_deg
+      << " deg -->\n";
     f << "<rect x=\"" << -m.plate_half_mm << "\" y=\"" << -m.plate_half_mm << "\" width=\"" << s << "\" height=\"" << s
       << "\" fill=\"black\"/>\n";
     f.precision(10);
     for (const auto& h : m.holes)
-      f << "<circle cx=\"" << h.x_mm << "\" cy=\"" << h.y_mm << "\" r=\"" << h.diameter_mm / 2 << "\" fill=\"white\"><title>HR "
-        << h.star_id << " V " << h.mag << "</title></circle>\n";
+      f << "<circle cx=\"" << h.x_mm << "\" cy=\"" << h.y_mm << "\" r=\"" << h.diameter_mm / 2
+        << "\" fill=\"white\"><title>HR " << h.star_id << " V " << h.mag << "</title></circle>\n";
     for (const auto& t : m.tags) {
       int n = 0;
       const std::vector<uint8_t> p = TagPattern(m.tag_family, t.id, &n);
       const double c = TagCellMm(m.tag_family, t);
       const double x0 = t.x_mm - n * c / 2, y0 = t.y_mm - n * c / 2;
       f << "<g><title>" << m.tag_family << " id " << t.id << "</title>\n";
-      f << "<rect x=\"" << x0 << "\" y=\"" << y0 << "\" width=\"" << n * c << "\" height=\"" << n * c << "\" fill=\"white\"/>\n";
+      f << "<rect x=\"" << x0 << "\" y=\"" << y0 << "\" width=\"" << n * c << "\" height=\"" << n * c
+        << "\" fill=\"white\"/>\n";
       for (int r = 0; r < n; ++r)
         for (int k = 0; k < n; ++k)
           if (p[static_cast<size_t>(r) * n + k] < 128)

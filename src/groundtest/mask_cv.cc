@@ -1,6 +1,4 @@
 // WriteMaskPng of mask.h (OpenCV drawing), in the OpenCV edge module (core/opencv_edge.h).
-#include "groundtest/mask.h"
-
 #include <apriltag/apriltag.h>
 
 #include <algorithm>
@@ -13,6 +11,7 @@
 #include "core/image_cv.h"
 #include "core/output.h"
 #include "groundtest/apriltag_family.h"
+#include "groundtest/mask.h"
 
 namespace ssiu {
 
@@ -21,7 +20,8 @@ void WriteMaskPng(const Mask& m, const std::string& path, double dpi) {
   const double px_per_mm = dpi / 25.4;
   const double side_px = std::ceil(2 * m.plate_half_mm * px_per_mm);
   if (side_px > 30000)
-    throw InputError("--dpi", std::to_string(static_cast<long>(side_px)) + " px across the plate is too large for a PNG; lower --dpi or use mask.svg");
+    throw InputError("--dpi", std::to_string(static_cast<long>(side_px)) +
+                                  " px across the plate is too large for a PNG; lower --dpi or use mask.svg");
   const int n = static_cast<int>(side_px);
   cv::Mat img(n, n, CV_8UC1, cv::Scalar(0));
   auto to_px = [&](double mm) { return (mm + m.plate_half_mm) * px_per_mm - 0.5; };
@@ -29,7 +29,9 @@ void WriteMaskPng(const Mask& m, const std::string& path, double dpi) {
   constexpr double kScale = 1 << kShift;
   for (const auto& h : m.holes) {
     const double r = std::max(0.5, h.diameter_mm / 2 * px_per_mm);  // at least one dot
-    cv::circle(img, cv::Point(static_cast<int>(std::lround(to_px(h.x_mm) * kScale)), static_cast<int>(std::lround(to_px(h.y_mm) * kScale))),
+    cv::circle(img,
+               cv::Point(static_cast<int>(std::lround(to_px(h.x_mm) * kScale)),
+                         static_cast<int>(std::lround(to_px(h.y_mm) * kScale))),
                static_cast<int>(std::lround(r * kScale)), cv::Scalar(255), cv::FILLED, cv::LINE_AA, kShift);
   }
   for (const auto& t : m.tags) {
@@ -43,7 +45,8 @@ void WriteMaskPng(const Mask& m, const std::string& path, double dpi) {
         const int xb = static_cast<int>(std::lround((x0 + (k + 1) * c + m.plate_half_mm) * px_per_mm));
         const int ya = static_cast<int>(std::lround((y0 + r * c + m.plate_half_mm) * px_per_mm));
         const int yb = static_cast<int>(std::lround((y0 + (r + 1) * c + m.plate_half_mm) * px_per_mm));
-        cv::rectangle(img, cv::Rect(xa, ya, xb - xa, yb - ya), cv::Scalar(p[static_cast<size_t>(r) * cells + k]), cv::FILLED);
+        cv::rectangle(img, cv::Rect(xa, ya, xb - xa, yb - ya), cv::Scalar(p[static_cast<size_t>(r) * cells + k]),
+                      cv::FILLED);
       }
   }
   const std::string bytes = PngBytes(img, 12);

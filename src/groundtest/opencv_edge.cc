@@ -2,13 +2,13 @@
 // attitude/, analysis/ and groundtest/ opencv_calls.cc, by name.
 #include <cstring>
 
-#include "discover/discover_frames.h"
-#include "calibration/fog_plot.h"
-#include "plot/plot.h"
 #include "attitude/overlay.h"
+#include "calibration/fog_plot.h"
+#include "discover/discover_frames.h"
 #include "groundtest/mask.h"
 #include "groundtest/reference.h"
 #include "groundtest/virtual_stand.h"
+#include "plot/plot.h"
 
 namespace {
 
@@ -27,10 +27,10 @@ Entry E(const char* name, F fn) {
 extern "C" __attribute__((visibility("default"))) void* ssiu_opencv_edge(const char* name) {
   using namespace ssiu;
   static const Entry table[] = {
-      E("WriteSolveOverlay", &WriteSolveOverlay),   E("WritePlotPng", &WritePlotPng),
-      E("WriteFogPlotPng", &WriteFogPlotPng),       E("WriteResidualQuiver", &WriteResidualQuiver),
-      E("WriteMaskPng", &WriteMaskPng),             E("DetectFiducials", &DetectFiducials),
-      E("EstimatePlatePose", &EstimatePlatePose),   E("RenderTrackerView", &RenderTrackerView),
+      E("WriteSolveOverlay", &WriteSolveOverlay), E("WritePlotPng", &WritePlotPng),
+      E("WriteFogPlotPng", &WriteFogPlotPng),     E("WriteResidualQuiver", &WriteResidualQuiver),
+      E("WriteMaskPng", &WriteMaskPng),           E("DetectFiducials", &DetectFiducials),
+      E("EstimatePlatePose", &EstimatePlatePose), E("RenderTrackerView", &RenderTrackerView),
       E("RenderAuxPhoto", &RenderAuxPhoto),
   };
   for (const Entry& e : table)

@@ -1,6 +1,5 @@
 #include "groundtest/reference.h"
 
-
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -16,7 +15,8 @@
 namespace ssiu {
 
 void FiducialOptions::Check() const {
-  if (!(quad_decimate >= 1 && quad_decimate <= 4)) throw InputError("fiducial options", "quad_decimate must be in [1, 4]");
+  if (!(quad_decimate >= 1 && quad_decimate <= 4))
+    throw InputError("fiducial options", "quad_decimate must be in [1, 4]");
   if (min_tags < 1) throw InputError("fiducial options", "min_tags must be >= 1");
   if (!(pixel_noise_dn >= 0)) throw InputError("fiducial options", "pixel_noise_dn must be >= 0");
 }
@@ -26,12 +26,13 @@ PlatePoseEstimate EstimatePlatePoseFromFile(const Mask& m, const AuxCamera& aux,
   const Frame f = ReadFrame(photo);
   std::vector<uint8_t> px(f.image.pixels.size());
   const double scale = f.bit_depth == 8 ? 1.0 : 255.0 / std::max(1.0, f.saturation_adu);
-  for (size_t i = 0; i < px.size(); ++i) px[i] = static_cast<uint8_t>(std::clamp(std::round(f.image.pixels[i] * scale), 0.0, 255.0));
+  for (size_t i = 0; i < px.size(); ++i)
+    px[i] = static_cast<uint8_t>(std::clamp(std::round(f.image.pixels[i] * scale), 0.0, 255.0));
   return EstimatePlatePose(m, aux, px.data(), f.image.width, f.image.height, photo, o);
 }
 
-ReferenceSample ReferenceFromStand(const Mask& m, const Quat& q_c_from_m, const Mat3& cov_cm, double az_rad, double el_rad,
-                                   double rot_rad, double encoder_sigma_rad, double t_s) {
+ReferenceSample ReferenceFromStand(const Mask& m, const Quat& q_c_from_m, const Mat3& cov_cm, double az_rad,
+                                   double el_rad, double rot_rad, double encoder_sigma_rad, double t_s) {
   ReferenceSample r;
   r.t_s = t_s;
   const Quat stand = StandRotation(az_rad, el_rad, rot_rad);
@@ -58,8 +59,9 @@ void WriteReferenceCsv(const std::string& path, const std::vector<ReferenceSampl
     cols[7].push_back(r.common_sigma_cross_rad * kRadToArcsec);
     cols[8].push_back(r.common_sigma_roll_rad * kRadToArcsec);
   }
-  WriteCsv(path, {"t_s", "qw", "qx", "qy", "qz", "sigma_cross_arcsec", "sigma_roll_arcsec", "common_sigma_cross_arcsec",
-                  "common_sigma_roll_arcsec"},
+  WriteCsv(path,
+           {"t_s", "qw", "qx", "qy", "qz", "sigma_cross_arcsec", "sigma_roll_arcsec", "common_sigma_cross_arcsec",
+            "common_sigma_roll_arcsec"},
            cols);
 }
 

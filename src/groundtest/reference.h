@@ -47,22 +47,22 @@ std::vector<FiducialDetection> DetectFiducials(const uint8_t* pixels, int width,
                                                const FiducialOptions& o);
 
 struct PlatePoseEstimate {
-  std::vector<int> tag_ids;                    // mask tags used
-  PlatePose pose;                              // plate in C
-  Mat3 r_aux_from_p = Mat3::Identity();        // PnP result
+  std::vector<int> tag_ids;              // mask tags used
+  PlatePose pose;                        // plate in C
+  Mat3 r_aux_from_p = Mat3::Identity();  // PnP result
   Vec3 t_aux_mm = Vec3::Zero();
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();  // (rvec rad, t mm) in aux
-  int refined_tags = 0;                        // tags whose corners come from the edge-model fit
-  double pixel_noise_dn = 0;                   // used for the prediction (given, or measured)
-  double measured_pixel_noise_dn = 0;          // RMS residual of the edge fits
-  double predicted_corner_sigma_px = 0;        // RMS corner sigma from the pixel noise (per coordinate)
-  double corner_sigma_px = 0;                  // from the PnP residuals
-  double corner_chi2_per_dof = 0;              // PnP residuals against the predicted corner covariance
+  int refined_tags = 0;                  // tags whose corners come from the edge-model fit
+  double pixel_noise_dn = 0;             // used for the prediction (given, or measured)
+  double measured_pixel_noise_dn = 0;    // RMS residual of the edge fits
+  double predicted_corner_sigma_px = 0;  // RMS corner sigma from the pixel noise (per coordinate)
+  double corner_sigma_px = 0;            // from the PnP residuals
+  double corner_chi2_per_dof = 0;        // PnP residuals against the predicted corner covariance
   double rms_reprojection_px = 0;
   Quat q_c_from_m = Quat::Identity();
   Mat3 q_c_from_m_noise_cov_rad2 = Mat3::Zero();  // what the pixel noise alone allows (prediction)
-  Mat3 q_c_from_m_cov_rad2 = Mat3::Zero();     // stated: the prediction x max(1, chi2/dof), or the larger jackknife
-  Mat3 jackknife_cov_rad2 = Mat3::Zero();      // leave-one-tag-out estimate (3 or more tags)
+  Mat3 q_c_from_m_cov_rad2 = Mat3::Zero();        // stated: the prediction x max(1, chi2/dof), or the larger jackknife
+  Mat3 jackknife_cov_rad2 = Mat3::Zero();         // leave-one-tag-out estimate (3 or more tags)
 };
 
 // Throws InputError naming `photo_name` when no tag of the mask's family is visible (naming another
@@ -80,14 +80,14 @@ PlatePoseEstimate EstimatePlatePoseFromFile(const Mask& m, const AuxCamera& aux,
 struct ReferenceSample {
   double t_s = 0;
   Quat q_inertial_from_sensor = Quat::Identity();
-  Mat3 covariance_rad2 = Mat3::Zero();         // per-picture part, sensor frame
-  Mat3 common_covariance_rad2 = Mat3::Zero();  // plate-pose part, sensor frame
+  Mat3 covariance_rad2 = Mat3::Zero();                           // per-picture part, sensor frame
+  Mat3 common_covariance_rad2 = Mat3::Zero();                    // plate-pose part, sensor frame
   double sigma_cross_rad = 0, sigma_roll_rad = 0;                // per picture (RMS of x and y; z)
   double common_sigma_cross_rad = 0, common_sigma_roll_rad = 0;  // common
 };
 
-ReferenceSample ReferenceFromStand(const Mask& m, const Quat& q_c_from_m, const Mat3& q_c_from_m_cov_rad2, double az_rad,
-                                   double el_rad, double rot_rad, double encoder_sigma_rad, double t_s);
+ReferenceSample ReferenceFromStand(const Mask& m, const Quat& q_c_from_m, const Mat3& q_c_from_m_cov_rad2,
+                                   double az_rad, double el_rad, double rot_rad, double encoder_sigma_rad, double t_s);
 
 // t_s,qw,qx,qy,qz,sigma_cross_arcsec,sigma_roll_arcsec,common_sigma_cross_arcsec,common_sigma_roll_arcsec
 void WriteReferenceCsv(const std::string& path, const std::vector<ReferenceSample>& samples);

@@ -1,7 +1,5 @@
 // Fiducials (libapriltag) and the plate pose (OpenCV solvePnP) of reference.h, in the OpenCV edge
 // module (core/opencv_edge.h).
-#include "groundtest/reference.h"
-
 #include <apriltag/apriltag.h>
 
 #include <algorithm>
@@ -15,6 +13,7 @@
 #include "core/error.h"
 #include "core/image.h"
 #include "groundtest/apriltag_family.h"
+#include "groundtest/reference.h"
 #include "groundtest/tag_edges.h"
 
 namespace ssiu {
@@ -72,14 +71,16 @@ Mat3 FromRvec(const Vec3& r) {
 PlatePoseEstimate EstimatePlatePose(const Mask& m, const AuxCamera& aux, const uint8_t* pixels, int width, int height,
                                     const std::string& photo, const FiducialOptions& o) {
   if (width != aux.camera.width || height != aux.camera.height)
-    throw InputError(photo, "size " + std::to_string(width) + "x" + std::to_string(height) + " differs from the aux camera's " +
-                                std::to_string(aux.camera.width) + "x" + std::to_string(aux.camera.height));
+    throw InputError(photo, "size " + std::to_string(width) + "x" + std::to_string(height) +
+                                " differs from the aux camera's " + std::to_string(aux.camera.width) + "x" +
+                                std::to_string(aux.camera.height));
   const std::vector<FiducialDetection> dets = DetectFiducials(pixels, width, height, m.tag_family, o);
   if (dets.empty()) {
     for (const auto& other : groundtest_internal::KnownFamilies()) {
       if (other == m.tag_family) continue;
       if (!DetectFiducials(pixels, width, height, other, o).empty())
-        throw InputError(photo, "shows " + other + " fiducials, but the mask uses " + m.tag_family + " (wrong tag family)");
+        throw InputError(photo,
+                         "shows " + other + " fiducials, but the mask uses " + m.tag_family + " (wrong tag family)");
     }
     throw InputError(photo, "no " + m.tag_family + " fiducials visible");
   }
@@ -89,7 +90,7 @@ PlatePoseEstimate EstimatePlatePose(const Mask& m, const AuxCamera& aux, const u
   const int border_cells = static_cast<int>(fam->width_at_border);
   const Camera& c = aux.camera;
   std::vector<cv::Point3d> obj;
-  std::vector<cv::Point2d> img;  // undistorted (pinhole) pixel coordinates
+  std::vector<cv::Point2d> img;                      // undistorted (pinhole) pixel coordinates
   std::vector<Eigen::Matrix<double, 8, 8>> tag_cov;  // per unit pixel noise (refined) or absolute (not)
   std::vector<bool> refined;
   PlatePoseEstimate e;
@@ -103,7 +104,8 @@ PlatePoseEstimate EstimatePlatePose(const Mask& m, const AuxCamera& aux, const u
       continue;
     }
     groundtest_internal::TagCornerFit fit;
-    if (o.refine_corners) fit = groundtest_internal::FitTagCorners(pixels, width, height, c, d.corners_px, border_cells);
+    if (o.refine_corners)
+      fit = groundtest_internal::FitTagCorners(pixels, width, height, c, d.corners_px, border_cells);
     const auto corners = it->second->Corners();
     for (int k = 0; k < 4; ++k) {
       obj.emplace_back(corners[k].x(), corners[k].y(), 0.0);
@@ -121,8 +123,9 @@ PlatePoseEstimate EstimatePlatePose(const Mask& m, const AuxCamera& aux, const u
     e.tag_ids.push_back(d.id);
   }
   if (static_cast<int>(e.tag_ids.size()) < o.min_tags)
-    throw InputError(photo, std::to_string(e.tag_ids.size()) + " of this mask's " + m.tag_family + " fiducials visible (need " +
-                                std::to_string(o.min_tags) + ")" + (foreign.empty() ? "" : "; tags " + foreign + " belong to another mask"));
+    throw InputError(photo, std::to_string(e.tag_ids.size()) + " of this mask's " + m.tag_family +
+                                " fiducials visible (need " + std::to_string(o.min_tags) + ")" +
+                                (foreign.empty() ? "" : "; tags " + foreign + " belong to another mask"));
   // The photo's pixel noise: given, or measured from the edge fits' residuals.
   e.pixel_noise_dn = o.pixel_noise_dn > 0 ? o.pixel_noise_dn : (dof_fit > 0 ? std::sqrt(rss / dof_fit) : 0.0);
   e.measured_pixel_noise_dn = dof_fit > 0 ? std::sqrt(rss / dof_fit) : 0.0;
@@ -130,7 +133,8 @@ PlatePoseEstimate EstimatePlatePose(const Mask& m, const AuxCamera& aux, const u
   const int n_obs = 8 * nt;
   Eigen::MatrixXd Sigma = Eigen::MatrixXd::Zero(n_obs, n_obs);  // corner covariance, px^2
   for (int t = 0; t < nt; ++t)
-    Sigma.block<8, 8>(8 * t, 8 * t) = refined[t] ? Eigen::Matrix<double, 8, 8>(tag_cov[t] * e.pixel_noise_dn * e.pixel_noise_dn) : tag_cov[t];
+    Sigma.block<8, 8>(8 * t, 8 * t) =
+        refined[t] ? Eigen::Matrix<double, 8, 8>(tag_cov[t] * e.pixel_noise_dn * e.pixel_noise_dn) : tag_cov[t];
   e.predicted_corner_sigma_px = std::sqrt(Sigma.diagonal().mean());
   const cv::Matx33d K(c.focal_length_px, 0, c.cx_px, 0, c.FocalYPx(), c.cy_px, 0, 0, 1);
   const std::vector<double> dist;  // corners are undistorted already
@@ -169,7 +173,10 @@ PlatePoseEstimate EstimatePlatePose(const Mask& m, const AuxCamera& aux, const u
   for (int k = 0; k < 6; ++k) {
     const double h = k < 3 ? 1e-6 : 1e-3;
     Vec3 r2 = rv, t2 = tv;
-    if (k < 3) r2(k) += h; else t2(k - 3) += h;
+    if (k < 3)
+      r2(k) += h;
+    else
+      t2(k - 3) += h;
     const Quat q2 = MaskRotation(m, PoseInC(aux, FromRvec(r2), t2));
     G.col(k) = RotationVector(q2 * e.q_c_from_m.conjugate()) / h;
   }

@@ -5,8 +5,8 @@
 
 namespace ssiu {
 
-PictureSolve SolveStandPicture(const StarIdentifier& id, const ImageView& image, const Camera& camera, double gain_e_per_adu,
-                               double t_s, const SolveOptions& options) {
+PictureSolve SolveStandPicture(const StarIdentifier& id, const ImageView& image, const Camera& camera,
+                               double gain_e_per_adu, double t_s, const SolveOptions& options) {
   SolveOptions so = options;
   so.detect.gain_e_per_adu = gain_e_per_adu;
   const SolveResult r = SolveFrame(id, image, camera, so);

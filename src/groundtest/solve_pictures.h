@@ -11,14 +11,14 @@
 namespace ssiu {
 
 struct PictureSolve {
-  std::string status;          // as SolveResult::status
-  int stars = 0;               // matched stars
-  AttitudeSample sample;       // valid when status == "solved"
+  std::string status;     // as SolveResult::status
+  int stars = 0;          // matched stars
+  AttitudeSample sample;  // valid when status == "solved"
 };
 
 // gain_e_per_adu: the tracker's gain for shot-noise weights (0 = unknown).
-PictureSolve SolveStandPicture(const StarIdentifier& id, const ImageView& image, const Camera& camera, double gain_e_per_adu,
-                               double t_s, const SolveOptions& options = {});
+PictureSolve SolveStandPicture(const StarIdentifier& id, const ImageView& image, const Camera& camera,
+                               double gain_e_per_adu, double t_s, const SolveOptions& options = {});
 
 void WriteAttitudeCsv(const std::string& path, const std::vector<AttitudeSample>& samples);
 

@@ -48,14 +48,17 @@ bool FitEdge(const uint8_t* img, int w, int h, const Camera& cam, const Vec2& a,
   const Vec2 corners[4] = {a + n * (R + 3), a - n * (R + 3), b + n * (R + 3), b - n * (R + 3)};
   double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
   for (const Vec2& c : corners) {
-    const auto d = cam.Project(Vec3((c.x() - cam.cx_px) / cam.focal_length_px, (c.y() - cam.cy_px) / cam.FocalYPx(), 1));
+    const auto d =
+        cam.Project(Vec3((c.x() - cam.cx_px) / cam.focal_length_px, (c.y() - cam.cy_px) / cam.FocalYPx(), 1));
     const Vec2 p = d ? *d : c;
     x0 = std::min(x0, p.x()), x1 = std::max(x1, p.x()), y0 = std::min(y0, p.y()), y1 = std::max(y1, p.y());
   }
   std::vector<Vec2> pts;
   std::vector<double> val;
-  for (int y = std::max(0, static_cast<int>(std::floor(y0)) - 2); y <= std::min(h - 1, static_cast<int>(std::ceil(y1)) + 2); ++y)
-    for (int x = std::max(0, static_cast<int>(std::floor(x0)) - 2); x <= std::min(w - 1, static_cast<int>(std::ceil(x1)) + 2); ++x) {
+  for (int y = std::max(0, static_cast<int>(std::floor(y0)) - 2);
+       y <= std::min(h - 1, static_cast<int>(std::ceil(y1)) + 2); ++y)
+    for (int x = std::max(0, static_cast<int>(std::floor(x0)) - 2);
+         x <= std::min(w - 1, static_cast<int>(std::ceil(x1)) + 2); ++x) {
       const Vec2 pu = UndistortPixel(cam, Vec2(x, y));
       const Vec2 r = pu - f->p0;
       if (std::abs(r.dot(e)) > L / 2 - margin || std::abs(r.dot(n)) > R) continue;
@@ -77,7 +80,8 @@ bool FitEdge(const uint8_t* img, int w, int h, const Camera& cam, const Vec2& a,
   p << std::atan2(n.y(), n.x()), 0.0, in / nin, out / nout - in / nin, 1.5;
   if (!(p(3) > 5)) return false;  // no dark-to-bright step here
   Eigen::Matrix<double, 5, 5> JtJ;
-  auto evaluate = [&](const Eigen::Matrix<double, 5, 1>& q, Eigen::Matrix<double, 5, 5>* jtj, Eigen::Matrix<double, 5, 1>* jtr) {
+  auto evaluate = [&](const Eigen::Matrix<double, 5, 1>& q, Eigen::Matrix<double, 5, 5>* jtj,
+                      Eigen::Matrix<double, 5, 1>* jtr) {
     const Vec2 nn(std::cos(q(0)), std::sin(q(0))), np(-std::sin(q(0)), std::cos(q(0)));
     double rss = 0;
     if (jtj) jtj->setZero(), jtr->setZero();

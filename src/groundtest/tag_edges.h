@@ -19,10 +19,11 @@ namespace ssiu::groundtest_internal {
 struct TagCornerFit {
   bool ok = false;
   std::array<Vec2, 4> corners_px;  // undistorted pixel coordinates (pinhole: cx + f X/Z), libapriltag's order
-  Eigen::Matrix<double, 8, 8> covariance = Eigen::Matrix<double, 8, 8>::Zero();  // of (x0,y0,...,x3,y3), px^2, per unit noise
-  double rss_dn2 = 0;   // sum of squared fit residuals over the four edges
-  int pixels = 0;       // pixels fitted
-  int parameters = 0;   // parameters fitted (5 per edge)
+  Eigen::Matrix<double, 8, 8> covariance =
+      Eigen::Matrix<double, 8, 8>::Zero();  // of (x0,y0,...,x3,y3), px^2, per unit noise
+  double rss_dn2 = 0;                       // sum of squared fit residuals over the four edges
+  int pixels = 0;                           // pixels fitted
+  int parameters = 0;                       // parameters fitted (5 per edge)
 };
 
 // `corners_px`: libapriltag's corners in the photo (ssiu pixel convention, distorted). The covariance

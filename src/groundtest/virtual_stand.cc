@@ -12,7 +12,8 @@ namespace ssiu {
 
 void TrackerViewOptions::Check() const {
   detector.Check();
-  if (!(stray_gradient >= 0 && stray_gradient < 1)) throw InputError("tracker view", "stray_gradient must be in [0, 1)");
+  if (!(stray_gradient >= 0 && stray_gradient < 1))
+    throw InputError("tracker view", "stray_gradient must be in [0, 1)");
   if (!(stray_glow_e_per_s >= 0)) throw InputError("tracker view", "stray_glow_e_per_s must be >= 0");
 }
 
@@ -24,7 +25,8 @@ void PhotoOptions::Check() const {
 void StandSimOptions::Check() const {
   if (positions < 1 || positions > 10000) throw InputError("stand options", "positions must be in 1..10000");
   if (!(step_s > 0)) throw InputError("stand options", "step_s must be > 0");
-  if (!(max_angle_deg >= 0 && max_angle_deg < 10)) throw InputError("stand options", "max_angle_deg must be in [0, 10)");
+  if (!(max_angle_deg >= 0 && max_angle_deg < 10))
+    throw InputError("stand options", "max_angle_deg must be in [0, 10)");
   if (!misalignment_arcmin.allFinite() || misalignment_arcmin.norm() > 600)
     throw InputError("stand options", "misalignment_arcmin must be finite and below 10 deg");
   if (!(encoder_sigma_arcsec >= 0)) throw InputError("stand options", "encoder_sigma_arcsec must be >= 0");
@@ -39,7 +41,9 @@ void StandSimOptions::Check() const {
 Json AuxCameraToJson(const AuxCamera& a) {
   Json r = Json::array();
   for (int i = 0; i < 3; ++i) r.push_back({a.r_aux_from_c(i, 0), a.r_aux_from_c(i, 1), a.r_aux_from_c(i, 2)});
-  return {{"camera", CameraToJson(a.camera)}, {"r_aux_from_c", r}, {"t_aux_mm", {a.t_aux_mm.x(), a.t_aux_mm.y(), a.t_aux_mm.z()}}};
+  return {{"camera", CameraToJson(a.camera)},
+          {"r_aux_from_c", r},
+          {"t_aux_mm", {a.t_aux_mm.x(), a.t_aux_mm.y(), a.t_aux_mm.z()}}};
 }
 
 AuxCamera AuxCameraFromJson(const Json& j, const std::string& src) {
@@ -57,7 +61,8 @@ AuxCamera AuxCameraFromJson(const Json& j, const std::string& src) {
       a.r_aux_from_c(i, k) = row[k];
     }
   }
-  if ((a.r_aux_from_c * a.r_aux_from_c.transpose() - Mat3::Identity()).norm() > 1e-6 || a.r_aux_from_c.determinant() < 0)
+  if ((a.r_aux_from_c * a.r_aux_from_c.transpose() - Mat3::Identity()).norm() > 1e-6 ||
+      a.r_aux_from_c.determinant() < 0)
     throw InputError(src, "r_aux_from_c: not a rotation matrix");
   if (!j.contains("t_aux_mm") || !j["t_aux_mm"].is_array() || j["t_aux_mm"].size() != 3)
     throw InputError(src, "t_aux_mm: missing or not [x,y,z]");
@@ -113,8 +118,12 @@ Json StandSimulation::TruthJson(const Mask& m) const {
   Json pics = Json::array();
   for (const auto& p : pictures) {
     const auto q = ToWxyz(p.q_true);
-    pics.push_back({{"t_s", p.t_s}, {"az_deg", p.az_deg}, {"el_deg", p.el_deg}, {"rot_deg", p.rot_deg},
-                    {"q_true", {q[0], q[1], q[2], q[3]}}, {"stars_in_view", p.stars.size()}});
+    pics.push_back({{"t_s", p.t_s},
+                    {"az_deg", p.az_deg},
+                    {"el_deg", p.el_deg},
+                    {"rot_deg", p.rot_deg},
+                    {"q_true", {q[0], q[1], q[2], q[3]}},
+                    {"stars_in_view", p.stars.size()}});
   }
   j["pictures"] = pics;
   j["design"] = {{"ra_deg", m.ra_deg}, {"dec_deg", m.dec_deg}, {"roll_deg", m.roll_deg}};

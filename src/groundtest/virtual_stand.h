@@ -30,8 +30,8 @@ struct TrackerViewOptions {
     d.defocus_radius_px = 1.5;  // a collimator test is rarely at perfect focus
     return d;
   }();
-  double stray_gradient = 0.5;         // stray light: background * (1 + g * x / half-width), linear
-  double stray_glow_e_per_s = 3000.0;  // plus a broad glow (Gaussian, sigma = 1/3 of the frame) ...
+  double stray_gradient = 0.5;                   // stray light: background * (1 + g * x / half-width), linear
+  double stray_glow_e_per_s = 3000.0;            // plus a broad glow (Gaussian, sigma = 1/3 of the frame) ...
   double glow_x_frac = 0.2, glow_y_frac = -0.3;  // ... centred at this offset (fraction of the half size)
   void Check() const;
 };
@@ -58,15 +58,15 @@ AuxCamera AuxCameraFromJson(const Json& j, const std::string& source);
 AuxCamera LoadAuxCamera(const std::string& path);
 
 struct PhotoOptions {
-  double noise_dn = 2.0;       // Gaussian pixel noise (8-bit counts)
+  double noise_dn = 2.0;  // Gaussian pixel noise (8-bit counts)
   // Optical blur sigma. libapriltag's edge refinement samples the gradient +/-1 px across an edge:
   // on sharp photos its corners are biased by up to 0.1 px (measured, 8 tags: -0.11 px at 0 blur,
   // -0.04 at 0.7, < 0.01 at 1.5), which turns into a plate shift of ~10 arcsec. Take the photos
   // slightly defocused; 1.5 px is the default here.
   double blur_px = 1.5;
-  int supersample = 3;         // rendered at this many times the resolution per axis, blurred, box-averaged
-  std::string tag_family;      // "" = the mask's; another family draws the wrong tags (tests)
-  bool hide_tags = false;      // draw the plate without fiducials (tests)
+  int supersample = 3;     // rendered at this many times the resolution per axis, blurred, box-averaged
+  std::string tag_family;  // "" = the mask's; another family draws the wrong tags (tests)
+  bool hide_tags = false;  // draw the plate without fiducials (tests)
   void Check() const;
 };
 // 8-bit photo of the plate (at `pose`) by the auxiliary camera.
@@ -74,13 +74,13 @@ std::vector<uint8_t> RenderAuxPhoto(const Mask& m, const PlatePose& pose, const 
                                     uint64_t seed);
 
 struct StandSimOptions {
-  int positions = 6;                    // stand positions (pictures)
-  double step_s = 60.0;                 // time between pictures
-  double max_angle_deg = 1.5;           // stand az/el spread (uniform within +/-), roll up to 3x that
+  int positions = 6;                                // stand positions (pictures)
+  double step_s = 60.0;                             // time between pictures
+  double max_angle_deg = 1.5;                       // stand az/el spread (uniform within +/-), roll up to 3x that
   Vec3 misalignment_arcmin = Vec3(3.0, -2.0, 4.0);  // hidden q_mis rotation vector (sensor axes)
-  double encoder_sigma_arcsec = 2.0;    // encoder read-out noise per axis
-  double plate_shift_mm = 0.05;         // plate displacement in its holder (x, y), fixed
-  double plate_turn_deg = 0.05;         // plate in-plane turn, fixed
+  double encoder_sigma_arcsec = 2.0;                // encoder read-out noise per axis
+  double plate_shift_mm = 0.05;                     // plate displacement in its holder (x, y), fixed
+  double plate_turn_deg = 0.05;                     // plate in-plane turn, fixed
   TrackerViewOptions view;
   AuxCamera aux;
   PhotoOptions photo;
@@ -89,10 +89,10 @@ struct StandSimOptions {
 
 struct StandPicture {
   double t_s = 0;
-  double az_deg = 0, el_deg = 0, rot_deg = 0;       // true stand angles
+  double az_deg = 0, el_deg = 0, rot_deg = 0;              // true stand angles
   double enc_az_deg = 0, enc_el_deg = 0, enc_rot_deg = 0;  // as the encoders read them
   Quat q_c_from_s = Quat::Identity();
-  Quat q_true = Quat::Identity();                    // what an ideal tracker reports (inertial <- S)
+  Quat q_true = Quat::Identity();  // what an ideal tracker reports (inertial <- S)
   Image16 frame;
   std::vector<ViewStar> stars;
   std::vector<uint8_t> photo;

@@ -1,7 +1,5 @@
 // The renderers of virtual_stand.h (OpenCV blurs and resampling), in the OpenCV edge module
 // (core/opencv_edge.h).
-#include "groundtest/virtual_stand.h"
-
 #include <algorithm>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
@@ -10,6 +8,7 @@
 #include "core/attitude.h"
 #include "core/error.h"
 #include "core/rng.h"
+#include "groundtest/virtual_stand.h"
 
 namespace ssiu {
 
@@ -29,7 +28,8 @@ double DiskOverlap(double d, double a, double b) {
 
 // Adds a hole image (disk of radius rh convolved with the defocus disk rd and a Gaussian sigma) of
 // total `flux` electrons to `e`, integrated over pixels by supersampling.
-void AddHole(std::vector<double>* e, int w, int h, double x, double y, double rh, double rd, double sigma, double flux) {
+void AddHole(std::vector<double>* e, int w, int h, double x, double y, double rh, double rd, double sigma,
+             double flux) {
   constexpr int kSs = 5;
   rh = std::max(rh, 0.02), rd = std::max(rd, 0.02);
   const int rad = static_cast<int>(std::ceil(rh + rd + 4 * sigma + 2));
@@ -69,7 +69,8 @@ Image16 RenderTrackerView(const Mask& m, const PlatePose& pose, const Quat& q_c_
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
       const double u = (x - w / 2.0) / (w / 2.0);
-      const double glow = o.stray_glow_e_per_s * std::exp(-0.5 * ((x - gx) * (x - gx) + (y - gy) * (y - gy)) / (sg * sg));
+      const double glow =
+          o.stray_glow_e_per_s * std::exp(-0.5 * ((x - gx) * (x - gx) + (y - gy) * (y - gy)) / (sg * sg));
       e[static_cast<size_t>(y) * w + x] =
           d.exposure_s * (d.background_e_per_s * (1 + o.stray_gradient * u) + glow + d.dark_current_e_per_s);
     }
@@ -132,7 +133,8 @@ std::vector<uint8_t> RenderAuxPhoto(const Mask& m, const PlatePose& pose, const 
     if (std::abs(x) > m.plate_half_mm || std::abs(y) > m.plate_half_mm) return 0.05;
     if (std::abs(x) < m.field_half_x_mm && std::abs(y) < m.field_half_y_mm) return 0.25;  // no tag in the star field
     for (const auto& t : tex) {
-      const int k = static_cast<int>(std::floor((x - t.x0) / t.cell)), r = static_cast<int>(std::floor((y - t.y0) / t.cell));
+      const int k = static_cast<int>(std::floor((x - t.x0) / t.cell)),
+                r = static_cast<int>(std::floor((y - t.y0) / t.cell));
       if (k >= 0 && r >= 0 && k < t.n && r < t.n) return t.p[static_cast<size_t>(r) * t.n + k] > 127 ? 0.9 : 0.06;
     }
     return 0.25;
@@ -166,7 +168,8 @@ std::vector<uint8_t> RenderAuxPhoto(const Mask& m, const PlatePose& pose, const 
   Rng jitter(seed * 31 + 7);
   std::vector<double> row0(static_cast<size_t>(W) + 1), row1(row0.size());
   auto corner_row = [&](int Y, std::vector<double>* r) {
-    for (int X = 0; X <= W; ++X) (*r)[X] = reflectance_at(-0.5 + static_cast<double>(X) / ss, -0.5 + static_cast<double>(Y) / ss);
+    for (int X = 0; X <= W; ++X)
+      (*r)[X] = reflectance_at(-0.5 + static_cast<double>(X) / ss, -0.5 + static_cast<double>(Y) / ss);
   };
   corner_row(0, &row0);
   constexpr int kEdgeSamples = 4;

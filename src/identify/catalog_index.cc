@@ -1,9 +1,8 @@
 #include "identify/catalog_index.h"
 
-#include <flann/flann.hpp>
-
 #include <cstdio>
 #include <cstring>
+#include <flann/flann.hpp>
 
 #include "core/error.h"
 
@@ -33,7 +32,8 @@ CatalogIndex::CatalogIndex(const SolverCatalog& cat) : stars_(cat.stars.size()) 
   kt.reserve(cat.triangles.size());
   for (size_t i = 0; i < cat.triangles.size(); ++i) {
     const auto& t = cat.triangles[i];
-    kt.push_back({Key(RatioCell(t.ratio_a), RatioCell(t.ratio_b), LnCell(std::log(t.longest_rad))), static_cast<int32_t>(i)});
+    kt.push_back(
+        {Key(RatioCell(t.ratio_a), RatioCell(t.ratio_b), LnCell(std::log(t.longest_rad))), static_cast<int32_t>(i)});
   }
   std::sort(kt.begin(), kt.end());
   keys_.reserve(kt.size());
@@ -94,7 +94,8 @@ CatalogIndex::CatalogIndex(const SolverCatalog& cat, const char* data, size_t by
   int64_t head[2];
   get(head, sizeof head);
   if (head[0] != kIndexVersion) throw InputError(path, "catalog index of another version (rebuild the catalog)");
-  if (head[1] != static_cast<int64_t>(cat.triangles.size())) throw InputError(path, "catalog index does not fit its triangles");
+  if (head[1] != static_cast<int64_t>(cat.triangles.size()))
+    throw InputError(path, "catalog index does not fit its triangles");
   keys_.resize(cat.triangles.size());
   triangle_.resize(cat.triangles.size());
   get(keys_.data(), keys_.size() * sizeof(uint64_t));
@@ -120,7 +121,8 @@ CatalogIndex::CatalogIndex(const SolverCatalog& cat, const char* data, size_t by
     throw InputError(path, std::string("corrupt catalog star tree: ") + e.what());
   }
   std::fclose(f);
-  if (tree_->tree.size() != stars_ || tree_->tree.veclen() != 3) throw InputError(path, "catalog star tree does not fit its stars");
+  if (tree_->tree.size() != stars_ || tree_->tree.veclen() != 3)
+    throw InputError(path, "catalog star tree does not fit its stars");
 }
 
 std::vector<int> CatalogIndex::StarsWithin(const Vec3& u, double radius_rad) const {

@@ -27,13 +27,16 @@ class CatalogIndex {
   static constexpr int kRatioCells = 251;  // ratios in [0, 1]
   static constexpr double kLnStep = 1e-4, kLnMin = -14.0;
   static constexpr int kLnBits = 20;
-  static int RatioCell(double r) { return std::clamp(static_cast<int>(std::floor(r / kRatioCell)), 0, kRatioCells - 1); }
+  static int RatioCell(double r) {
+    return std::clamp(static_cast<int>(std::floor(r / kRatioCell)), 0, kRatioCells - 1);
+  }
   static int64_t LnCell(double ln_l) {
     const double c = std::floor((ln_l - kLnMin) / kLnStep);
     return static_cast<int64_t>(std::clamp(c, 0.0, static_cast<double>((1 << kLnBits) - 1)));
   }
   static uint64_t Key(int ia, int ib, int64_t il) {
-    return ((static_cast<uint64_t>(ia) * kRatioCells + static_cast<uint64_t>(ib)) << kLnBits) | static_cast<uint64_t>(il);
+    return ((static_cast<uint64_t>(ia) * kRatioCells + static_cast<uint64_t>(ib)) << kLnBits) |
+           static_cast<uint64_t>(il);
   }
 
   // Built from the catalog's stars and triangles.
@@ -56,14 +59,16 @@ class CatalogIndex {
   // Calls fn(triangle index) for every triangle with |ratio_a - qa| <= tol_r, |ratio_b - qb| <= tol_r
   // and |ln longest - ql| <= tol_l (the cells overlapping the box; the caller checks the sides).
   template <typename Fn>
-  void ForEachInBox(double qa, double qb, double ql, double tol_r, double tol_l, const SolverCatalog& cat, Fn&& fn) const {
+  void ForEachInBox(double qa, double qb, double ql, double tol_r, double tol_l, const SolverCatalog& cat,
+                    Fn&& fn) const {
     const int64_t l0 = LnCell(ql - tol_l), l1 = LnCell(ql + tol_l);
     for (int ia = RatioCell(qa - tol_r); ia <= RatioCell(qa + tol_r); ++ia) {
       for (int ib = RatioCell(qb - tol_r); ib <= RatioCell(qb + tol_r); ++ib) {
         const uint64_t hi = Key(ia, ib, l1);
         const size_t cell = static_cast<size_t>(ia) * kRatioCells + ib;
         const auto end = keys_.begin() + cell_start_[cell + 1];
-        for (auto it = std::lower_bound(keys_.begin() + cell_start_[cell], end, Key(ia, ib, l0)); it != end && *it <= hi; ++it) {
+        for (auto it = std::lower_bound(keys_.begin() + cell_start_[cell], end, Key(ia, ib, l0));
+             it != end && *it <= hi; ++it) {
           const int32_t ti = triangle_[it - keys_.begin()];
           const CatalogTriangle& t = cat.triangles[ti];
           if (std::abs(t.ratio_a - qa) <= tol_r && std::abs(t.ratio_b - qb) <= tol_r) fn(ti);
@@ -81,7 +86,7 @@ class CatalogIndex {
   std::vector<int32_t> triangle_;     // triangle index per key
   std::vector<uint32_t> cell_start_;  // first key of each (ratio_a, ratio_b) cell; one past the end last
   size_t stars_ = 0;
-  std::vector<double> units_;         // star unit vectors, the kd-tree's points
+  std::vector<double> units_;  // star unit vectors, the kd-tree's points
   struct StarTree;
   std::unique_ptr<StarTree> tree_;
 };

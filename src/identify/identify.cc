@@ -1,12 +1,12 @@
 #include "identify/identify.h"
 
+#include <time.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <numeric>
-
-#include <time.h>
 
 #include "core/error.h"
 #include "identify/catalog_index.h"
@@ -49,7 +49,7 @@ struct Context {
   int m = 0;                     // verification centroids
   double median_sigma_px = 0;    // typical centroid sigma (with the systematic part)
   double match_radius_px = 0;
-  bool photometry = false;       // fluxes usable as photometric evidence (all > 0, not all equal)
+  bool photometry = false;  // fluxes usable as photometric evidence (all > 0, not all equal)
 };
 
 struct Verification {
@@ -130,7 +130,8 @@ TriangleSpread SpreadOf(const Context& ctx, const int tri_c[3]) {
   t.rho2 = std::max(rho2, 1.0);
   return t;
 }
-double TestRadius2(const Context& ctx, const IdentifyOptions& o, const TriangleSpread& t, const Vec2& p, bool scale_searched) {
+double TestRadius2(const Context& ctx, const IdentifyOptions& o, const TriangleSpread& t, const Vec2& p,
+                   bool scale_searched) {
   const double g = scale_searched ? 2.0 : 1.0;
   const double floor_px = scale_searched ? 2 * ctx.match_radius_px : o.match_radius_px;
   const double d2 = (p - t.centre).squaredNorm();
@@ -146,11 +147,11 @@ double TestRadius2(const Context& ctx, const IdentifyOptions& o, const TriangleS
 // when the focal length is searched, scale: both grow with the distance d from that centre as
 // sigma_tri * d / sqrt(sum rho_i^2), rho_i the vertices' distances from the centre).
 struct HypothesisTest {
-  int extra = 0;       // matched centroids besides the triangle's three
-  double p_hit = 0;    // chance that one random centroid falls within a predicted star's radius
-  double worst = 0;    // largest (distance / radius)^2 among the extra matches
-  int n_cat = 0;       // catalog stars predicted in the image
-  Verification v;      // the triangle's three pairs plus the extra matches
+  int extra = 0;     // matched centroids besides the triangle's three
+  double p_hit = 0;  // chance that one random centroid falls within a predicted star's radius
+  double worst = 0;  // largest (distance / radius)^2 among the extra matches
+  int n_cat = 0;     // catalog stars predicted in the image
+  Verification v;    // the triangle's three pairs plus the extra matches
 };
 
 HypothesisTest TestHypothesis(const Context& ctx, const IdentifyOptions& o, const Camera& cam, const Mat3& r,
@@ -377,7 +378,8 @@ int WorstOutlier(const Context& ctx, const IdentifyOptions& o, const std::vector
     const Eigen::MatrixXd h_i = h - f.w[i] * j.transpose() * j;
     const Eigen::LDLT<Eigen::MatrixXd> ldlt_i(h_i);
     // The others must fix every direction (else match i cannot be tested).
-    if (ldlt_i.info() != Eigen::Success || !(ldlt_i.vectorD().minCoeff() > 1e-9 * ldlt_i.vectorD().maxCoeff())) continue;
+    if (ldlt_i.info() != Eigen::Success || !(ldlt_i.vectorD().minCoeff() > 1e-9 * ldlt_i.vectorD().maxCoeff()))
+      continue;
     const Eigen::Matrix<double, Eigen::Dynamic, 2> hj = ldlt_i.solve(j.transpose());
     const Mat2 jhj = j * hj;
     const Vec2 e_del = e[i] + f.w[i] * jhj * e[i];
@@ -470,7 +472,8 @@ double ChanceProbability(int n_trials, int n_cat, double radius_px, const Camera
 }  // namespace
 
 Camera FittedCamera(Camera camera, const Identification& id) {
-  if (id.focal_length_px > 0 && std::isfinite(id.focal_length_px)) camera.ScaleFocal(id.focal_length_px / camera.focal_length_px);
+  if (id.focal_length_px > 0 && std::isfinite(id.focal_length_px))
+    camera.ScaleFocal(id.focal_length_px / camera.focal_length_px);
   return camera;
 }
 
@@ -497,7 +500,8 @@ void IdentifyOptions::Check() const {
 
 double PhotometricEvidence(const std::vector<double>& pair_flux, const std::vector<double>& pair_mag,
                            const std::vector<double>& other_flux) {
-  if (pair_flux.size() < 3 || pair_flux.size() != pair_mag.size()) throw InputError("photometry", "need >= 3 pairs with a magnitude each");
+  if (pair_flux.size() < 3 || pair_flux.size() != pair_mag.size())
+    throw InputError("photometry", "need >= 3 pairs with a magnitude each");
   int disc = 0;
   for (int i = 0; i < 3; ++i)
     for (int j = i + 1; j < 3; ++j) disc += !((pair_flux[i] - pair_flux[j]) * (pair_mag[i] - pair_mag[j]) < 0);
@@ -574,7 +578,8 @@ Camera SearchedCamera(const Camera& camera_in, const IdentifyOptions& o, const S
   *scale_lo = 1 - o.fov_tolerance_pct / 100.0, *scale_hi = 1 + o.fov_tolerance_pct / 100.0;
   if (!o.FovRange()) return camera;
   const double cat_min = catalog.fov_min_deg > 0 ? catalog.fov_min_deg : catalog.fov_deg;
-  if (o.fov_max_deg > catalog.fov_deg * (1 + kCatalogFovTolerance) || o.fov_min_deg < cat_min * (1 - kCatalogFovTolerance)) {
+  if (o.fov_max_deg > catalog.fov_deg * (1 + kCatalogFovTolerance) ||
+      o.fov_min_deg < cat_min * (1 - kCatalogFovTolerance)) {
     char msg[200];
     std::snprintf(msg, sizeof msg, "built for fields of view %.2f-%.2f deg, the search needs %.2f-%.2f deg", cat_min,
                   catalog.fov_deg, o.fov_min_deg, o.fov_max_deg);
@@ -614,7 +619,7 @@ struct TriangleMatch {
   const Vec3* const* r;
   double side_sigma;  // 1-sigma of a side from the triangle's centroid noise (rad)
   double s_max;
-  double scale0;      // observed / catalog longest side
+  double scale0;  // observed / catalog longest side
 };
 
 // Step 3 of docs/identify.md: observed vertex vtx[i] <-> catalog vertex pm[i] is a hypothesis when
@@ -770,7 +775,8 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
   int best_k = 0;
   auto give_up = [&](const std::string& why) {
     out.status = "no_match";
-    out.message = why + " (best " + std::to_string(best_k) + " matches, chance probability " + std::to_string(best_prob) + ")";
+    out.message =
+        why + " (best " + std::to_string(best_k) + " matches, chance probability " + std::to_string(best_prob) + ")";
     out.hypotheses = hyp;
     out.false_match_probability = best_prob;
     out.timing_ms["identify"] = MsSince(t0);
@@ -786,7 +792,8 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
         const int vtx[3] = {a, b, c};
         // Side-length tolerance (rad) from this triangle's own centroid noise (a poorly measured
         // centroid elsewhere in the frame does not widen every search).
-        const double sig_tri = std::max({ctx.sigma_px[ctx.order[a]], ctx.sigma_px[ctx.order[b]], ctx.sigma_px[ctx.order[c]]});
+        const double sig_tri =
+            std::max({ctx.sigma_px[ctx.order[a]], ctx.sigma_px[ctx.order[b]], ctx.sigma_px[ctx.order[c]]});
         const double side_sigma = std::sqrt(2.0) * sig_tri / f;
         const double tol_side = o.tolerance_sigmas * side_sigma;
         const double side[3] = {ang[b * k_pat + c], ang[a * k_pat + c], ang[a * k_pat + b]};
@@ -805,8 +812,8 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
           const CatalogTriangle& t = catalog_.triangles[ti];
           const Vec3* r[3] = {&catalog_.stars[t.v[0]].unit, &catalog_.stars[t.v[1]].unit, &catalog_.stars[t.v[2]].unit};
           // Catalog sides from the stored features (vertex i is opposite side i, shortest first).
-          const double cside[3] = {t.ratio_a * static_cast<double>(t.longest_rad), t.ratio_b * static_cast<double>(t.longest_rad),
-                                   static_cast<double>(t.longest_rad)};
+          const double cside[3] = {t.ratio_a * static_cast<double>(t.longest_rad),
+                                   t.ratio_b * static_cast<double>(t.longest_rad), static_cast<double>(t.longest_rad)};
           const double scale0 = s[2] / t.longest_rad;  // observed / catalog angle ~ f_true / f_nominal
           if (scale0 < scale_lo - tol_side / s[2] || scale0 > scale_hi + tol_side / s[2]) continue;
           for (const auto& pm : kPerm) {
@@ -840,7 +847,8 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
             const double j_factor = CountFactor(ht.extra);
             // Photometry (PhotometricFactor): an independent test of the same null, <= 2.
             const double phot = PhotometricFactor(ctx, ht.v.matches);
-            const double prob = std::min(1.0, BinomialTail(ctx.m - 3, u, ht.extra) * j_factor * phot * hyp * seq_factor);
+            const double prob =
+                std::min(1.0, BinomialTail(ctx.m - 3, u, ht.extra) * j_factor * phot * hyp * seq_factor);
             if (prob < best_prob) best_prob = prob, best_k = k;
             if (prob >= o.max_false_match_prob) continue;
             // Accepted: refined, outliers left out (FinishHypothesis).

@@ -38,14 +38,14 @@ struct IdentifyOptions {
   // triangle whose faintest vertex is the c-th centroid before those of the (c+1)-th), so the bright
   // ones come first but false objects brighter than the stars do not stop the search.
   int pattern_centroids = 100;
-  int verify_centroids = 150;          // brightest centroids used in verification (>= pattern_centroids)
-  double centroid_sigma_px = 0.3;      // position noise when a centroid carries none
-  double systematic_px = 0.5;          // unmodelled position error (distortion, catalog) added in quadrature
-  double tolerance_sigmas = 4.0;       // pattern key lookup tolerance in noise sigmas
+  int verify_centroids = 150;      // brightest centroids used in verification (>= pattern_centroids)
+  double centroid_sigma_px = 0.3;  // position noise when a centroid carries none
+  double systematic_px = 0.5;      // unmodelled position error (distortion, catalog) added in quadrature
+  double tolerance_sigmas = 4.0;   // pattern key lookup tolerance in noise sigmas
   // Each side of a candidate triangle must then agree with the catalog's within this many sigmas of
   // its own error (docs/identify.md, step 2): fewer chance hypotheses, so a smaller factor h.
   double side_sigmas = 3.5;
-  double match_radius_px = 0.0;        // refinement match radius; 0 = max(2 px, 5 sigma)
+  double match_radius_px = 0.0;  // refinement match radius; 0 = max(2 px, 5 sigma)
   // Hypothesis test radius, in sigmas of each predicted star's position error (centroid noise and
   // the error the triangle's own noise puts into the hypothesis there); the chance probability is
   // computed for exactly this radius.
@@ -53,7 +53,7 @@ struct IdentifyOptions {
   // A refined match whose deleted residual (the drop of the fit's chi-square without it, 2 degrees of
   // freedom) exceeds outlier_sigmas^2 is left out and the rest refit (docs/identify.md, step 6).
   double outlier_sigmas = 5.0;
-  double fov_tolerance_pct = 0.0;      // focal length known to +/- this percent: search and refine it
+  double fov_tolerance_pct = 0.0;  // focal length known to +/- this percent: search and refine it
   // Unknown field of view (`--fov-range-deg MIN,MAX`): the horizontal FOV is searched in [min, max]
   // deg and the focal length found and refined; the camera's own focal length is ignored (its pixel
   // aspect fy/fx is kept). 0, 0 = off. Not with fov_tolerance_pct. The catalog must span the range
@@ -63,25 +63,25 @@ struct IdentifyOptions {
   // solutions): calibrated in every mode (observed false rates at or below it, docs/results.md), and
   // it solves 95% of Kelvins-style scenes with >= 4 stars among up to 80 false objects.
   double max_false_match_prob = 1e-4;
-  int min_matches = 4;                 // fewer verified matches: never solved
-  int max_hypotheses = 200000;         // give up (no_match) after this many hypotheses
+  int min_matches = 4;          // fewer verified matches: never solved
+  int max_hypotheses = 200000;  // give up (no_match) after this many hypotheses
   // Give up (no_match) after this much CPU time of the calling thread (0 = no limit; CPU, not wall
-  // clock, so that a loaded machine or a batch on many threads gives the same answers). 50 ms: on 300 Kelvins-style scenes
-  // (docs/results.md) 99% of the solved ones needed less, and the 10-deg p99 budget is 50 ms.
+  // clock, so that a loaded machine or a batch on many threads gives the same answers). 50 ms: on 300 Kelvins-style
+  // scenes (docs/results.md) 99% of the solved ones needed less, and the 10-deg p99 budget is 50 ms.
   double timeout_ms = 50.0;
   // Photometric evidence (docs/identify.md, step 5): under a chance match the matched centroids'
   // fluxes are independent of the catalog magnitudes, so their agreement multiplies the chance
   // probability by a calibrated factor (at most 2 when the photometry disagrees). Off when the
   // centroids carry no usable flux (any <= 0, or all equal).
   bool use_photometry = true;
-  void Check() const;                  // throws InputError naming the field
+  void Check() const;  // throws InputError naming the field
   bool FovRange() const { return fov_max_deg > 0; }
   bool FocalSearched() const { return fov_tolerance_pct > 0 || FovRange(); }
 };
 
 struct StarMatch {
-  int centroid = -1;                // index into the input centroids
-  int star = -1;                    // index into SolverCatalog::stars
+  int centroid = -1;  // index into the input centroids
+  int star = -1;      // index into SolverCatalog::stars
   StarId star_id = kInvalidStarId;
   double mag = 0;
   double x_px = 0, y_px = 0;
@@ -95,8 +95,8 @@ struct Identification {
   std::string status = "too_few_stars";  // solved, no_match, too_few_stars
   std::string message;
   Quat q_inertial_from_sensor = Quat::Identity();  // from the matches (SVD); QUEST refines it
-  double focal_length_px = 0;       // fx used (fitted when the focal length is searched)
-  double focal_length_y_px = 0;     // fy used (the camera's aspect fy/fx is kept)
+  double focal_length_px = 0;                      // fx used (fitted when the focal length is searched)
+  double focal_length_y_px = 0;                    // fy used (the camera's aspect fy/fx is kept)
   bool focal_length_fitted = false;  // the focal length was searched and fitted (tolerance or unknown FOV)
   double focal_length_sigma_px = 0;  // its 1-sigma from the fit (jointly with the attitude); 0 when not fitted
   int outliers_rejected = 0;         // refined matches left out as inconsistent with the others
@@ -104,7 +104,7 @@ struct Identification {
   // The photometric factor in false_match_probability (2 / (1 + E), docs/identify.md step 5); 1 = not used.
   double photometric_factor = 1.0;
   std::vector<StarMatch> matches;
-  int hypotheses = 0;               // hypotheses verified
+  int hypotheses = 0;  // hypotheses verified
   int catalog_stars_in_field = 0;
   std::map<std::string, double> timing_ms;
 };

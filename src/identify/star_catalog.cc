@@ -85,14 +85,16 @@ bool LooksLikeKstars(const std::string& path) {
 void CatalogBuildOptions::Check() const {
   if (!(fov_deg > 0.5 && fov_deg < 90)) throw InputError("catalog options", "fov_deg must be in (0.5, 90)");
   if (!(mag_max >= 0 && mag_max < 20)) throw InputError("catalog options", "mag_max must be in [0, 20) (0 = auto)");
-  if (!(epoch_year > 1800 && epoch_year < 2300)) throw InputError("catalog options", "epoch_year must be in (1800, 2300)");
+  if (!(epoch_year > 1800 && epoch_year < 2300))
+    throw InputError("catalog options", "epoch_year must be in (1800, 2300)");
   // Infinite merged every star into a sky grid cell index that overflowed int.
   if (!(double_star_arcsec >= 0 && double_star_arcsec <= 3600))
     throw InputError("catalog options", "double_star_arcsec must be in [0, 3600]");
   if (pattern_stars_per_fov < 4 || pattern_stars_per_fov > 60)
     throw InputError("catalog options", "pattern_stars_per_fov must be in [4, 60]");
   if (!(stars_per_fov >= 5)) throw InputError("catalog options", "stars_per_fov must be >= 5");
-  if (!(min_side_frac >= 0 && min_side_frac < 0.5)) throw InputError("catalog options", "min_side_frac must be in [0, 0.5)");
+  if (!(min_side_frac >= 0 && min_side_frac < 0.5))
+    throw InputError("catalog options", "min_side_frac must be in [0, 0.5)");
   if (pattern_neighbours != 0 && (pattern_neighbours < 2 || pattern_neighbours > 100))
     throw InputError("catalog options", "pattern_neighbours must be 0 (all) or in [2, 100]");
   if (!(fov_min_deg == 0 || (fov_min_deg > 0.5 && fov_min_deg <= fov_deg)))
@@ -157,7 +159,8 @@ SourceCatalog LoadKstarsStars(const std::string& path) {
     ++line_no;
     if (line.empty() || line[0] == '#') continue;
     ++row;
-    if (line.size() < 56) throw InputError(path, "line " + std::to_string(line_no) + ": shorter than the fixed-width record");
+    if (line.size() < 56)
+      throw InputError(path, "line " + std::to_string(line_no) + ": shorter than the fixed-width record");
     // RA hhmmss.ss [0,9), Dec sddmmss.s [10,19), pmRA [20,29), pmDec [29,38) mas/yr, mag [46,51).
     const double ra_h = num(0, 2, "RA") + num(2, 2, "RA") / 60.0 + num(4, 5, "RA") / 3600.0;
     const double dec_abs = num(11, 2, "Dec") + num(13, 2, "Dec") / 60.0 + num(15, 4, "Dec") / 3600.0;
@@ -293,7 +296,8 @@ SolverCatalog BuildFromStars(std::vector<CatalogStar> stars, const std::string& 
                              const CatalogBuildOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
   o.Check();
-  std::stable_sort(stars.begin(), stars.end(), [](const CatalogStar& a, const CatalogStar& b) { return a.mag < b.mag; });
+  std::stable_sort(stars.begin(), stars.end(),
+                   [](const CatalogStar& a, const CatalogStar& b) { return a.mag < b.mag; });
   // Star density (magnitude limit, double separation) for the smallest FOV served.
   const double fov = o.FovMinDeg() * kDegToRad;
   // Magnitude limit: the star count that gives `stars_per_fov` per cap of diameter fov on average.
@@ -305,7 +309,8 @@ SolverCatalog BuildFromStars(std::vector<CatalogStar> stars, const std::string& 
   }
   // Close doubles: merge (flux-weighted) every fainter star within the separation a tracker cannot
   // resolve into the brighter one; companions down to 2 mag below the limit are merged before the cut.
-  const double dbl = (o.double_star_arcsec > 0 ? o.double_star_arcsec : o.FovMinDeg() * 3600.0 / 1024.0 * 3.0) * kArcsecToRad;
+  const double dbl =
+      (o.double_star_arcsec > 0 ? o.double_star_arcsec : o.FovMinDeg() * 3600.0 / 1024.0 * 3.0) * kArcsecToRad;
   {
     std::vector<CatalogStar> kept;
     internal::SkyGrid grid(dbl);
@@ -330,7 +335,8 @@ SolverCatalog BuildFromStars(std::vector<CatalogStar> stars, const std::string& 
       s.unit = UnitFromRaDec(s.ra_rad, s.dec_rad);
       stars.push_back(s);
     }
-    std::stable_sort(stars.begin(), stars.end(), [](const CatalogStar& a, const CatalogStar& b) { return a.mag < b.mag; });
+    std::stable_sort(stars.begin(), stars.end(),
+                     [](const CatalogStar& a, const CatalogStar& b) { return a.mag < b.mag; });
   }
   SolverCatalog cat;
   cat.source = source;
@@ -401,7 +407,8 @@ void SaveSolverCatalog(const SolverCatalog& cat, const std::string& dir) {
   put(&slen, 8);
   put(cat.source.data(), cat.source.size());
   for (const auto& s : cat.stars) {
-    const double d[8] = {s.ra_rad, s.dec_rad, s.mag, s.pm_ra_rad_per_yr, s.pm_dec_rad_per_yr, s.unit[0], s.unit[1], s.unit[2]};
+    const double d[8] = {s.ra_rad,  s.dec_rad, s.mag,    s.pm_ra_rad_per_yr, s.pm_dec_rad_per_yr,
+                         s.unit[0], s.unit[1], s.unit[2]};
     put(&s.id, sizeof s.id);
     put(d, sizeof d);
   }
@@ -473,7 +480,8 @@ class MappedFile {
 };
 
 // CheckCatalogDir, keeping what it read: catalog.bin's bytes and meta.json (when kOk).
-CatalogDirState CheckCatalogDirKeep(const std::string& dir, std::string* why, std::unique_ptr<MappedFile>* bin, Json* meta) {
+CatalogDirState CheckCatalogDirKeep(const std::string& dir, std::string* why, std::unique_ptr<MappedFile>* bin,
+                                    Json* meta) {
   const std::string bin_path = dir + "/catalog.bin", meta_path = dir + "/meta.json";
   if (!FileExists(meta_path)) {
     if (why) *why = FileExists(bin_path) ? "no meta.json (a build that did not finish)" : "no catalog";
@@ -486,7 +494,8 @@ CatalogDirState CheckCatalogDirKeep(const std::string& dir, std::string* why, st
     *bin = std::make_unique<MappedFile>(bin_path);
     const MappedFile& f = **bin;
     if (static_cast<int64_t>(f.size()) != bytes) {
-      throw InputError(bin_path, "damaged: " + std::to_string(f.size()) + " bytes, meta.json records " + std::to_string(bytes));
+      throw InputError(bin_path,
+                       "damaged: " + std::to_string(f.size()) + " bytes, meta.json records " + std::to_string(bytes));
     }
     if (Crc32(f.data(), f.size()) != static_cast<uint32_t>(crc)) {
       throw InputError(bin_path, "damaged: its CRC-32 differs from the one meta.json records");
@@ -514,12 +523,14 @@ SolverCatalog ParseCatalog(const MappedFile& bin, const Json& meta, const std::s
   SolverCatalog cat;
   double hdr[5];
   get(hdr, sizeof hdr);
-  cat.epoch_year = hdr[0], cat.fov_deg = hdr[1], cat.mag_max = hdr[2], cat.double_star_arcsec = hdr[3], cat.build_time_s = hdr[4];
+  cat.epoch_year = hdr[0], cat.fov_deg = hdr[1], cat.mag_max = hdr[2], cat.double_star_arcsec = hdr[3],
+  cat.build_time_s = hdr[4];
   // The smallest FOV of a range catalog is in meta.json only (catalogs written before it have one FOV).
   {
     const std::string meta_path = dir + "/meta.json";
     cat.fov_min_deg = JsonNumberOr(meta, "fov_min_deg", cat.fov_deg, meta_path);
-    if (!(cat.fov_min_deg > 0 && cat.fov_min_deg <= cat.fov_deg)) throw InputError(meta_path, "field 'fov_min_deg' must be in (0, fov_deg]");
+    if (!(cat.fov_min_deg > 0 && cat.fov_min_deg <= cat.fov_deg))
+      throw InputError(meta_path, "field 'fov_min_deg' must be in (0, fov_deg]");
   }
   int64_t counts[4], slen;
   get(counts, sizeof counts);
@@ -646,7 +657,8 @@ SolverCatalog LoadOrBuildCatalogIn(const std::string& dir, const std::string& so
     // A pattern index for another field of view finds few or wrong triangles (issue 16).
     if (!(std::abs(cat.fov_deg / o.fov_deg - 1) <= kCatalogFovTolerance)) {
       char msg[256];
-      std::snprintf(msg, sizeof msg, "catalog built for a %.2f deg field of view, this camera needs %.2f deg "
+      std::snprintf(msg, sizeof msg,
+                    "catalog built for a %.2f deg field of view, this camera needs %.2f deg "
                     "(more than %.0f%% apart): give another --catalog or delete this one to rebuild it",
                     cat.fov_deg, o.fov_deg, 100 * kCatalogFovTolerance);
       throw InputError(dir, msg);
@@ -654,7 +666,8 @@ SolverCatalog LoadOrBuildCatalogIn(const std::string& dir, const std::string& so
     // And the smallest FOV of a range (unknown-FOV solving): its star density is what small fields need.
     if (!(std::abs(cat.fov_min_deg / o.FovMinDeg() - 1) <= kCatalogFovTolerance)) {
       char msg[256];
-      std::snprintf(msg, sizeof msg, "catalog built for fields of view %.2f-%.2f deg, this solve needs %.2f-%.2f deg "
+      std::snprintf(msg, sizeof msg,
+                    "catalog built for fields of view %.2f-%.2f deg, this solve needs %.2f-%.2f deg "
                     "(more than %.0f%% apart): give another --catalog or delete this one to rebuild it",
                     cat.fov_min_deg, cat.fov_deg, o.FovMinDeg(), o.fov_deg, 100 * kCatalogFovTolerance);
       throw InputError(dir, msg);

@@ -24,7 +24,7 @@ namespace ssiu {
 constexpr StarId kKstarsIdOffset = 1000000;
 
 struct CatalogBuildOptions {
-  double fov_deg = 16.6;            // horizontal field of view the pattern index is built for (the largest)
+  double fov_deg = 16.6;  // horizontal field of view the pattern index is built for (the largest)
   // Unknown field of view (solve --fov-range-deg): the smallest FOV served; 0 = fov_deg. Stars and
   // pattern-star density are chosen for it, and the index gets one level of triangles per factor
   // sqrt(2) of FOV up to fov_deg (docs/identify.md, "Unknown field of view").
@@ -39,16 +39,16 @@ struct CatalogBuildOptions {
   // (within the FOV), which keeps the index near N * K(K-1)/2 instead of growing with the square of
   // the neighbours in a field; 0 = every triangle that fits in the FOV.
   int pattern_neighbours = 10;
-  void Check() const;               // throws InputError naming the field
+  void Check() const;  // throws InputError naming the field
   double FovMinDeg() const { return fov_min_deg > 0 ? fov_min_deg : fov_deg; }
 };
 
 // A triangle of catalog stars. Vertices are ordered by the side opposite them (v[0] opposite the
 // shortest side), so that sorted side lengths give the vertex correspondence.
 struct CatalogTriangle {
-  std::array<int32_t, 3> v{};       // indices into SolverCatalog::stars
-  float longest_rad = 0;            // longest side (angle)
-  float ratio_a = 0, ratio_b = 0;   // shortest / longest, middle / longest
+  std::array<int32_t, 3> v{};      // indices into SolverCatalog::stars
+  float longest_rad = 0;           // longest side (angle)
+  float ratio_a = 0, ratio_b = 0;  // shortest / longest, middle / longest
 };
 
 class CatalogIndex;  // identify/catalog_index.h
@@ -56,14 +56,14 @@ class CatalogIndex;  // identify/catalog_index.h
 struct SolverCatalog {
   std::string source;
   double epoch_year = 2000.0;
-  double fov_deg = 0;               // largest horizontal FOV served
-  double fov_min_deg = 0;           // smallest (= fov_deg for a fixed FOV; meta.json `fov_min_deg`)
+  double fov_deg = 0;      // largest horizontal FOV served
+  double fov_min_deg = 0;  // smallest (= fov_deg for a fixed FOV; meta.json `fov_min_deg`)
   double mag_max = 0;
   double double_star_arcsec = 0;
-  std::vector<CatalogStar> stars;   // brightest first, positions at epoch_year
+  std::vector<CatalogStar> stars;  // brightest first, positions at epoch_year
   std::vector<CatalogTriangle> triangles;
   int num_pattern_stars = 0;
-  int pattern_neighbours = 0;       // CatalogBuildOptions::pattern_neighbours the index was built with
+  int pattern_neighbours = 0;  // CatalogBuildOptions::pattern_neighbours the index was built with
   double build_time_s = 0;
   // The search structures (triangles by feature, stars in a kd-tree): made by BuildSolverCatalog,
   // stored in catalog.bin and read back by LoadSolverCatalog; null = StarIdentifier builds them.
@@ -71,7 +71,9 @@ struct SolverCatalog {
   std::shared_ptr<const CatalogIndex> index;
 
   // Pattern index on disk: per triangle its vertices and features, its key and its place in key order.
-  size_t IndexBytes() const { return triangles.size() * (sizeof(CatalogTriangle) + sizeof(uint64_t) + sizeof(int32_t)); }
+  size_t IndexBytes() const {
+    return triangles.size() * (sizeof(CatalogTriangle) + sizeof(uint64_t) + sizeof(int32_t));
+  }
 };
 
 // A source catalog with proper motions (rad/yr; pm_ra is mu_alpha * cos(dec)).
@@ -81,7 +83,7 @@ struct SourceStar {
 };
 struct SourceCatalog {
   std::string source;
-  std::string kind;                 // "xplanet_bsc", "bsc5", "kstars"
+  std::string kind;  // "xplanet_bsc", "bsc5", "kstars"
   bool has_proper_motion = false;
   std::vector<SourceStar> stars;
 };
@@ -107,8 +109,8 @@ SolverCatalog BuildSolverCatalog(const StarCatalog& stars, const CatalogBuildOpt
 
 // DIR/stars.csv (human-readable table), DIR/catalog.bin (stars with their unit vectors, triangles with
 // their features, and the search index, all as used: read back with one read and no rebuilding),
-// DIR/meta.json (the parameters it was built for, and catalog.bin's size and CRC-32). Every file is written atomically and meta.json last,
-// so a directory without meta.json is a build that did not finish.
+// DIR/meta.json (the parameters it was built for, and catalog.bin's size and CRC-32). Every file is written atomically
+// and meta.json last, so a directory without meta.json is a build that did not finish.
 void SaveSolverCatalog(const SolverCatalog& catalog, const std::string& dir);
 // InputError naming the file; a damaged directory (size or checksum differing from meta.json, or no
 // meta.json) is refused with the reason. catalog.bin of format 3 (before the stored index) still

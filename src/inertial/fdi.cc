@@ -52,16 +52,23 @@ double CusumThresholdGaussian(double arl_samples, double delta) {
 
 const char* FaultStatusName(FaultStatus s) {
   switch (s) {
-    case FaultStatus::kDetected: return "detected";
-    case FaultStatus::kIsolated: return "isolated";
-    case FaultStatus::kUnresolved: return "unresolved";
+    case FaultStatus::kDetected:
+      return "detected";
+    case FaultStatus::kIsolated:
+      return "isolated";
+    case FaultStatus::kUnresolved:
+      return "unresolved";
   }
   return "unresolved";
 }
 
 Json FaultEvent::ToJson() const {
-  Json j = {{"gyro", gyro},     {"t_detect_s", t_detect_s}, {"parity_jump_dph", parity_jump_dph},
-            {"status", FaultStatusName(status)}, {"method", method},         {"residual_dph", residual_dph},
+  Json j = {{"gyro", gyro},
+            {"t_detect_s", t_detect_s},
+            {"parity_jump_dph", parity_jump_dph},
+            {"status", FaultStatusName(status)},
+            {"method", method},
+            {"residual_dph", residual_dph},
             {"fault_dph", fault_dph}};
   j["t_isolate_s"] = t_isolate_s >= 0 ? Json(t_isolate_s) : Json(nullptr);
   j["t_onset_s"] = t_onset_s;
@@ -328,7 +335,8 @@ GyroVec StarRateIsolator::ResidualSigmaDph() const {
   return s;
 }
 
-double LargestImpliedRateDph(const GyroParity& v, const RateSolver& solver, const std::vector<bool>& use, double jump_dph) {
+double LargestImpliedRateDph(const GyroParity& v, const RateSolver& solver, const std::vector<bool>& use,
+                             double jump_dph) {
   double worst = 0;
   for (int i = 0; i < static_cast<int>(v.cols()); ++i) {
     const double vi = v.col(i).norm();
@@ -364,7 +372,8 @@ int IsolateSequential(const GyroVec& r, const GyroVec& sigma_dph, double covered
   return gi;
 }
 
-int IsolateFromParity(const GyroParity& v, const GyroVec& jump, const std::vector<bool>& use, const FdiOptions& options) {
+int IsolateFromParity(const GyroParity& v, const GyroVec& jump, const std::vector<bool>& use,
+                      const FdiOptions& options) {
   if (v.rows() < 2 || jump.norm() == 0) return -1;
   int best = -1, count = 0;
   for (int i = 0; i < v.cols(); ++i) {

@@ -29,20 +29,20 @@
 namespace ssiu {
 
 struct FdiOptions {
-  double window_s = 10.0;            // parity averaging window
-  double threshold_sigma = 6.0;      // detection threshold on the window mean, in its noise sigma
-  double min_jump_dph = 1.0;         // and at least this jump (covers bias instability, thermal drift)
-  double warmup_s = 30.0;            // parity baseline from this first stretch
-  double baseline_tau_s = 900.0;     // then tracked with this time constant while no alarm
-  double isolation_window_s = 30.0;  // star-tracker coverage needed to isolate
-  double isolation_ratio = 3.0;      // largest residual / second largest
-  double isolation_timeout_s = 1800; // give up isolating after this long ("unresolved")
+  double window_s = 10.0;              // parity averaging window
+  double threshold_sigma = 6.0;        // detection threshold on the window mean, in its noise sigma
+  double min_jump_dph = 1.0;           // and at least this jump (covers bias instability, thermal drift)
+  double warmup_s = 30.0;              // parity baseline from this first stretch
+  double baseline_tau_s = 900.0;       // then tracked with this time constant while no alarm
+  double isolation_window_s = 30.0;    // star-tracker coverage needed to isolate
+  double isolation_ratio = 3.0;        // largest residual / second largest
+  double isolation_timeout_s = 1800;   // give up isolating after this long ("unresolved")
   double parity_isolation_cos = 0.95;  // 5+ gyros: |cos| between jump and a gyro's parity column
-  double false_alarm_per_h = 1e-3;   // target false-alarm rate of the CUSUM tests (per hour of data)
-  double cusum_fault_dph = 2.0;      // fault size each mean CUSUM is tuned for (smaller ones take longer)
-  double noise_ratio = 4.0;          // parity noise variance growth the noise-burst CUSUM is tuned for
-  double isolation_min_s = 3.0;      // star coverage before a star-rate isolation may be decided
-  double isolation_sigma = 5.0;      // and the residual must exceed this many of its noise sigmas
+  double false_alarm_per_h = 1e-3;     // target false-alarm rate of the CUSUM tests (per hour of data)
+  double cusum_fault_dph = 2.0;        // fault size each mean CUSUM is tuned for (smaller ones take longer)
+  double noise_ratio = 4.0;            // parity noise variance growth the noise-burst CUSUM is tuned for
+  double isolation_min_s = 3.0;        // star coverage before a star-rate isolation may be decided
+  double isolation_sigma = 5.0;        // and the residual must exceed this many of its noise sigmas
 
   void Check() const;  // InputError naming the bad field
 };
@@ -56,18 +56,18 @@ enum class FaultStatus {
 const char* FaultStatusName(FaultStatus s);
 
 struct FaultEvent {
-  int gyro = 0;                  // 1-based; 0 while not isolated
-  double t_onset_s = 0;          // estimated start (the CUSUM's last zero; the detection time otherwise)
+  int gyro = 0;          // 1-based; 0 while not isolated
+  double t_onset_s = 0;  // estimated start (the CUSUM's last zero; the detection time otherwise)
   double t_detect_s = 0;
-  double t_isolate_s = -1;       // -1 while not isolated
-  double parity_jump_dph = 0;    // norm of the parity jump at detection
+  double t_isolate_s = -1;     // -1 while not isolated
+  double parity_jump_dph = 0;  // norm of the parity jump at detection
   FaultStatus status = FaultStatus::kDetected;
-  std::string method;            // "parity" or "star_rates"
-  std::string test;              // what detected it: "window", "cusum", "noise" or "star_innovation"
-  std::string shape;             // "step", "ramp" or "noise" (from the parity since onset)
+  std::string method;                       // "parity" or "star_rates"
+  std::string test;                         // what detected it: "window", "cusum", "noise" or "star_innovation"
+  std::string shape;                        // "step", "ramp" or "noise" (from the parity since onset)
   double step_dph = 0, ramp_dph_per_s = 0;  // fit since onset, on the isolated gyro (parity units before)
-  std::vector<double> residual_dph;  // per-gyro star-rate residuals at isolation (deg/h)
-  double fault_dph = 0;          // estimated fault size on the isolated gyro (deg/h)
+  std::vector<double> residual_dph;         // per-gyro star-rate residuals at isolation (deg/h)
+  double fault_dph = 0;                     // estimated fault size on the isolated gyro (deg/h)
 
   Json ToJson() const;
 };
@@ -132,13 +132,13 @@ class ParityMonitor {
   GyroVec warm_sum_;
   long warm_n_ = 0;
   // CUSUM state.
-  std::vector<GyroVec> warm_samples_;      // warm-up residuals, for C
-  Eigen::MatrixXd c_inv_;                   // inverse noise covariance of one parity sample
-  std::vector<int> hyp_gyro_;               // gyro of each mean hypothesis
-  std::vector<GyroVec> hyp_w_;              // f * C^-1 d_i (signed)
-  std::vector<double> hyp_k_;               // f^2 d_i' C^-1 d_i / 2
-  std::vector<double> hyp_h_;               // threshold of each
-  std::vector<double> s_, s_zero_t_;        // statistics and the time each last sat at zero
+  std::vector<GyroVec> warm_samples_;  // warm-up residuals, for C
+  Eigen::MatrixXd c_inv_;              // inverse noise covariance of one parity sample
+  std::vector<int> hyp_gyro_;          // gyro of each mean hypothesis
+  std::vector<GyroVec> hyp_w_;         // f * C^-1 d_i (signed)
+  std::vector<double> hyp_k_;          // f^2 d_i' C^-1 d_i / 2
+  std::vector<double> hyp_h_;          // threshold of each
+  std::vector<double> s_, s_zero_t_;   // statistics and the time each last sat at zero
   double s_noise_ = 0, noise_zero_t_ = 0, h_ = 0;
   std::string alarm_test_;
   GyroVec inherited_;
@@ -188,15 +188,16 @@ class StarRateIsolator {
 
 // The largest body rate error (deg/h) a parity jump of jump_dph can imply if any one gyro in use
 // is at fault: |Pinv column i| * jump / |V column i|, maximised over i.
-double LargestImpliedRateDph(const GyroParity& v, const RateSolver& solver, const std::vector<bool>& use, double jump_dph);
+double LargestImpliedRateDph(const GyroParity& v, const RateSolver& solver, const std::vector<bool>& use,
+                             double jump_dph);
 
 // Picks the isolated gyro from star residuals (deg/h): the largest |r| if it exceeds min_jump_dph and
 // isolation_ratio times the next; -1 otherwise (0-based).
 int IsolateFromResiduals(const GyroVec& residual_dph, const std::vector<bool>& use, const FdiOptions& options);
 // Sequential form: also needs isolation_min_s of coverage and the largest residual beyond
 // isolation_sigma times sigma_dph (the residuals' noise).
-int IsolateSequential(const GyroVec& residual_dph, const GyroVec& sigma_dph, double covered_s, const std::vector<bool>& use,
-                      const FdiOptions& options);
+int IsolateSequential(const GyroVec& residual_dph, const GyroVec& sigma_dph, double covered_s,
+                      const std::vector<bool>& use, const FdiOptions& options);
 // CUSUM threshold for n_tests tests on samples at rate_hz and a target false-alarm rate per hour
 // (Lorden's bound: any log-likelihood-ratio CUSUM).
 double CusumThreshold(int n_tests, double rate_hz, double false_alarm_per_h);

@@ -41,7 +41,7 @@ struct ThermalDriftModel {
   }
   static std::array<int, 2> ThermalTermPowers(int k) {
     static constexpr int kPowers[kNumTerms][2] = {{0, 0}, {1, 0}, {0, 1}, {2, 0}, {1, 1},
-                                                 {0, 2}, {3, 0}, {2, 1}, {1, 2}, {0, 3}};
+                                                  {0, 2}, {3, 0}, {2, 1}, {1, 2}, {0, 3}};
     return {kPowers[k][0], kPowers[k][1]};
   }
   // "K00" .. "K03".

@@ -62,7 +62,8 @@ StarTrackerLog ReadStarTrackerLog(const std::string& path) {
     log.sigma_roll_arcsec = t.Column("sigma_roll_arcsec");
     for (size_t r = 0; r < t.rows(); ++r) {
       if (!(log.sigma_cross_arcsec[r] > 0) || !(log.sigma_roll_arcsec[r] > 0)) {
-        throw InputError(path, "row " + std::to_string(r + 1) + ": sigma_cross_arcsec and sigma_roll_arcsec must be > 0");
+        throw InputError(path,
+                         "row " + std::to_string(r + 1) + ": sigma_cross_arcsec and sigma_roll_arcsec must be > 0");
       }
     }
   }
@@ -102,19 +103,26 @@ void FuseOptions::Check() const {
 
 const char* FusionStatusName(FusionStatus s) {
   switch (s) {
-    case FusionStatus::kOk: return "ok";
-    case FusionStatus::kDegraded: return "degraded";
-    case FusionStatus::kFailed: return "failed";
+    case FusionStatus::kOk:
+      return "ok";
+    case FusionStatus::kDegraded:
+      return "degraded";
+    case FusionStatus::kFailed:
+      return "failed";
   }
   return "failed";
 }
 
 const char* FuseStatusName(FuseStatus s) {
   switch (s) {
-    case FuseStatus::kFused: return "fused";
-    case FuseStatus::kDegraded: return "degraded";
-    case FuseStatus::kFailed: return "failed";
-    case FuseStatus::kNoStarData: return "no_star_data";
+    case FuseStatus::kFused:
+      return "fused";
+    case FuseStatus::kDegraded:
+      return "degraded";
+    case FuseStatus::kFailed:
+      return "failed";
+    case FuseStatus::kNoStarData:
+      return "no_star_data";
   }
   return "no_star_data";
 }
@@ -169,8 +177,9 @@ std::vector<GyroErrorModel> ReadAllanNoise(const std::string& path) {
     g.bias_instability_dph = term("bias_instability_dph");
     g.rrw_dph_per_sqrt_h = term("rrw_deg_per_h_per_sqrt_h");
     if (!(g.arw_deg_per_sqrt_h > 0)) {
-      throw InputError(path, "'" + at + "terms.arw_deg_per_sqrt_h' is not significant: no white rate noise for the "
-                             "filter (give --arw-deg-per-sqrt-h)");
+      throw InputError(path, "'" + at +
+                                 "terms.arw_deg_per_sqrt_h' is not significant: no white rate noise for the "
+                                 "filter (give --arw-deg-per-sqrt-h)");
     }
     out.push_back(g);
   }
@@ -301,8 +310,9 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
   res.n_st_rejected = fusion.n_rejected();
   res.faults = fusion.faults();
   res.gyros_in_use = fusion.GyrosInUse();
-  res.status = worst == FusionStatus::kOk ? FuseStatus::kFused
-               : worst == FusionStatus::kDegraded ? FuseStatus::kDegraded : FuseStatus::kFailed;
+  res.status = worst == FusionStatus::kOk         ? FuseStatus::kFused
+               : worst == FusionStatus::kDegraded ? FuseStatus::kDegraded
+                                                  : FuseStatus::kFailed;
   res.bias_dph = fusion.bias_rad_s() * kRadSToDph;
   res.bias_sigma_dph = fusion.bias_sigma_dph();
   res.st_residual_rms_arcsec = resid_n > 0 ? std::sqrt(resid_sum2 / (3.0 * resid_n)) * kRadToArcsec : 0.0;
@@ -345,15 +355,17 @@ GyroUnit FuseUnitForLog(const GyroLog& log, const std::string& log_name, const s
   } else {
     unit = DefaultFourFogUnit();
     if (!log.body_rates && n_log != unit.size())
-      throw InputError(log_name, "has g1_dph..gN_dph columns for " + std::to_string(n_log) + " gyros: give their unit.json (--unit)");
+      throw InputError(log_name, "has g1_dph..gN_dph columns for " + std::to_string(n_log) +
+                                     " gyros: give their unit.json (--unit)");
     if (log.body_rates && noise.any()) unit = OrthogonalTriad();  // body rates with their own noise: an ideal triad
   }
   const int n = log.body_rates ? (unit.size() == 3 ? 3 : 1) : unit.size();
   if (!noise.noise_file.empty()) {
     const std::vector<GyroErrorModel> m = ReadAllanNoise(noise.noise_file);
     if (m.size() != 1 && static_cast<int>(m.size()) != n)
-      throw InputError(noise.noise_file, "has " + std::to_string(m.size()) + " reports: give one, or one per " +
-                                             (log.body_rates ? std::string("body axis (3)") : "gyro (" + std::to_string(n) + ")"));
+      throw InputError(noise.noise_file,
+                       "has " + std::to_string(m.size()) + " reports: give one, or one per " +
+                           (log.body_rates ? std::string("body axis (3)") : "gyro (" + std::to_string(n) + ")"));
     for (int i = 0; i < unit.size(); ++i) {
       GyroErrorModel& g = unit.gyros[i];
       const GyroErrorModel& r = m[m.size() == 1 ? 0 : std::min<size_t>(i, m.size() - 1)];
@@ -363,7 +375,8 @@ GyroUnit FuseUnitForLog(const GyroLog& log, const std::string& log_name, const s
     }
     source = "noise_file";
   }
-  auto given = [&](const std::optional<double>& figure, bool positive, const char* name, double GyroErrorModel::*field) {
+  auto given = [&](const std::optional<double>& figure, bool positive, const char* name,
+                   double GyroErrorModel::*field) {
     if (!figure) return;
     const double v = *figure;
     if (!std::isfinite(v) || v < 0 || (positive && v == 0))

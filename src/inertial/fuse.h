@@ -34,8 +34,8 @@ struct StarTrackerLog {
 };
 
 // Reads a gyro log: body rates when wx_dph is present; otherwise g1_dph..gN_dph with N = `n_gyros`
-// when > 0, else as many g*_dph columns as are found. InputError (file, column, row) for a missing column, a non-number or NaN,
-// a time column that does not strictly increase, or fewer than 2 rows.
+// when > 0, else as many g*_dph columns as are found. InputError (file, column, row) for a missing column, a non-number
+// or NaN, a time column that does not strictly increase, or fewer than 2 rows.
 GyroLog ReadGyroLog(const std::string& path, int n_gyros = 0);
 StarTrackerLog ReadStarTrackerLog(const std::string& path);
 
@@ -65,13 +65,13 @@ struct FuseOptions {
   // roll about body z: the tracker's boresight is taken along body +Z).
   double st_sigma_cross_arcsec = 5.0;
   double st_sigma_roll_arcsec = 30.0;
-  double init_bias_sigma_dph = 10.0;   // prior on each body-axis bias
+  double init_bias_sigma_dph = 10.0;             // prior on each body-axis bias
   double bias_drift_floor_dph_per_sqrt_h = 0.0;  // added to the bias walk derived from the unit
-  double nis_gate = 50.0;              // reject star samples with NIS above this (chi^2, 3 dof)
-  bool fdi = true;                     // fault detection/isolation (needs 4+ gyros)
+  double nis_gate = 50.0;                        // reject star samples with NIS above this (chi^2, 3 dof)
+  bool fdi = true;                               // fault detection/isolation (needs 4+ gyros)
   FdiOptions fdi_options;
-  FusionPolicy policy;                 // rejection, gap, status and history policies
-  int output_every = 1;                // write every n-th gyro sample
+  FusionPolicy policy;   // rejection, gap, status and history policies
+  int output_every = 1;  // write every n-th gyro sample
 
   void Check() const;
 };
@@ -90,7 +90,7 @@ const char* FuseStatusName(FuseStatus s);
 struct FusedSample {
   double t_s = 0;
   Quat q_inertial_from_body = Quat::Identity();
-  Vec3 sigma_rad = Vec3::Zero();   // 1 sigma attitude error about body x, y, z
+  Vec3 sigma_rad = Vec3::Zero();  // 1 sigma attitude error about body x, y, z
   Vec3 bias_dph = Vec3::Zero();
   Vec3 bias_sigma_dph = Vec3::Zero();
   FusionStatus status = FusionStatus::kOk;
@@ -103,7 +103,7 @@ struct FuseResult {
   Vec3 bias_dph = Vec3::Zero(), bias_sigma_dph = Vec3::Zero();
   std::vector<FaultEvent> faults;
   std::map<std::string, double> status_s;  // time (s) spent ok, degraded, failed
-  std::vector<int> gyros_in_use;   // 1-based, at the end
+  std::vector<int> gyros_in_use;           // 1-based, at the end
   long n_gyro_samples = 0, n_st_used = 0, n_st_rejected = 0;
   double longest_st_gap_s = 0;
   double st_residual_rms_arcsec = 0;  // accepted pre-update residuals
@@ -138,14 +138,12 @@ MekfNoise FuseNoiseModel(const GyroUnit& unit, const RateSolver& solver, double 
 // noise flags, the Python module's keyword arguments. Every figure given is checked by
 // FuseUnitForLog (InputError naming the field).
 struct FuseNoiseGiven {
-  std::string noise_file;                     // `ssiu allan --json` output; "" = none
-  std::optional<double> arw_deg_per_sqrt_h;   // every gyro/axis; must be > 0
-  std::optional<double> bias_instability_dph; // must be >= 0
-  std::optional<double> rrw_dph_per_sqrt_h;   // must be >= 0
-  bool init_bias_sigma_given = false;         // FuseOptions::init_bias_sigma_dph was set by the user
-  bool any() const {
-    return !noise_file.empty() || arw_deg_per_sqrt_h || bias_instability_dph || rrw_dph_per_sqrt_h;
-  }
+  std::string noise_file;                      // `ssiu allan --json` output; "" = none
+  std::optional<double> arw_deg_per_sqrt_h;    // every gyro/axis; must be > 0
+  std::optional<double> bias_instability_dph;  // must be >= 0
+  std::optional<double> rrw_dph_per_sqrt_h;    // must be >= 0
+  bool init_bias_sigma_given = false;          // FuseOptions::init_bias_sigma_dph was set by the user
+  bool any() const { return !noise_file.empty() || arw_deg_per_sqrt_h || bias_instability_dph || rrw_dph_per_sqrt_h; }
 };
 
 // The unit a fuse run uses for `log` (read from `log_name`): `unit_path`'s unit.json, else the

@@ -23,9 +23,16 @@ double GyroErrorModel::BiasDriftDphPerSqrtS() const {
 
 void GyroErrorModel::Check(const std::string& what) const {
   auto bad = [&](const std::string& field, const std::string& why) { throw InputError(what, field + " " + why); };
-  const double finite_fields[] = {bias_dph, arw_deg_per_sqrt_h, bias_instability_dph, rrw_dph_per_sqrt_h,
-                                  quantization_arcsec, scale_factor_ppm, scale_factor_nonlinearity_ppm_per_dps,
-                                  misalignment_arcsec[0], misalignment_arcsec[1], time_delay_s};
+  const double finite_fields[] = {bias_dph,
+                                  arw_deg_per_sqrt_h,
+                                  bias_instability_dph,
+                                  rrw_dph_per_sqrt_h,
+                                  quantization_arcsec,
+                                  scale_factor_ppm,
+                                  scale_factor_nonlinearity_ppm_per_dps,
+                                  misalignment_arcsec[0],
+                                  misalignment_arcsec[1],
+                                  time_delay_s};
   for (double v : finite_fields) {
     if (!std::isfinite(v)) bad("error model", "has a non-finite term");
   }
@@ -63,12 +70,14 @@ GyroVec GyroUnit::NoiseArw() const {
 }
 
 void GyroUnit::Check(const std::string& file) const {
-  if (size() < 3 || size() > kMaxGyros) throw InputError(file, "gyros: need 3 to 6 gyros, got " + std::to_string(size()));
+  if (size() < 3 || size() > kMaxGyros)
+    throw InputError(file, "gyros: need 3 to 6 gyros, got " + std::to_string(size()));
   if (gyros.size() != axes_body.size()) throw InputError(file, "gyros: one error model per axis");
   if (!(rate_hz > 0) || !std::isfinite(rate_hz)) throw InputError(file, "rate_hz must be positive");
   for (int i = 0; i < size(); ++i) {
     const std::string what = file + ": gyro " + std::to_string(i + 1);
-    if (!axes_body[i].allFinite() || std::abs(axes_body[i].norm() - 1) > 1e-6) throw InputError(what, "axis must be a unit vector");
+    if (!axes_body[i].allFinite() || std::abs(axes_body[i].norm() - 1) > 1e-6)
+      throw InputError(what, "axis must be a unit vector");
     gyros[i].Check(what);
   }
   const Eigen::MatrixXd h = Axes();
@@ -99,17 +108,28 @@ namespace {
 // Fields present in `j` override those of `m` (so a "default" block and per-gyro blocks compose).
 void ApplyErrorModel(const Json& j, GyroErrorModel* m, const std::string& what, bool with_axis) {
   if (!j.is_object()) throw InputError(what, "gyro entry must be an object");
-  std::vector<std::string> keys = {"bias_dph", "arw_deg_per_sqrt_h", "bias_instability_dph", "bias_instability_tau_s",
-                                   "rrw_dph_per_sqrt_h", "quantization_arcsec", "scale_factor_ppm",
-                                   "scale_factor_nonlinearity_ppm_per_dps", "misalignment_arcsec", "time_delay_s",
-                                   "thermal_k_dph", "thermal_t0_c", "thermal_t1_c", "thermal_g0_c_per_min",
+  std::vector<std::string> keys = {"bias_dph",
+                                   "arw_deg_per_sqrt_h",
+                                   "bias_instability_dph",
+                                   "bias_instability_tau_s",
+                                   "rrw_dph_per_sqrt_h",
+                                   "quantization_arcsec",
+                                   "scale_factor_ppm",
+                                   "scale_factor_nonlinearity_ppm_per_dps",
+                                   "misalignment_arcsec",
+                                   "time_delay_s",
+                                   "thermal_k_dph",
+                                   "thermal_t0_c",
+                                   "thermal_t1_c",
+                                   "thermal_g0_c_per_min",
                                    "magnetic_dph_per_ut"};
   if (with_axis) keys.push_back("axis");
   CheckKeys(j, keys, what);
   m->bias_dph = JsonNumberOr(j, "bias_dph", m->bias_dph, what);
   m->arw_deg_per_sqrt_h = JsonNumberOr(j, "arw_deg_per_sqrt_h", m->arw_deg_per_sqrt_h, what);
   m->bias_instability_dph = JsonNumberOr(j, "bias_instability_dph", m->bias_instability_dph, what);
-  if (j.contains("bias_instability_tau_s")) m->bias_instability_tau_s = JsonNumbers(j, "bias_instability_tau_s", -1, what);
+  if (j.contains("bias_instability_tau_s"))
+    m->bias_instability_tau_s = JsonNumbers(j, "bias_instability_tau_s", -1, what);
   m->rrw_dph_per_sqrt_h = JsonNumberOr(j, "rrw_dph_per_sqrt_h", m->rrw_dph_per_sqrt_h, what);
   m->quantization_arcsec = JsonNumberOr(j, "quantization_arcsec", m->quantization_arcsec, what);
   m->scale_factor_ppm = JsonNumberOr(j, "scale_factor_ppm", m->scale_factor_ppm, what);
@@ -124,7 +144,8 @@ void ApplyErrorModel(const Json& j, GyroErrorModel* m, const std::string& what, 
   m->time_delay_s = JsonNumberOr(j, "time_delay_s", m->time_delay_s, what);
   if (j.contains("thermal_k_dph")) {
     const auto v = JsonNumbers(j, "thermal_k_dph", -1, what);
-    if (v.size() != ThermalDriftModel::kNumTerms) throw InputError(what, "thermal_k_dph must have 10 numbers (K00..K03)");
+    if (v.size() != ThermalDriftModel::kNumTerms)
+      throw InputError(what, "thermal_k_dph must have 10 numbers (K00..K03)");
     std::copy(v.begin(), v.end(), m->thermal.k_dph.begin());
   }
   m->thermal.t0_c = JsonNumberOr(j, "thermal_t0_c", m->thermal.t0_c, what);
@@ -184,8 +205,8 @@ Json GyroUnitToJson(const GyroUnit& unit) {
                      {"thermal_t0_c", m.thermal.t0_c},
                      {"thermal_t1_c", m.thermal.t1_c},
                      {"thermal_g0_c_per_min", m.thermal.g0_c_per_min},
-                     {"magnetic_dph_per_ut", {m.magnetic.along_dph_per_ut, m.magnetic.across_dph_per_ut,
-                                              m.magnetic.vertical_dph_per_ut}}});
+                     {"magnetic_dph_per_ut",
+                      {m.magnetic.along_dph_per_ut, m.magnetic.across_dph_per_ut, m.magnetic.vertical_dph_per_ut}}});
   }
   return {{"rate_hz", unit.rate_hz}, {"gyros", gyros}};
 }

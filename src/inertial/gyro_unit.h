@@ -16,8 +16,8 @@ namespace ssiu {
 // free of heap allocation.
 constexpr int kMaxGyros = 6;
 using GyroVec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxGyros, 1>;
-using GyroAxes = Eigen::Matrix<double, Eigen::Dynamic, 3, 0, kMaxGyros, 3>;          // N x 3
-using GyroPinv = Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxGyros>;          // 3 x N
+using GyroAxes = Eigen::Matrix<double, Eigen::Dynamic, 3, 0, kMaxGyros, 3>;  // N x 3
+using GyroPinv = Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxGyros>;  // 3 x N
 using GyroParity = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxGyros, kMaxGyros>;
 
 // Error model of one single-axis FOG. Every term is switched off by a zero value. Output model
@@ -25,18 +25,18 @@ using GyroParity = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMax
 //   g = (1 + S + N |w|) (a' . w(t - delay)) + b + b_flicker(t) + b_rrw(t) + arw noise
 //       + thermal(T, dT/dt) + magnetic(B) [+ quantisation of the integrated angle]
 struct GyroErrorModel {
-  double bias_dph = 0.0;                 // constant (turn-on) bias
-  double arw_deg_per_sqrt_h = 0.01;      // angle random walk (white rate noise)
-  double bias_instability_dph = 0.05;    // flicker floor, as a sum of Gauss-Markov processes
+  double bias_dph = 0.0;                                           // constant (turn-on) bias
+  double arw_deg_per_sqrt_h = 0.01;                                // angle random walk (white rate noise)
+  double bias_instability_dph = 0.05;                              // flicker floor, as a sum of Gauss-Markov processes
   std::vector<double> bias_instability_tau_s = {1000.0, 10000.0};  // their correlation times
-  double rrw_dph_per_sqrt_h = 0.0;       // rate random walk
-  double quantization_arcsec = 0.0;      // angle quantum of the output counter
+  double rrw_dph_per_sqrt_h = 0.0;                                 // rate random walk
+  double quantization_arcsec = 0.0;                                // angle quantum of the output counter
   double scale_factor_ppm = 0.0;
   double scale_factor_nonlinearity_ppm_per_dps = 0.0;  // extra scale factor per deg/s of |rate|
   double misalignment_arcsec[2] = {0.0, 0.0};          // small tilts of the axis about two normals
   double time_delay_s = 0.0;
-  ThermalDriftModel thermal;             // zero-signal drift polynomial (all K = 0: off)
-  MagneticSensitivity magnetic;          // deg/h per microtesla (0: off)
+  ThermalDriftModel thermal;     // zero-signal drift polynomial (all K = 0: off)
+  MagneticSensitivity magnetic;  // deg/h per microtesla (0: off)
 
   // Standard deviation of each Gauss-Markov component (deg/h), chosen so that the Allan deviation
   // floor of the sum is about bias_instability_dph (a GM process of std s peaks at about 0.62 s,
@@ -49,12 +49,12 @@ struct GyroErrorModel {
 };
 
 struct GyroUnit {
-  std::vector<Vec3> axes_body;           // unit sensing axes in the body frame
-  std::vector<GyroErrorModel> gyros;     // one per axis
+  std::vector<Vec3> axes_body;        // unit sensing axes in the body frame
+  std::vector<GyroErrorModel> gyros;  // one per axis
   double rate_hz = 100.0;
 
   int size() const { return static_cast<int>(axes_body.size()); }
-  GyroAxes Axes() const;                 // N x 3, rows are the sensing axes
+  GyroAxes Axes() const;  // N x 3, rows are the sensing axes
   // White-noise standard deviation of each gyro as angle random walk (deg/sqrt(h)); where a gyro's
   // ARW is 0 the smallest nonzero one (or 1) stands in, so that weights stay finite.
   GyroVec NoiseArw() const;

@@ -169,8 +169,8 @@ void OnlineFusion::OnDetection(double t, const std::string& test, double onset_s
   }
   faults_.push_back(ev);
   const Vec3 b_before = BiasAt(ev.t_onset_s);
-  const GyroVec c = axes_ * (b_before * kRadSToDph) +
-                    (monitor_.active() && monitor_.ready() ? GyroVec(monitor_.V().transpose() * monitor_.baseline())
+  const GyroVec c = axes_ * (b_before * kRadSToDph) + (monitor_.active() && monitor_.ready()
+                                                           ? GyroVec(monitor_.V().transpose() * monitor_.baseline())
                                                            : GyroVec(correction_));
   isolator_ = StarRateIsolator(axes_, use_, c);
   isolating_ = true;
@@ -189,7 +189,8 @@ void OnlineFusion::OpenCovarianceWhileUnresolved() {
 void OnlineFusion::AddGyro(double t_k, const GyroVec& g) {
   const int n = unit_.size();
   if (g.size() != n) {
-    throw InputError("gyro sample", "has " + std::to_string(g.size()) + " outputs but the unit has " + std::to_string(n));
+    throw InputError("gyro sample",
+                     "has " + std::to_string(g.size()) + " outputs but the unit has " + std::to_string(n));
   }
   const double t_prev = have_gyro_ ? t_last_gyro_ : t_k - dt_nominal_;
   have_gyro_ = true;

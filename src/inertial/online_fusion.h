@@ -83,9 +83,9 @@ class OnlineFusion {
   ParityMonitor monitor_;
   StarRateIsolator isolator_;
   bool isolating_ = false;
-  bool compensated_ = false;           // a faulty gyro stays in use, its fault subtracted
-  GyroVec fit_step_, fit_ramp_;        // parity fit since onset at the pending detection
-  GyroParity fit_v_;                   // the parity matrix it was made with
+  bool compensated_ = false;                             // a faulty gyro stays in use, its fault subtracted
+  GyroVec fit_step_, fit_ramp_;                          // parity fit since onset at the pending detection
+  GyroParity fit_v_;                                     // the parity matrix it was made with
   double innov_s_ = 0, innov_zero_t_ = 0, innov_h_ = 0;  // star-innovation CUSUM (no parity left)
   double t_last_accepted_ = 0;
   double t_settled_ = -1;  // degraded until then after an isolation (the filter re-converging)

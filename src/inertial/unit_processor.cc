@@ -77,9 +77,9 @@ HeadResult UnitProcessor::SolveHead(int h, double t_s, const ImageView& image, I
   const SolveOptions& so = options_.solve;
   if (image.width != head.camera.width || image.height != head.camera.height) {
     throw InputError("head " + std::to_string(h + 1), "frame is " + std::to_string(image.width) + "x" +
-                                                         std::to_string(image.height) + " but the camera is " +
-                                                         std::to_string(head.camera.width) + "x" +
-                                                         std::to_string(head.camera.height));
+                                                          std::to_string(image.height) + " but the camera is " +
+                                                          std::to_string(head.camera.width) + "x" +
+                                                          std::to_string(head.camera.height));
   }
   DetectOptions dopt = so.detect;
   if (dopt.gain_e_per_adu == 0) dopt.gain_e_per_adu = head.camera.gain_e_per_adu;

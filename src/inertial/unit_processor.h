@@ -28,7 +28,6 @@
 
 namespace ssiu {
 
-
 struct UnitProcessorOptions {
   SolveOptions solve;  // detection threshold, identification, tracking search radius; with
                        // solve.detect.smear.exposure_s > 0 the detector is told the smear the gyro
@@ -82,7 +81,7 @@ struct UnitAttitude {
   Mat3 covariance_rad2 = Mat3::Zero();  // attitude error, body axes
   Vec3 bias_dph = Vec3::Zero(), bias_sigma_dph = Vec3::Zero();
   std::vector<FaultEvent> faults;
-  std::vector<int> gyros_in_use;  // 1-based
+  std::vector<int> gyros_in_use;                // 1-based
   FusionStatus status = FusionStatus::kFailed;  // OnlineFusion::Status()
 };
 

@@ -1,7 +1,7 @@
 // The OpenCV edge of this stage (core/opencv_edge.h): plots are drawn by plot_cv.cc in libssiu_opencv.so, loaded
 // on first use.
-#include "plot/plot.h"
 #include "core/opencv_edge.h"
+#include "plot/plot.h"
 
 namespace ssiu {
 

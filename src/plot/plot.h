@@ -13,9 +13,9 @@ struct PlotColor {
 };
 
 struct PlotSeries {
-  std::string label;          // legend entry; empty = not in the legend
+  std::string label;  // legend entry; empty = not in the legend
   std::vector<double> x, y;
-  std::vector<double> y_lo;   // optional error bars: both empty or both the size of y
+  std::vector<double> y_lo;  // optional error bars: both empty or both the size of y
   std::vector<double> y_hi;
   PlotColor color;
   bool line = true;      // polyline through the points (broken at points that cannot be drawn)
@@ -31,7 +31,7 @@ struct PlotOptions {
   bool log_y = false;
   std::string title, x_label, y_label;
   bool legend_bottom_left = false;  // default top right; bottom left suits falling curves (ADEV)
-  void Check() const;  // InputError on a bad value
+  void Check() const;               // InputError on a bad value
 };
 
 // Maps data to pixels for a given set of series and options (exposed so tests can find a point).

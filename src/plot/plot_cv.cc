@@ -1,6 +1,4 @@
 // WritePlotPng: the drawing half of plot.h, in the OpenCV edge module (core/opencv_edge.h).
-#include "plot/plot.h"
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -10,6 +8,7 @@
 
 #include "core/error.h"
 #include "core/image_cv.h"
+#include "plot/plot.h"
 
 namespace ssiu {
 namespace {
@@ -22,8 +21,10 @@ std::string TickLabel(double v, bool log) {
   char buf[32];
   if (log) {
     const int e = static_cast<int>(std::lround(std::log10(v)));
-    if (e >= -2 && e <= 3) std::snprintf(buf, sizeof buf, "%g", std::pow(10.0, e));
-    else std::snprintf(buf, sizeof buf, "1e%d", e);
+    if (e >= -2 && e <= 3)
+      std::snprintf(buf, sizeof buf, "%g", std::pow(10.0, e));
+    else
+      std::snprintf(buf, sizeof buf, "1e%d", e);
   } else {
     std::snprintf(buf, sizeof buf, "%g", v);
   }
@@ -55,7 +56,8 @@ void DashedLine(cv::Mat& img, cv::Point2d a, cv::Point2d b, cv::Scalar color, in
   while (s < len) {
     const double in_period = std::fmod(*phase + s, 2 * dash);
     const double step = std::min(len - s, in_period < dash ? dash - in_period : 2 * dash - in_period);
-    if (in_period < dash) cv::line(img, a + (b - a) * (s / len), a + (b - a) * ((s + step) / len), color, thickness, cv::LINE_AA);
+    if (in_period < dash)
+      cv::line(img, a + (b - a) * (s / len), a + (b - a) * ((s + step) / len), color, thickness, cv::LINE_AA);
     s += step;
   }
   *phase = std::fmod(*phase + len, 2 * dash);
@@ -134,8 +136,10 @@ void WritePlotPng(const std::string& path, const std::vector<PlotSeries>& series
       double phase = 0;
       for (size_t i = 1; i < s.x.size(); ++i) {
         if (!ok(i - 1) || !ok(i)) continue;
-        if (s.dashed) DashedLine(area, pt(i - 1), pt(i), c, s.thickness_px, &phase);
-        else cv::line(area, pt(i - 1), pt(i), c, s.thickness_px, cv::LINE_AA);
+        if (s.dashed)
+          DashedLine(area, pt(i - 1), pt(i), c, s.thickness_px, &phase);
+        else
+          cv::line(area, pt(i - 1), pt(i), c, s.thickness_px, cv::LINE_AA);
       }
     }
     if (s.markers) {
@@ -149,7 +153,8 @@ void WritePlotPng(const std::string& path, const std::vector<PlotSeries>& series
   {
     int base = 0;
     const cv::Size sz = cv::getTextSize(o.x_label, font, 0.5, 1, &base);
-    cv::putText(img, o.x_label, {(f.left + f.right - sz.width) / 2, o.height_px - 15}, font, 0.5, black, 1, cv::LINE_AA);
+    cv::putText(img, o.x_label, {(f.left + f.right - sz.width) / 2, o.height_px - 15}, font, 0.5, black, 1,
+                cv::LINE_AA);
   }
   // The y label reads along the axis: drawn horizontally, then rotated by 90 degrees.
   if (!o.y_label.empty()) {

@@ -21,9 +21,9 @@
 #include <string>
 #include <vector>
 
+#include "attitude/star_solver.h"
 #include "calibration/allan.h"
 #include "calibration/allan_io.h"
-#include "attitude/star_solver.h"
 #include "core/camera.h"
 #include "core/error.h"
 #include "core/image.h"
@@ -156,8 +156,8 @@ Setters SolverSetters(SolverConfig* c) {
 // A frame as an ImageView over the caller's array (uint16, no copy) or over a widened copy (uint8).
 struct FrameArg {
   ImageView view;
-  Image16 owned;                    // only for uint8 input
-  py::object keep_alive;            // the numpy array the view points into
+  Image16 owned;          // only for uint8 input
+  py::object keep_alive;  // the numpy array the view points into
   double saturation_adu = 65535;
 };
 
@@ -222,7 +222,8 @@ class Solver {
     config_.solve.Check();
     const IdentifyOptions& io = config_.solve.identify;
     camera_ = CameraFrom(camera, io.FovRange() ? std::sqrt(io.fov_min_deg * io.fov_max_deg) : 0.0);
-    id_ = std::make_shared<StarIdentifier>(MakeIdentifierFor(config_.catalog, camera_, io, config_.mag_max, config_.source));
+    id_ = std::make_shared<StarIdentifier>(
+        MakeIdentifierFor(config_.catalog, camera_, io, config_.mag_max, config_.source));
   }
 
   // A frame (uint8/uint16 array or a file path: PNG/TIFF/FITS, or a .csv centroid list) -> solve JSON.
@@ -280,8 +281,9 @@ class PyTracker {
   // and give the fitted one in the camera.
   static Solver NoFovRange(const py::object& camera, const py::kwargs& kwargs) {
     if (kwargs.contains("fov_range_deg"))
-      throw InputError("fov_range_deg", "not for a Tracker: solve once with Solver(fov_range_deg=...) and give the "
-                                        "fitted focal_length_px in the camera");
+      throw InputError("fov_range_deg",
+                       "not for a Tracker: solve once with Solver(fov_range_deg=...) and give the "
+                       "fitted focal_length_px in the camera");
     return Solver(camera, kwargs);
   }
 
@@ -396,7 +398,8 @@ py::object FusePy(const std::string& gyro, const std::string& star_tracker, cons
   noise.init_bias_sigma_given = kwargs.contains("init_bias_sigma_dph");  // checked by FuseOptions::Check
   const GyroLog log = ReadGyroLog(gyro, 0);
   std::string noise_source;
-  const GyroUnit u = FuseUnitForLog(log, gyro, unit.is_none() ? std::string() : unit.cast<std::string>(), noise, &noise_source);
+  const GyroUnit u =
+      FuseUnitForLog(log, gyro, unit.is_none() ? std::string() : unit.cast<std::string>(), noise, &noise_source);
   const StarTrackerLog st = ReadStarTrackerLog(star_tracker);
   FuseResult r;
   {

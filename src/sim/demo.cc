@@ -56,14 +56,15 @@ DemoReport RunDemo(const StarCatalog& catalog, uint64_t seed) {
     const RaDecRoll e = RaDecRollFromQuat(qe);
     const AttitudeErrorSplit err = SplitAttitudeError(qe, q);
     const auto we = ToWxyz(qe);
-    n += std::snprintf(buf + n, sizeof(buf) - n,
-                       "  solve: %s, %zu stars matched, false-match probability %.1e\n"
-                       "  attitude q = [%.8f, %.8f, %.8f, %.8f]: RA %.4f Dec %.4f roll %.4f deg\n"
-                       "  error vs truth: %.2f arcsec (cross-boresight %.2f, roll %.2f); reported 1-sigma %.2f / %.2f arcsec\n",
-                       sr.status.c_str(), sr.identification.matches.size(), sr.identification.false_match_probability,
-                       we[0], we[1], we[2], we[3], e.ra_rad * kRadToDeg, e.dec_rad * kRadToDeg, e.roll_rad * kRadToDeg,
-                       err.total_rad * kRadToArcsec, err.cross_rad * kRadToArcsec, err.roll_rad * kRadToArcsec,
-                       sr.attitude.sigma_cross_rad * kRadToArcsec, sr.attitude.sigma_roll_rad * kRadToArcsec);
+    n += std::snprintf(
+        buf + n, sizeof(buf) - n,
+        "  solve: %s, %zu stars matched, false-match probability %.1e\n"
+        "  attitude q = [%.8f, %.8f, %.8f, %.8f]: RA %.4f Dec %.4f roll %.4f deg\n"
+        "  error vs truth: %.2f arcsec (cross-boresight %.2f, roll %.2f); reported 1-sigma %.2f / %.2f arcsec\n",
+        sr.status.c_str(), sr.identification.matches.size(), sr.identification.false_match_probability, we[0], we[1],
+        we[2], we[3], e.ra_rad * kRadToDeg, e.dec_rad * kRadToDeg, e.roll_rad * kRadToDeg, err.total_rad * kRadToArcsec,
+        err.cross_rad * kRadToArcsec, err.roll_rad * kRadToArcsec, sr.attitude.sigma_cross_rad * kRadToArcsec,
+        sr.attitude.sigma_roll_rad * kRadToArcsec);
     r.json["q"] = {we[0], we[1], we[2], we[3]};
     r.json["error_arcsec"] = err.total_rad * kRadToArcsec;
     r.json["error_cross_arcsec"] = err.cross_rad * kRadToArcsec;

@@ -31,13 +31,13 @@ struct ThermalBenchOptions {
   double max_rate_c_per_min = 0.25;
   double dwell_min_s = 15 * 60.0;
   double dwell_max_s = 50 * 60.0;
-  double chamber_tau_s = 240.0;        // lag of the FOG housing behind the chamber set point
-  double temp_noise_c = 0.02;          // per-sample noise of temp_c
+  double chamber_tau_s = 240.0;  // lag of the FOG housing behind the chamber set point
+  double temp_noise_c = 0.02;    // per-sample noise of temp_c
   // Noise sized so that the compensated band of one-minute means is about the paper's +-0.05 deg/h.
-  double white_noise_dph = 0.09;       // per-sample (dt_s) white noise of w_dph
-  double wander_sigma_dph = 0.006;     // steady-state sigma of the Gauss-Markov bias wander
+  double white_noise_dph = 0.09;    // per-sample (dt_s) white noise of w_dph
+  double wander_sigma_dph = 0.006;  // steady-state sigma of the Gauss-Markov bias wander
   double wander_tau_s = 1800.0;
-  double latitude_deg = 50.05;         // Kharkov
+  double latitude_deg = 50.05;  // Kharkov
   std::string axis = "up";
   ThermalDriftModel drift;
   uint64_t seed = 1;
@@ -45,7 +45,7 @@ struct ThermalBenchOptions {
 };
 
 struct ThermalBenchRun {
-  std::vector<double> t_s, w_dph, ref_dph, temp_c;                  // the logged channels
+  std::vector<double> t_s, w_dph, ref_dph, temp_c;                       // the logged channels
   std::vector<double> true_temp_c, true_rate_c_per_min, true_drift_dph;  // truth (thermal part)
 };
 
@@ -68,7 +68,7 @@ struct TurntableOptions {
   double dwell_s = 600.0;
   double turn_s = 20.0;
   double dt_s = 1.0;
-  double transient_dph = 0.4;     // offset right after a turn, decaying with transient_tau_s
+  double transient_dph = 0.4;  // offset right after a turn, decaying with transient_tau_s
   double transient_tau_s = 15.0;
   double latitude_deg = 50.05;
   double dpsi0_deg = 0.5;

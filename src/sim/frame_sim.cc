@@ -55,10 +55,10 @@ const DoubleField kDoubleFields[] = {
     {"streak_flux_e_per_px", &FrameSimOptions::streak_flux_e_per_px},
 };
 const IntField kIntFields[] = {
-    {"bit_depth", &FrameSimOptions::bit_depth},   {"defect_seed", &FrameSimOptions::defect_seed},
-    {"hot_pixels", &FrameSimOptions::hot_pixels},
-    {"dead_pixels", &FrameSimOptions::dead_pixels}, {"cosmic_rays", &FrameSimOptions::cosmic_rays},
-    {"streaks", &FrameSimOptions::streaks},       {"false_stars", &FrameSimOptions::false_stars},
+    {"bit_depth", &FrameSimOptions::bit_depth},     {"defect_seed", &FrameSimOptions::defect_seed},
+    {"hot_pixels", &FrameSimOptions::hot_pixels},   {"dead_pixels", &FrameSimOptions::dead_pixels},
+    {"cosmic_rays", &FrameSimOptions::cosmic_rays}, {"streaks", &FrameSimOptions::streaks},
+    {"false_stars", &FrameSimOptions::false_stars},
 };
 
 // Integral of a unit 1-D Gaussian (centre c, sigma s) over the pixel [i - 0.5, i + 0.5].
@@ -70,8 +70,10 @@ inline double PixelFraction(int i, double c, double s) {
 // Adds `flux` electrons of a pixel-integrated Gaussian at (x, y) to the signal image.
 void AddGaussian(std::vector<double>& img, int w, int h, double x, double y, double sigma, double flux) {
   const int r = static_cast<int>(std::ceil(5 * sigma)) + 1;
-  const int x0 = std::max(0, static_cast<int>(std::floor(x)) - r), x1 = std::min(w - 1, static_cast<int>(std::ceil(x)) + r);
-  const int y0 = std::max(0, static_cast<int>(std::floor(y)) - r), y1 = std::min(h - 1, static_cast<int>(std::ceil(y)) + r);
+  const int x0 = std::max(0, static_cast<int>(std::floor(x)) - r),
+            x1 = std::min(w - 1, static_cast<int>(std::ceil(x)) + r);
+  const int y0 = std::max(0, static_cast<int>(std::floor(y)) - r),
+            y1 = std::min(h - 1, static_cast<int>(std::ceil(y)) + r);
   if (x0 > x1 || y0 > y1) return;
   std::vector<double> fx(x1 - x0 + 1), fy(y1 - y0 + 1);
   for (int i = x0; i <= x1; ++i) fx[i - x0] = PixelFraction(i, x, sigma);
@@ -234,12 +236,15 @@ std::vector<std::string> FrameSimOptionNames() {
 }
 
 void SetFrameSimOption(FrameSimOptions* o, const std::string& name, double value) {
-  *o = FrameSimOptionsFromJson([&] {
-    Json j = FrameSimOptionsToJson(*o);
-    if (!j.contains(name) || !j[name].is_number()) throw InputError("frame simulator options", "unknown option '" + name + "'");
-    j[name] = value;
-    return j;
-  }(), "frame simulator options");
+  *o = FrameSimOptionsFromJson(
+      [&] {
+        Json j = FrameSimOptionsToJson(*o);
+        if (!j.contains(name) || !j[name].is_number())
+          throw InputError("frame simulator options", "unknown option '" + name + "'");
+        j[name] = value;
+        return j;
+      }(),
+      "frame simulator options");
 }
 
 SkyCorrections SkyForSimulation(const FrameSimOptions& o) {
@@ -308,8 +313,8 @@ class FrameRenderer {
   double var_bg_e2_ = 0;        // its noise per pixel (electrons^2), for the SNR truth
   PsfShape shape0_;             // the PSF at the centre
   bool varying_sigma_ = false;
-  double area_factor_ = 1;      // an elliptical Gaussian's area / a round one's of the mean sigma
-  double sigma_max_px_ = 0;     // the widest PSF anywhere (major-axis sigma)
+  double area_factor_ = 1;   // an elliptical Gaussian's area / a round one's of the mean sigma
+  double sigma_max_px_ = 0;  // the widest PSF anywhere (major-axis sigma)
   Vec3 rate_rad_s_ = Vec3::Zero();
   bool moving_ = false;
   double smear_margin_px_ = 0;
@@ -319,8 +324,8 @@ FrameRenderer::FrameRenderer(const Camera& cam, const FrameSimOptions& o, Simula
     : cam_(cam), o_(o), out_(*out), w_(cam.width), h_(cam.height), signal_(static_cast<size_t>(w_) * h_, 0.0) {
   r_corner2_ = 0.25 * (double(w_) * w_ + double(h_) * h_);
   bg_e_ = (o.background_e_per_s + o.dark_current_e_per_s) * o.exposure_s;
-  var_bg_e2_ = (o.shot_noise ? bg_e_ : 0.0) + o.read_noise_e * o.read_noise_e +
-               o.gain_e_per_adu * o.gain_e_per_adu / 12.0;
+  var_bg_e2_ =
+      (o.shot_noise ? bg_e_ : 0.0) + o.read_noise_e * o.read_noise_e + o.gain_e_per_adu * o.gain_e_per_adu / 12.0;
   // The PSF at an image position: sigma(r) and the fixed ellipse (axes in pixel coordinates).
   const double axis_ratio2 = (1 - o.psf_ellipticity) * (1 - o.psf_ellipticity);
   shape0_.sigma = o.psf_sigma_px;
@@ -396,7 +401,8 @@ void FrameRenderer::AddStar(StarId id, double mag, const Vec2& p, const Vec3& v_
   const std::vector<Vec2> path = SmearPath(p, v_mid, &s.smear_px);
   // Noise-equivalent area and peak fraction of the local PSF, for the SNR and saturation truth.
   const PsfShape psf = ShapeAt(p.x(), p.y());
-  const double nea_px = 4 * kPi * psf.sigma * psf.sigma * area_factor_ + kPi * o_.defocus_radius_px * o_.defocus_radius_px;
+  const double nea_px =
+      4 * kPi * psf.sigma * psf.sigma * area_factor_ + kPi * o_.defocus_radius_px * o_.defocus_radius_px;
   const double peak_fraction =
       1.0 / (2 * kPi * psf.sigma * psf.sigma * area_factor_ + kPi * o_.defocus_radius_px * o_.defocus_radius_px);
   // The PSF-equivalent Gaussian sigma for the smear's peak / NEA factors (a defocused or elliptical
@@ -476,8 +482,8 @@ std::vector<uint8_t> FrameRenderer::AddSensorDefects() {
   std::vector<uint8_t> dead(static_cast<size_t>(w_) * h_, 0);
   for (int k = 0; k < o_.hot_pixels; ++k) {
     const int x = static_cast<int>(sensor.Uniform() * w_), y = static_cast<int>(sensor.Uniform() * h_);
-    const double rate = o_.hot_pixel_min_e_per_s *
-                        std::pow(o_.hot_pixel_max_e_per_s / o_.hot_pixel_min_e_per_s, sensor.Uniform());
+    const double rate =
+        o_.hot_pixel_min_e_per_s * std::pow(o_.hot_pixel_max_e_per_s / o_.hot_pixel_min_e_per_s, sensor.Uniform());
     SimArtefact a;
     a.type = "hot_pixel";
     a.x_px = a.x0_px = a.x1_px = x;
@@ -530,8 +536,8 @@ void FrameRenderer::ReadOut(const std::vector<uint8_t>& dead, Rng& rng) {
 
 }  // namespace
 
-SimulatedFrame SimulateFrame(const Camera& cam, const StarCatalog& catalog, const Quat& q_in,
-                             const FrameSimOptions& o, uint64_t seed) {
+SimulatedFrame SimulateFrame(const Camera& cam, const StarCatalog& catalog, const Quat& q_in, const FrameSimOptions& o,
+                             uint64_t seed) {
   cam.Check();
   o.Check();
   Rng rng(seed);  // one sequence for the whole frame: the steps' order below is its draw order

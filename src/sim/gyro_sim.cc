@@ -175,8 +175,9 @@ Json GyroFault::ToJson() const {
 
 MotionProfile MotionProfileFromJson(const Json& j, const std::string& file) {
   if (!j.is_object()) throw InputError(file, "profile must be a JSON object");
-  CheckKeys(j, {"type", "latitude_deg", "azimuth_deg", "rate_dps", "period_s", "axis", "amplitude_dps",
-                "magnetic_field_ut", "q0", "temperature", "star_tracker", "faults", "comment"},
+  CheckKeys(j,
+            {"type", "latitude_deg", "azimuth_deg", "rate_dps", "period_s", "axis", "amplitude_dps",
+             "magnetic_field_ut", "q0", "temperature", "star_tracker", "faults", "comment"},
             file);
   MotionProfile p;
   if (j.contains("type")) {
@@ -235,7 +236,7 @@ GyroSimulation SimulateGyro(const GyroUnit& unit, const MotionProfile& profile, 
   if (options.duration_s * unit.rate_hz > 1e9) throw InputError("simulate gyro", "more than 1e9 samples requested");
   const long k_max = static_cast<long>(std::floor(options.duration_s * unit.rate_hz + 1e-9));
   Rng rng(options.seed);
-  Rng rng_st(options.seed * 0x9E3779B97F4A7C15ull + 17);  // own stream: star noise independent of gyros
+  Rng rng_st(options.seed * 0x9E3779B97F4A7C15ull + 17);     // own stream: star noise independent of gyros
   Rng rng_fault(options.seed * 0xD1B54A32D192ED03ull + 29);  // and fault noise: a burst leaves the rest alone
 
   // Per-gyro geometry: misaligned axis and a perpendicular pair (u, v) for the magnetic terms.
@@ -299,8 +300,8 @@ GyroSimulation SimulateGyro(const GyroUnit& unit, const MotionProfile& profile, 
       const auto& e = unit.gyros[i];
       const Vec3 inc = Integrate(profile, ta - e.time_delay_s, tb - e.time_delay_s).integral;
       const double w_dph = axis[i].dot(inc) / h * kRadSToDph;
-      const double sf = 1 + 1e-6 * e.scale_factor_ppm +
-                        1e-6 * e.scale_factor_nonlinearity_ppm_per_dps * std::abs(w_dph / 3600.0);
+      const double sf =
+          1 + 1e-6 * e.scale_factor_ppm + 1e-6 * e.scale_factor_nonlinearity_ppm_per_dps * std::abs(w_dph / 3600.0);
       // Slow errors: bias, flicker (Gauss-Markov), rate random walk, temperature, magnetic, faults.
       double err = e.bias_dph;
       const double s = e.GaussMarkovSigmaDph();

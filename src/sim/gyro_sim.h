@@ -46,11 +46,11 @@ struct MotionProfile {
   // "sine" (rate amplitude_dps * sin(2 pi t / period_s) per body axis), "temperature" (static with
   // a temperature programme; a default programme when none is given).
   std::string type = "slew";
-  Quat q0 = Quat::Identity();      // body -> inertial at t = 0 (static: from latitude and azimuth)
-  double latitude_deg = 45.0;      // static
-  double azimuth_deg = 0.0;        // static: azimuth of body x from north towards east; body z up
-  Vec3 axis_body = Vec3::UnitZ();  // slew
-  double rate_dps = 0.1;           // slew
+  Quat q0 = Quat::Identity();                // body -> inertial at t = 0 (static: from latitude and azimuth)
+  double latitude_deg = 45.0;                // static
+  double azimuth_deg = 0.0;                  // static: azimuth of body x from north towards east; body z up
+  Vec3 axis_body = Vec3::UnitZ();            // slew
+  double rate_dps = 0.1;                     // slew
   Vec3 amplitude_dps = Vec3(1.0, 0.5, 0.3);  // sine
   double period_s = 60.0;                    // sine
   TemperatureProgramme temperature;

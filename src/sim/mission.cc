@@ -57,8 +57,10 @@ struct ErrorAccumulator {
 };
 
 Json StatsJson(const ErrorStats& s) {
-  return {{"cross_rms_arcsec", s.cross_rms_arcsec}, {"cross_max_arcsec", s.cross_max_arcsec},
-          {"roll_rms_arcsec", s.roll_rms_arcsec},   {"roll_max_arcsec", s.roll_max_arcsec},
+  return {{"cross_rms_arcsec", s.cross_rms_arcsec},
+          {"cross_max_arcsec", s.cross_max_arcsec},
+          {"roll_rms_arcsec", s.roll_rms_arcsec},
+          {"roll_max_arcsec", s.roll_max_arcsec},
           {"samples", s.n}};
 }
 Json V3(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
@@ -68,7 +70,8 @@ Json V3(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
 void MissionConfig::Check(const std::string& file) const {
   if (!(duration_s > 0 && duration_s <= 86400)) throw InputError(file, "field 'duration_s' must be in (0, 86400]");
   if (!(frame_rate_hz > 0 && frame_rate_hz <= 100)) throw InputError(file, "field 'frame_rate_hz' must be in (0, 100]");
-  if (duration_s * frame_rate_hz > 100000) throw InputError(file, "more than 100000 frame times (duration_s * frame_rate_hz)");
+  if (duration_s * frame_rate_hz > 100000)
+    throw InputError(file, "more than 100000 frame times (duration_s * frame_rate_hz)");
   if (heads.empty() || heads.size() > static_cast<size_t>(kMaxHeads)) {
     throw InputError(file, "field 'heads': " + std::to_string(heads.size()) + " heads given, the unit has 1 to 3");
   }
@@ -138,8 +141,9 @@ MissionConfig DefaultMissionConfig() {
 
 MissionConfig MissionConfigFromJson(const Json& j, const std::string& file) {
   if (!j.is_object()) throw InputError(file, "the config must be a JSON object");
-  CheckKeys(j, {"duration_s", "frame_rate_hz", "seed", "heads", "gyro_unit", "motion", "frame_sim", "processor",
-                "score_after_s", "start_utc", "velocity_kms", "comment"},
+  CheckKeys(j,
+            {"duration_s", "frame_rate_hz", "seed", "heads", "gyro_unit", "motion", "frame_sim", "processor",
+             "score_after_s", "start_utc", "velocity_kms", "comment"},
             file);
   MissionConfig c = DefaultMissionConfig();
   c.duration_s = JsonNumber(j, "duration_s", file);
@@ -166,8 +170,10 @@ MissionConfig MissionConfigFromJson(const Json& j, const std::string& file) {
     const Json& p = j.at("processor");
     const std::string what = file + ": processor";
     if (!p.is_object()) throw InputError(what, "must be an object");
-    CheckKeys(p, {"threshold_sigma", "systematic_px", "track_search_radius_px", "nis_gate", "init_bias_sigma_dph",
-                  "bias_drift_floor_dph_per_sqrt_h", "fdi", "solution_sigma_scale", "solution_sigma_floor_arcsec", "correlated_fraction"},
+    CheckKeys(p,
+              {"threshold_sigma", "systematic_px", "track_search_radius_px", "nis_gate", "init_bias_sigma_dph",
+               "bias_drift_floor_dph_per_sqrt_h", "fdi", "solution_sigma_scale", "solution_sigma_floor_arcsec",
+               "correlated_fraction"},
               what);
     UnitProcessorOptions& o = c.processor;
     o.solve.identify.systematic_px = JsonNumberOr(p, "systematic_px", o.solve.identify.systematic_px, what);
@@ -195,12 +201,9 @@ Json MissionConfigToJson(const MissionConfig& c) {
     heads.push_back({{"camera", CameraToJson(h.camera)}, {"q_body_sensor", {q[0], q[1], q[2], q[3]}}});
   }
   const auto q0 = ToWxyz(c.motion.q0);
-  Json motion = {{"type", c.motion.type},
-                 {"q0", {q0[0], q0[1], q0[2], q0[3]}},
-                 {"axis", V3(c.motion.axis_body)},
-                 {"rate_dps", c.motion.rate_dps},
-                 {"amplitude_dps", V3(c.motion.amplitude_dps)},
-                 {"period_s", c.motion.period_s}};
+  Json motion = {
+      {"type", c.motion.type},         {"q0", {q0[0], q0[1], q0[2], q0[3]}},          {"axis", V3(c.motion.axis_body)},
+      {"rate_dps", c.motion.rate_dps}, {"amplitude_dps", V3(c.motion.amplitude_dps)}, {"period_s", c.motion.period_s}};
   if (!c.motion.faults.empty()) {
     Json f = Json::array();
     for (const auto& g : c.motion.faults) f.push_back(g.ToJson());
@@ -392,10 +395,12 @@ MissionResult MissionRun::Run() {
 std::vector<SimulatedFrame> MissionRun::SimulateFrameSet() {
   const auto t0 = Clock::now();
   std::vector<SimulatedFrame> frames;
-  for (int h = 0; h < nh_; ++h) frames.push_back(SimulateMissionFrame(config_, data_, catalog_, static_cast<int>(fi_), h));
+  for (int h = 0; h < nh_; ++h)
+    frames.push_back(SimulateMissionFrame(config_, data_, catalog_, static_cast<int>(fi_), h));
   sim_s_ += SecondsSince(t0);
   if (write_ && fi_ == 0) {
-    for (int h = 0; h < nh_; ++h) WritePng16(out_dir_ + "/head" + std::to_string(h + 1) + "_first.png", frames[h].image);
+    for (int h = 0; h < nh_; ++h)
+      WritePng16(out_dir_ + "/head" + std::to_string(h + 1) + "_first.png", frames[h].image);
   }
   return frames;
 }
@@ -546,8 +551,8 @@ void MissionRun::WriteCsvs() const {
             "err_y_arcsec", "err_z_arcsec", "bx_dph", "by_dph", "bz_dph", "true_qw", "true_qx", "true_qy", "true_qz",
             "status_code"},
            att_cols_, 12);
-  std::vector<std::string> fh = {"t_s", "heads_solved", "update_accepted", "star_err_x_arcsec", "star_err_y_arcsec",
-                                 "star_err_z_arcsec"};
+  std::vector<std::string> fh = {
+      "t_s", "heads_solved", "update_accepted", "star_err_x_arcsec", "star_err_y_arcsec", "star_err_z_arcsec"};
   for (int h = 1; h <= nh_; ++h) {
     const std::string p = "head" + std::to_string(h) + "_";
     for (const char* n : {"solved", "tracking", "matches", "sigma_cross_arcsec", "ms"}) fh.push_back(p + n);
@@ -581,8 +586,8 @@ MissionResult RunMission(const MissionConfig& config_in, const StarCatalog& cata
 std::string MissionResult::Text() const {
   std::string s;
   char b[512];
-  std::snprintf(b, sizeof b, "ssiu run: %d frame times, %d with a star solution; %zu head(s)\n", frames,
-                frames_solved, heads.size());
+  std::snprintf(b, sizeof b, "ssiu run: %d frame times, %d with a star solution; %zu head(s)\n", frames, frames_solved,
+                heads.size());
   s += b;
   for (size_t h = 0; h < heads.size(); ++h) {
     const HeadSummary& x = heads[h];
@@ -624,7 +629,8 @@ std::string MissionResult::Text() const {
                   [](const FaultEvent& f) { return f.status == FaultStatus::kIsolated; })) {
     // The truth is the image of all gyros' slow errors (the failed one's step included); the
     // estimate is that of the gyros still in use, so their difference is not an error.
-    s += "  (bias truth covers every gyro, the failed one included; after an isolation it is not the estimate's truth)\n";
+    s += "  (bias truth covers every gyro, the failed one included; after an isolation it is not the estimate's "
+         "truth)\n";
   }
   std::string in_use;
   for (int g : final_state.gyros_in_use) in_use += (in_use.empty() ? "" : ",") + std::to_string(g);
@@ -634,14 +640,15 @@ std::string MissionResult::Text() const {
     for (const auto& f : final_state.faults) {
       std::snprintf(b, sizeof b,
                     "  FDI: %s gyro %d, %s from %.2f s, detected at %.2f s (%s), isolated at %.2f s (%s), %.2f deg/h\n",
-                    FaultStatusName(f.status), f.gyro, f.shape.c_str(), f.t_onset_s, f.t_detect_s, f.test.c_str(), f.t_isolate_s,
-                    f.method.c_str(), f.fault_dph);
+                    FaultStatusName(f.status), f.gyro, f.shape.c_str(), f.t_onset_s, f.t_detect_s, f.test.c_str(),
+                    f.t_isolate_s, f.method.c_str(), f.fault_dph);
       s += b;
     }
     s += "  gyros in use " + in_use + "\n";
   }
   s += std::string("  status: ") + FusionStatusName(status);
-  for (const auto& [k, v] : status_s) s += ", " + k + " " + std::to_string(v).substr(0, std::to_string(v).find('.') + 2) + " s";
+  for (const auto& [k, v] : status_s)
+    s += ", " + k + " " + std::to_string(v).substr(0, std::to_string(v).find('.') + 2) + " s";
   s += "\n";
   std::snprintf(b, sizeof b,
                 "  filter: %ld star updates, %ld rejected; processor %.1f ms per frame set (max %.1f), %.2f us per "
@@ -663,8 +670,11 @@ Json MissionResult::ToJson() const {
                   {"mean_matches", x.mean_matches},
                   {"mean_sigma_cross_arcsec", x.mean_sigma_cross_arcsec},
                   {"mean_sigma_roll_arcsec", x.mean_sigma_roll_arcsec},
-                  {"timing_ms", {{"detect_mean", x.detect_ms_mean}, {"identify_mean", x.identify_ms_mean},
-                                 {"total_mean", x.total_ms_mean}, {"total_max", x.total_ms_max}}}});
+                  {"timing_ms",
+                   {{"detect_mean", x.detect_ms_mean},
+                    {"identify_mean", x.identify_ms_mean},
+                    {"total_mean", x.total_ms_mean},
+                    {"total_max", x.total_ms_max}}}});
   }
   Json faults = Json::array();
   for (const auto& f : final_state.faults) faults.push_back(f.ToJson());
@@ -683,9 +693,12 @@ Json MissionResult::ToJson() const {
           {"heads", hs},
           {"star_solution_error", StatsJson(star_only)},
           {"fused_error", fused_json},
-          {"final", {{"t_s", final_state.t_s}, {"q", {q[0], q[1], q[2], q[3]}}, {"sigma_body_arcsec", V3(sigma)},
-                     {"q_truth", {qt[0], qt[1], qt[2], qt[3]}},
-                     {"error_arcsec", AttitudeErrorRad(final_state.q_inertial_from_body, q_truth_final) * kRadToArcsec}}},
+          {"final",
+           {{"t_s", final_state.t_s},
+            {"q", {q[0], q[1], q[2], q[3]}},
+            {"sigma_body_arcsec", V3(sigma)},
+            {"q_truth", {qt[0], qt[1], qt[2], qt[3]}},
+            {"error_arcsec", AttitudeErrorRad(final_state.q_inertial_from_body, q_truth_final) * kRadToArcsec}}},
           {"bias",
            {{"estimate_dph", V3(bias_dph)},
             {"truth_dph", V3(bias_truth_dph)},

@@ -27,7 +27,7 @@ struct MissionConfig {
   MotionProfile motion;            // slew (or sine/static/temperature) and injected gyro faults
   FrameSimOptions frame_sim;       // star-frame noise and artefacts (defect_seed + head index per head)
   UnitProcessorOptions processor;
-  double score_after_s = 10.0;     // attitude errors are scored from this time on (filter settling)
+  double score_after_s = 10.0;  // attitude errors are scored from this time on (filter settling)
   // The mission clock: t = 0 is start_utc (ISO 8601). Frames are rendered with the stars' proper
   // motion and aberration at start + t (frame_sim's time_utc and velocity are replaced) and the
   // processor removes them (SolveOptions::sky). velocity_kms: the spacecraft's velocity relative to
@@ -54,7 +54,7 @@ Json MissionConfigToJson(const MissionConfig& c);
 // The simulated truth and gyro data; frames are rendered on demand (a mission's frames would not fit
 // in memory).
 struct MissionData {
-  GyroSimulation gyro;           // gyro log, true attitude and body bias at each gyro sample
+  GyroSimulation gyro;  // gyro log, true attitude and body bias at each gyro sample
   std::vector<double> frame_t_s;
 };
 MissionData SimulateMission(const MissionConfig& config);
@@ -77,20 +77,20 @@ struct HeadSummary {
 };
 
 struct MissionResult {
-  int frames = 0, frames_solved = 0;   // frame times, and those with a body solution
+  int frames = 0, frames_solved = 0;  // frame times, and those with a body solution
   std::vector<HeadSummary> heads;
-  ErrorStats star_only;                // the per-frame star solutions against the truth
-  ErrorStats fused;                    // the fused attitude at every gyro sample after score_after_s
-  double within_3sigma_fraction = 0;   // of fused per-axis errors at gyro samples after score_after_s
+  ErrorStats star_only;               // the per-frame star solutions against the truth
+  ErrorStats fused;                   // the fused attitude at every gyro sample after score_after_s
+  double within_3sigma_fraction = 0;  // of fused per-axis errors at gyro samples after score_after_s
   // Of per-axis errors at gyro samples after score_after_s: within 3 sigma, or the status not ok
   // (issue 16's measure: wrong only while the unit says so).
   double trustworthy_fraction = 0;
   FusionStatus status = FusionStatus::kOk;  // worst processor status after the first fix
-  std::map<std::string, double> status_s;  // time (s) in each status after the first fix
-  double nees_mean = 0;                // fused attitude NEES (3 dof) at frame times after score_after_s
+  std::map<std::string, double> status_s;   // time (s) in each status after the first fix
+  double nees_mean = 0;                     // fused attitude NEES (3 dof) at frame times after score_after_s
   Vec3 bias_truth_dph = Vec3::Zero(), bias_dph = Vec3::Zero(), bias_sigma_dph = Vec3::Zero();
-  double bias_error_start_dph = 0;     // |estimate - truth| just after the first fix (estimate 0 then)
-  double bias_error_end_dph = 0;       // at the end
+  double bias_error_start_dph = 0;  // |estimate - truth| just after the first fix (estimate 0 then)
+  double bias_error_end_dph = 0;    // at the end
   UnitAttitude final_state;
   Quat q_truth_final = Quat::Identity();  // true body attitude at the gyro sample nearest final_state.t_s
   long updates = 0, rejected = 0;

@@ -26,9 +26,9 @@ struct SceneSimOptions {
   // 1-sigma scatter (mag) of every centroid's flux about 10^(-0.4 mag) (photometric noise, colour
   // terms); drawn from its own random stream, so the positions of a seed do not change with it.
   double flux_noise_mag = 0.0;
-  int false_objects_min = 0;        // false objects: a whole number drawn uniformly in [min, max]
+  int false_objects_min = 0;  // false objects: a whole number drawn uniformly in [min, max]
   int false_objects_max = 0;
-  void Check() const;               // throws InputError naming the field
+  void Check() const;  // throws InputError naming the field
 };
 
 struct SimulatedScene {

@@ -1,10 +1,11 @@
 // Camera self-calibration (CalibrateCamera) on simulated frames with a known camera, and head
 // alignment (AlignHeads) from simultaneous frames of three heads with known mounts.
+#include "attitude/calibrate.h"
+
 #include <cmath>
 #include <cstdio>
 #include <memory>
 
-#include "attitude/calibrate.h"
 #include "core/attitude.h"
 #include "core/catalog.h"
 #include "sim/frame_sim.h"
@@ -27,7 +28,8 @@ std::vector<CalibrationFrame> Frames(const Camera& truth, const std::vector<Quat
   d.gain_e_per_adu = fo.gain_e_per_adu;
   for (size_t i = 0; i < qs.size(); ++i) {
     const SimulatedFrame sf = SimulateFrame(truth, Sky(), qs[i], fo, seed0 + i);
-    frames.push_back({"frame" + std::to_string(i), CentroidsFromDetections(Detect(sf.image.view(), d), so.detector_sigma_scale)});
+    frames.push_back(
+        {"frame" + std::to_string(i), CentroidsFromDetections(Detect(sf.image.view(), d), so.detector_sigma_scale)});
   }
   return frames;
 }
@@ -41,9 +43,9 @@ StarIdentifier IdentifierFor(const Camera& cam, double tol_pct) {
 TEST(Calibrate, TwentySimulatedFramesRecoverTheCameraWithinThreeSigma) {
   Camera truth;
   truth.width = 640, truth.height = 480;
-  truth.focal_length_px = 2100, truth.focal_length_y_px = 1980;  // aspect 0.943
-  truth.cx_px = 331.0, truth.cy_px = 231.5;                      // (11.5, -8) px from the centre
-  truth.distortion.k1 = -0.6;                                    // ~2.5 px at the corners
+  truth.focal_length_px = 2100, truth.focal_length_y_px = 1980;                  // aspect 0.943
+  truth.cx_px = 331.0, truth.cy_px = 231.5;                                      // (11.5, -8) px from the centre
+  truth.distortion.k1 = -0.6;                                                    // ~2.5 px at the corners
   Camera guess = MakeCamera(640, 480, 2 * std::atan(320.0 / 2140) * kRadToDeg);  // square, 2 % long, centred
   std::vector<Quat> qs;
   for (int i = 0; i < 20; ++i) qs.push_back(RandomAttitude(500 + i));
@@ -70,7 +72,8 @@ TEST(Calibrate, TwentySimulatedFramesRecoverTheCameraWithinThreeSigma) {
   // A principal-point error moves every attitude by about its angle (the degeneracy the joint fit
   // resolves only to sigma_cx / fx): the attitudes are right within that.
   const double tol_arcsec =
-      10 + 3 * std::hypot(c.sigma.at("cx_px") / truth.focal_length_px, c.sigma.at("cy_px") / truth.FocalYPx()) * kRadToArcsec;
+      10 + 3 * std::hypot(c.sigma.at("cx_px") / truth.focal_length_px, c.sigma.at("cy_px") / truth.FocalYPx()) *
+               kRadToArcsec;
   for (size_t i = 0; i < c.frames.size(); ++i) {
     if (c.frames[i].status == "solved") {
       EXPECT_THAT(c.frames[i].q_inertial_from_sensor, QuaternionNear(qs[i], tol_arcsec));
@@ -112,7 +115,8 @@ TEST(Calibrate, HeadAlignmentFromSimultaneousFramesWithinThreeSigma) {
     const double nees = err.dot(al.covariance_rad2[h].inverse() * err);
     std::printf("head %d: error %.2f %.2f %.2f arcsec, sigma %.2f %.2f %.2f arcsec, NEES %.2f, %d epochs\n", h,
                 err.x() * kRadToArcsec, err.y() * kRadToArcsec, err.z() * kRadToArcsec,
-                std::sqrt(al.covariance_rad2[h](0, 0)) * kRadToArcsec, std::sqrt(al.covariance_rad2[h](1, 1)) * kRadToArcsec,
+                std::sqrt(al.covariance_rad2[h](0, 0)) * kRadToArcsec,
+                std::sqrt(al.covariance_rad2[h](1, 1)) * kRadToArcsec,
                 std::sqrt(al.covariance_rad2[h](2, 2)) * kRadToArcsec, nees, al.epochs_used[h]);
     EXPECT_GE(al.epochs_used[h], ne - 1);
     for (int a = 0; a < 3; ++a) {

@@ -2,8 +2,8 @@
 // solved when the camera states its aspect, and not (or far off) when it claims square pixels.
 #include <algorithm>
 #include <cmath>
-#include <vector>
 #include <cstdio>
+#include <vector>
 
 #include "attitude/star_solver.h"
 #include "core/attitude.h"
@@ -40,7 +40,8 @@ TEST(PixelAspect, FrameWithTallPixelsSolvedOnlyWithItsAspect) {
       EXPECT_EQ(r.identification.focal_length_y_px, 1755);
     }
     const SolveResult rs = SolveFrame(id, sf.image.view(), square, so);
-    if (rs.status == "solved" && AttitudeErrorRad(rs.attitude.q_inertial_from_sensor, q) * kRadToArcsec < 60) ++square_right;
+    if (rs.status == "solved" && AttitudeErrorRad(rs.attitude.q_inertial_from_sensor, q) * kRadToArcsec < 60)
+      ++square_right;
   }
   std::printf("aspect 2: solved %d of %d with the aspect, %d right with square pixels\n", solved, n, square_right);
   EXPECT_GE(solved, n - 1);
@@ -69,12 +70,14 @@ TEST(PixelAspect, CrossBoresightErrorAcrossAspects) {
       so.identify.systematic_px = 0;
       so.detect.gain_e_per_adu = fo.gain_e_per_adu;
       const SolveResult r = SolveFrame(id, sf.image.view(), cam, so);
-      if (r.status == "solved") cross.push_back(SplitAttitudeError(r.attitude.q_inertial_from_sensor, q).cross_rad * kRadToArcsec);
+      if (r.status == "solved")
+        cross.push_back(SplitAttitudeError(r.attitude.q_inertial_from_sensor, q).cross_rad * kRadToArcsec);
     }
     std::sort(cross.begin(), cross.end());
     ASSERT_FALSE(cross.empty());
     const double median = cross[cross.size() / 2];
-    std::printf("aspect %.1f: solved %zu of %d, median cross-boresight error %.2f arcsec\n", aspect, cross.size(), n, median);
+    std::printf("aspect %.1f: solved %zu of %d, median cross-boresight error %.2f arcsec\n", aspect, cross.size(), n,
+                median);
     EXPECT_GE(static_cast<int>(cross.size()), n - 1);
     EXPECT_LT(median, 1.0);  // the issue-15 acceptance figure (here without aberration)
   }

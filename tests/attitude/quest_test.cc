@@ -73,7 +73,8 @@ TEST(Quest, CovarianceMatchesMonteCarloAndNeesIsConsistent) {
   Mat3 p = Mat3::Identity();
   for (int t = 0; t < kTrials; ++t) {
     auto obs = obs0;
-    for (auto& o : obs) o.b_sensor = (o.b_sensor + o.sigma_rad * Vec3(rng.Normal(), rng.Normal(), rng.Normal())).normalized();
+    for (auto& o : obs)
+      o.b_sensor = (o.b_sensor + o.sigma_rad * Vec3(rng.Normal(), rng.Normal(), rng.Normal())).normalized();
     const AttitudeSolution s = SolveQuest(obs);
     p = s.covariance_rad2;
     const Vec3 e = SensorError(s.q_inertial_from_sensor, q);
@@ -122,14 +123,17 @@ TEST(AttitudeInformation, FreeScaleMatchesNumericalJacobianOfThePinholeModel) {
   const double f = 3000, sigma = 1e-4;
   std::vector<Vec2> px;
   for (int i = 0; i < 6; ++i) px.push_back(Vec2(300 + 80 * rng.Uniform(), -200 + 80 * rng.Uniform()));
-  auto dir = [&](const Vec2& p, double e) { return Vec3(p.x() / (f * (1 + e)), p.y() / (f * (1 + e)), 1).normalized(); };
+  auto dir = [&](const Vec2& p, double e) {
+    return Vec3(p.x() / (f * (1 + e)), p.y() / (f * (1 + e)), 1).normalized();
+  };
   std::vector<WahbaObservation> obs;
   Eigen::Matrix4d info = Eigen::Matrix4d::Zero();
   for (const auto& p : px) {
     obs.push_back({dir(p, 0), dir(p, 0), sigma});
     auto y = [&](const Vec4& x) {
-      const Mat3 r = Eigen::AngleAxisd(x.head<3>().norm(), x.head<3>().norm() > 0 ? Vec3(x.head<3>().normalized()) : Vec3::UnitZ())
-                         .toRotationMatrix();
+      const Mat3 r =
+          Eigen::AngleAxisd(x.head<3>().norm(), x.head<3>().norm() > 0 ? Vec3(x.head<3>().normalized()) : Vec3::UnitZ())
+              .toRotationMatrix();
       return Vec3(dir(p, x[3]) - r.transpose() * dir(p, 0));
     };
     Eigen::Matrix<double, 3, 4> j;
@@ -140,7 +144,8 @@ TEST(AttitudeInformation, FreeScaleMatchesNumericalJacobianOfThePinholeModel) {
     }
     info += j.transpose() * j / (sigma * sigma);
   }
-  const Mat3 want = info.topLeftCorner<3, 3>() - info.topRightCorner<3, 1>() * info.bottomLeftCorner<1, 3>() / info(3, 3);
+  const Mat3 want =
+      info.topLeftCorner<3, 3>() - info.topRightCorner<3, 1>() * info.bottomLeftCorner<1, 3>() / info(3, 3);
   const Mat3 got = AttitudeInformation(obs, true);
   EXPECT_LT((got - want).norm(), 1e-5 * want.norm()) << got << "\n" << want;
   const Mat3 p_free = got.inverse(), p_fixed = AttitudeInformation(obs, false).inverse();

@@ -33,8 +33,8 @@ TEST(RealFrames, OpenStarTrackerWithinTenArcsecOfAstrometryNet) {
   so.identify.fov_tolerance_pct = 1.0;
   const StarIdentifier id = MakeIdentifierForCamera("", cam, so.identify.fov_tolerance_pct);
   const Frame dark = ReadFrame(dark_path);
-  const Published refs[] = {{"img0.png", 181.171161, 16.836005}, {"img2.png", 154.015478, 19.157137},
-                            {"img3.png", 169.985553, 13.750871}};
+  const Published refs[] = {
+      {"img0.png", 181.171161, 16.836005}, {"img2.png", 154.015478, 19.157137}, {"img3.png", 169.985553, 13.750871}};
   for (const auto& ref : refs) {
     SSIU_REQUIRE_SHARED(path, std::string("openstartracker/") + ref.file);
     const Frame fr = SubtractDark(ReadFrame(path), dark);
@@ -72,9 +72,12 @@ TEST(RealFrames, OpenStarTrackerSevenFramesSolveWithDefaultOptions) {
     double limit_arcsec;
   };
   const double none = std::nan("");
-  const Ref refs[] = {{"img0.png", 181.171161, 16.836005, 10}, {"img2.png", 154.015478, 19.157137, 10},
-                      {"img3.png", 169.985553, 13.750871, 10}, {"img4.png", 179.818629, 15.737128, 15},
-                      {"img6.png", 151.964708, 19.151409, 15}, {"img7.png", none, none, 0},
+  const Ref refs[] = {{"img0.png", 181.171161, 16.836005, 10},
+                      {"img2.png", 154.015478, 19.157137, 10},
+                      {"img3.png", 169.985553, 13.750871, 10},
+                      {"img4.png", 179.818629, 15.737128, 15},
+                      {"img6.png", 151.964708, 19.151409, 15},
+                      {"img7.png", none, none, 0},
                       {"img9.png", none, none, 0}};
   for (const auto& ref : refs) {
     SSIU_REQUIRE_SHARED(path, std::string("openstartracker/") + ref.file);
@@ -114,8 +117,10 @@ TEST(RealFrames, Tetra3AllEightSolvedPublishedOnesWithinTenArcsec) {
     ASSERT_EQ(r.status, "solved") << n << ": " << r.message;
     const RaDecRoll a = RaDecRollFromQuat(r.attitude.q_inertial_from_sensor);
     double err = -1;
-    if (std::string(n) == "Alt40_Azi-45") err = SepArcsec(a.ra_rad * kRadToDeg, a.dec_rad * kRadToDeg, 172.3689, 57.6493);
-    if (std::string(n) == "Alt60_Azi-45") err = SepArcsec(a.ra_rad * kRadToDeg, a.dec_rad * kRadToDeg, 212.2123, 64.2002);
+    if (std::string(n) == "Alt40_Azi-45")
+      err = SepArcsec(a.ra_rad * kRadToDeg, a.dec_rad * kRadToDeg, 172.3689, 57.6493);
+    if (std::string(n) == "Alt60_Azi-45")
+      err = SepArcsec(a.ra_rad * kRadToDeg, a.dec_rad * kRadToDeg, 212.2123, 64.2002);
     if (err >= 0) {
       EXPECT_LT(err, 10.0) << n;
     }

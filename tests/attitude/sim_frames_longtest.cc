@@ -20,10 +20,11 @@ TEST(SimulatedFramesLong, ThousandRandomFrames) {
   const testing::CampaignStats st = testing::RunCampaign(1000, 100000);
   const double nees = st.nees_sum / st.nees_n;
   const double half = 1.96 * std::sqrt(6.0 / st.nees_n);
-  std::printf("solved %d/%d, wrong %d, median cross error at 16.6 deg %.3f arcsec (%zu frames), mean NEES %.3f "
-              "(95%% bounds %.3f..%.3f), median identify %.3f ms, p99 %.3f ms (wall)\n",
-              st.solved, st.frames, st.wrong, testing::Median(st.cross_arcsec_166), st.cross_arcsec_166.size(), nees,
-              3 - half, 3 + half, testing::Median(st.solve_ms), P99(st.solve_ms));
+  std::printf(
+      "solved %d/%d, wrong %d, median cross error at 16.6 deg %.3f arcsec (%zu frames), mean NEES %.3f "
+      "(95%% bounds %.3f..%.3f), median identify %.3f ms, p99 %.3f ms (wall)\n",
+      st.solved, st.frames, st.wrong, testing::Median(st.cross_arcsec_166), st.cross_arcsec_166.size(), nees, 3 - half,
+      3 + half, testing::Median(st.solve_ms), P99(st.solve_ms));
   for (const auto& [fov, n] : st.unsolved_by_fov_deg) std::printf("unsolved at %d deg: %d\n", fov, n);
   EXPECT_GE(st.solved, 995);
   EXPECT_EQ(st.wrong, 0);

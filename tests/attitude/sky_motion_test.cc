@@ -5,8 +5,8 @@
 #include <cstdio>
 #include <fstream>
 
-#include "attitude/sim_campaign.h"
 #include "attitude/quest.h"
+#include "attitude/sim_campaign.h"
 #include "core/astrometry.h"
 #include "testing/testing.h"
 
@@ -68,7 +68,8 @@ double CrossNees(const AttitudeSolution& a, const Quat& q_true) {
 // same centroids are used, so their noise cancels.
 Quat ExpectedUncorrected(const StarIdentifier& id, const SolveResult& corrected) {
   std::vector<WahbaObservation> obs;
-  for (const auto& m : corrected.identification.matches) obs.push_back({id.catalog().stars[m.star].unit, m.r_inertial, m.sigma_rad});
+  for (const auto& m : corrected.identification.matches)
+    obs.push_back({id.catalog().stars[m.star].unit, m.r_inertial, m.sigma_rad});
   return SolveQuest(obs).q_inertial_from_sensor.conjugate() * corrected.attitude.q_inertial_from_sensor;
 }
 
@@ -111,9 +112,11 @@ TEST(SkyMotion, TimeAndVelocityGiveIcrsAttitudeAndWithoutThemTheErrorIsTheAberra
     const Vec3 bore = q * Vec3::UnitZ();
     const Vec3 shift = AberrateDirection(bore, corrected.sky.ObserverVelocityMS()) - bore;
     const double uncorrected = SplitAttitudeError(qp, qc).cross_rad * kRadToArcsec;
-    std::printf("frame %d: corrected %.2f arcsec (sigma %.2f), uncorrected %.2f, aberration at the boresight %.2f, "
-                "uncorrected - expected %.3f arcsec\n", i, cross_corrected.back(), rc.attitude.sigma_cross_rad * kRadToArcsec,
-                uncorrected, shift.norm() * kRadToArcsec, AttitudeErrorRad(qp, q_expected) * kRadToArcsec);
+    std::printf(
+        "frame %d: corrected %.2f arcsec (sigma %.2f), uncorrected %.2f, aberration at the boresight %.2f, "
+        "uncorrected - expected %.3f arcsec\n",
+        i, cross_corrected.back(), rc.attitude.sigma_cross_rad * kRadToArcsec, uncorrected, shift.norm() * kRadToArcsec,
+        AttitudeErrorRad(qp, q_expected) * kRadToArcsec);
     EXPECT_LT(AttitudeErrorRad(qp, q_expected) * kRadToArcsec, 0.1);
     EXPECT_NEAR(uncorrected, shift.norm() * kRadToArcsec, 3.0);  // the field's differential aberration, proper motion
     aberration.push_back(shift.norm() * kRadToArcsec);
@@ -173,9 +176,10 @@ TEST(SkyMotion, NonSquarePixelsDistortionProperMotionAndAberrationTogether) {
       const double shift = (AberrateDirection(bore, corrected.sky.ObserverVelocityMS()) - bore).norm() * kRadToArcsec;
       const double uncorrected = SplitAttitudeError(rp.attitude.q_inertial_from_sensor, q).cross_rad * kRadToArcsec;
       const double off_expected = AttitudeErrorRad(rp.attitude.q_inertial_from_sensor, q_expected) * kRadToArcsec;
-      std::printf("aspect %.1f frame %d: %zu stars, corrected %.2f arcsec (NEES %.2f), uncorrected %.2f, aberration at "
-                  "the boresight %.2f, uncorrected - expected %.3f\n",
-                  aspect, i, rc.identification.matches.size(), cross.back(), nees.back(), uncorrected, shift, off_expected);
+      std::printf(
+          "aspect %.1f frame %d: %zu stars, corrected %.2f arcsec (NEES %.2f), uncorrected %.2f, aberration at "
+          "the boresight %.2f, uncorrected - expected %.3f\n",
+          aspect, i, rc.identification.matches.size(), cross.back(), nees.back(), uncorrected, shift, off_expected);
       EXPECT_LT(off_expected, 0.1) << "aspect " << aspect << " frame " << i;
       aberration.push_back(shift);
     }

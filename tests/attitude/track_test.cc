@@ -31,7 +31,8 @@ TEST(Tracker, SlewingSequenceThenLostLockRecovery) {
     const SimulatedFrame sf = SimulateFrame(cam, sky, q, fo, 50 + k);
     DetectOptions dopt = so.detect;
     dopt.gain_e_per_adu = fo.gain_e_per_adu;
-    const SolveResult r = tracker.Update(CentroidsFromDetections(Detect(sf.image.view(), dopt), so.detector_sigma_scale), t);
+    const SolveResult r =
+        tracker.Update(CentroidsFromDetections(Detect(sf.image.view(), dopt), so.detector_sigma_scale), t);
     ASSERT_EQ(r.status, "solved") << "frame " << k << ": " << r.message;
     const char* expected_mode = (k == 0 || k == 10) ? "lost_in_space" : "tracking";
     EXPECT_EQ(r.mode, expected_mode) << "frame " << k << ": " << r.message;

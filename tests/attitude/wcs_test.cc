@@ -82,7 +82,8 @@ TEST(Wcs, SipTermsReproduceTheDistortedCamera) {
   const double arcsec_per_px = kRadToArcsec / 2300;
   double worst = 0, worst_tan = 0;
   auto strip_sip = cards;
-  for (auto it = strip_sip.begin(); it != strip_sip.end();) it = it->first.rfind("A_", 0) == 0 || it->first.rfind("B_", 0) == 0 ? strip_sip.erase(it) : std::next(it);
+  for (auto it = strip_sip.begin(); it != strip_sip.end();)
+    it = it->first.rfind("A_", 0) == 0 || it->first.rfind("B_", 0) == 0 ? strip_sip.erase(it) : std::next(it);
   for (double x = 0; x <= 1023; x += 93) {
     for (double y = 0; y <= 767; y += 69) {
       const Vec3 truth = q * cam.Unproject(Vec2(x, y));

@@ -5,9 +5,9 @@
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 
-#include "plot/plot.h"
 #include "core/json.h"
 #include "core/rng.h"
+#include "plot/plot.h"
 #include "testing/testing.h"
 
 namespace ssiu {
@@ -19,7 +19,9 @@ class AllanCli : public ::testing::Test {
     if (!std::filesystem::exists(testing::SsiuProgram())) GTEST_SKIP() << "the ssiu program is not built";
     dir_ = testing::TempDir("allan");
   }
-  int Ssiu(const std::string& args, std::string* out) { return testing::Run(testing::SsiuProgram() + " allan " + args, out); }
+  int Ssiu(const std::string& args, std::string* out) {
+    return testing::Run(testing::SsiuProgram() + " allan " + args, out);
+  }
   void Write(const std::string& name, const std::string& text) { std::ofstream(dir_ + "/" + name) << text; }
   std::string dir_;
 };
@@ -45,7 +47,8 @@ TEST_F(AllanCli, LogToJsonAndPlot) {
   EXPECT_EQ(j["n"], 60000);
   const size_t k = j["tau_s"].size();
   ASSERT_GT(k, 30u);
-  for (const char* key : {"adev", "adev_lo", "adev_hi", "edf", "noise", "model_adev"}) EXPECT_EQ(j[key].size(), k) << key;
+  for (const char* key : {"adev", "adev_lo", "adev_hi", "edf", "noise", "model_adev"})
+    EXPECT_EQ(j[key].size(), k) << key;
   // ADEV in deg/h: n / sqrt(tau) at the first point.
   EXPECT_NEAR(j["adev"][0].get<double>() / (n_dph / std::sqrt(1 / fs)), 1.0, 0.03);
   const Json& arw = j["terms"]["arw_deg_per_sqrt_h"];
@@ -53,8 +56,8 @@ TEST_F(AllanCli, LogToJsonAndPlot) {
   EXPECT_GT(arw["sigma"].get<double>(), 0.0);
   ASSERT_EQ(arw["tau_range_s"].size(), 2u);
   EXPECT_TRUE(arw["significant"].get<bool>());
-  for (const char* term : {"bias_instability_dph", "rrw_deg_per_h_per_sqrt_h", "quantization_arcsec", "rate_ramp_deg_per_h2",
-                           "bias_instability_floor_dph"}) {
+  for (const char* term : {"bias_instability_dph", "rrw_deg_per_h_per_sqrt_h", "quantization_arcsec",
+                           "rate_ramp_deg_per_h2", "bias_instability_floor_dph"}) {
     EXPECT_TRUE(j["terms"].contains(term)) << term;
   }
   const cv::Mat img = cv::imread(png);
@@ -82,8 +85,8 @@ TEST_F(AllanCli, BadInputExitsOneWithOneLine) {
   EXPECT_THAT(out, ::testing::HasSubstr("--column NAME is required"));
   // Bad flag values: exit 1 naming the flag (a NaN or negative rate used to be ignored in favour of
   // t_s, an infinite one or a negative tau limit stopped the fit with an internal error, exit 2).
-  for (const std::string flag : {"--sample-rate-hz nan", "--sample-rate-hz -5", "--sample-rate-hz inf", "--tau-min-s nan",
-                                 "--tau-min-s -5", "--tau-max-s nan"}) {
+  for (const std::string flag : {"--sample-rate-hz nan", "--sample-rate-hz -5", "--sample-rate-hz inf",
+                                 "--tau-min-s nan", "--tau-min-s -5", "--tau-max-s nan"}) {
     EXPECT_EQ(Ssiu(dir_ + "/few.csv --column g1_dph " + flag + " --json -", &out), 1) << flag << "\n" << out;
     EXPECT_THAT(out, ::testing::HasSubstr(flag.substr(0, flag.find(' ')) + ": must be a finite number >= 0")) << flag;
   }
@@ -145,7 +148,8 @@ TEST(PlotPng, LogLogLineLandsWhereTheAxesSay) {
   }
   EXPECT_TRUE(red);
   // The blue marker at (3, 3).
-  const cv::Vec3b m = img.at<cv::Vec3b>(static_cast<int>(std::lround(f.PixelY(3))), static_cast<int>(std::lround(f.PixelX(3))));
+  const cv::Vec3b m =
+      img.at<cv::Vec3b>(static_cast<int>(std::lround(f.PixelY(3))), static_cast<int>(std::lround(f.PixelX(3))));
   EXPECT_GT(m[0], 200);
   EXPECT_LT(m[2], 80);
   EXPECT_THROW(WritePlotPng(dir + "/no/such/dir/p.png", series, o), std::exception);

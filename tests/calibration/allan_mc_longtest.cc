@@ -78,9 +78,10 @@ TEST(AllanMonteCarlo, BiasInstabilityOfFlickerOverSeeds) {
     sf += f.adev_min / 0.664 / b / runs;
     sig += f.bias_instability.sigma / b / runs;
   }
-  std::printf("B (fit) / truth: mean %.3f, scatter %.3f, mean reported sigma %.3f, within a factor 2: %d/%d; "
-              "floor reading / truth: mean %.3f\n",
-              sb, std::sqrt(sbb - sb * sb), sig, order_ok, runs, sf);
+  std::printf(
+      "B (fit) / truth: mean %.3f, scatter %.3f, mean reported sigma %.3f, within a factor 2: %d/%d; "
+      "floor reading / truth: mean %.3f\n",
+      sb, std::sqrt(sbb - sb * sb), sig, order_ok, runs, sf);
   EXPECT_EQ(order_ok, runs);
 }
 

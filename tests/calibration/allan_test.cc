@@ -2,10 +2,11 @@
 // here with ssiu::Rng (white rate, random-walk rate, flicker as a sum of Gauss-Markov processes,
 // white angle noise, a rate ramp), the statistics of the estimator by Monte Carlo, tabulated
 // chi-squared quantiles, and real FOG curves against datasheet magnitudes.
+#include "calibration/allan.h"
+
 #include <cmath>
 #include <fstream>
 
-#include "calibration/allan.h"
 #include "calibration/allan_io.h"
 #include "core/error.h"
 #include "core/rng.h"
@@ -109,14 +110,16 @@ TEST(OverlappingAvarEdf, MatchesMonteCarloVarianceOfTheEstimator) {
     AllanNoise noise;
     size_t m;
   };
-  for (const Case& k : {Case{AllanNoise::kWhiteRate, 10}, Case{AllanNoise::kWhiteRate, 100},
-                        Case{AllanNoise::kRandomWalkRate, 20}}) {
+  for (const Case& k :
+       {Case{AllanNoise::kWhiteRate, 10}, Case{AllanNoise::kWhiteRate, 100}, Case{AllanNoise::kRandomWalkRate, 20}}) {
     Rng rng(7 + k.m);
     double s1 = 0, s2 = 0;
     for (int run = 0; run < runs; ++run) {
       std::vector<double> r(n, 0.0);
-      if (k.noise == AllanNoise::kWhiteRate) AddWhite(&r, 1.0, 1.0, &rng);
-      else AddRandomWalk(&r, 1.0, 1.0, &rng);
+      if (k.noise == AllanNoise::kWhiteRate)
+        AddWhite(&r, 1.0, 1.0, &rng);
+      else
+        AddRandomWalk(&r, 1.0, 1.0, &rng);
       AllanOptions o;
       // The default grid (10 per decade) holds m = 10, 20 (10^1.3 rounded) and 100.
       const AllanCurve c = OverlappingAllanDeviation(r, 1.0, o);
@@ -130,8 +133,8 @@ TEST(OverlappingAvarEdf, MatchesMonteCarloVarianceOfTheEstimator) {
     const double mean = s1 / runs, var = s2 / runs - mean * mean;
     const double edf_mc = 2 * mean * mean / var;
     const double edf = OverlappingAvarEdf(k.noise, n + 1, static_cast<double>(k.m));
-    EXPECT_NEAR(edf_mc / edf, 1.0, 0.25) << AllanNoiseName(k.noise) << " m=" << k.m << " mc " << edf_mc
-                                         << " formula " << edf;
+    EXPECT_NEAR(edf_mc / edf, 1.0, 0.25) << AllanNoiseName(k.noise) << " m=" << k.m << " mc " << edf_mc << " formula "
+                                         << edf;
   }
 }
 

@@ -50,7 +50,8 @@ TEST_F(FogCli, ThermalFitThenCompensate) {
                  &out),
             0)
       << out;
-  EXPECT_NEAR(ReadJsonFile(dir_ + "/comp.json").at("gain").get<double>(), j.at("holdout").at("gain").get<double>(), 1e-6);
+  EXPECT_NEAR(ReadJsonFile(dir_ + "/comp.json").at("gain").get<double>(), j.at("holdout").at("gain").get<double>(),
+              1e-6);
 }
 
 TEST_F(FogCli, ThermalBadInputExits1WithOneLine) {

@@ -12,9 +12,9 @@ namespace ssiu {
 
 struct ThermalMcSummary {
   int cases = 0;
-  int exact_selection = 0;                 // kept terms == true terms
+  int exact_selection = 0;  // kept terms == true terms
   int kept_coefficients = 0;
-  int within_3sigma = 0;                   // kept coefficients within 3 sigma of truth
+  int within_3sigma = 0;  // kept coefficients within 3 sigma of truth
   double coefficients_within_3sigma_fraction = 0;
   int cases_all_within_3sigma = 0;
   std::string failures;

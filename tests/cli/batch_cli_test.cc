@@ -84,8 +84,8 @@ TEST_F(BatchCli, SolveBatchEqualsSingleSolvesInOrderWithAnErrorRecord) {
     }
     // The independent truth: one `ssiu solve` process per input, its --json.
     const bool centroids = in.size() > 4 && in.substr(in.size() - 4) == ".csv";
-    const Result s = Ssiu("solve " + std::string(centroids ? "--centroids " : "") + in + Cam() + " --json " +
-                          P("one.json"));
+    const Result s =
+        Ssiu("solve " + std::string(centroids ? "--centroids " : "") + in + Cam() + " --json " + P("one.json"));
     ASSERT_EQ(s.status, 0) << s.output;
     const Json one = ReadJsonFile(P("one.json"));
     EXPECT_EQ(one["status"], "solved") << in;
@@ -135,7 +135,8 @@ TEST_F(BatchCli, DetectBatchEqualsSingleDetects) {
   const std::vector<std::string> csv = Lines(P("d.csv"));
   ASSERT_EQ(lines.size(), 3u);
   ASSERT_EQ(csv.size(), 4u);
-  EXPECT_EQ(csv[0], "file,status,width,height,num_stars,num_rejected,background_adu,noise_adu,psf_sigma_px,time_ms,message");
+  EXPECT_EQ(csv[0],
+            "file,status,width,height,num_stars,num_rejected,background_adu,noise_adu,psf_sigma_px,time_ms,message");
   for (size_t i = 0; i < in.size(); ++i) {
     Json rec = Json::parse(lines[i]);
     EXPECT_EQ(rec["file"], in[i]);

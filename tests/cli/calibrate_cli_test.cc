@@ -26,11 +26,12 @@ TEST(CalibrateCli, SwarmFramesFromANominalGuessAllSolve) {
   ASSERT_GE(n, 10);
   const std::string tmp = testing::TempDir("calibrate_cli");
   // 20 mm lens, 8.6 um pixels, one video field: fx = 2326 px, fy about half (rows 2 x 8.6 um apart).
-  std::ofstream(tmp + "/guess.json") << R"({"width": 752, "height": 290, "focal_length_mm": 20, "pixel_pitch_um": 8.6, "focal_length_y_px": 1163})";
+  std::ofstream(tmp + "/guess.json")
+      << R"({"width": 752, "height": 290, "focal_length_mm": 20, "pixel_pitch_um": 8.6, "focal_length_y_px": 1163})";
   const std::string kstars = "/usr/share/kstars/stars.dat";
   const std::string source = std::ifstream(kstars) ? " --source " + kstars : "";
-  const auto r = testing::RunSsiu("calibrate" + frames + " --camera " + tmp + "/guess.json --out " + tmp + "/cam.json --json " +
-                                  tmp + "/report.json" + source);
+  const auto r = testing::RunSsiu("calibrate" + frames + " --camera " + tmp + "/guess.json --out " + tmp +
+                                  "/cam.json --json " + tmp + "/report.json" + source);
   ASSERT_EQ(r.status, 0) << r.output;
   const Json rep = ReadJsonFile(tmp + "/report.json");
   EXPECT_EQ(rep["status"], "calibrated");
@@ -45,16 +46,19 @@ TEST(CalibrateCli, SwarmFramesFromANominalGuessAllSolve) {
   int solved = 0;
   for (const auto& e : std::filesystem::directory_iterator(dir)) {
     if (e.path().extension() != ".png") continue;
-    const auto s = testing::RunSsiu("solve " + e.path().string() + " --camera " + tmp + "/cam.json --json " + tmp + "/s.json");
+    const auto s =
+        testing::RunSsiu("solve " + e.path().string() + " --camera " + tmp + "/cam.json --json " + tmp + "/s.json");
     ASSERT_EQ(s.status, 0) << s.output;
     if (ReadJsonFile(tmp + "/s.json")["status"] == "solved") ++solved;
   }
   EXPECT_EQ(solved, n);
   // With square pixels (the guess without fy) `ssiu solve` solves none of them.
-  std::ofstream(tmp + "/square.json") << R"({"width": 752, "height": 290, "focal_length_mm": 20, "pixel_pitch_um": 8.6})";
+  std::ofstream(tmp + "/square.json")
+      << R"({"width": 752, "height": 290, "focal_length_mm": 20, "pixel_pitch_um": 8.6})";
   for (const auto& e : std::filesystem::directory_iterator(dir)) {
     if (e.path().extension() != ".png") continue;
-    const auto s = testing::RunSsiu("solve " + e.path().string() + " --camera " + tmp + "/square.json --json " + tmp + "/s.json");
+    const auto s =
+        testing::RunSsiu("solve " + e.path().string() + " --camera " + tmp + "/square.json --json " + tmp + "/s.json");
     EXPECT_NE(ReadJsonFile(tmp + "/s.json")["status"], "solved") << e.path();
     break;  // one is enough (an unsolvable frame searches its whole hypothesis budget)
   }
@@ -86,10 +90,11 @@ TEST(CalibrateCli, HeadsWritesAlignedHeadsJson) {
     }
   }
   const auto q1 = ToWxyz(nominal1);
-  WriteJsonFile(tmp + "/heads.json", Json::array({{{"camera", CameraToJson(cam)}, {"q_body_sensor", {1, 0, 0, 0}}},
-                                                  {{"camera", CameraToJson(cam)}, {"q_body_sensor", {q1[0], q1[1], q1[2], q1[3]}}}}));
-  const auto r = testing::RunSsiu("calibrate" + frames + " --heads " + tmp + "/heads.json --out " + tmp + "/new.json --json " +
-                                  tmp + "/rep.json --catalog " + tmp + "/cat --systematic-px 0");
+  WriteJsonFile(tmp + "/heads.json",
+                Json::array({{{"camera", CameraToJson(cam)}, {"q_body_sensor", {1, 0, 0, 0}}},
+                             {{"camera", CameraToJson(cam)}, {"q_body_sensor", {q1[0], q1[1], q1[2], q1[3]}}}}));
+  const auto r = testing::RunSsiu("calibrate" + frames + " --heads " + tmp + "/heads.json --out " + tmp +
+                                  "/new.json --json " + tmp + "/rep.json --catalog " + tmp + "/cat --systematic-px 0");
   ASSERT_EQ(r.status, 0) << r.output;
   const Json out = ReadJsonFile(tmp + "/new.json"), rep = ReadJsonFile(tmp + "/rep.json");
   ASSERT_EQ(out.size(), 2u);
@@ -131,7 +136,8 @@ TEST(CalibrateCli, BadInputNamesTheFlagOrFile) {
   auto r = testing::RunSsiu("calibrate " + tmp + "/none.png --out " + tmp + "/cam.json");
   EXPECT_EQ(r.status, 1);
   EXPECT_THAT(r.output, ::testing::HasSubstr("--camera"));
-  std::ofstream(tmp + "/bad.json") << R"({"width": 752, "height": 290, "focal_length_px": 2325, "focal_length_y_px": -3})";
+  std::ofstream(tmp + "/bad.json")
+      << R"({"width": 752, "height": 290, "focal_length_px": 2325, "focal_length_y_px": -3})";
   r = testing::RunSsiu("calibrate " + tmp + "/none.png --camera " + tmp + "/bad.json --out " + tmp + "/cam.json");
   EXPECT_EQ(r.status, 1);
   EXPECT_THAT(r.output, ::testing::HasSubstr("focal_length_y_px"));

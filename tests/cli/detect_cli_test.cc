@@ -57,8 +57,8 @@ TEST_F(CliTest, SimulateThenDetectFollowsTheJsonContract) {
   for (const auto& a : truth["artefacts"]) hot += a["type"] == "hot_pixel";
   EXPECT_EQ(hot, 40);
 
-  const Result det = Ssiu("detect " + Path("sim/frame_0000.png") + " --camera " + Path("sim/camera.json") +
-                          " --json " + Path("det.json"));
+  const Result det = Ssiu("detect " + Path("sim/frame_0000.png") + " --camera " + Path("sim/camera.json") + " --json " +
+                          Path("det.json"));
   ASSERT_EQ(det.status, 0) << det.output;
   const Json d = ReadJsonFile(Path("det.json"));
   for (const char* k : {"file", "width", "height", "background_adu", "noise_adu", "stars", "rejected", "timing_ms"}) {

@@ -77,14 +77,17 @@ TEST_F(FovRangeCli, BadRangesAreUsageErrors) {
   EXPECT_THAT(both.output, ::testing::HasSubstr("not both"));
   // fy without fx in an unknown-FOV camera.json names the field.
   std::ofstream(Path("fy.json")) << R"({"width": 1024, "height": 768, "focal_length_y_px": 3000})";
-  const Result fy = Ssiu("solve --centroids " + Path("c.csv") + " --camera " + Path("fy.json") + " --fov-range-deg 8,25" + Common());
+  const Result fy =
+      Ssiu("solve --centroids " + Path("c.csv") + " --camera " + Path("fy.json") + " --fov-range-deg 8,25" + Common());
   EXPECT_EQ(fy.status, 1);
   EXPECT_THAT(fy.output, ::testing::HasSubstr("focal_length_y_px"));
 }
 
 // A catalog built for another range is refused, naming both (the issue 16 integrity rule).
 TEST_F(FovRangeCli, CatalogOfAnotherRangeIsRefused) {
-  ASSERT_EQ(Ssiu("catalog build --fov-deg 25 --fov-min-deg 8 --source " + DefaultBscPath() + " --out " + Path("cat2")).status, 0);
+  ASSERT_EQ(
+      Ssiu("catalog build --fov-deg 25 --fov-min-deg 8 --source " + DefaultBscPath() + " --out " + Path("cat2")).status,
+      0);
   std::ofstream(Path("c.csv")) << "x_px,y_px\n1,2\n3,4\n5,6\n7,8\n";
   const Result r = Ssiu("solve --centroids " + Path("c.csv") + " --camera " + Path("nofocal.json") +
                         " --fov-range-deg 4,25 --catalog " + Path("cat2"));

@@ -13,7 +13,8 @@ using ::testing::HasSubstr;
 TEST(FuseCli, UnitWithFewerGyrosThanTheLogIsRefused) {
   // A 3-gyro unit on a four-FOG log used to fuse g1..g3 and drop g4 without a word.
   const std::string d = testing::TempDir("fuse_cli_unit");
-  std::ofstream(d + "/u3.json") << R"({"rate_hz": 100, "gyros": [{"axis": [1,0,0]}, {"axis": [0,1,0]}, {"axis": [0,0,1]}]})";
+  std::ofstream(d + "/u3.json")
+      << R"({"rate_hz": 100, "gyros": [{"axis": [1,0,0]}, {"axis": [0,1,0]}, {"axis": [0,0,1]}]})";
   std::ofstream(d + "/g4.csv") << "t_s,g1_dph,g2_dph,g3_dph,g4_dph\n0.01,1,2,3,4\n0.02,1,2,3,4\n0.03,1,2,3,4\n";
   std::ofstream(d + "/g3.csv") << "t_s,g1_dph,g2_dph,g3_dph,temp_c\n0.01,1,2,3,20\n0.02,1,2,3,20\n0.03,1,2,3,20\n";
   std::ofstream(d + "/st.csv") << "t_s,qw,qx,qy,qz\n0,1,0,0,0\n0.02,1,0,0,0\n";
@@ -26,7 +27,8 @@ TEST(FuseCli, UnitWithFewerGyrosThanTheLogIsRefused) {
   r = testing::RunSsiu(fuse + d + "/g3.csv");
   EXPECT_EQ(r.status, 0) << r.output;
   // And the four-FOG unit on a 3-column log names the count too.
-  std::ofstream(d + "/u4.json") << R"({"gyros": [{"axis": [1,0,0]}, {"axis": [0,1,0]}, {"axis": [0,0,1]}, {"axis": [1,1,1]}]})";
+  std::ofstream(d + "/u4.json")
+      << R"({"gyros": [{"axis": [1,0,0]}, {"axis": [0,1,0]}, {"axis": [0,0,1]}, {"axis": [1,1,1]}]})";
   r = testing::RunSsiu("fuse --st " + d + "/st.csv --unit " + d + "/u4.json --gyro " + d + "/g3.csv");
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_THAT(r.output, HasSubstr("for 3 gyros but " + d + "/u4.json describes 4"));

@@ -26,12 +26,13 @@ void WriteDeclaredPng(const std::string& path, uint32_t w, uint32_t h, size_t id
   Put32(&b, w);
   Put32(&b, h);
   for (uint8_t v : {8, 0, 0, 0, 0}) b.push_back(v);  // depth 8, grey, deflate, no filter, no interlace
-  Put32(&b, 0);                                       // CRC (not checked before the size)
+  Put32(&b, 0);                                      // CRC (not checked before the size)
   Put32(&b, static_cast<uint32_t>(idat_bytes));
   for (char c : std::string("IDAT")) b.push_back(static_cast<uint8_t>(c));
   b.resize(b.size() + idat_bytes, 0);
   Put32(&b, 0);
-  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+  std::ofstream(path, std::ios::binary)
+      .write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
 }
 
 TEST(LimitsCli, ImageDeclaringTooManyPixelsIsRefusedBeforeAllocation) {

@@ -21,16 +21,18 @@ class RunCli : public ::testing::Test {
   std::string dir_;
 };
 
-const char* kHead = R"({"camera": {"width": 384, "height": 384, "focal_length_px": 1316}, "q_body_sensor": [1, 0, 0, 0]})";
+const char* kHead =
+    R"({"camera": {"width": 384, "height": 384, "focal_length_px": 1316}, "q_body_sensor": [1, 0, 0, 0]})";
 
 std::string Config(const std::string& fields) {
-  return R"({"comment": "tiny mission for the CLI test", "seed": 2, "heads": [)" + std::string(kHead) + "]" + fields + "}";
+  return R"({"comment": "tiny mission for the CLI test", "seed": 2, "heads": [)" + std::string(kHead) + "]" + fields +
+         "}";
 }
 
 TEST_F(RunCli, TinyMissionWritesTheFigures) {
   Write("ssiu.json", Config(R"(, "duration_s": 20, "frame_rate_hz": 0.5, "score_after_s": 5)"));
-  const auto r = testing::RunSsiu("run --config " + Path("ssiu.json") + " --json " + Path("out.json") + " --out " +
-                                  Path("out"));
+  const auto r =
+      testing::RunSsiu("run --config " + Path("ssiu.json") + " --json " + Path("out.json") + " --out " + Path("out"));
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_THAT(r.output, HasSubstr("head 1: 11/11 frames solved"));
   const Json j = ReadJsonFile(Path("out.json"));
@@ -73,7 +75,8 @@ TEST_F(RunCli, PrintConfigWritesTheBuiltInDefault) {
 
 // examples/ssiu_mission.json is the built-in default written out (kept in step with the code).
 TEST_F(RunCli, ExampleConfigIsTheBuiltInDefault) {
-  const auto ex = testing::RunSsiu("run --print-config --config " + testing::SourceDir() + "/examples/ssiu_mission.json");
+  const auto ex =
+      testing::RunSsiu("run --print-config --config " + testing::SourceDir() + "/examples/ssiu_mission.json");
   ASSERT_EQ(ex.status, 0) << ex.output;
   const auto def = testing::RunSsiu("run --print-config");
   ASSERT_EQ(def.status, 0) << def.output;
@@ -95,9 +98,11 @@ TEST_F(RunCli, BadConfigExitsOneWithOneLineNamingFileAndField) {
        R"({"duration_s": 20, "frame_rate_hz": 1, "seed": 1, "heads": [)" + std::string(kHead) + "," + kHead + "," +
            kHead + "," + kHead + "]}",
        "heads"},
-      {"camera.json", R"({"duration_s": 20, "frame_rate_hz": 1, "seed": 1, "heads": [{"camera": {"width": 384}, "q_body_sensor": [1, 0, 0, 0]}]})",
+      {"camera.json",
+       R"({"duration_s": 20, "frame_rate_hz": 1, "seed": 1, "heads": [{"camera": {"width": 384}, "q_body_sensor": [1, 0, 0, 0]}]})",
        "height"},
-      {"quat.json", R"({"duration_s": 20, "frame_rate_hz": 1, "seed": 1, "heads": [{"camera": {"width": 384, "height": 384, "focal_length_px": 1316}, "q_body_sensor": [0, 0, 0, 0]}]})",
+      {"quat.json",
+       R"({"duration_s": 20, "frame_rate_hz": 1, "seed": 1, "heads": [{"camera": {"width": 384, "height": 384, "focal_length_px": 1316}, "q_body_sensor": [0, 0, 0, 0]}]})",
        "q_body_sensor"},
       {"notjson.json", "{\"duration_s\": 20,", "not valid JSON"},
       // Used to fail after the header line, naming the frame simulator's rate_x_dps.

@@ -49,7 +49,8 @@ TEST_F(SkyCli, SolveWithTimeAndVelocityIsIcrsAndWithoutIsOffByTheAberration) {
   ASSERT_EQ(sim_->status, 0) << sim_->output;
   const Json truth = ReadJsonFile(Path("f/frame_0000.json"));
   EXPECT_EQ(truth["options"]["time_utc"], kTime);
-  const Result rc = Ssiu(Solve("f/frame_0000.png", "--time " + std::string(kTime) + " --velocity-kms 5,-5,2", "c.json"));
+  const Result rc =
+      Ssiu(Solve("f/frame_0000.png", "--time " + std::string(kTime) + " --velocity-kms 5,-5,2", "c.json"));
   ASSERT_EQ(rc.status, 0) << rc.output;
   const Json c = ReadJsonFile(Path("c.json"));
   ASSERT_EQ(c["status"], "solved");
@@ -96,9 +97,9 @@ TEST_F(SkyCli, FitsDateObsGivesTheTimeAndTrackAddsTheFrameInterval) {
   const Json truth = ReadJsonFile(Path("f/frame_0000.json"));
   EXPECT_LT(SplitAttitudeError(QuatOf(j["q"]), QuatOf(truth["q"])).cross_rad * kRadToArcsec, 2.0);
 
-  const Result t = Ssiu("track " + Path("f/frame_0000.png") + " " + Path("f/frame_0001.png") + " --camera " +
-                        Path("f/camera.json") + " --catalog " + Path("cat") + " --dt-s 2.5 --time " + kTime +
-                        " --json " + Path("t.json"));
+  const Result t =
+      Ssiu("track " + Path("f/frame_0000.png") + " " + Path("f/frame_0001.png") + " --camera " + Path("f/camera.json") +
+           " --catalog " + Path("cat") + " --dt-s 2.5 --time " + kTime + " --json " + Path("t.json"));
   ASSERT_EQ(t.status, 0) << t.output;
   const Json tj = ReadJsonFile(Path("t.json"));
   ASSERT_EQ(tj.size(), 2u);
@@ -108,13 +109,14 @@ TEST_F(SkyCli, FitsDateObsGivesTheTimeAndTrackAddsTheFrameInterval) {
 
 TEST_F(SkyCli, BadTimeOrVelocityIsAOneLineError) {
   ASSERT_EQ(sim_->status, 0) << sim_->output;
-  for (const std::string& bad : {std::string("--time 2030-13-01"), std::string("--time soon"),
-                                 std::string("--velocity-kms 1,2,3"),  // no time
-                                 std::string("--time 2030-01-05 --velocity-kms 1,2"),
-                                 std::string("--time 2030-01-05 --velocity-kms 500,0,0")}) {
+  for (const std::string& bad :
+       {std::string("--time 2030-13-01"), std::string("--time soon"),
+        std::string("--velocity-kms 1,2,3"),  // no time
+        std::string("--time 2030-01-05 --velocity-kms 1,2"), std::string("--time 2030-01-05 --velocity-kms 500,0,0")}) {
     const Result r = Ssiu(Solve("f/frame_0000.png", bad, "bad.json"));
     EXPECT_EQ(r.status, 1) << bad << ": " << r.output;
-    EXPECT_THAT(r.output, ::testing::AnyOf(::testing::HasSubstr("--time"), ::testing::HasSubstr("--velocity-kms"))) << bad;
+    EXPECT_THAT(r.output, ::testing::AnyOf(::testing::HasSubstr("--time"), ::testing::HasSubstr("--velocity-kms")))
+        << bad;
     EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
   }
   const Result s = Ssiu("simulate frame --random --time 2030-02-30 --out " + Path("bad_sim"));

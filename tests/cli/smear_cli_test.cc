@@ -40,7 +40,8 @@ Recall Score(const Json& truth, const Json& det) {
     }
     ++r.truth;
     double best = 1e9;
-    for (const auto& d : det["stars"]) best = std::min(best, std::hypot(d["x_px"].get<double>() - x, d["y_px"].get<double>() - y));
+    for (const auto& d : det["stars"])
+      best = std::min(best, std::hypot(d["x_px"].get<double>() - x, d["y_px"].get<double>() - y));
     if (best < 2.0) {
       ++r.found;
       sum2 += best * best;
@@ -126,15 +127,15 @@ TEST_F(SmearCli, SolveWithTheRateHasASmallerAttitudeError) {
 TEST_F(SmearCli, TrackWithTheRateFollowsASmearedSequence) {
   // Three frames 0.2 deg apart, each smeared by the same rate; the first is the suite's frame.
   for (int k = 1; k < 3; ++k) {
-    ASSERT_EQ(Ssiu("simulate frame --ra-deg " + std::to_string(83.8 + 0.2 * k) +
-                   " --dec-deg -5.4 --roll-deg 10 --seed " + std::to_string(4 + k) + " " + kSimRate + " --out " +
-                   Path("t" + std::to_string(k)))
-                  .status,
-              0);
+    ASSERT_EQ(
+        Ssiu("simulate frame --ra-deg " + std::to_string(83.8 + 0.2 * k) + " --dec-deg -5.4 --roll-deg 10 --seed " +
+             std::to_string(4 + k) + " " + kSimRate + " --out " + Path("t" + std::to_string(k)))
+            .status,
+        0);
   }
   const std::string frames = Frame() + " " + Path("t1/frame_0000.png") + " " + Path("t2/frame_0000.png");
-  const Result r = Ssiu("track " + frames + Camera() + " --catalog " + Path("cat") + kRateFlags + " --json " +
-                        Path("t.json"));
+  const Result r =
+      Ssiu("track " + frames + Camera() + " --catalog " + Path("cat") + kRateFlags + " --json " + Path("t.json"));
   ASSERT_EQ(r.status, 0) << r.output;
   const Json t = ReadJsonFile(Path("t.json"));
   ASSERT_EQ(t.size(), 3u);
@@ -191,9 +192,11 @@ TEST_F(SmearCli, BadRateFlagsExitOneWithOneLine) {
   ExpectBadInput(det + Camera() + " --rate-dps nan,0,0 --exposure-s 0.1", "--rate-dps: 'nan' is not a finite");
   ExpectBadInput(det + Camera() + " --rate-dps 1,inf,0 --exposure-s 0.1", "--rate-dps: 'inf' is not a finite");
   ExpectBadInput(det + Camera() + " --rate-dps 0x10,0,0 --exposure-s 0.1", "'0x10' is not a finite decimal");
-  ExpectBadInput(det + Camera() + " --rate-dps 2,0.5 --exposure-s 0.1", "--rate-dps: needs three components X,Y,Z (deg/s), got 2");
+  ExpectBadInput(det + Camera() + " --rate-dps 2,0.5 --exposure-s 0.1",
+                 "--rate-dps: needs three components X,Y,Z (deg/s), got 2");
   ExpectBadInput(det + Camera() + " --rate-dps 2,0.5,0, --exposure-s 0.1", "--rate-dps: an empty component");
-  ExpectBadInput(det + Camera() + " --rate-dps 2,0.5,0 --exposure-s -0.1", "--exposure-s: must be a finite number in (0, 100)");
+  ExpectBadInput(det + Camera() + " --rate-dps 2,0.5,0 --exposure-s -0.1",
+                 "--exposure-s: must be a finite number in (0, 100)");
   ExpectBadInput(det + Camera() + " --rate-dps 2,0.5,0 --exposure-s nan", "--exposure-s: must be a finite number");
   ExpectBadInput(det + " --rate-dps 2,0.5,0 --exposure-s 0.1", "--rate-dps: needs --camera");
   ExpectBadInput(det + Camera() + " --rate-dps 2,0.5,0", "--exposure-s: required with --rate-dps");

@@ -71,9 +71,9 @@ TEST_F(SolveCli, PhotometricFactorAndNoPhotometry) {
 
 TEST_F(SolveCli, SolveFrameMatchesTruthAndWritesOverlayAndWcs) {
   ASSERT_EQ(Ssiu("simulate frame --random --seed 77 --out " + Path("f")).status, 0);
-  const Result r = Ssiu("solve " + Path("f/frame_0000.png") + " --camera " + Path("f/camera.json") + " --catalog " +
-                        Path("cat") + " --json " + Path("s.json") + " --overlay " + Path("o.png") + " --wcs " +
-                        Path("s.wcs"));
+  const Result r =
+      Ssiu("solve " + Path("f/frame_0000.png") + " --camera " + Path("f/camera.json") + " --catalog " + Path("cat") +
+           " --json " + Path("s.json") + " --overlay " + Path("o.png") + " --wcs " + Path("s.wcs"));
   ASSERT_EQ(r.status, 0) << r.output;
   const Json s = ReadJsonFile(Path("s.json"));
   for (const char* k : {"status", "q", "ra_deg", "dec_deg", "roll_deg", "sigma_cross_arcsec", "sigma_roll_arcsec",
@@ -87,7 +87,8 @@ TEST_F(SolveCli, SolveFrameMatchesTruthAndWritesOverlayAndWcs) {
   EXPECT_LT(std::abs(e.roll_rad) * kRadToArcsec, 60.0);
   EXPECT_GE(s["q"][0].get<double>(), 0.0);  // w >= 0
   ASSERT_GT(s["matches"].size(), 10u);
-  for (const char* k : {"x_px", "y_px", "star_id", "mag", "residual_arcsec"}) EXPECT_TRUE(s["matches"][0].contains(k)) << k;
+  for (const char* k : {"x_px", "y_px", "star_id", "mag", "residual_arcsec"})
+    EXPECT_TRUE(s["matches"][0].contains(k)) << k;
   // Every matched id is a star the simulator drew.
   std::set<int> drawn;
   for (const auto& t : truth["stars"]) drawn.insert(t["star_id"].get<int>());
@@ -120,7 +121,8 @@ TEST_F(SolveCli, SolveFromCentroidsCsvAndNoiseGivesNoSolution) {
     std::ofstream csv(Path("c.csv"));
     csv << "x_px,y_px,flux\n";
     for (const auto& t : truth["stars"]) {
-      if (t["mag"].get<double>() < 6.5) csv << t["x_px"].get<double>() << "," << t["y_px"].get<double>() << "," << t["flux_adu"].get<double>() << "\n";
+      if (t["mag"].get<double>() < 6.5)
+        csv << t["x_px"].get<double>() << "," << t["y_px"].get<double>() << "," << t["flux_adu"].get<double>() << "\n";
     }
   }
   Result r = Ssiu("solve --centroids " + Path("c.csv") + " --camera " + Path("g/camera.json") + " --catalog " +
@@ -131,7 +133,9 @@ TEST_F(SolveCli, SolveFromCentroidsCsvAndNoiseGivesNoSolution) {
   EXPECT_LT(AttitudeErrorRad(QuatOf(s["q"]), QuatOf(truth["q"])) * kRadToArcsec, 60.0);
 
   // Pure noise (no stars, no artefacts): never solved.
-  ASSERT_EQ(Ssiu("simulate frame --random --seed 79 --mag-max -5 --hot-pixels 0 --cosmic-rays 0 --out " + Path("n")).status, 0);
+  ASSERT_EQ(
+      Ssiu("simulate frame --random --seed 79 --mag-max -5 --hot-pixels 0 --cosmic-rays 0 --out " + Path("n")).status,
+      0);
   r = Ssiu("solve " + Path("n/frame_0000.png") + " --camera " + Path("n/camera.json") + " --catalog " + Path("cat") +
            " --json " + Path("n.json"));
   ASSERT_EQ(r.status, 0) << r.output;
@@ -152,12 +156,14 @@ TEST_F(SolveCli, TrackFollowsASlewAfterALostInSpaceStart) {
   // Three frames 0.2 deg apart along RA: lost in space first, then tracking.
   for (int k = 0; k < 3; ++k) {
     const std::string out = Path("t" + std::to_string(k));
-    ASSERT_EQ(Ssiu("simulate frame --ra-deg " + std::to_string(150.0 + 0.2 * k) + " --dec-deg 20 --roll-deg 30 --seed " +
-                   std::to_string(90 + k) + " --out " + out).status, 0);
+    ASSERT_EQ(Ssiu("simulate frame --ra-deg " + std::to_string(150.0 + 0.2 * k) +
+                   " --dec-deg 20 --roll-deg 30 --seed " + std::to_string(90 + k) + " --out " + out)
+                  .status,
+              0);
   }
-  const Result r = Ssiu("track " + Path("t0/frame_0000.png") + " " + Path("t1/frame_0000.png") + " " +
-                        Path("t2/frame_0000.png") + " --camera " + Path("t0/camera.json") + " --catalog " +
-                        Path("cat") + " --json " + Path("t.json"));
+  const Result r =
+      Ssiu("track " + Path("t0/frame_0000.png") + " " + Path("t1/frame_0000.png") + " " + Path("t2/frame_0000.png") +
+           " --camera " + Path("t0/camera.json") + " --catalog " + Path("cat") + " --json " + Path("t.json"));
   ASSERT_EQ(r.status, 0) << r.output;
   const Json t = ReadJsonFile(Path("t.json"));
   const Json frames = t.is_array() ? t : t["frames"];

@@ -31,9 +31,9 @@ class SolveHeadsCli : public ::testing::Test {
                                   const std::string& extra = "") {
     const RaDecRoll a = RaDecRollFromQuat(q_body * mount);
     char args[512];
-    std::snprintf(args, sizeof args, "simulate frame --ra-deg %.10f --dec-deg %.10f --roll-deg %.10f --seed %d %s --out %s",
-                  a.ra_rad * kRadToDeg, a.dec_rad * kRadToDeg, a.roll_rad * kRadToDeg, seed, extra.c_str(),
-                  Path(name).c_str());
+    std::snprintf(
+        args, sizeof args, "simulate frame --ra-deg %.10f --dec-deg %.10f --roll-deg %.10f --seed %d %s --out %s",
+        a.ra_rad * kRadToDeg, a.dec_rad * kRadToDeg, a.roll_rad * kRadToDeg, seed, extra.c_str(), Path(name).c_str());
     const Result r = Ssiu(args);
     EXPECT_EQ(r.status, 0) << r.output;
     return Path(name + "/frame_0000.png");
@@ -132,7 +132,8 @@ TEST_F(SolveHeadsCli, BadHeadsFilesAreOneLineErrors) {
   Json four = Json::array();
   for (int i = 0; i < 4; ++i) four.push_back({{"camera", cam}, {"q_body_sensor", {1, 0, 0, 0}}});
   WriteJsonFile(Path("four.json"), four);
-  r = Ssiu("solve --heads " + Path("four.json") + " " + f0 + " " + f0 + " " + f0 + " " + f0 + " --catalog " + Path("cat"));
+  r = Ssiu("solve --heads " + Path("four.json") + " " + f0 + " " + f0 + " " + f0 + " " + f0 + " --catalog " +
+           Path("cat"));
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_THAT(r.output, ::testing::HasSubstr("four.json"));
 }

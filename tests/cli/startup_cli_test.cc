@@ -2,9 +2,8 @@
 // module libssiu_opencv.so (core/opencv_edge.h), and libtiff only for a TIFF (core/lazy_library.h); the
 // common path (--help, detect, solve of a PNG) loads none of them, and a solve with --overlay loads the
 // module and OpenCV and writes an overlay.
-#include <opencv2/imgcodecs.hpp>
-
 #include <filesystem>
+#include <opencv2/imgcodecs.hpp>
 
 #include "testing/testing.h"
 
@@ -34,7 +33,8 @@ TEST(StartupCli, CommonPathLoadsNoOpenCvAndAnOverlayLoadsItOnUse) {
   out = LoadedBy("detect " + d + "/f/frame_0000.png --camera " + d + "/f/camera.json --json " + d + "/d.json", &status);
   EXPECT_EQ(status, 0) << out;
   EXPECT_THAT(out, Not(HasSubstr("libopencv")));
-  const std::string solve = "solve " + d + "/f/frame_0000.png --camera " + d + "/f/camera.json --catalog " + d + "/cat --json " + d + "/s.json";
+  const std::string solve = "solve " + d + "/f/frame_0000.png --camera " + d + "/f/camera.json --catalog " + d +
+                            "/cat --json " + d + "/s.json";
   out = LoadedBy(solve, &status);
   EXPECT_EQ(status, 0) << out;
   EXPECT_THAT(out, Not(HasSubstr("libopencv")));

@@ -53,13 +53,15 @@ TEST_F(StrictInputsCli, CameraJsonMisspeltDuplicateAndWrongTypeKeys) {
 
 TEST_F(StrictInputsCli, HeadsJsonMisspeltAndDuplicateKeys) {
   // Refused while the heads file is read: before any catalog or frame is touched.
-  const std::string a = Write("heads.json", std::string(R"([{"camera": {)") + kCam + R"(}, "q_body_sensr": [1, 0, 0, 0]}])");
-  ExpectRefused("solve f1.png --heads " + a, "heads.json", {"unknown key 'q_body_sensr'", "did you mean 'q_body_sensor'?"});
+  const std::string a =
+      Write("heads.json", std::string(R"([{"camera": {)") + kCam + R"(}, "q_body_sensr": [1, 0, 0, 0]}])");
+  ExpectRefused("solve f1.png --heads " + a, "heads.json",
+                {"unknown key 'q_body_sensr'", "did you mean 'q_body_sensor'?"});
   const std::string b = Write("heads_cam.json", std::string(R"([{"camera": {)") + kCam +
                                                     R"(, "principal_piont": [1, 2]}, "q_body_sensor": [1, 0, 0, 0]}])");
   ExpectRefused("solve f1.png --heads " + b, "heads_cam.json", {"camera", "unknown key 'principal_piont'"});
-  const std::string c = Write("heads_dup.json", std::string(R"([{"camera": {)") + kCam +
-                                                    R"(}, "q_body_sensor": [1, 0, 0, 0], "camera": {}}])");
+  const std::string c = Write(
+      "heads_dup.json", std::string(R"([{"camera": {)") + kCam + R"(}, "q_body_sensor": [1, 0, 0, 0], "camera": {}}])");
   ExpectRefused("solve f1.png --heads " + c, "heads_dup.json", {"duplicate key 'camera'"});
 }
 
@@ -70,8 +72,10 @@ TEST_F(StrictInputsCli, UnitJsonAndGyroFaultProfile) {
   ExpectRefused("simulate gyro --unit " + u + out, "unit.json", {"gyro 1", "unknown key 'bias_dhp'", "'bias_dph'"});
   const std::string ud = Write("unit_dup.json", R"({"rate_hz": 100, "rate_hz": 200, "gyros": []})");
   ExpectRefused("simulate gyro --unit " + ud + out, "unit_dup.json", {"duplicate key 'rate_hz'"});
-  const std::string p = Write("profile.json", R"({"type": "static", "faults": [{"gyro": 2, "t_s": 1, "stp_dph": 50}]})");
-  ExpectRefused("simulate gyro --profile " + p + out, "profile.json", {"faults", "unknown key 'stp_dph'", "'step_dph'"});
+  const std::string p =
+      Write("profile.json", R"({"type": "static", "faults": [{"gyro": 2, "t_s": 1, "stp_dph": 50}]})");
+  ExpectRefused("simulate gyro --profile " + p + out, "profile.json",
+                {"faults", "unknown key 'stp_dph'", "'step_dph'"});
   const std::string pt = Write("profile_t.json", R"({"type": "static", "faults": [{"gyro": "2", "t_s": 1}]})");
   ExpectRefused("simulate gyro --profile " + pt + out, "profile_t.json", {"'gyro'", "is not a number"});
   const std::string pg = Write("profile_g.json", R"({"type": "static", "faults": [{"gyro": 4294967298, "t_s": 1}]})");

@@ -73,8 +73,9 @@ TEST(EarthVelocity, MatchesThePublishedSofaValue) {
 Vec3 AlmanacSunAu(double jd_tt) {
   const double n = jd_tt - 2451545.0;
   const double g = (357.528 + 0.9856003 * n) * kDegToRad;
-  const double lambda = (280.460 + 0.9856474 * n + 1.915 * std::sin(g) + 0.020 * std::sin(2 * g) -
-                         5029.1 / 3600.0 * n / 36525.0) * kDegToRad;
+  const double lambda =
+      (280.460 + 0.9856474 * n + 1.915 * std::sin(g) + 0.020 * std::sin(2 * g) - 5029.1 / 3600.0 * n / 36525.0) *
+      kDegToRad;
   const double eps = 23.4393 * kDegToRad;  // J2000 obliquity
   const double r = 1.00014 - 0.01671 * std::cos(g) - 0.00014 * std::cos(2 * g);
   return r * Vec3(std::cos(lambda), std::cos(eps) * std::sin(lambda), std::sin(eps) * std::sin(lambda));
@@ -88,7 +89,8 @@ TEST(EarthVelocity, AgreesWithTheAlmanacLowPrecisionSunThroughTheYear) {
     t.tt_jd1 = 2451545.0;
     t.tt_jd2 = day;
     const double h = 0.5;
-    const Vec3 v_almanac = -(AlmanacSunAu(t.tt_jd1 + day + h) - AlmanacSunAu(t.tt_jd1 + day - h)) / (2 * h) * kAuPerDayToMS;
+    const Vec3 v_almanac =
+        -(AlmanacSunAu(t.tt_jd1 + day + h) - AlmanacSunAu(t.tt_jd1 + day - h)) / (2 * h) * kAuPerDayToMS;
     const Vec3 v = EarthBarycentricVelocityMS(t);
     EXPECT_LT((v - v_almanac).norm(), 50.0) << "day " << day;
     EXPECT_GT(v.norm(), 29.2e3);

@@ -65,7 +65,8 @@ TEST(Camera, NonSquarePixelsProjectWithFxAndFy) {
 }
 
 TEST(Camera, FocalLengthYReadAndWrittenExactly) {
-  const Json j = {{"width", 752}, {"height", 290}, {"focal_length_px", 2325.5813953488373}, {"focal_length_y_px", 1163.123456789}};
+  const Json j = {
+      {"width", 752}, {"height", 290}, {"focal_length_px", 2325.5813953488373}, {"focal_length_y_px", 1163.123456789}};
   const Camera c = CameraFromJson(j, "cam.json");
   EXPECT_EQ(c.focal_length_y_px, 1163.123456789);
   const Camera back = CameraFromJson(CameraToJson(c), "again");
@@ -75,8 +76,9 @@ TEST(Camera, FocalLengthYReadAndWrittenExactly) {
   const Camera sq = CameraFromJson({{"width", 100}, {"height", 100}, {"focal_length_px", 300}}, "sq.json");
   EXPECT_FALSE(CameraToJson(sq).contains("focal_length_y_px"));
   EXPECT_EQ(sq.FocalYPx(), 300);
-  EXPECT_THROW(CameraFromJson({{"width", 100}, {"height", 100}, {"focal_length_px", 300}, {"focal_length_y_px", -1}}, "c.json"),
-               InputError);
+  EXPECT_THROW(
+      CameraFromJson({{"width", 100}, {"height", 100}, {"focal_length_px", 300}, {"focal_length_y_px", -1}}, "c.json"),
+      InputError);
 }
 
 TEST(Camera, FocalLengthFromMillimetres) {
@@ -96,11 +98,14 @@ TEST(Camera, BadFieldsNameTheFileAndField) {
     }
     return std::string("no error");
   };
-  EXPECT_THAT(message({{"height", 10}, {"focal_length_px", 100}}), ::testing::HasSubstr("cam.json: missing field 'width'"));
+  EXPECT_THAT(message({{"height", 10}, {"focal_length_px", 100}}),
+              ::testing::HasSubstr("cam.json: missing field 'width'"));
   EXPECT_THAT(message({{"width", 100}, {"height", 100}}), ::testing::HasSubstr("focal_length_px"));
   EXPECT_THAT(message({{"width", -5}, {"height", 100}, {"focal_length_px", 100}}), ::testing::HasSubstr("width"));
-  EXPECT_THAT(message({{"width", 100}, {"height", 100}, {"focal_length_px", -3}}), ::testing::HasSubstr("focal_length_px"));
-  EXPECT_THAT(message({{"width", 100}, {"height", 100}, {"focal_length_px", "abc"}}), ::testing::HasSubstr("focal_length_px"));
+  EXPECT_THAT(message({{"width", 100}, {"height", 100}, {"focal_length_px", -3}}),
+              ::testing::HasSubstr("focal_length_px"));
+  EXPECT_THAT(message({{"width", 100}, {"height", 100}, {"focal_length_px", "abc"}}),
+              ::testing::HasSubstr("focal_length_px"));
   EXPECT_THAT(message({{"width", 100}, {"height", 100}, {"focal_length_px", 300}, {"principal_point", {500, 2}}}),
               ::testing::HasSubstr("principal_point"));
   EXPECT_THAT(message(Json::array()), ::testing::HasSubstr("object"));

@@ -29,11 +29,13 @@ TEST(Csv, ReadsColumnsAndKeepsUnknownOnes) {
 TEST(Csv, BadInputNamesFileColumnAndRow) {
   const std::string dir = testing::TempDir("csv");
   const auto missing = Write(dir, "m.csv", "t_s,w_dph\n0,1\n");
-  EXPECT_THAT(ErrorOf([&] { ReadCsv(missing).Column("temp_c"); }), ::testing::HasSubstr("m.csv: missing column 'temp_c'"));
+  EXPECT_THAT(ErrorOf([&] { ReadCsv(missing).Column("temp_c"); }),
+              ::testing::HasSubstr("m.csv: missing column 'temp_c'"));
   const auto nan = Write(dir, "n.csv", "t_s,w_dph\n0,1\n1,nan\n");
   EXPECT_THAT(ErrorOf([&] { ReadCsv(nan).Column("w_dph"); }), ::testing::HasSubstr("row 2, column 'w_dph'"));
   const auto unsorted = Write(dir, "u.csv", "t_s,w_dph\n0,1\n2,1\n1,1\n");
-  EXPECT_THAT(ErrorOf([&] { ReadCsv(unsorted).CheckIncreasing("t_s"); }), ::testing::HasSubstr("not strictly increasing"));
+  EXPECT_THAT(ErrorOf([&] { ReadCsv(unsorted).CheckIncreasing("t_s"); }),
+              ::testing::HasSubstr("not strictly increasing"));
   const auto empty = Write(dir, "e.csv", "");
   EXPECT_THAT(ErrorOf([&] { ReadCsv(empty); }), ::testing::HasSubstr("e.csv: empty file"));
   const auto ragged = Write(dir, "r.csv", "a,b\n1,2\n3\n");
@@ -51,7 +53,8 @@ TEST(Csv, ParseDecimalTakesDecimalNumbersOnly) {
   for (const char* ok : {"0", "-1.5", "+2.", ".5", "1e-3", "-7.25E+2", "3"}) EXPECT_TRUE(ParseDecimal(ok, &v)) << ok;
   EXPECT_TRUE(ParseDecimal("-7.25E+2", &v));
   EXPECT_DOUBLE_EQ(v, -725.0);
-  for (const char* bad : {"", "0x10", "0X1p3", "nan", "inf", "infinity", "1e", "e5", "1.2.3", "1,5", " 1", "1 ", "--1", "1e999"}) {
+  for (const char* bad :
+       {"", "0x10", "0X1p3", "nan", "inf", "infinity", "1e", "e5", "1.2.3", "1,5", " 1", "1 ", "--1", "1e999"}) {
     EXPECT_FALSE(ParseDecimal(bad, &v)) << bad;
   }
 }

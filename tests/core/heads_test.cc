@@ -1,9 +1,9 @@
 #include "core/heads.h"
 
-#include <cmath>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <cmath>
 
 #include "core/error.h"
 
@@ -29,7 +29,8 @@ std::string Error(const Json& list, const std::string& field = "") {
 // (the mount normalised), and every error names the file, the list or the head, and the field.
 TEST(Heads, ReadsCamerasAndMountsAndNamesEveryError) {
   const double s = std::sqrt(0.5);
-  const std::vector<OpticalHead> hs = HeadsFromJson(Json::array({Head({1, 0, 0, 0}), Head({2 * s, 0, 2 * s, 0})}), "h.json");
+  const std::vector<OpticalHead> hs =
+      HeadsFromJson(Json::array({Head({1, 0, 0, 0}), Head({2 * s, 0, 2 * s, 0})}), "h.json");
   ASSERT_EQ(hs.size(), 2u);
   EXPECT_EQ(hs[1].camera.width, 512);
   EXPECT_EQ(hs[1].camera.height, 384);
@@ -49,7 +50,8 @@ TEST(Heads, ReadsCamerasAndMountsAndNamesEveryError) {
   EXPECT_THAT(Error(Json::array({typo})), HasSubstr("unknown key 'q_body_sensr'"));
   Json no_focal = h;
   no_focal["camera"].erase("focal_length_px");
-  EXPECT_THAT(Error(Json::array({h, no_focal}), "heads"), HasSubstr("h.json: heads[1].camera: missing field 'focal_length_px'"));
+  EXPECT_THAT(Error(Json::array({h, no_focal}), "heads"),
+              HasSubstr("h.json: heads[1].camera: missing field 'focal_length_px'"));
 }
 
 }  // namespace

@@ -1,5 +1,4 @@
 #include "core/image.h"
-#include "core/image_cv.h"
 
 #include <libdeflate.h>
 
@@ -9,6 +8,7 @@
 #include <random>
 
 #include "core/error.h"
+#include "core/image_cv.h"
 #include "testing/testing.h"
 
 namespace ssiu {
@@ -74,9 +74,10 @@ TEST(Image, BadFilesGiveOneLineErrorsNamingTheFile) {
                     card("NAXIS2  =                " + side) + card("END");
     h += std::string(2880 - h.size(), ' ') + std::string(2880, '\0');
     std::ofstream(dir + "/liar.fits", std::ios::binary) << h;
-    EXPECT_THAT(ErrorOf(dir + "/liar.fits"),
-                ::testing::HasSubstr(side == "16000" ? "liar.fits: FITS data is shorter than its header"
-                                                     : "liar.fits: declares 65536 x 65536 pixels, more than the limit"));
+    EXPECT_THAT(
+        ErrorOf(dir + "/liar.fits"),
+        ::testing::HasSubstr(side == "16000" ? "liar.fits: FITS data is shorter than its header"
+                                             : "liar.fits: declares 65536 x 65536 pixels, more than the limit"));
   }
   // All-zero and all-saturated.
   WritePng16(dir + "/zero.png", Image16(64, 64, 0));
@@ -89,12 +90,10 @@ TEST(Image, BadFilesGiveOneLineErrorsNamingTheFile) {
   EXPECT_THAT(ErrorOf(dir + "/mostly.png"), ::testing::HasSubstr("saturated"));
 }
 
-
 // The fast grey-PNG decoder behind ReadFrame, checked against images whose pixels are known: the
 // files are written by a small encoder here that picks each row's filter and splits the data
 // into IDAT chunks of chosen sizes (OpenCV's writer always uses one filter), and OpenCV's own
 // libpng reader must agree on every file.
-
 
 void PutBe32(std::string* s, uint32_t v) {
   for (int k = 3; k >= 0; --k) s->push_back(static_cast<char>((v >> (8 * k)) & 0xff));
@@ -182,8 +181,8 @@ TEST(PngDecode, EveryFilterDepthAndOddWidthDecodesToTheEncodedPixels) {
     for (int w : {1, 7, 16, 17, 33, 100}) {
       for (const auto& filters : filter_sets) {
         const Image16 im = Noisy(w, 9, depth, static_cast<unsigned>(100 * depth + w));
-        const std::string path = WriteFile(dir + "/f" + std::to_string(n++) + ".png",
-                                           EncodeGreyPng(im, depth, filters, 1 + (w * 5) % 37));
+        const std::string path =
+            WriteFile(dir + "/f" + std::to_string(n++) + ".png", EncodeGreyPng(im, depth, filters, 1 + (w * 5) % 37));
         const Frame fr = ReadFrame(path);
         ASSERT_EQ(fr.image.width, w);
         ASSERT_EQ(fr.image.height, 9);
@@ -219,7 +218,8 @@ TEST(PngDecode, CorruptFilesGiveAnErrorNamingFileAndField) {
 
   std::string bad_crc = good;
   bad_crc[first_idat + 10] ^= 0x40;  // a payload byte: the chunk's CRC no longer matches
-  EXPECT_THAT(ErrorOf(WriteFile(dir + "/crc.png", bad_crc)), ::testing::AllOf(::testing::HasSubstr("crc.png"), ::testing::HasSubstr("'IDAT' fails its CRC")));
+  EXPECT_THAT(ErrorOf(WriteFile(dir + "/crc.png", bad_crc)),
+              ::testing::AllOf(::testing::HasSubstr("crc.png"), ::testing::HasSubstr("'IDAT' fails its CRC")));
 
   EXPECT_THAT(ErrorOf(WriteFile(dir + "/cut.png", good.substr(0, first_idat + 100))),
               ::testing::AllOf(::testing::HasSubstr("cut.png"), ::testing::HasSubstr("truncated")));
@@ -295,7 +295,8 @@ TEST(RasterCodec, PngAndTiffOfEveryDepthAndChannelCountMatchOpenCv) {
         grey.convertTo(grey, CV_32S);
       }
       for (int y = 0; y < m.rows; ++y)
-        for (int x = 0; x < m.cols; ++x) ASSERT_EQ(fr.image.at(x, y), grey.at<int>(y, x)) << path << " " << x << "," << y;
+        for (int x = 0; x < m.cols; ++x)
+          ASSERT_EQ(fr.image.at(x, y), grey.at<int>(y, x)) << path << " " << x << "," << y;
     }
   }
   // A truncated TIFF is an error naming the file, nothing on stderr but the one line.

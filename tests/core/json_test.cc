@@ -20,9 +20,13 @@ TEST(StrictJson, NearestKeyCountsATranspositionAsOneEdit) {
 
 TEST(StrictJson, UnknownKeyNamesFileKeyAndSuggestion) {
   const Json j = {{"width", 1}, {"principal_piont", 2}};
-  EXPECT_EQ(ErrorOf([&] { CheckKeys(j, {"width", "principal_point"}, "cam.json"); }),
+  EXPECT_EQ(ErrorOf([&] {
+              CheckKeys(j, {"width", "principal_point"}, "cam.json");
+            }),
             "cam.json: unknown key 'principal_piont' (did you mean 'principal_point'?)");
-  EXPECT_THAT(ErrorOf([&] { CheckKeys(Json{{"zzz", 1}}, {"width", "height"}, "c.json"); }),
+  EXPECT_THAT(ErrorOf([&] {
+                CheckKeys(Json{{"zzz", 1}}, {"width", "height"}, "c.json");
+              }),
               HasSubstr("unknown key 'zzz' (allowed: width, height)"));
   EXPECT_EQ(ErrorOf([&] { CheckKeys(j, {"width", "principal_piont"}, "cam.json"); }), "no error");
   EXPECT_THAT(ErrorOf([&] { CheckKeys(Json::array(), {"width"}, "c.json"); }), HasSubstr("must be a JSON object"));

@@ -97,7 +97,8 @@ TEST(RealFrames, DeepSearchFindsTheFaintAstrometryNetStars) {
   // width (sigma 0.53 px) and noise, rejected as a hot pixel.
   EXPECT_GE(r.found, 43) << r.found << " of " << r.total;
   ASSERT_GT(r.chance_total, 150);
-  EXPECT_LT(r.chance, 0.05 * r.chance_total) << r.chance << " of " << r.chance_total << " moved positions met a detection";
+  EXPECT_LT(r.chance, 0.05 * r.chance_total)
+      << r.chance << " of " << r.chance_total << " moved positions met a detection";
   EXPECT_GT(r.max_detections, 1000u);  // the deep list really is deeper than the default cap
 }
 

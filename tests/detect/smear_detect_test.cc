@@ -38,7 +38,8 @@ Image16 ToImage(const std::vector<double>& signal, int w, int h, uint64_t seed) 
   Rng rng(seed);
   Image16 im(w, h);
   for (size_t i = 0; i < signal.size(); ++i) {
-    im.pixels[i] = static_cast<uint16_t>(std::lround(std::clamp(kBackground + signal[i] + kNoise * rng.Normal(), 0.0, 65535.0)));
+    im.pixels[i] =
+        static_cast<uint16_t>(std::lround(std::clamp(kBackground + signal[i] + kNoise * rng.Normal(), 0.0, 65535.0)));
   }
   return im;
 }
@@ -59,7 +60,8 @@ TEST(SmearFit, AcceptsThePredictedSmearAndRejectsOthers) {
       const Vec2 p(60.3 + 110 * gx + 0.17 * gy, 50.6 + 110 * gy + 0.29 * gx);
       const Vec2 d = smear.DisplacementPx(p);
       ASSERT_NEAR(d.y(), 6.1, 0.2);
-      AddSmear(sig, w, p.x() - 0.5 * d.x(), p.y() - 0.5 * d.y(), p.x() + 0.5 * d.x(), p.y() + 0.5 * d.y(), flux, kSigmaPx);
+      AddSmear(sig, w, p.x() - 0.5 * d.x(), p.y() - 0.5 * d.y(), p.x() + 0.5 * d.x(), p.y() + 0.5 * d.y(), flux,
+               kSigmaPx);
       stars.push_back(p);
     }
   }
@@ -124,8 +126,8 @@ TEST(SmearFit, NoiseFreeSmearsOfEveryDirectionAreCentred) {
     PsfFitOptions fo;
     fo.smear_dx_px = dx;
     fo.smear_dy_px = dy;
-    const PsfFit f = FitPsf(im.view(), static_cast<int>(std::lround(x)), static_cast<int>(std::lround(y)), 3, kBackground,
-                            1.0, fo, [](int, int) { return false; });
+    const PsfFit f = FitPsf(im.view(), static_cast<int>(std::lround(x)), static_cast<int>(std::lround(y)), 3,
+                            kBackground, 1.0, fo, [](int, int) { return false; });
     ASSERT_TRUE(f.ok) << k;
     EXPECT_NEAR(f.x_px, x, 0.002) << k;
     EXPECT_NEAR(f.y_px, y, 0.002) << k;

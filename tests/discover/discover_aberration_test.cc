@@ -6,12 +6,12 @@
 #include <cmath>
 #include <cstdio>
 
-#include "discover/discover_frames.h"
 #include "core/astrometry.h"
 #include "core/attitude.h"
 #include "core/rng.h"
-#include "sim/frame_sim.h"
+#include "discover/discover_frames.h"
 #include "discover_frames_mc.h"
+#include "sim/frame_sim.h"
 #include "testing/testing.h"
 
 namespace ssiu {
@@ -20,7 +20,8 @@ namespace {
 // Synthetic solved frames: catalog directions as r_inertial, measured pixels from the apparent
 // (aberrated by v_m_s) directions seen by `seen` (a focal-length error, say), 0.02 px noise (bright
 // stars: the field-scale part of the aberration is at most ~0.03 px at the edge of a 16.6-deg field).
-SolvedFrameSet MakeSet(const Camera& cam, const Camera& seen, const Vec3& v_m_s, int frames, bool spread, uint64_t seed) {
+SolvedFrameSet MakeSet(const Camera& cam, const Camera& seen, const Vec3& v_m_s, int frames, bool spread,
+                       uint64_t seed) {
   Rng rng(seed);
   SolvedFrameSet set;
   set.width = cam.width, set.height = cam.height;
@@ -55,10 +56,12 @@ TEST(DiscoverFrames, UncorrectedAberrationIsNamedWithItsVelocity) {
     EXPECT_LT(sigma, 8.0);  // 30 km/s found to better than a quarter
   }
   EXPECT_GT(d.gain, 1.0);
-  std::printf("aberration: v = (%.1f, %.1f, %.1f) +- (%.1f, %.1f, %.1f) km/s, true (%.1f, %.1f, %.1f); held-out rms %.3f -> %.3f\n",
-              d.parameters.at(axes[0]), d.parameters.at(axes[1]), d.parameters.at(axes[2]), d.sigmas.at(axes[0]),
-              d.sigmas.at(axes[1]), d.sigmas.at(axes[2]), v.x() / 1000, v.y() / 1000, v.z() / 1000,
-              d.residual_rms_before_arcsec, d.residual_rms_after_arcsec);
+  std::printf(
+      "aberration: v = (%.1f, %.1f, %.1f) +- (%.1f, %.1f, %.1f) km/s, true (%.1f, %.1f, %.1f); held-out rms %.3f -> "
+      "%.3f\n",
+      d.parameters.at(axes[0]), d.parameters.at(axes[1]), d.parameters.at(axes[2]), d.sigmas.at(axes[0]),
+      d.sigmas.at(axes[1]), d.sigmas.at(axes[2]), v.x() / 1000, v.y() / 1000, v.z() / 1000,
+      d.residual_rms_before_arcsec, d.residual_rms_after_arcsec);
 }
 
 TEST(DiscoverFrames, AberrationIsNotNamedForCleanFramesOrAFocalLengthError) {

@@ -1,9 +1,10 @@
+#include "discover/discover_allan.h"
+
 #include <algorithm>
 #include <fstream>
 
 #include "calibration/allan.h"
 #include "calibration/allan_io.h"
-#include "discover/discover_allan.h"
 #include "core/rng.h"
 #include "testing/testing.h"
 
@@ -57,7 +58,8 @@ TEST(DiscoverAllan, ZeroAdevIsBadInput) {
   const std::string dir = testing::TempDir("zero_adev");
   std::ofstream(dir + "/zero.csv") << "tau_s,adev_dph\n1,0.1\n2,0\n4,0.05\n8,0.035\n16,0.025\n";
   std::string out;
-  EXPECT_EQ(testing::Run(testing::SsiuProgram() + " discover allan --curve " + dir + "/zero.csv --json -", &out), 1) << out;
+  EXPECT_EQ(testing::Run(testing::SsiuProgram() + " discover allan --curve " + dir + "/zero.csv --json -", &out), 1)
+      << out;
   EXPECT_THAT(out, ::testing::HasSubstr("zero.csv: ADEV is zero at tau 2"));
   EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
 }

@@ -56,8 +56,8 @@ TEST(DiscoverFramesLong, OutOfVocabularyIsUnexplained) {
     (inside ? in_right : out_unexplained) += s.right;
     if (!inside) out_wrong += s.wrong;
   }
-  std::printf("inside the vocabulary (and none): right %d/%d; outside: unexplained %d/%d, wrong cause %d/%d\n", in_right,
-              in_sets, out_unexplained, out_sets, out_wrong, out_sets);
+  std::printf("inside the vocabulary (and none): right %d/%d; outside: unexplained %d/%d, wrong cause %d/%d\n",
+              in_right, in_sets, out_unexplained, out_sets, out_wrong, out_sets);
   EXPECT_GE(in_right, 0.9 * in_sets);
   EXPECT_GE(out_unexplained, 0.9 * out_sets);
   EXPECT_LE(out_wrong, 0.05 * out_sets);

@@ -5,22 +5,22 @@
 // pixels, but with a new defect seed in every frame (transient single-pixel sources, which are not
 // the hidden effect) except in a hot_pixels set, where 20-50 hot pixels keep one defect seed over
 // the set (persistent, the hidden effect). psf_shape: the true PSF sigma is 1.2 (the model) times
-// 1 +- 0.2-0.35, or (seed divisible by 3) a defocus disk of 1.0-1.8 px; the simulator has no ellipticity (FitSpot's ellipticity is tested on spots drawn
-// by the test itself, discover_frames_test.cc).
+// 1 +- 0.2-0.35, or (seed divisible by 3) a defocus disk of 1.0-1.8 px; the simulator has no ellipticity (FitSpot's
+// ellipticity is tested on spots drawn by the test itself, discover_frames_test.cc).
 #pragma once
 
-#include <iostream>
 #include <cmath>
+#include <iostream>
 #include <memory>
 #include <set>
-#include <utility>
 #include <string>
+#include <utility>
 #include <vector>
 
-#include "discover/discover_frames.h"
 #include "attitude/star_solver.h"
 #include "core/catalog.h"
 #include "core/rng.h"
+#include "discover/discover_frames.h"
 #include "identify/star_catalog.h"
 #include "sim/frame_sim.h"
 
@@ -58,8 +58,8 @@ struct FrameCase {
   Camera nominal, truth;
   FrameSimOptions sim;
   std::map<std::string, double> truth_params;
-  std::vector<std::pair<int, int>> truth_hot;   // hot_pixels: the persistent pixels (x, y)
-  std::vector<double> truth_hot_adu;            // their excess (ADU)
+  std::vector<std::pair<int, int>> truth_hot;  // hot_pixels: the persistent pixels (x, y)
+  std::vector<double> truth_hot_adu;           // their excess (ADU)
   SolvedFrameSet set;
 };
 
@@ -185,19 +185,24 @@ inline FrameMcSummary RunFrameMonteCarlo(int n, int frames, uint64_t seed0, bool
       }
     }
     if (verbose) {
-      std::cout << "set " << i << " true " << cause << (c.sim.defocus_radius_px > 0 ? " (defocus)" : "") << " found " << d.cause << " solved " << d.frames_solved << "/"
-                << d.frames << " stars " << d.stars << " rms " << d.residual_rms_before_arcsec << " -> "
-                << d.residual_rms_after_arcsec << " gain " << d.gain << ps << " | zero point " << d.zero_point_adu
-                << " ADU, scatter " << d.photometric_scatter_mag << " mag, spot sigma " << d.psf_sigma_median_px
-                << " px (stamp fit " << d.psf_sigma_fit_px << ", e " << d.psf_e1 << ", " << d.psf_e2 << ", " << d.psf_stars
-                << " stars), background " << d.background_median_adu << " noise " << d.noise_median_adu
-                << " ADU, persistent pixels " << d.hot_pixels.size() << "\n";
+      std::cout << "set " << i << " true " << cause << (c.sim.defocus_radius_px > 0 ? " (defocus)" : "") << " found "
+                << d.cause << " solved " << d.frames_solved << "/" << d.frames << " stars " << d.stars << " rms "
+                << d.residual_rms_before_arcsec << " -> " << d.residual_rms_after_arcsec << " gain " << d.gain << ps
+                << " | zero point " << d.zero_point_adu << " ADU, scatter " << d.photometric_scatter_mag
+                << " mag, spot sigma " << d.psf_sigma_median_px << " px (stamp fit " << d.psf_sigma_fit_px << ", e "
+                << d.psf_e1 << ", " << d.psf_e2 << ", " << d.psf_stars << " stars), background "
+                << d.background_median_adu << " noise " << d.noise_median_adu << " ADU, persistent pixels "
+                << d.hot_pixels.size() << "\n";
       for (const auto& cd : d.candidates)
         std::cout << "   " << cd.cause << " stat " << cd.statistic << " p " << cd.p_value << " dbic " << cd.delta_bic
-                  << (cd.evaluated ? " gain " + std::to_string(cd.gain) + " z " + std::to_string(cd.gain_z) + " " + cd.verdict : "")
+                  << (cd.evaluated
+                          ? " gain " + std::to_string(cd.gain) + " z " + std::to_string(cd.gain_z) + " " + cd.verdict
+                          : "")
                   << "\n";
       std::cout << "   residual p " << d.residual.p_value << " (" << d.residual.finding << "):";
-      for (const auto& t : d.residual.tests) std::cout << " " << t.name << " F " << t.f << " (" << t.dof << ", " << t.dof_resid << ") p " << t.p_value << ";";
+      for (const auto& t : d.residual.tests)
+        std::cout << " " << t.name << " F " << t.f << " (" << t.dof << ", " << t.dof_resid << ") p " << t.p_value
+                  << ";";
       std::cout << "\n";
     }
   }

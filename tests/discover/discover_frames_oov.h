@@ -16,9 +16,9 @@
 #include <string>
 #include <vector>
 
-#include "discover/discover_frames.h"
 #include "core/attitude.h"
 #include "core/rng.h"
+#include "discover/discover_frames.h"
 #include "discover_frames_mc.h"
 
 namespace ssiu::testing {
@@ -28,7 +28,7 @@ inline const std::vector<std::string>& OutOfVocabularyFrameEffects() {
   return k;
 }
 inline const std::vector<std::string>& SyntheticFrameCauses() {
-  static const std::vector<std::string> k = {"none", "focal_length", "principal_point", "lens_distortion",
+  static const std::vector<std::string> k = {"none",         "focal_length", "principal_point", "lens_distortion",
                                              "pixel_aspect", "vignetting"};
   return k;
 }
@@ -40,7 +40,8 @@ struct SyntheticFrameSet {
   double bump_x_px = 0, bump_y_px = 0;  // bump: the centre of the displacement
 };
 
-inline SyntheticFrameSet MakeSyntheticFrameSet(const std::string& effect, uint64_t seed, int frames = 4, int stars = 45) {
+inline SyntheticFrameSet MakeSyntheticFrameSet(const std::string& effect, uint64_t seed, int frames = 4,
+                                               int stars = 45) {
   Rng rng(seed);
   SyntheticFrameSet out;
   out.effect = effect;
@@ -49,15 +50,18 @@ inline SyntheticFrameSet MakeSyntheticFrameSet(const std::string& effect, uint64
   Camera truth = cam;
   auto sign = [&] { return rng.Uniform() < 0.5 ? -1.0 : 1.0; };
   if (effect == "focal_length") truth.focal_length_px *= 1 + sign() * rng.Uniform(500, 1500) * 1e-6;
-  if (effect == "principal_point") truth.cx_px += sign() * rng.Uniform(5, 15), truth.cy_px += sign() * rng.Uniform(5, 15);
+  if (effect == "principal_point")
+    truth.cx_px += sign() * rng.Uniform(5, 15), truth.cy_px += sign() * rng.Uniform(5, 15);
   if (effect == "lens_distortion") truth.distortion.k1 = sign() * rng.Uniform(0.02, 0.06);
-  if (effect == "pixel_aspect") truth.focal_length_y_px = truth.focal_length_px * (1 + sign() * rng.Uniform(1000, 2500) * 1e-6);
+  if (effect == "pixel_aspect")
+    truth.focal_length_y_px = truth.focal_length_px * (1 + sign() * rng.Uniform(1000, 2500) * 1e-6);
   const double vignetting = effect == "vignetting" ? rng.Uniform(0.2, 0.4) : 0.0;
   // Out-of-vocabulary effects.
-  const double bump_x = (rng.Uniform() < 0.5 ? 0.25 : 0.75) * cam.width, bump_y = (rng.Uniform() < 0.5 ? 0.25 : 0.75) * cam.height;
+  const double bump_x = (rng.Uniform() < 0.5 ? 0.25 : 0.75) * cam.width,
+               bump_y = (rng.Uniform() < 0.5 ? 0.25 : 0.75) * cam.height;
   const double bump_s = rng.Uniform(90, 130), bump_a = rng.Uniform(0.4, 0.8), bump_dir = rng.Uniform(0, 2 * kPi);
-  const double twist = sign() * rng.Uniform(0.5, 1.0);     // px at the corner
-  const double cti = rng.Uniform(0.06, 0.12);              // px per mag at the bottom edge
+  const double twist = sign() * rng.Uniform(0.5, 1.0);  // px at the corner
+  const double cti = rng.Uniform(0.06, 0.12);           // px per mag at the bottom edge
   const double stitch = sign() * rng.Uniform(0.2, 0.4);
   const double grad = sign() * rng.Uniform(0.15, 0.30), gamma = rng.Uniform(0.04, 0.08);
   out.bump_x_px = bump_x, out.bump_y_px = bump_y;
@@ -81,7 +85,8 @@ inline SyntheticFrameSet MakeSyntheticFrameSet(const std::string& effect, uint64
       double x = p->x(), y = p->y();
       const double a = (x - cam.cx_px) / half_diag, b = (y - cam.cy_px) / half_diag;
       if (effect == "bump") {
-        const double g = bump_a * std::exp(-0.5 * (std::pow(x - bump_x, 2) + std::pow(y - bump_y, 2)) / (bump_s * bump_s));
+        const double g =
+            bump_a * std::exp(-0.5 * (std::pow(x - bump_x, 2) + std::pow(y - bump_y, 2)) / (bump_s * bump_s));
         x += g * std::cos(bump_dir), y += g * std::sin(bump_dir);
       }
       if (effect == "twist") {
@@ -94,8 +99,8 @@ inline SyntheticFrameSet MakeSyntheticFrameSet(const std::string& effect, uint64
       s.y_px = y + s.sigma_px * rng.Normal();
       // Flux: 1e6 ADU at V = 0, 0.02 mag of scatter for the brightest growing to 0.08 mag.
       double ln_flux = std::log(1e6) - 0.4 * std::log(10.0) * s.mag;
-      const double u = (std::pow(x - cam.cx_px, 2) + std::pow(y - cam.cy_px, 2)) /
-                       (std::pow(cam.cx_px, 2) + std::pow(cam.cy_px, 2));
+      const double u =
+          (std::pow(x - cam.cx_px, 2) + std::pow(y - cam.cy_px, 2)) / (std::pow(cam.cx_px, 2) + std::pow(cam.cy_px, 2));
       if (vignetting > 0) ln_flux += std::log(1 - vignetting * u);
       if (effect == "gradient") ln_flux += std::log(1 + grad * (x - cam.cx_px) / cam.width);
       if (effect == "nonlinear") ln_flux *= 1 - gamma;
@@ -114,8 +119,9 @@ struct OovSummary {
 
 // n sets of each effect in `effects`; `right` counts the expected answer (the cause itself inside
 // the vocabulary, `unexplained` outside), `wrong` a cause of the vocabulary named for another.
-inline std::map<std::string, OovSummary> RunSyntheticFrames(const std::vector<std::string>& effects, int n, uint64_t seed0,
-                                                            bool verbose, int frames = 4, int stars = 45) {
+inline std::map<std::string, OovSummary> RunSyntheticFrames(const std::vector<std::string>& effects, int n,
+                                                            uint64_t seed0, bool verbose, int frames = 4,
+                                                            int stars = 45) {
   std::map<std::string, OovSummary> out;
   for (int k = 0; k < n; ++k) {
     for (size_t e = 0; e < effects.size(); ++e) {
@@ -131,13 +137,14 @@ inline std::map<std::string, OovSummary> RunSyntheticFrames(const std::vector<st
       s.none += d.cause == "none";
       s.wrong += d.cause != "none" && d.cause != "unexplained" && d.cause != effect;
       if (verbose) {
-        std::printf("%-16s found %-16s partial %-16s residual p %.2g (%s) pos rms %.3f px max %.3f px at (%.0f, %.0f); "
-                    "cell (%.0f, %.0f) (%.3f, %.3f) px; per mag %.3f px; phot rms %.3f mag, per mag %.3f\n",
-                    effect.c_str(), d.cause.c_str(), d.partial_cause.c_str(), d.residual.p_value,
-                    d.residual.finding.c_str(), d.residual.position_rms_px, d.residual.position_max_px,
-                    d.residual.position_max_x_px, d.residual.position_max_y_px, d.residual.cell_x_px,
-                    d.residual.cell_y_px, d.residual.cell_dx_px, d.residual.cell_dy_px,
-                    d.residual.position_per_mag_px, d.residual.photometry_rms_mag, d.residual.photometry_per_mag);
+        std::printf(
+            "%-16s found %-16s partial %-16s residual p %.2g (%s) pos rms %.3f px max %.3f px at (%.0f, %.0f); "
+            "cell (%.0f, %.0f) (%.3f, %.3f) px; per mag %.3f px; phot rms %.3f mag, per mag %.3f\n",
+            effect.c_str(), d.cause.c_str(), d.partial_cause.c_str(), d.residual.p_value, d.residual.finding.c_str(),
+            d.residual.position_rms_px, d.residual.position_max_px, d.residual.position_max_x_px,
+            d.residual.position_max_y_px, d.residual.cell_x_px, d.residual.cell_y_px, d.residual.cell_dx_px,
+            d.residual.cell_dy_px, d.residual.position_per_mag_px, d.residual.photometry_rms_mag,
+            d.residual.photometry_per_mag);
       }
     }
   }

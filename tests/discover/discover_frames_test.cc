@@ -1,7 +1,8 @@
+#include "discover/discover_frames.h"
+
 #include <algorithm>
 #include <cmath>
 
-#include "discover/discover_frames.h"
 #include "core/attitude.h"
 #include "core/error.h"
 #include "core/json.h"
@@ -138,7 +139,8 @@ TEST(DiscoverFrames, EllipticalPsfNamedWithItsEllipticity) {
       s.mag = rng.Uniform(3, 6);
       s.flux = 1e6 * std::pow(10, -0.4 * s.mag);
       s.x_px = xt + 0.05 * rng.Normal(), s.y_px = yt + 0.05 * rng.Normal(), s.sigma_px = 0.05;
-      s.stamp_half = 5, s.stamp_x0 = static_cast<int>(std::lround(xt)) - 5, s.stamp_y0 = static_cast<int>(std::lround(yt)) - 5;
+      s.stamp_half = 5, s.stamp_x0 = static_cast<int>(std::lround(xt)) - 5,
+      s.stamp_y0 = static_cast<int>(std::lround(yt)) - 5;
       s.stamp = DrawSpot(5, xt - s.stamp_x0, yt - s.stamp_y0, s.flux, c, 400, 28, &rng);
       s.noise_adu = 28;
       set.stars.push_back(s);
@@ -161,9 +163,11 @@ TEST(DiscoverFrames, EllipticalPsfNamedWithItsEllipticity) {
   o2.psf_ellipticity = d.parameters.at("psf_ellipticity");
   o2.psf_angle_deg = d.parameters.at("psf_angle_deg");
   EXPECT_EQ(DiscoverFrames(set, cam, o2).cause, "none");
-  std::printf("elliptical PSF: sigma %.3f +- %.3f px (true %.3f), ellipticity %.3f +- %.3f at %.1f deg, stamp rms %.2f -> %.2f\n",
-              d.parameters.at("psf_sigma_px"), d.sigmas.at("psf_sigma_px"), std::sqrt(t), d.parameters.at("psf_ellipticity"),
-              d.sigmas.at("psf_ellipticity"), d.parameters.at("psf_angle_deg"), d.stamp_rms_before, d.stamp_rms_after);
+  std::printf(
+      "elliptical PSF: sigma %.3f +- %.3f px (true %.3f), ellipticity %.3f +- %.3f at %.1f deg, stamp rms %.2f -> "
+      "%.2f\n",
+      d.parameters.at("psf_sigma_px"), d.sigmas.at("psf_sigma_px"), std::sqrt(t), d.parameters.at("psf_ellipticity"),
+      d.sigmas.at("psf_ellipticity"), d.parameters.at("psf_angle_deg"), d.stamp_rms_before, d.stamp_rms_after);
 }
 
 }  // namespace
@@ -188,7 +192,8 @@ TEST(DiscoverFramesCli, BadPsfSigmaAndFrameSizeExitOne) {
   Image16 small(64, 64, 100);
   small.at(10, 10) = 5000;
   WritePng16(dir + "/small.png", small);
-  WriteJsonFile(dir + "/psf.json", Json{{"width", 1024}, {"height", 1024}, {"focal_length_px", 3510}, {"psf_sigma_px", "wide"}});
+  WriteJsonFile(dir + "/psf.json",
+                Json{{"width", 1024}, {"height", 1024}, {"focal_length_px", 3510}, {"psf_sigma_px", "wide"}});
   auto r = testing::RunSsiu("discover frames " + dir + "/small.png --camera " + dir + "/psf.json");
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_THAT(r.output, ::testing::HasSubstr("psf.json"));
@@ -213,8 +218,9 @@ TEST(DiscoverFramesCli, HotPixelsDefectMapAndCompareSim) {
     WritePng16(dir + "/f" + std::to_string(f) + ".png", sf.image);
     files += " " + dir + "/f" + std::to_string(f) + ".png";
   }
-  WriteJsonFile(dir + "/cam.json", Json{{"width", 1024}, {"height", 1024}, {"focal_length_px", cam.focal_length_px},
-                                        {"psf_sigma_px", 1.2}});
+  WriteJsonFile(
+      dir + "/cam.json",
+      Json{{"width", 1024}, {"height", 1024}, {"focal_length_px", cam.focal_length_px}, {"psf_sigma_px", 1.2}});
   const auto r = testing::RunSsiu("discover frames" + files + " --camera " + dir + "/cam.json --json " + dir +
                                   "/d.json --compare-sim " + dir + "/c.json --defects-out " + dir + "/defects.png");
   ASSERT_EQ(r.status, 0) << r.output;
@@ -234,7 +240,8 @@ TEST(DiscoverFramesCli, HotPixelsDefectMapAndCompareSim) {
             d["hot_pixels"].size());
   const Json c = ReadJsonFile(dir + "/c.json");
   // Same simulator on both sides: the same PSF, noise and zero point within the scatter.
-  EXPECT_NEAR(c["before"]["measured"]["psf_sigma_px"].get<double>(), c["before"]["simulated"]["psf_sigma_px"].get<double>(), 0.03);
+  EXPECT_NEAR(c["before"]["measured"]["psf_sigma_px"].get<double>(),
+              c["before"]["simulated"]["psf_sigma_px"].get<double>(), 0.03);
   EXPECT_NEAR(c["before"]["flux_ratio_median"].get<double>(), 1.0, 0.05);
   EXPECT_LT(c["before"]["position_rms_px"].get<double>(), 0.2);
   EXPECT_TRUE(c["after"].contains("simulated"));
@@ -366,11 +373,11 @@ TEST(DiscoverFramesReal, Tetra3HotPixelsPsfShapeAndBoresight) {
     std::printf("tetra3 %s: boresight %.2f (nominal camera) -> %.2f arcsec (fitted) from the published solution\n",
                 names[f], err[0], err[1]);
   }
-  std::printf("tetra3: %zu persistent pixels, spikes/frame %.2f -> %.2f; psf sigma %.3f, ellipticity %.3f at %.1f deg, "
-              "stamp rms %.2f -> %.2f\n",
-              d2.hot_pixels.size(), d2.spikes_before, d2.spikes_after, d3.parameters.at("psf_sigma_px"),
-              d3.parameters.at("psf_ellipticity"), d3.parameters.at("psf_angle_deg"), d3.stamp_rms_before,
-              d3.stamp_rms_after);
+  std::printf(
+      "tetra3: %zu persistent pixels, spikes/frame %.2f -> %.2f; psf sigma %.3f, ellipticity %.3f at %.1f deg, "
+      "stamp rms %.2f -> %.2f\n",
+      d2.hot_pixels.size(), d2.spikes_before, d2.spikes_after, d3.parameters.at("psf_sigma_px"),
+      d3.parameters.at("psf_ellipticity"), d3.parameters.at("psf_angle_deg"), d3.stamp_rms_before, d3.stamp_rms_after);
 }
 
 }  // namespace

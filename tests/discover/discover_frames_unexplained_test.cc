@@ -57,11 +57,11 @@ TEST(DiscoverFramesUnexplained, ResidualDescribesTheEffect) {
   EXPECT_GT(f.gain, 1.0);
   EXPECT_GT(f.gain_z, f.gain_z_min);
   EXPECT_FALSE(f.residual.structured);
-  std::printf("bump at (%.0f, %.0f): residual %s, worst cell (%.0f, %.0f) mean (%.3f, %.3f) px; cti %.3f px/mag; "
-              "gradient %.3f mag\n",
-              bump.bump_x_px, bump.bump_y_px, b.residual.finding.c_str(), b.residual.cell_x_px, b.residual.cell_y_px,
-              b.residual.cell_dx_px, b.residual.cell_dy_px, c.residual.position_per_mag_px,
-              g.residual.photometry_max_mag);
+  std::printf(
+      "bump at (%.0f, %.0f): residual %s, worst cell (%.0f, %.0f) mean (%.3f, %.3f) px; cti %.3f px/mag; "
+      "gradient %.3f mag\n",
+      bump.bump_x_px, bump.bump_y_px, b.residual.finding.c_str(), b.residual.cell_x_px, b.residual.cell_y_px,
+      b.residual.cell_dx_px, b.residual.cell_dy_px, c.residual.position_per_mag_px, g.residual.photometry_max_mag);
 }
 
 // The held-out gate: a cause whose held-out gain is not significant is never named. A focal-length

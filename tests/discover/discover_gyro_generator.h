@@ -11,9 +11,9 @@
 #include <string>
 #include <vector>
 
-#include "discover/discover_gyro.h"
 #include "core/rng.h"
 #include "core/types.h"
+#include "discover/discover_gyro.h"
 
 namespace ssiu::testing {
 
@@ -24,9 +24,9 @@ struct GyroCase {
 };
 
 inline const std::vector<std::string>& GyroCauses() {
-  static const std::vector<std::string> k = {"none",         "temperature",  "temperature_gradient",
+  static const std::vector<std::string> k = {"none",           "temperature",  "temperature_gradient",
                                              "magnetic_field", "misalignment", "scale_factor",
-                                             "time_delay",   "bias_step",    "rate_random_walk"};
+                                             "time_delay",     "bias_step",    "rate_random_walk"};
   return k;
 }
 
@@ -87,7 +87,8 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
   if (cause == "telegraph" || cause == "telegraph_fast") {
     const double dwell_s = cause == "telegraph" ? 2400 : 1200;
     tele_amp = rng_y.Uniform(0.04, 0.07);
-    for (double tt = -dwell_s * std::log(1 - rng_y.Uniform()); tt < 43200; tt += -dwell_s * std::log(1 - rng_y.Uniform())) {
+    for (double tt = -dwell_s * std::log(1 - rng_y.Uniform()); tt < 43200;
+         tt += -dwell_s * std::log(1 - rng_y.Uniform())) {
       tele_switch.push_back(tt);
     }
     // Not parameters of a cause: the telegraph's levels apart and its switches in the static log.
@@ -189,8 +190,8 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
       const double bh = 45 + coil_amp * (static_cast<int>(t / coil_step_s) % 2 == 0 ? 1 : -1) +
                         coil_sine * std::sin(2 * kPi * t / coil_period);
       w += k_bh * bh;
-      const double heater = static_cast<double>(
-          (std::upper_bound(toggles.begin(), toggles.end(), t) - toggles.begin()) % 2);
+      const double heater =
+          static_cast<double>((std::upper_bound(toggles.begin(), toggles.end(), t) - toggles.begin()) % 2);
       w += heater_amp * heater;
       w += tele_amp * (((std::upper_bound(tele_switch.begin(), tele_switch.end(), t) - tele_switch.begin()) % 2) - 0.5);
       w += saw_amp * (std::fmod(t, saw_period) / saw_period - 0.5);

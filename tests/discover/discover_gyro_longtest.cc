@@ -55,8 +55,11 @@ TEST(DiscoverGyroLong, OutOfVocabularyIsUnexplained) {
 // developing the HMM test (and the variants not kept); the second (8181, 9191) was not.
 TEST(DiscoverGyroLong, TelegraphFreshSeedsAndFasterSwitching) {
   int found = 0, cases = 0, wrong = 0;
-  for (const auto& [variant, n, seed] : std::vector<std::tuple<std::string, int, uint64_t>>{
-           {"telegraph", 24, 5151}, {"telegraph_fast", 16, 6161}, {"telegraph", 24, 8181}, {"telegraph_fast", 16, 9191}}) {
+  for (const auto& [variant, n, seed] :
+       std::vector<std::tuple<std::string, int, uint64_t>>{{"telegraph", 24, 5151},
+                                                           {"telegraph_fast", 16, 6161},
+                                                           {"telegraph", 24, 8181},
+                                                           {"telegraph_fast", 16, 9191}}) {
     const auto s = testing::RunGyroMonteCarlo({variant}, n, seed, true);
     std::cout << variant << " seeds " << seed << ": unexplained " << s.right_cause << "/" << s.with_cause << "\n";
     for (const auto& [cause, k] : s.found) std::cout << "  found " << cause << " " << k << "\n";

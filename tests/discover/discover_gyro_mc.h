@@ -55,16 +55,18 @@ inline void ScoreGyroCase(const std::string& variant, const GyroCase& c, const G
     std::cout << "case " << variant << " found " << d.cause << " gain " << d.gain << " z " << d.gain_z << params
               << "\n   residual p " << d.residual.p_value << " " << d.residual.finding << " period "
               << d.residual.period_s << " column " << d.residual.follows_column << " partial " << d.partial_cause
-              << " jumps " << d.residual.jumps << " (within " << d.residual.levels_within_ratio << ", p " << d.residual.jumps_p
-              << ", levels differ " << d.residual.jump_size_dph << " deg/h) shape p " << d.residual.periodic_shape_p
-              << " harmonics p " << d.residual.harmonics_p << "\n   levels split p " << d.residual.levels_within_p
-              << ", HMM llr " << d.residual.telegraph_llr << " p " << d.residual.telegraph_p << " (levels "
-              << d.residual.telegraph_levels_dph << " deg/h apart, dwell " << d.residual.telegraph_dwell_s << " s)\n";
+              << " jumps " << d.residual.jumps << " (within " << d.residual.levels_within_ratio << ", p "
+              << d.residual.jumps_p << ", levels differ " << d.residual.jump_size_dph << " deg/h) shape p "
+              << d.residual.periodic_shape_p << " harmonics p " << d.residual.harmonics_p << "\n   levels split p "
+              << d.residual.levels_within_p << ", HMM llr " << d.residual.telegraph_llr << " p "
+              << d.residual.telegraph_p << " (levels " << d.residual.telegraph_levels_dph << " deg/h apart, dwell "
+              << d.residual.telegraph_dwell_s << " s)\n";
     for (const auto& cand : d.candidates) {
       if (!cand.applicable) continue;
       std::cout << "   " << cand.cause << " stat " << cand.statistic << " p " << cand.p_value;
       if (cand.evaluated)
-        std::cout << " gain " << cand.gain << " z " << cand.gain_z << " zb " << cand.gain_z_blocks << " " << cand.verdict;
+        std::cout << " gain " << cand.gain << " z " << cand.gain_z << " zb " << cand.gain_z_blocks << " "
+                  << cand.verdict;
       std::cout << "\n";
     }
   }

@@ -1,7 +1,8 @@
+#include "discover/discover_gyro.h"
+
 #include <cstdio>
 #include <fstream>
 
-#include "discover/discover_gyro.h"
 #include "core/csv.h"
 #include "core/error.h"
 #include "core/json.h"
@@ -101,7 +102,7 @@ TEST(DiscoverGyro, TelegraphAndSawtoothAreUnexplained) {
   ASSERT_EQ(dt.cause, "unexplained") << GyroDiscoveryToJson(dt).dump(1);
   EXPECT_EQ(dt.residual.finding, "jumps");
   EXPECT_LT(dt.residual.telegraph_p, 0.001);
-  EXPECT_GE(dt.residual.jumps, 8);                 // ~18 switches in 12 h, 40 min apart on average
+  EXPECT_GE(dt.residual.jumps, 8);                      // ~18 switches in 12 h, 40 min apart on average
   EXPECT_NEAR(dt.residual.jump_size_dph, 0.055, 0.03);  // 0.04-0.07 deg/h peak to peak
   const double levels = t.truth.at("telegraph_levels_dph"), dwell = 43200 / (t.truth.at("telegraph_switches") + 1);
   EXPECT_NEAR(dt.residual.telegraph_levels_dph, levels, 0.15 * levels);
@@ -113,11 +114,12 @@ TEST(DiscoverGyro, TelegraphAndSawtoothAreUnexplained) {
   EXPECT_EQ(ds.partial_cause, "periodic_drift");
   EXPECT_EQ(ds.residual.finding, "harmonics");
   EXPECT_LT(ds.residual.periodic_shape_p, 0.01);
-  std::printf("telegraph: %d switches, levels %.3f deg/h apart (HMM %.3f, true %.3f; dwell %.0f s, true %.0f s), "
-              "p %.2g; sawtooth after periodic_drift: shape chi2 %.1f (%d dof), p %.2g\n",
-              dt.residual.jumps, dt.residual.jump_size_dph, dt.residual.telegraph_levels_dph, levels,
-              dt.residual.telegraph_dwell_s, dwell, dt.residual.jumps_p, ds.residual.periodic_shape_chi2,
-              ds.residual.periodic_shape_dof, ds.residual.periodic_shape_p);
+  std::printf(
+      "telegraph: %d switches, levels %.3f deg/h apart (HMM %.3f, true %.3f; dwell %.0f s, true %.0f s), "
+      "p %.2g; sawtooth after periodic_drift: shape chi2 %.1f (%d dof), p %.2g\n",
+      dt.residual.jumps, dt.residual.jump_size_dph, dt.residual.telegraph_levels_dph, levels,
+      dt.residual.telegraph_dwell_s, dwell, dt.residual.jumps_p, ds.residual.periodic_shape_chi2,
+      ds.residual.periodic_shape_dof, ds.residual.periodic_shape_p);
 }
 
 // The held-out gate: with the significance demanded of the held-out improvement out of reach, a cause
@@ -167,15 +169,16 @@ TEST(DiscoverGyroCli, FindsMagneticHarmonicAndWritesJson) {
   // A harmonic with phase near 0 or 180 deg is what an azimuth misalignment produces (nested,
   // indistinguishable in one axis): take a case whose phase is well away from it.
   uint64_t seed = 77;
-  while (std::abs(std::sin(testing::MakeGyroCase("magnetic_field", seed).truth.at("phase_deg") * kDegToRad)) < 0.7) ++seed;
+  while (std::abs(std::sin(testing::MakeGyroCase("magnetic_field", seed).truth.at("phase_deg") * kDegToRad)) < 0.7)
+    ++seed;
   const auto c = testing::MakeGyroCase("magnetic_field", seed);
   const std::string dir = testing::TempDir("discover_gyro_cli");
   WriteLog(dir + "/static.csv", c.logs[0]);
   WriteLog(dir + "/rate.csv", c.logs[1]);
   std::string out;
-  const int rc = testing::Run(testing::SsiuProgram() + " discover gyro " + dir + "/static.csv " + dir +
-                                  "/rate.csv --json " + dir + "/d.json",
-                              &out);
+  const int rc = testing::Run(
+      testing::SsiuProgram() + " discover gyro " + dir + "/static.csv " + dir + "/rate.csv --json " + dir + "/d.json",
+      &out);
   ASSERT_EQ(rc, 0) << out;
   const Json j = ReadJsonFile(dir + "/d.json");
   ASSERT_EQ(j["cause"], "magnetic_field") << j.dump(1);
@@ -230,7 +233,8 @@ TEST(DiscoverGyroCli, BadInputExitsOneNamingTheField) {
   EXPECT_EQ(testing::Run(testing::SsiuProgram() + " discover gyro " + dir + "/unsorted.csv", &out), 1);
   EXPECT_THAT(out, ::testing::HasSubstr("t_s"));
   GyroBenchLog tiny = c.logs[0];
-  tiny.t_s.resize(20), tiny.w_dph.resize(20), tiny.ref_dph.resize(20), tiny.temp_c.resize(20), tiny.azimuth_deg.resize(20);
+  tiny.t_s.resize(20), tiny.w_dph.resize(20), tiny.ref_dph.resize(20), tiny.temp_c.resize(20),
+      tiny.azimuth_deg.resize(20);
   WriteLog(dir + "/tiny.csv", tiny);
   EXPECT_EQ(testing::Run(testing::SsiuProgram() + " discover gyro " + dir + "/tiny.csv", &out), 1);
   EXPECT_THAT(out, ::testing::HasSubstr("too few rows"));

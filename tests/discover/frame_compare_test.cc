@@ -18,7 +18,8 @@ struct MeasuredFrames {
   std::vector<ImageView> views;  // of `images`
   SolvedFrameSet set;
 };
-MeasuredFrames SimulateAndSolve(const Camera& cam, const FrameSimOptions& truth, int a0, int n0, const SolveOptions& so) {
+MeasuredFrames SimulateAndSolve(const Camera& cam, const FrameSimOptions& truth, int a0, int n0,
+                                const SolveOptions& so) {
   MeasuredFrames m;
   std::vector<std::string> names;
   for (int f = 0; f < 3; ++f) {
@@ -43,7 +44,8 @@ TEST(FrameCompare, KnownSimulatorDifferencesFoundAndFitted) {
   const SolvedFrameSet& set = measured.set;
   ASSERT_EQ(set.q.size(), 3u);
   FrameCompareOptions co;  // the model under test: the simulator's defaults
-  const FrameComparison before = CompareWithSimulation(set, views, cam, testing::FrameSky(), testing::FrameIdentifier(), so, co);
+  const FrameComparison before =
+      CompareWithSimulation(set, views, cam, testing::FrameSky(), testing::FrameIdentifier(), so, co);
   EXPECT_EQ(before.simulated_solved, 3);
   EXPECT_NEAR(before.measured.psf_sigma_px, 0.9, 0.03);
   EXPECT_NEAR(before.simulated.psf_sigma_px, 1.2, 0.03);
@@ -64,7 +66,8 @@ TEST(FrameCompare, KnownSimulatorDifferencesFoundAndFitted) {
   // median width is used (corner 0 = psf_sigma_px everywhere).
   EXPECT_EQ(co2.sim.psf_sigma_corner_px, 0.0);
   EXPECT_NEAR(co2.sim.mag0_flux_e_per_s, truth.mag0_flux_e_per_s, 0.05 * truth.mag0_flux_e_per_s);
-  const FrameComparison after = CompareWithSimulation(set, views, cam, testing::FrameSky(), testing::FrameIdentifier(), so, co2);
+  const FrameComparison after =
+      CompareWithSimulation(set, views, cam, testing::FrameSky(), testing::FrameIdentifier(), so, co2);
   EXPECT_NEAR(after.simulated.psf_sigma_px, after.measured.psf_sigma_px, 0.03);
   EXPECT_NEAR(after.flux_ratio_median, 1.0, 0.05);
   EXPECT_NEAR(after.simulated.noise_adu, after.measured.noise_adu, 0.05 * after.measured.noise_adu);
@@ -87,7 +90,8 @@ TEST(FrameCompare, EllipticityCornerSigmaAndGradientFoundAndFitted) {
   const SolvedFrameSet& set = measured.set;
   ASSERT_EQ(set.q.size(), 3u);
   FrameCompareOptions co;
-  const FrameComparison before = CompareWithSimulation(set, views, cam, testing::FrameSky(), testing::FrameIdentifier(), so, co);
+  const FrameComparison before =
+      CompareWithSimulation(set, views, cam, testing::FrameSky(), testing::FrameIdentifier(), so, co);
   const FieldFigures& m = before.measured;
   EXPECT_NEAR(m.psf_ellipticity, 0.2, 0.03);
   EXPECT_NEAR(m.psf_angle_deg, 60, 4);
@@ -113,7 +117,8 @@ TEST(FrameCompare, EllipticityCornerSigmaAndGradientFoundAndFitted) {
   EXPECT_NEAR(co2.sim.psf_sigma_corner_px, 1.5, 0.1);
   EXPECT_NEAR(co2.sim.background_gradient_e_per_s, 1500, 75);
   EXPECT_NEAR(co2.sim.background_gradient_angle_deg, 30, 2);
-  const FrameComparison after = CompareWithSimulation(set, views, cam, testing::FrameSky(), testing::FrameIdentifier(), so, co2);
+  const FrameComparison after =
+      CompareWithSimulation(set, views, cam, testing::FrameSky(), testing::FrameIdentifier(), so, co2);
   const FieldFigures& a = after.simulated;
   EXPECT_NEAR(a.psf_ellipticity, m.psf_ellipticity, 0.03);
   EXPECT_NEAR(a.psf_sigma_px, m.psf_sigma_px, 0.04);
@@ -146,7 +151,8 @@ TEST(FrameCompare, VignettedSkyFoundAndFitted) {
   EXPECT_NEAR(p.angle_deg, 90, 1);
   EXPECT_LT(p.residual_rms_adu, 3);  // tile-median noise only
   FieldFigures m;
-  m.background_adu = 0.9 * p.level_adu, m.background_centre_adu = p.level_adu, m.background_vignetting = -p.radial_adu / p.level_adu, m.star_u_mean = 0.3;
+  m.background_adu = 0.9 * p.level_adu, m.background_centre_adu = p.level_adu,
+  m.background_vignetting = -p.radial_adu / p.level_adu, m.star_u_mean = 0.3;
   m.background_gradient_adu = p.amplitude_adu, m.background_gradient_angle_deg = p.angle_deg;
   m.zero_point_slope1_adu = 1e5, m.noise_adu = 40;
   const FrameSimOptions f = FitSimOptions(m, FrameSimOptions{});
@@ -202,11 +208,13 @@ TEST(FrameCompareReal, OpenStarTrackerAgainstTheSimulator) {
   EXPECT_NEAR(after.simulated.psf_sigma_px, after.measured.psf_sigma_px, 0.05);
   EXPECT_NEAR(after.simulated.noise_adu, after.measured.noise_adu, 0.1 * after.measured.noise_adu);
   EXPECT_EQ(after.simulated_solved, static_cast<int>(set.q.size()));
-  std::printf("openstartracker vs simulator: sigma %.2f (sim %.2f -> %.2f) px, flux ratio %.3f -> %.2f, noise %.2f (sim %.1f -> %.2f) ADU, "
-              "pairs %zu, position rms %.2f px\n",
-              before.measured.psf_sigma_px, before.simulated.psf_sigma_px, after.simulated.psf_sigma_px,
-              before.flux_ratio_median, after.flux_ratio_median, before.measured.noise_adu, before.simulated.noise_adu,
-              after.simulated.noise_adu, after.pairs.size(), after.position_rms_px);
+  std::printf(
+      "openstartracker vs simulator: sigma %.2f (sim %.2f -> %.2f) px, flux ratio %.3f -> %.2f, noise %.2f (sim %.1f "
+      "-> %.2f) ADU, "
+      "pairs %zu, position rms %.2f px\n",
+      before.measured.psf_sigma_px, before.simulated.psf_sigma_px, after.simulated.psf_sigma_px,
+      before.flux_ratio_median, after.flux_ratio_median, before.measured.noise_adu, before.simulated.noise_adu,
+      after.simulated.noise_adu, after.pairs.size(), after.position_rms_px);
 }
 
 }  // namespace

@@ -18,8 +18,10 @@ class GroundtestCli : public ::testing::Test {
     dir_ = testing::TempDir("groundtest_cli");
     std::ofstream(dir_ + "/cam.json") << R"({"width": 1024, "height": 1024, "focal_length_px": 3510.0})";
     std::ofstream(dir_ + "/other.json") << R"({"width": 1024, "height": 1024, "focal_length_px": 2500.0})";
-    ASSERT_EQ(Ssiu("groundtest mask --camera " + dir_ + "/cam.json --collimator-focal-mm 500 --ra-deg 83.8 --dec-deg -1 "
-                   "--roll-deg 20 --dpi 100 --out " + dir_ + "/mask --catalog " + dir_ + "/cat"),
+    ASSERT_EQ(Ssiu("groundtest mask --camera " + dir_ +
+                   "/cam.json --collimator-focal-mm 500 --ra-deg 83.8 --dec-deg -1 "
+                   "--roll-deg 20 --dpi 100 --out " +
+                   dir_ + "/mask --catalog " + dir_ + "/cat"),
               0)
         << out_;
   }
@@ -37,42 +39,46 @@ TEST_F(GroundtestCli, MaskSimulateReferenceCompareRecoverTheMisalignment) {
   EXPECT_TRUE(svg.good());
   const std::string sim = dir_ + "/sim";
   ASSERT_EQ(Ssiu("groundtest simulate --mask " + dir_ + "/mask/mask.json --camera " + dir_ +
-                 "/cam.json --positions 4 --misalignment-arcmin 2,-3,5 --seed 4 --solve --catalog " + dir_ + "/cat --out " + sim),
+                 "/cam.json --positions 4 --misalignment-arcmin 2,-3,5 --seed 4 --solve --catalog " + dir_ +
+                 "/cat --out " + sim),
             0)
       << out_;
-  ASSERT_EQ(Ssiu("groundtest reference --mask " + dir_ + "/mask/mask.json --encoders " + sim + "/encoders.csv --photos " + sim +
-                 "/photo_000.png " + sim + "/photo_001.png " + sim + "/photo_002.png " + sim + "/photo_003.png --aux-camera " +
-                 sim + "/aux_camera.json --out " + dir_ + "/ref.csv"),
-            0)
+  ASSERT_EQ(
+      Ssiu("groundtest reference --mask " + dir_ + "/mask/mask.json --encoders " + sim + "/encoders.csv --photos " +
+           sim + "/photo_000.png " + sim + "/photo_001.png " + sim + "/photo_002.png " + sim +
+           "/photo_003.png --aux-camera " + sim + "/aux_camera.json --out " + dir_ + "/ref.csv"),
+      0)
       << out_;
-  ASSERT_EQ(Ssiu("groundtest compare --reference " + dir_ + "/ref.csv --computed " + sim + "/computed.csv --json " + dir_ +
-                 "/cmp.json --plot " + dir_ + "/plots --requirement-arcsec 6"),
+  ASSERT_EQ(Ssiu("groundtest compare --reference " + dir_ + "/ref.csv --computed " + sim + "/computed.csv --json " +
+                 dir_ + "/cmp.json --plot " + dir_ + "/plots --requirement-arcsec 6"),
             0)
       << out_;
   const Json c = ReadJsonFile(dir_ + "/cmp.json");
   EXPECT_EQ(c["pictures"], 4);
   const double truth[3] = {120, -180, 300};
   for (int k = 0; k < 3; ++k)
-    EXPECT_NEAR(c["misalignment_arcsec"][k].get<double>(), truth[k], 3 * c["misalignment_sigma_arcsec"][k].get<double>())
+    EXPECT_NEAR(c["misalignment_arcsec"][k].get<double>(), truth[k],
+                3 * c["misalignment_sigma_arcsec"][k].get<double>())
         << "axis " << k;
   EXPECT_TRUE(c["pass"].get<bool>()) << c["verdict"];
   EXPECT_TRUE(std::ifstream(dir_ + "/plots/errors.png").good());
   EXPECT_TRUE(std::ifstream(dir_ + "/plots/residuals.png").good());
   // Encoders only: the plate is taken as nominal, so its offset (truth.json's mask rotation, small
   // stand angles: about the same in tracker axes) ends up in the misalignment, with the opposite sign.
-  ASSERT_EQ(Ssiu("groundtest reference --mask " + dir_ + "/mask/mask.json --encoders " + sim + "/encoders.csv --out " + dir_ +
-                 "/ref_enc.csv"),
+  ASSERT_EQ(Ssiu("groundtest reference --mask " + dir_ + "/mask/mask.json --encoders " + sim + "/encoders.csv --out " +
+                 dir_ + "/ref_enc.csv"),
             0)
       << out_;
-  ASSERT_EQ(Ssiu("groundtest compare --reference " + dir_ + "/ref_enc.csv --computed " + sim + "/computed.csv --json " + dir_ +
-                 "/cmp_enc.json"),
+  ASSERT_EQ(Ssiu("groundtest compare --reference " + dir_ + "/ref_enc.csv --computed " + sim + "/computed.csv --json " +
+                 dir_ + "/cmp_enc.json"),
             0)
       << out_;
   const Json ce = ReadJsonFile(dir_ + "/cmp_enc.json");
   const Json t = ReadJsonFile(sim + "/truth.json");
   for (int k = 0; k < 3; ++k) {
     const double expected = truth[k] - t["mask_rotation_arcsec"][k].get<double>();
-    EXPECT_NEAR(ce["misalignment_arcsec"][k].get<double>(), expected, 3 * ce["misalignment_sigma_arcsec"][k].get<double>() + 3)
+    EXPECT_NEAR(ce["misalignment_arcsec"][k].get<double>(), expected,
+                3 * ce["misalignment_sigma_arcsec"][k].get<double>() + 3)
         << "axis " << k << " (plate rotation " << t["mask_rotation_arcsec"][k] << ")";
   }
 }
@@ -80,25 +86,34 @@ TEST_F(GroundtestCli, MaskSimulateReferenceCompareRecoverTheMisalignment) {
 TEST_F(GroundtestCli, BadInputExitsOneWithAReason) {
   const std::string m = dir_ + "/mask/mask.json";
   // A mask designed for another camera.
-  EXPECT_EQ(Ssiu("groundtest simulate --mask " + m + " --camera " + dir_ + "/other.json --positions 1 --out " + dir_ + "/x"), 1);
+  EXPECT_EQ(
+      Ssiu("groundtest simulate --mask " + m + " --camera " + dir_ + "/other.json --positions 1 --out " + dir_ + "/x"),
+      1);
   EXPECT_THAT(out_, ::testing::HasSubstr("designed for another camera"));
   // No fiducials on the photo; then the wrong family.
-  ASSERT_EQ(Ssiu("groundtest simulate --mask " + m + " --positions 1 --photo-hide-tags --out " + dir_ + "/blank"), 0) << out_;
-  EXPECT_EQ(Ssiu("groundtest reference --mask " + m + " --photos " + dir_ + "/blank/photo_000.png --aux-camera " + dir_ +
-                 "/blank/aux_camera.json --out " + dir_ + "/r.csv"),
+  ASSERT_EQ(Ssiu("groundtest simulate --mask " + m + " --positions 1 --photo-hide-tags --out " + dir_ + "/blank"), 0)
+      << out_;
+  EXPECT_EQ(Ssiu("groundtest reference --mask " + m + " --photos " + dir_ + "/blank/photo_000.png --aux-camera " +
+                 dir_ + "/blank/aux_camera.json --out " + dir_ + "/r.csv"),
             1);
   EXPECT_THAT(out_, ::testing::HasSubstr("no tag36h11 fiducials visible"));
   EXPECT_EQ(std::count(out_.begin(), out_.end(), '\n'), 1) << out_;
-  ASSERT_EQ(Ssiu("groundtest simulate --mask " + m + " --positions 1 --photo-tag-family tag25h9 --out " + dir_ + "/fam"), 0) << out_;
+  ASSERT_EQ(
+      Ssiu("groundtest simulate --mask " + m + " --positions 1 --photo-tag-family tag25h9 --out " + dir_ + "/fam"), 0)
+      << out_;
   EXPECT_EQ(Ssiu("groundtest reference --mask " + m + " --photos " + dir_ + "/fam/photo_000.png --aux-camera " + dir_ +
                  "/fam/aux_camera.json --out " + dir_ + "/r.csv"),
             1);
   EXPECT_THAT(out_, ::testing::HasSubstr("wrong tag family"));
   // A design attitude off the sky: used to give a mask of every catalog star (NaN RA) or of a
   // declination past the pole, with exit 0.
-  for (const std::string att : {"--ra-deg nan --dec-deg 0", "--ra-deg 10 --dec-deg 100", "--ra-deg 10 --dec-deg 0 --roll-deg inf"}) {
-    EXPECT_EQ(Ssiu("groundtest mask --camera " + dir_ + "/other.json --collimator-focal-mm 500 " + att + " --out " + dir_ + "/m2"), 1)
-        << att << "\n" << out_;
+  for (const std::string att :
+       {"--ra-deg nan --dec-deg 0", "--ra-deg 10 --dec-deg 100", "--ra-deg 10 --dec-deg 0 --roll-deg inf"}) {
+    EXPECT_EQ(Ssiu("groundtest mask --camera " + dir_ + "/other.json --collimator-focal-mm 500 " + att + " --out " +
+                   dir_ + "/m2"),
+              1)
+        << att << "\n"
+        << out_;
     EXPECT_THAT(out_, ::testing::HasSubstr("--dec-deg in [-90, 90]")) << att;
     EXPECT_EQ(std::count(out_.begin(), out_.end(), '\n'), 1) << out_;
   }
@@ -110,7 +125,8 @@ TEST_F(GroundtestCli, BadInputExitsOneWithAReason) {
   // Encoders with a NaN, a missing column, time going backwards: each names the file and the column.
   auto reference_with = [&](const std::string& name, const std::string& csv) {
     std::ofstream(dir_ + "/" + name) << csv;
-    const int status = Ssiu("groundtest reference --mask " + m + " --encoders " + dir_ + "/" + name + " --out " + dir_ + "/r.csv");
+    const int status =
+        Ssiu("groundtest reference --mask " + m + " --encoders " + dir_ + "/" + name + " --out " + dir_ + "/r.csv");
     EXPECT_THAT(out_, ::testing::HasSubstr(name)) << name;
     EXPECT_EQ(std::count(out_.begin(), out_.end(), '\n'), 1) << out_;
     return status;
@@ -125,8 +141,10 @@ TEST_F(GroundtestCli, BadInputExitsOneWithAReason) {
   EXPECT_EQ(reference_with("enc_turns.csv", "t_s,az_deg,el_deg,rot_deg\n0,0,0,0\n1,1e300,0,0\n"), 1);
   EXPECT_THAT(out_, ::testing::HasSubstr("row 2: encoder angle beyond +-360 deg"));
   // A 1-sigma of 1e300 arcsec made the fit's weights 0/0 (NaN misalignment, exit 0).
-  std::ofstream(dir_ + "/huge_sigma.csv") << "t_s,qw,qx,qy,qz,sigma_cross_arcsec,sigma_roll_arcsec\n0,1,0,0,0,1e300,5\n1,1,0,0,0,1e300,5\n";
-  EXPECT_EQ(Ssiu("groundtest compare --reference " + dir_ + "/ok.csv --computed " + dir_ + "/huge_sigma.csv"), 1) << out_;
+  std::ofstream(dir_ + "/huge_sigma.csv")
+      << "t_s,qw,qx,qy,qz,sigma_cross_arcsec,sigma_roll_arcsec\n0,1,0,0,0,1e300,5\n1,1,0,0,0,1e300,5\n";
+  EXPECT_EQ(Ssiu("groundtest compare --reference " + dir_ + "/ok.csv --computed " + dir_ + "/huge_sigma.csv"), 1)
+      << out_;
   EXPECT_THAT(out_, ::testing::HasSubstr("huge_sigma.csv: sigma columns"));
   // The mask checked against another tracker camera by `reference` too.
   EXPECT_EQ(Ssiu("groundtest reference --mask " + m + " --camera " + dir_ + "/other.json --encoders " + dir_ +
@@ -143,9 +161,10 @@ TEST_F(GroundtestCli, BadInputExitsOneWithAReason) {
   EXPECT_EQ(Ssiu("groundtest compare --reference " + dir_ + "/ok.csv --computed " + dir_ + "/back.csv"), 1);
   EXPECT_THAT(out_, ::testing::HasSubstr("back.csv"));
   // A NaN plate shift gave a NaN plate pose and frames of nothing (exit 0).
-  for (const auto& [flag, field] : std::vector<std::pair<std::string, std::string>>{
-           {"--plate-shift-mm nan", "plate_shift_mm"}, {"--plate-shift-mm 1e9", "plate_shift_mm"},
-           {"--plate-turn-deg inf", "plate_turn_deg"}}) {
+  for (const auto& [flag, field] :
+       std::vector<std::pair<std::string, std::string>>{{"--plate-shift-mm nan", "plate_shift_mm"},
+                                                        {"--plate-shift-mm 1e9", "plate_shift_mm"},
+                                                        {"--plate-turn-deg inf", "plate_turn_deg"}}) {
     EXPECT_EQ(Ssiu("groundtest simulate --mask " + m + " --positions 1 " + flag + " --out " + dir_ + "/p"), 1) << flag;
     EXPECT_THAT(out_, ::testing::HasSubstr("stand options: " + field + " must be within")) << flag;
     EXPECT_EQ(std::count(out_.begin(), out_.end(), '\n'), 1) << out_;
@@ -154,7 +173,8 @@ TEST_F(GroundtestCli, BadInputExitsOneWithAReason) {
   Json big = ReadJsonFile(m);
   big["holes"][0]["diameter_mm"] = 1e9;
   WriteJsonFile(dir_ + "/big_hole.json", big);
-  EXPECT_EQ(Ssiu("groundtest simulate --mask " + dir_ + "/big_hole.json --positions 1 --out " + dir_ + "/p"), 1) << out_;
+  EXPECT_EQ(Ssiu("groundtest simulate --mask " + dir_ + "/big_hole.json --positions 1 --out " + dir_ + "/p"), 1)
+      << out_;
   EXPECT_THAT(out_, ::testing::HasSubstr("diameter_mm 1e+09 images to a radius of 3.51e+09 px at the tracker"));
   EXPECT_EQ(std::count(out_.begin(), out_.end(), '\n'), 1) << out_;
 }

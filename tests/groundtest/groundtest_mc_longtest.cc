@@ -36,22 +36,26 @@ TEST(GroundtestMonteCarlo, AprilTagPoseZScores) {
     const Mask m = DesignMask(s.cam, s.id->catalog().stars, q, MaskOptions{});
     PlatePose p;
     p.t_c_mm = Vec3(rng.Normal() * 0.2, rng.Normal() * 0.2, rng.Normal() * 0.5);
-    p.r_c_from_p = QuatFromRotationVector(Vec3(rng.Normal(), rng.Normal(), rng.Normal()) * 0.3 * kDegToRad).toRotationMatrix();
+    p.r_c_from_p =
+        QuatFromRotationVector(Vec3(rng.Normal(), rng.Normal(), rng.Normal()) * 0.3 * kDegToRad).toRotationMatrix();
     AuxCamera aux;
     PhotoOptions po;
     po.noise_dn = 3.0;
     FiducialOptions fo;
     fo.pixel_noise_dn = po.noise_dn;  // the expected accuracy from the stated pixel noise
     const auto photo = RenderAuxPhoto(m, p, aux, po, 100 + i);
-    const PlatePoseEstimate e = EstimatePlatePose(m, aux, photo.data(), aux.camera.width, aux.camera.height, "photo", fo);
+    const PlatePoseEstimate e =
+        EstimatePlatePose(m, aux, photo.data(), aux.camera.width, aux.camera.height, "photo", fo);
     const Vec3 err = RotationVector(e.q_c_from_m * MaskRotation(m, p).conjugate());
     for (int k = 0; k < 3; ++k) z2[k] += err(k) * err(k) / e.q_c_from_m_noise_cov_rad2(k, k) / n;
     for (int k = 0; k < 3; ++k) zs2[k] += err(k) * err(k) / e.q_c_from_m_cov_rad2(k, k) / n;
     chi2 += e.corner_chi2_per_dof / n;
   }
-  std::printf("AprilTag mask-rotation z-score RMS over %d photos against the pixel-noise prediction: %.2f %.2f %.2f; against "
-              "the stated sigma: %.2f %.2f %.2f; mean corner chi2/dof %.2f\n",
-              n, std::sqrt(z2[0]), std::sqrt(z2[1]), std::sqrt(z2[2]), std::sqrt(zs2[0]), std::sqrt(zs2[1]), std::sqrt(zs2[2]), chi2);
+  std::printf(
+      "AprilTag mask-rotation z-score RMS over %d photos against the pixel-noise prediction: %.2f %.2f %.2f; against "
+      "the stated sigma: %.2f %.2f %.2f; mean corner chi2/dof %.2f\n",
+      n, std::sqrt(z2[0]), std::sqrt(z2[1]), std::sqrt(z2[2]), std::sqrt(zs2[0]), std::sqrt(zs2[1]), std::sqrt(zs2[2]),
+      chi2);
   // z^2 averaged over 30 photos: chi2(30)/30 stays below 1.7 (99.9%), i.e. z RMS below 1.3.
   for (double v : z2) EXPECT_LT(std::sqrt(v), 1.3);
   EXPECT_LT(chi2, 1.3);
@@ -74,15 +78,18 @@ TEST(GroundtestMonteCarlo, MisalignmentRecoveryCoverage) {
     SolveOptions solve;
     solve.identify.systematic_px = 0;
     for (const auto& p : sim.pictures) {
-      const PictureSolve ps = SolveStandPicture(*s.id, p.frame.view(), m.camera, so.view.detector.gain_e_per_adu, p.t_s, solve);
+      const PictureSolve ps =
+          SolveStandPicture(*s.id, p.frame.view(), m.camera, so.view.detector.gain_e_per_adu, p.t_s, solve);
       if (ps.status != "solved") continue;
       est.push_back(ps.sample);
-      const PlatePoseEstimate pe = EstimatePlatePose(m, so.aux, p.photo.data(), so.aux.camera.width, so.aux.camera.height, "photo");
+      const PlatePoseEstimate pe =
+          EstimatePlatePose(m, so.aux, p.photo.data(), so.aux.camera.width, so.aux.camera.height, "photo");
       const ReferenceSample rs = ReferenceFromStand(m, pe.q_c_from_m, pe.q_c_from_m_cov_rad2, p.enc_az_deg * kDegToRad,
                                                     p.enc_el_deg * kDegToRad, p.enc_rot_deg * kDegToRad,
                                                     so.encoder_sigma_arcsec * kArcsecToRad, p.t_s);
       AttitudeSample a;
-      a.t_s = rs.t_s, a.q = rs.q_inertial_from_sensor, a.sigma_cross_rad = rs.sigma_cross_rad, a.sigma_roll_rad = rs.sigma_roll_rad;
+      a.t_s = rs.t_s, a.q = rs.q_inertial_from_sensor, a.sigma_cross_rad = rs.sigma_cross_rad,
+      a.sigma_roll_rad = rs.sigma_roll_rad;
       a.common_sigma_cross_rad = rs.common_sigma_cross_rad, a.common_sigma_roll_rad = rs.common_sigma_roll_rad;
       ref.push_back(a);
     }
@@ -95,8 +102,8 @@ TEST(GroundtestMonteCarlo, MisalignmentRecoveryCoverage) {
     }
     chi2 += c.chi2_per_dof / runs;
   }
-  std::printf("misalignment: %d/%d axes within 3 sigma, z-score RMS %.2f, mean chi2/dof %.2f over %d stands\n", within3, axes,
-              std::sqrt(z2 / axes), chi2, runs);
+  std::printf("misalignment: %d/%d axes within 3 sigma, z-score RMS %.2f, mean chi2/dof %.2f over %d stands\n", within3,
+              axes, std::sqrt(z2 / axes), chi2, runs);
   EXPECT_GE(within3, axes - 2);
   EXPECT_LT(std::sqrt(z2 / axes), 1.6);
   EXPECT_GT(chi2, 0.5);

@@ -69,7 +69,8 @@ TEST(GroundtestMask, HolesAreTheSkyOfTheDesignAttitude) {
     EXPECT_LT(std::atan2(u.cross(star->unit).norm(), u.dot(star->unit)) * kRadToArcsec, 1e-6);
     // Area grading: d^2 ratio = flux ratio (unless clamped).
     if (h.diameter_mm < m.hole_max_diameter_mm) {
-      EXPECT_NEAR(std::pow(h.diameter_mm / m.hole_min_diameter_mm, 2), std::pow(10.0, 0.4 * (m.mag_faint - h.mag)), 1e-9);
+      EXPECT_NEAR(std::pow(h.diameter_mm / m.hole_min_diameter_mm, 2), std::pow(10.0, 0.4 * (m.mag_faint - h.mag)),
+                  1e-9);
     }
   }
   // Boresight star at the centre: a star at the boresight maps to (0, 0).
@@ -78,7 +79,8 @@ TEST(GroundtestMask, HolesAreTheSkyOfTheDesignAttitude) {
   // Fiducials outside the star field and inside the plate.
   ASSERT_EQ(m.tags.size(), 8u);
   for (const auto& t : m.tags) {
-    EXPECT_TRUE(std::abs(t.x_mm) - t.size_mm / 2 > m.field_half_x_mm || std::abs(t.y_mm) - t.size_mm / 2 > m.field_half_y_mm);
+    EXPECT_TRUE(std::abs(t.x_mm) - t.size_mm / 2 > m.field_half_x_mm ||
+                std::abs(t.y_mm) - t.size_mm / 2 > m.field_half_y_mm);
     EXPECT_LT(std::abs(t.x_mm) + t.size_mm * 0.625, m.plate_half_mm);
   }
   // JSON round trip.
@@ -197,7 +199,8 @@ TEST(GroundtestMask, PredistortedPlateShowsAPinholeSkyThroughTheDistortedLens) {
     return Vec2(-1e9, -1e9);
   };
   for (const auto& v : seen) worst = std::max(worst, (Vec2(v.x_px, v.y_px) - pinhole_px(v.star_id)).norm());
-  for (const auto& v : seen_plain) worst_plain = std::max(worst_plain, (Vec2(v.x_px, v.y_px) - pinhole_px(v.star_id)).norm());
+  for (const auto& v : seen_plain)
+    worst_plain = std::max(worst_plain, (Vec2(v.x_px, v.y_px) - pinhole_px(v.star_id)).norm());
   std::printf("star image vs pinhole image: predistorted %.4f px, plain %.2f px (worst star)\n", worst, worst_plain);
   EXPECT_LT(worst, 1e-3);
   EXPECT_GT(worst_plain, 1.0);  // without it the lens moves the stars by pixels
@@ -232,8 +235,9 @@ TEST(GroundtestReference, AprilTagPoseWithinItsPixelNoiseUncertainty) {
   AuxCamera aux;
   PlatePose truth;
   truth.t_c_mm = Vec3(0.3, -0.2, 0.5);
-  truth.r_c_from_p = (Eigen::AngleAxisd(0.3 * kDegToRad, Vec3::UnitZ()) * Eigen::AngleAxisd(0.2 * kDegToRad, Vec3::UnitX()))
-                         .toRotationMatrix();
+  truth.r_c_from_p =
+      (Eigen::AngleAxisd(0.3 * kDegToRad, Vec3::UnitZ()) * Eigen::AngleAxisd(0.2 * kDegToRad, Vec3::UnitX()))
+          .toRotationMatrix();
   PhotoOptions po;
   po.noise_dn = 3.0;
   const std::vector<uint8_t> photo = RenderAuxPhoto(m, truth, aux, po, 7);
@@ -270,11 +274,12 @@ TEST(GroundtestReference, AprilTagPoseWithinItsPixelNoiseUncertainty) {
   const Quat q_true = MaskRotation(m, truth);
   const Vec3 err = RotationVector(e.q_c_from_m * q_true.conjugate());
   const Vec3 sig = e.q_c_from_m_noise_cov_rad2.diagonal().cwiseSqrt();
-  std::printf("pixel noise %.2f DN (measured %.2f); corner sigma expected %.4f px (analytic %.4f px), PnP residuals %.4f px, "
-              "chi2/dof %.2f\nmask rotation error %.2f %.2f %.2f arcsec, expected from the pixel noise %.2f %.2f %.2f arcsec\n",
-              fo.pixel_noise_dn, e.measured_pixel_noise_dn, e.predicted_corner_sigma_px, floor_px, e.corner_sigma_px,
-              e.corner_chi2_per_dof, err.x() * kRadToArcsec, err.y() * kRadToArcsec, err.z() * kRadToArcsec,
-              sig.x() * kRadToArcsec, sig.y() * kRadToArcsec, sig.z() * kRadToArcsec);
+  std::printf(
+      "pixel noise %.2f DN (measured %.2f); corner sigma expected %.4f px (analytic %.4f px), PnP residuals %.4f px, "
+      "chi2/dof %.2f\nmask rotation error %.2f %.2f %.2f arcsec, expected from the pixel noise %.2f %.2f %.2f arcsec\n",
+      fo.pixel_noise_dn, e.measured_pixel_noise_dn, e.predicted_corner_sigma_px, floor_px, e.corner_sigma_px,
+      e.corner_chi2_per_dof, err.x() * kRadToArcsec, err.y() * kRadToArcsec, err.z() * kRadToArcsec,
+      sig.x() * kRadToArcsec, sig.y() * kRadToArcsec, sig.z() * kRadToArcsec);
   EXPECT_NEAR(e.predicted_corner_sigma_px, floor_px, 0.1 * floor_px);
   // The PnP residuals agree with the predicted corner noise (chi2(58)/58 within its 99.9% range).
   EXPECT_GT(e.corner_chi2_per_dof, 0.55);
@@ -347,7 +352,8 @@ TEST(GroundtestCompare, RecoversAKnownMisalignmentAndDrift) {
     r.t_s = i * 90.0;
     r.q = RandomAttitude(100 + i);
     AttitudeSample e = r;
-    Vec3 d = mis + Vec3(drift_x_per_h * r.t_s / 3600, 0, 0) + Vec3(sc * rng.Normal(), sc * rng.Normal(), sr * rng.Normal());
+    Vec3 d =
+        mis + Vec3(drift_x_per_h * r.t_s / 3600, 0, 0) + Vec3(sc * rng.Normal(), sc * rng.Normal(), sr * rng.Normal());
     e.q = r.q * QuatFromRotationVector(d * kArcsecToRad);
     e.sigma_cross_rad = sc * kArcsecToRad, e.sigma_roll_rad = sr * kArcsecToRad;
     ref.push_back(r), est.push_back(e);
@@ -357,7 +363,8 @@ TEST(GroundtestCompare, RecoversAKnownMisalignmentAndDrift) {
   const CompareResult c = CompareAttitudes(ref, est, o);
   EXPECT_EQ(c.pictures, n);
   const double mean_drift_x = drift_x_per_h * (n - 1) * 90.0 / 2 / 3600;  // the drift's mean enters the bias
-  EXPECT_NEAR(c.misalignment_rad.x() * kRadToArcsec, mis.x() + mean_drift_x, 3 * c.misalignment_sigma_rad.x() * kRadToArcsec);
+  EXPECT_NEAR(c.misalignment_rad.x() * kRadToArcsec, mis.x() + mean_drift_x,
+              3 * c.misalignment_sigma_rad.x() * kRadToArcsec);
   EXPECT_NEAR(c.misalignment_rad.y() * kRadToArcsec, mis.y(), 3 * c.misalignment_sigma_rad.y() * kRadToArcsec);
   EXPECT_NEAR(c.misalignment_rad.z() * kRadToArcsec, mis.z(), 3 * c.misalignment_sigma_rad.z() * kRadToArcsec);
   EXPECT_NEAR(c.x.drift_per_h * kRadToArcsec, drift_x_per_h, 3 * c.x.drift_sigma_per_h * kRadToArcsec);
@@ -388,12 +395,14 @@ TEST(GroundtestVirtualStand, RecoversTheHiddenMisalignment) {
         SolveStandPicture(Identifier(), p.frame.view(), m.camera, so.view.detector.gain_e_per_adu, p.t_s, solve);
     ASSERT_EQ(ps.status, "solved") << "t " << p.t_s;
     computed.push_back(ps.sample);
-    const PlatePoseEstimate pe = EstimatePlatePose(m, so.aux, p.photo.data(), so.aux.camera.width, so.aux.camera.height, "photo");
-    const ReferenceSample r = ReferenceFromStand(m, pe.q_c_from_m, pe.q_c_from_m_cov_rad2, p.enc_az_deg * kDegToRad,
-                                                 p.enc_el_deg * kDegToRad, p.enc_rot_deg * kDegToRad,
-                                                 so.encoder_sigma_arcsec * kArcsecToRad, p.t_s);
+    const PlatePoseEstimate pe =
+        EstimatePlatePose(m, so.aux, p.photo.data(), so.aux.camera.width, so.aux.camera.height, "photo");
+    const ReferenceSample r =
+        ReferenceFromStand(m, pe.q_c_from_m, pe.q_c_from_m_cov_rad2, p.enc_az_deg * kDegToRad, p.enc_el_deg * kDegToRad,
+                           p.enc_rot_deg * kDegToRad, so.encoder_sigma_arcsec * kArcsecToRad, p.t_s);
     AttitudeSample a;
-    a.t_s = r.t_s, a.q = r.q_inertial_from_sensor, a.sigma_cross_rad = r.sigma_cross_rad, a.sigma_roll_rad = r.sigma_roll_rad;
+    a.t_s = r.t_s, a.q = r.q_inertial_from_sensor, a.sigma_cross_rad = r.sigma_cross_rad,
+    a.sigma_roll_rad = r.sigma_roll_rad;
     a.common_sigma_cross_rad = r.common_sigma_cross_rad, a.common_sigma_roll_rad = r.common_sigma_roll_rad;
     reference.push_back(a);
   }
@@ -401,13 +410,15 @@ TEST(GroundtestVirtualStand, RecoversTheHiddenMisalignment) {
   co.requirement_arcsec = 10;
   const CompareResult c = CompareAttitudes(reference, computed, co);
   const Vec3 truth = RotationVector(s.q_mis);
-  std::printf("misalignment truth %.1f %.1f %.1f arcsec, estimate %.1f %.1f %.1f +/- %.1f %.1f %.1f; residual RMS cross %.2f "
-              "roll %.2f arcsec; stated sigma cross %.2f roll %.2f; chi2/dof %.2f\n",
-              truth.x() * kRadToArcsec, truth.y() * kRadToArcsec, truth.z() * kRadToArcsec, c.misalignment_rad.x() * kRadToArcsec,
-              c.misalignment_rad.y() * kRadToArcsec, c.misalignment_rad.z() * kRadToArcsec,
-              c.misalignment_sigma_rad.x() * kRadToArcsec, c.misalignment_sigma_rad.y() * kRadToArcsec,
-              c.misalignment_sigma_rad.z() * kRadToArcsec, c.rms_cross_rad * kRadToArcsec, c.roll.rms * kRadToArcsec,
-              c.mean_sigma_cross_rad * kRadToArcsec, c.mean_sigma_roll_rad * kRadToArcsec, c.chi2_per_dof);
+  std::printf(
+      "misalignment truth %.1f %.1f %.1f arcsec, estimate %.1f %.1f %.1f +/- %.1f %.1f %.1f; residual RMS cross %.2f "
+      "roll %.2f arcsec; stated sigma cross %.2f roll %.2f; chi2/dof %.2f\n",
+      truth.x() * kRadToArcsec, truth.y() * kRadToArcsec, truth.z() * kRadToArcsec,
+      c.misalignment_rad.x() * kRadToArcsec, c.misalignment_rad.y() * kRadToArcsec,
+      c.misalignment_rad.z() * kRadToArcsec, c.misalignment_sigma_rad.x() * kRadToArcsec,
+      c.misalignment_sigma_rad.y() * kRadToArcsec, c.misalignment_sigma_rad.z() * kRadToArcsec,
+      c.rms_cross_rad * kRadToArcsec, c.roll.rms * kRadToArcsec, c.mean_sigma_cross_rad * kRadToArcsec,
+      c.mean_sigma_roll_rad * kRadToArcsec, c.chi2_per_dof);
   for (int k = 0; k < 3; ++k)
     EXPECT_LT(std::abs(c.misalignment_rad(k) - truth(k)), 3 * c.misalignment_sigma_rad(k)) << "axis " << k;
   // The uncertainty is meaningful: well below the misalignment itself (a few arcmin).

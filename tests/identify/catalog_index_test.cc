@@ -97,8 +97,10 @@ TEST(CatalogIndex, LoadedCatalogIsTheBuiltOneAndItsStoredIndexAnswersAsANewOne) 
     for (int s : want) EXPECT_GT(u.dot(back.stars[s].unit), std::cos(r) - 1e-12);
     const CatalogTriangle& t = back.triangles[static_cast<size_t>(rng.Uniform(0, back.triangles.size() - 1))];
     std::vector<int> tg, tw;
-    back.index->ForEachInBox(t.ratio_a, t.ratio_b, std::log(t.longest_rad), 0.01, 0.02, back, [&](int k) { tg.push_back(k); });
-    fresh.ForEachInBox(t.ratio_a, t.ratio_b, std::log(t.longest_rad), 0.01, 0.02, back, [&](int k) { tw.push_back(k); });
+    back.index->ForEachInBox(t.ratio_a, t.ratio_b, std::log(t.longest_rad), 0.01, 0.02, back,
+                             [&](int k) { tg.push_back(k); });
+    fresh.ForEachInBox(t.ratio_a, t.ratio_b, std::log(t.longest_rad), 0.01, 0.02, back,
+                       [&](int k) { tw.push_back(k); });
     EXPECT_EQ(tg, tw) << "query " << i;
     EXPECT_FALSE(tw.empty());  // the triangle itself at least
   }
@@ -117,7 +119,8 @@ TEST(CatalogIndex, FormatThreeCatalogStillLoadsAndSolvesTheSame) {
     Rng rng(300 + i);
     const Quat q = QuatFromUniform(rng.Uniform(), rng.Uniform(), rng.Uniform());
     const auto f = testing::MakeSyntheticFrame(built, cam, q, testing::SyntheticOptions{}, &rng);
-    const Identification ra = a.Identify(f.centroids, cam, IdentifyOptions{}), rb = b.Identify(f.centroids, cam, IdentifyOptions{});
+    const Identification ra = a.Identify(f.centroids, cam, IdentifyOptions{}),
+                         rb = b.Identify(f.centroids, cam, IdentifyOptions{});
     EXPECT_EQ(ra.status, "solved");
     EXPECT_LT(AttitudeErrorRad(ra.q_inertial_from_sensor, q) * kRadToArcsec, 60);  // 0.2 px of 70"
     EXPECT_EQ(ra.status, rb.status);

@@ -34,7 +34,8 @@ TEST(CatalogIntegrity, TruncatedCatalogIsDetectedAndRebuiltOnlyInTheCache) {
   std::filesystem::resize_file(dir + "/catalog.bin", bytes / 2);  // a writer killed half-way, pre-issue
   std::string why;
   EXPECT_EQ(CheckCatalogDir(dir, &why), CatalogDirState::kDamaged);
-  EXPECT_THAT(why, HasSubstr("damaged: " + std::to_string(bytes / 2) + " bytes, meta.json records " + std::to_string(bytes)));
+  EXPECT_THAT(
+      why, HasSubstr("damaged: " + std::to_string(bytes / 2) + " bytes, meta.json records " + std::to_string(bytes)));
   EXPECT_THAT(ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("damaged catalog"));
   // A directory the user gave: refused with the reason.
   EXPECT_THAT(ErrorOf([&] { LoadOrBuildCatalogIn(dir, DefaultBscPath(), Fov(20), false); }),

@@ -1,9 +1,7 @@
-#include "identify/star_catalog.h"
-
 #include <algorithm>
 #include <array>
-#include <cstdint>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <vector>
@@ -11,6 +9,7 @@
 #include "core/astrometry.h"
 #include "core/attitude.h"
 #include "core/error.h"
+#include "identify/star_catalog.h"
 #include "testing/testing.h"
 
 namespace ssiu {

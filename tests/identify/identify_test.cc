@@ -66,8 +66,9 @@ TEST(Photometry, EvidenceAnalyticCases) {
   // mean of the harmonic calibrator N / (K H_N) and the steeper N / (K^2 S_N).
   const double h5 = 1 + 1 / 2.0 + 1 / 3.0 + 1 / 4.0 + 1 / 5.0;
   const double s5 = 1 + 1 / 4.0 + 1 / 9.0 + 1 / 16.0 + 1 / 25.0;
-  EXPECT_NEAR(PhotometricEvidence({flux(2), flux(3), flux(4), flux(5)}, {2, 3, 4, 5}, {flux(0), flux(1), flux(8), flux(9)}),
-              6 * 30.0 / 67 * 0.5 * (5 / h5 + 5 / s5), 1e-9);
+  EXPECT_NEAR(
+      PhotometricEvidence({flux(2), flux(3), flux(4), flux(5)}, {2, 3, 4, 5}, {flux(0), flux(1), flux(8), flux(9)}),
+      6 * 30.0 / 67 * 0.5 * (5 / h5 + 5 / s5), 1e-9);
   EXPECT_THROW(PhotometricEvidence({1, 2}, {1, 2}, {}), InputError);
 }
 

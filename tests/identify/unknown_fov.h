@@ -101,9 +101,10 @@ inline UnknownFovCampaign RunUnknownFov(int n, uint64_t seed0, const IdentifyOpt
     c.ms.push_back(r.timing_ms.count("identify") ? r.timing_ms.at("identify") : 0.0);
     c.hypotheses_max = std::max(c.hypotheses_max, r.hypotheses);
     if (r.status != "solved") {
-      if (n <= 100) std::fprintf(stderr, "unsolved frame seed %llu (%.2f deg, %zu centroids): %s\n",
-                   static_cast<unsigned long long>(seed0 + k), truth.FovXRad() * kRadToDeg, f.centroids.size(),
-                   r.message.c_str());
+      if (n <= 100)
+        std::fprintf(stderr, "unsolved frame seed %llu (%.2f deg, %zu centroids): %s\n",
+                     static_cast<unsigned long long>(seed0 + k), truth.FovXRad() * kRadToDeg, f.centroids.size(),
+                     r.message.c_str());
       continue;
     }
     ++c.solved;
@@ -111,7 +112,8 @@ inline UnknownFovCampaign RunUnknownFov(int n, uint64_t seed0, const IdentifyOpt
     const double fe = 100 * (r.focal_length_px / truth.focal_length_px - 1);
     c.focal_pct.push_back(fe);
     c.worst_focal_pct = std::max(c.worst_focal_pct, std::abs(fe));
-    c.worst_focal_z = std::max(c.worst_focal_z, std::abs(r.focal_length_px - truth.focal_length_px) / r.focal_length_sigma_px);
+    c.worst_focal_z =
+        std::max(c.worst_focal_z, std::abs(r.focal_length_px - truth.focal_length_px) / r.focal_length_sigma_px);
     for (const auto& m : r.matches) {
       if (f.truth_id[m.centroid] != m.star_id) {
         ++c.misidentified;  // e.g. a faint catalog neighbour taken for the simulated star
@@ -121,7 +123,8 @@ inline UnknownFovCampaign RunUnknownFov(int n, uint64_t seed0, const IdentifyOpt
     if (IsWrongFov(r, q)) {
       ++c.wrong;
       std::fprintf(stderr, "WRONG frame seed %llu: %.1f arcsec off, focal %.3f %% off, %s, chance %.3g\n",
-                   static_cast<unsigned long long>(seed0 + k), err_arcsec, fe, r.message.c_str(), r.false_match_probability);
+                   static_cast<unsigned long long>(seed0 + k), err_arcsec, fe, r.message.c_str(),
+                   r.false_match_probability);
     }
   }
   return c;

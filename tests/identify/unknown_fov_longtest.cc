@@ -36,14 +36,15 @@ UnknownFovCampaign RunAndPrint(double mag_max, uint64_t seed0) {
   const UnknownFovCampaign c = RunUnknownFov(n, seed0, io, /*default_source=*/true, mag_max);
   std::vector<double> abs_focal;
   for (double f : c.focal_pct) abs_focal.push_back(std::abs(f));
-  std::printf("unknown FOV 8-25 deg, %d frames of 10-20 deg, stars to V %.1f: %d solved (%.1f%%), %d wrong (%d with a "
-              "misidentified star), focal "
-              "error median %.4f %% p99 %.4f %% max %.4f %%, identify CPU median %.2f ms p99 %.2f ms (wall median %.2f ms), max %d "
-              "hypotheses, CPU %.1f s\n",
-              c.frames, mag_max, c.solved, 100.0 * c.solved / c.frames, c.wrong, c.misidentified, Percentile(abs_focal, 0.5),
-              Percentile(abs_focal, 0.99), c.worst_focal_pct, Percentile(c.cpu_ms, 0.5), Percentile(c.cpu_ms, 0.99), c.MedianMs(),
-              c.hypotheses_max,
-              double(std::clock() - c0) / CLOCKS_PER_SEC);
+  std::printf(
+      "unknown FOV 8-25 deg, %d frames of 10-20 deg, stars to V %.1f: %d solved (%.1f%%), %d wrong (%d with a "
+      "misidentified star), focal "
+      "error median %.4f %% p99 %.4f %% max %.4f %%, identify CPU median %.2f ms p99 %.2f ms (wall median %.2f ms), "
+      "max %d "
+      "hypotheses, CPU %.1f s\n",
+      c.frames, mag_max, c.solved, 100.0 * c.solved / c.frames, c.wrong, c.misidentified, Percentile(abs_focal, 0.5),
+      Percentile(abs_focal, 0.99), c.worst_focal_pct, Percentile(c.cpu_ms, 0.5), Percentile(c.cpu_ms, 0.99),
+      c.MedianMs(), c.hypotheses_max, double(std::clock() - c0) / CLOCKS_PER_SEC);
   EXPECT_EQ(c.wrong, 0);
   EXPECT_LT(c.worst_focal_pct, 0.2);
   return c;

@@ -1,5 +1,7 @@
 // Unknown field of view (issue 14 item 3): a catalog for 8-25 deg and frames of 10-20 deg whose
 // focal length the solver is not told. CI-sized; the campaign is tests/identify/unknown_fov_longtest.cc.
+#include "unknown_fov.h"
+
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -11,7 +13,6 @@
 #include "identify/identify.h"
 #include "identify/synthetic.h"
 #include "testing/testing.h"
-#include "unknown_fov.h"
 
 namespace ssiu {
 namespace {
@@ -23,7 +24,8 @@ TEST(UnknownFov, CatalogSpansTheRange) {
   EXPECT_DOUBLE_EQ(cat.fov_min_deg, 8.0);
   EXPECT_DOUBLE_EQ(cat.fov_deg, 25.0);
   double longest = 0, shortest = 1e9;
-  for (const auto& t : cat.triangles) longest = std::max<double>(longest, t.longest_rad), shortest = std::min<double>(shortest, t.longest_rad);
+  for (const auto& t : cat.triangles)
+    longest = std::max<double>(longest, t.longest_rad), shortest = std::min<double>(shortest, t.longest_rad);
   EXPECT_LE(longest * kRadToDeg, 25.0 + 1e-6);
   EXPECT_GT(longest * kRadToDeg, 20.0) << "triangles for the widest fields";
   EXPECT_LT(shortest * kRadToDeg, 2.0) << "triangles for the narrowest fields";
@@ -33,8 +35,10 @@ TEST(UnknownFov, CatalogSpansTheRange) {
 // all solved, none wrong, focal length within 0.2 % and within 5 of its reported sigmas.
 TEST(UnknownFov, SolvesFramesOfUnknownFocalLength) {
   const UnknownFovCampaign c = RunUnknownFov(16, 300, UnknownFovOptions());
-  std::printf("unknown FOV 8-25 deg, 10-20 deg frames: %d/%d solved, %d wrong, worst focal error %.4f %% (%.1f sigma), "
-              "median %.1f ms\n", c.solved, c.frames, c.wrong, c.worst_focal_pct, c.worst_focal_z, c.MedianMs());
+  std::printf(
+      "unknown FOV 8-25 deg, 10-20 deg frames: %d/%d solved, %d wrong, worst focal error %.4f %% (%.1f sigma), "
+      "median %.1f ms\n",
+      c.solved, c.frames, c.wrong, c.worst_focal_pct, c.worst_focal_z, c.MedianMs());
   EXPECT_GE(c.solved, 15);
   EXPECT_EQ(c.wrong, 0);
   EXPECT_EQ(c.misidentified, 0);
@@ -46,7 +50,7 @@ TEST(UnknownFov, SolvesFramesOfUnknownFocalLength) {
 TEST(UnknownFov, ChanceProbabilityIsCalibratedOnRandomCentroids) {
   IdentifyOptions io = UnknownFovOptions();
   io.max_false_match_prob = 0.05;
-  io.pattern_centroids = 25;   // CI-sized searches (the sequential factor counts max_hypotheses)
+  io.pattern_centroids = 25;  // CI-sized searches (the sequential factor counts max_hypotheses)
   io.max_hypotheses = 5000;
   const Calibration c = RunUnknownFovRandom(60, 7000, io);
   std::printf("unknown FOV, random centroids at 0.05: %d of %d solved\n", c.false_solves, c.trials);

@@ -55,7 +55,8 @@ TEST(Fdi, IsolationRules) {
   for (int i = 0; i < 5; ++i) {
     bool unique = true;
     for (int j = 0; j < 5; ++j) {
-      if (j != i && std::abs(v.col(i).normalized().dot(v.col(j).normalized())) >= o.parity_isolation_cos) unique = false;
+      if (j != i && std::abs(v.col(i).normalized().dot(v.col(j).normalized())) >= o.parity_isolation_cos)
+        unique = false;
     }
     const int got = IsolateFromParity(v, v.col(i) * 20.0, five, o);
     EXPECT_EQ(got, unique ? i : -1) << "gyro " << i;
@@ -118,8 +119,7 @@ TEST(Fdi, CusumFalseAlarmRateIsBelowItsTarget) {
   }
   const double rate_per_h = alarms / hours;
   std::printf("CUSUM false alarms: %d in %.1f h at a target of %.0f per hour (h = %.2f)\n", alarms, hours,
-              o.false_alarm_per_h,
-              m_h);
+              o.false_alarm_per_h, m_h);
   EXPECT_LE(rate_per_h, 1.5 * o.false_alarm_per_h);
   EXPECT_GE(rate_per_h, o.false_alarm_per_h / 3);
   EXPECT_NEAR(CusumThreshold(9, 100.0, 1e-3), std::log(9 * 100.0 * 3600 / 1e-3), 1e-12);
@@ -131,7 +131,8 @@ TEST(Fdi, CusumCatchesASlowRampAndANoiseBurst) {
   const GyroUnit u = DefaultFourFogUnit();
   for (int gi = 0; gi < 4; ++gi) {
     ParityMonitor m(u.Axes(), std::vector<bool>(4, true), GyroVec::Constant(4, 6.0), 0.01, FdiOptions{});
-    const double t = FirstAlarm(&m, 40 + gi, 400, [gi](double t, int i) { return i == gi && t > 100 ? (t - 100) : 0.0; });
+    const double t =
+        FirstAlarm(&m, 40 + gi, 400, [gi](double t, int i) { return i == gi && t > 100 ? (t - 100) : 0.0; });
     ASSERT_GT(t, 100) << gi;
     EXPECT_LT(t, 110) << gi;
     EXPECT_EQ(m.alarm_test(), "cusum");
@@ -150,7 +151,8 @@ TEST(Fdi, CusumCatchesASlowRampAndANoiseBurst) {
   }
   ParityMonitor m(u.Axes(), std::vector<bool>(4, true), GyroVec::Constant(4, 6.0), 0.01, FdiOptions{});
   Rng burst(7);
-  const double t = FirstAlarm(&m, 50, 400, [&](double t, int i) { return i == 3 && t > 100 ? 40 * burst.Normal() : 0.0; });
+  const double t =
+      FirstAlarm(&m, 50, 400, [&](double t, int i) { return i == 3 && t > 100 ? 40 * burst.Normal() : 0.0; });
   EXPECT_GT(t, 100);
   EXPECT_LT(t, 105);
   EXPECT_EQ(m.alarm_test(), "noise");

@@ -38,7 +38,8 @@ TEST(FuseIo, BadGyroLogs) {
   const std::string none = Write(d, "x.csv", "t_s,a\n0.01,1\n0.02,1\n");
   EXPECT_THAT(ErrorOf([&] { ReadGyroLog(none); }), HasSubstr("g1_dph"));
   // Extra columns are kept and ignored; the g-columns are counted.
-  const std::string ok = Write(d, "ok.csv", "t_s,g1_dph,g2_dph,g3_dph,g4_dph,temp_c\n0.01,1,2,3,4,20\n0.02,1,2,3,4,20\n");
+  const std::string ok =
+      Write(d, "ok.csv", "t_s,g1_dph,g2_dph,g3_dph,g4_dph,temp_c\n0.01,1,2,3,4,20\n0.02,1,2,3,4,20\n");
   const GyroLog log = ReadGyroLog(ok);
   EXPECT_FALSE(log.body_rates);
   EXPECT_EQ(log.rates_dph[1].size(), 4);
@@ -53,10 +54,11 @@ TEST(FuseIo, BadStarTrackerLogs) {
               HasSubstr("t_s"));
   EXPECT_THAT(ErrorOf([&] { ReadStarTrackerLog(Write(d, "c.csv", "t_s,qw,qx,qy,qz\n0,0,0,0,0\n")); }),
               HasSubstr("quaternion"));
-  EXPECT_THAT(ErrorOf([&] {
-                ReadStarTrackerLog(Write(d, "e.csv", "t_s,qw,qx,qy,qz,sigma_cross_arcsec,sigma_roll_arcsec\n0,1,0,0,0,5,-1\n"));
-              }),
-              HasSubstr("sigma"));
+  EXPECT_THAT(
+      ErrorOf([&] {
+        ReadStarTrackerLog(Write(d, "e.csv", "t_s,qw,qx,qy,qz,sigma_cross_arcsec,sigma_roll_arcsec\n0,1,0,0,0,5,-1\n"));
+      }),
+      HasSubstr("sigma"));
 }
 
 TEST(FuseIo, GyroCountMismatchAndNoStarData) {

@@ -2,6 +2,8 @@
 // hand-made inputs: the policies of FuseOptions::policy, a late measurement, missing and wrong frames.
 // Their runs on simulated missions and gyro logs are in tests/sim/ (mission_test.cc: they need the
 // simulator, a stage above this one).
+#include "inertial/online_fusion.h"
+
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -10,7 +12,6 @@
 #include "core/attitude.h"
 #include "core/camera.h"
 #include "core/error.h"
-#include "inertial/online_fusion.h"
 #include "inertial/propagate.h"
 #include "inertial/unit_processor.h"
 #include "testing/testing.h"

@@ -204,7 +204,8 @@ TEST(FrameDetect, SimulatorIsDeterministicAndSwitchesEffectsOff) {
   const SimulatedFrame c = SimulateFrame(cam, testing::Bsc(), RandomAttitude(3), so, 3);
   EXPECT_TRUE(c.artefacts.empty());
   // Noise-free: a pixel far from every star is exactly bias + (background + dark) / gain.
-  const double expect = so.bias_adu + (so.background_e_per_s + so.dark_current_e_per_s) * so.exposure_s / so.gain_e_per_adu;
+  const double expect =
+      so.bias_adu + (so.background_e_per_s + so.dark_current_e_per_s) * so.exposure_s / so.gain_e_per_adu;
   int checked = 0;
   for (int y = 10; y < cam.height - 10 && checked < 50; y += 97) {
     for (int x = 10; x < cam.width - 10; x += 89) {
@@ -243,7 +244,8 @@ TEST(FrameDetect, ExtendedObjectIsRejectedNotAStar) {
   for (int y = static_cast<int>(by) - 25; y <= static_cast<int>(by) + 25; ++y) {
     for (int x = static_cast<int>(bx) - 25; x <= static_cast<int>(bx) + 25; ++x) {
       const double r2 = (x - bx) * (x - bx) + (y - by) * (y - by);
-      f.image.at(x, y) = static_cast<uint16_t>(std::min(65535.0, f.image.at(x, y) + peak_adu * std::exp(-r2 / (2 * sigma * sigma))));
+      f.image.at(x, y) =
+          static_cast<uint16_t>(std::min(65535.0, f.image.at(x, y) + peak_adu * std::exp(-r2 / (2 * sigma * sigma))));
     }
   }
   const Detections d = DetectSim(f, so);

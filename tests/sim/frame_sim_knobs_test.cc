@@ -12,14 +12,14 @@
 #include "core/error.h"
 #include "core/json.h"
 #include "sim/frame_sim.h"
-#include "testing/testing.h"
 #include "sim_fixtures.h"
+#include "testing/testing.h"
 
 namespace ssiu {
 namespace {
 
-using ::testing::HasSubstr;
 using testing::Clean;
+using ::testing::HasSubstr;
 using testing::ImageMoments;
 using testing::Moments;
 using testing::Stars;
@@ -221,7 +221,8 @@ TEST(FrameSimKnobs, DefaultsRenderTheRoundFlatFrame) {
   // With noise on (the default options): the angles alone (amplitudes 0) change nothing.
   FrameSimOptions angles;
   angles.psf_angle_deg = 20, angles.background_gradient_angle_deg = 70;
-  EXPECT_EQ(SimulateFrame(cam, cat, q, angles, 9).image.pixels, SimulateFrame(cam, cat, q, FrameSimOptions{}, 9).image.pixels);
+  EXPECT_EQ(SimulateFrame(cam, cat, q, angles, 9).image.pixels,
+            SimulateFrame(cam, cat, q, FrameSimOptions{}, 9).image.pixels);
 }
 
 TEST(FrameSimKnobs, BadValuesRefusedNamingTheField) {
@@ -248,8 +249,10 @@ TEST(FrameSimKnobs, BadValuesRefusedNamingTheField) {
 // exits 1 naming the field.
 TEST(FrameSimKnobs, CommandLineFlags) {
   const std::string dir = testing::TempDir("frame_sim_knobs");
-  const auto ok = testing::RunSsiu("simulate frame --random --seed 4 --psf-ellipticity 0.2 --psf-angle-deg 45 "
-                                   "--psf-sigma-corner-px 1.5 --background-gradient-e-per-s 300 --out " + dir);
+  const auto ok = testing::RunSsiu(
+      "simulate frame --random --seed 4 --psf-ellipticity 0.2 --psf-angle-deg 45 "
+      "--psf-sigma-corner-px 1.5 --background-gradient-e-per-s 300 --out " +
+      dir);
   ASSERT_EQ(ok.status, 0) << ok.output;
   const Json truth = ReadJsonFile(dir + "/frame_0000.json");
   EXPECT_EQ(truth["options"]["psf_ellipticity"].get<double>(), 0.2);

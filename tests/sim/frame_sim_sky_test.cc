@@ -38,7 +38,8 @@ TEST(FrameSimSky, StarsMoveByTheirProperMotionAndTheAberration) {
     EXPECT_NEAR(moved.stars[k].x_px, p->x(), 1e-6);
     EXPECT_NEAR(moved.stars[k].y_px, p->y(), 1e-6);
     // The shift is tens of arcsec: (v/c) sin(theta) up to ~25", plus 67" of proper motion for star 1.
-    const double shift_px = std::hypot(moved.stars[k].x_px - still.stars[k].x_px, moved.stars[k].y_px - still.stars[k].y_px);
+    const double shift_px =
+        std::hypot(moved.stars[k].x_px - still.stars[k].x_px, moved.stars[k].y_px - still.stars[k].y_px);
     EXPECT_GT(shift_px * 10.0 * 3600 / 512, k == 1 ? 40.0 : 1.0);
   }
   // Switched off, the stars stay where the catalog puts them.

@@ -96,8 +96,8 @@ inline NoiseChainScore RunNoiseChain(int runs, const std::string& dir, bool with
   for (int a = 0; a < 3; ++a) {
     s.bias_rms_dph[a] = std::sqrt(sum2[a] / runs);
     s.default_bias_rms_dph[a] = std::sqrt(sum2_default[a] / runs);
-    std::printf("axis %d: bias RMS over %d runs %.4f deg/h with --noise (%.2f x bound %.4f), %.4f (%.2f x) default\n", a,
-                runs, s.bias_rms_dph[a], s.bias_rms_dph[a] / s.crb_dph, s.crb_dph, s.default_bias_rms_dph[a],
+    std::printf("axis %d: bias RMS over %d runs %.4f deg/h with --noise (%.2f x bound %.4f), %.4f (%.2f x) default\n",
+                a, runs, s.bias_rms_dph[a], s.bias_rms_dph[a] / s.crb_dph, s.crb_dph, s.default_bias_rms_dph[a],
                 s.default_bias_rms_dph[a] / s.crb_dph);
   }
   s.nees_mean = nees / runs;

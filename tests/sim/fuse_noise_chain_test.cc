@@ -1,9 +1,9 @@
 // `ssiu fuse --noise` and the noise flags: the allan -> fuse chain on a few runs (20 in
 // fuse_noise_chain_longtest.cc) and the bad input the command must refuse.
+#include "sim/fuse_noise_chain.h"
+
 #include <algorithm>
 #include <fstream>
-
-#include "sim/fuse_noise_chain.h"
 
 namespace ssiu {
 namespace {
@@ -43,8 +43,9 @@ TEST(FuseNoiseChain, FlagsOverrideTheFileAndBadNoiseIsRefused) {
   EXPECT_DOUBLE_EQ(n.at("bias_instability_dph").get<double>(), 0.003);
   EXPECT_DOUBLE_EQ(n.at("rrw_dph_per_sqrt_h").get<double>(), 0.0);  // not significant
   EXPECT_DOUBLE_EQ(n.at("init_bias_sigma_dph").get<double>(), 10.0);
-  r = testing::RunSsiu(fuse + "--noise " + d + "/n.json --arw-deg-per-sqrt-h 0.005 --rrw-dph-per-sqrt-h 0.001 "
-                              "--init-bias-sigma-dph 3");
+  r = testing::RunSsiu(fuse + "--noise " + d +
+                       "/n.json --arw-deg-per-sqrt-h 0.005 --rrw-dph-per-sqrt-h 0.001 "
+                       "--init-bias-sigma-dph 3");
   ASSERT_EQ(r.status, 0) << r.output;
   n = ReadJsonFile(d + "/f.json").at("noise");
   EXPECT_EQ(n.at("source"), "flags");

@@ -81,12 +81,15 @@ TEST_F(GyroCli, BadInputExitsOneWithALineNamingFileAndField) {
   EXPECT_THAT(out, HasSubstr("nope.json"));
   // A star tracker at 1e9 Hz used to run for hours.
   std::ofstream(d + "/fast_st.json") << R"({"type": "slew", "star_tracker": {"rate_hz": 1e9}})";
-  EXPECT_EQ(testing::Run(ssiu + " simulate gyro --profile " + d + "/fast_st.json --duration-s 10 --out " + d + "/x", &out), 1)
+  EXPECT_EQ(
+      testing::Run(ssiu + " simulate gyro --profile " + d + "/fast_st.json --duration-s 10 --out " + d + "/x", &out), 1)
       << out;
   EXPECT_THAT(out, HasSubstr("star_tracker.rate_hz must be in (0, 1000]"));
   // A reversed outage used to be accepted as no outage.
   std::ofstream(d + "/reversed.json") << R"({"type": "slew", "star_tracker": {"outages_s": [[8, 3]]}})";
-  EXPECT_EQ(testing::Run(ssiu + " simulate gyro --profile " + d + "/reversed.json --duration-s 10 --out " + d + "/x", &out), 1)
+  EXPECT_EQ(
+      testing::Run(ssiu + " simulate gyro --profile " + d + "/reversed.json --duration-s 10 --out " + d + "/x", &out),
+      1)
       << out;
   EXPECT_THAT(out, HasSubstr("reversed.json"));
   EXPECT_THAT(out, HasSubstr("outages_s"));

@@ -42,8 +42,8 @@ Outcome RunCase(const Case& c, uint64_t seed) {
     }
     const FaultEvent& f = s.fused.faults[i];
     o.isolated_right &= f.gyro == c.faults[i].gyro && f.status == FaultStatus::kIsolated;
-    std::snprintf(b, sizeof b, " | g%d %s: detect +%.2f s (%s), isolate +%.2f s, %s %.1f", f.gyro, FaultStatusName(f.status),
-                  f.t_detect_s - c.faults[i].t_s, f.test.c_str(),
+    std::snprintf(b, sizeof b, " | g%d %s: detect +%.2f s (%s), isolate +%.2f s, %s %.1f", f.gyro,
+                  FaultStatusName(f.status), f.t_detect_s - c.faults[i].t_s, f.test.c_str(),
                   f.t_isolate_s >= 0 ? f.t_isolate_s - c.faults[i].t_s : -1.0, f.shape.c_str(), f.fault_dph);
     line += b;
   }

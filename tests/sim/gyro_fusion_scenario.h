@@ -27,11 +27,11 @@ struct FusionScenario {
 struct FusionScore {
   FuseResult fused;
   GyroSimulation sim;
-  double bias_err_max_dph = 0;     // max over axes |estimate - truth| at bias_check_t_s
+  double bias_err_max_dph = 0;           // max over axes |estimate - truth| at bias_check_t_s
   double att_rms_arcsec[3] = {0, 0, 0};  // body x, y, z after the first 60 s
-  double nees_mean = 0;            // 6-state NEES averaged over sample times after 300 s
-  std::vector<Vec3> att_err_rad;   // per output sample, body axes (truth -> estimate)
-  std::vector<double> nees;        // per output sample
+  double nees_mean = 0;                  // 6-state NEES averaged over sample times after 300 s
+  std::vector<Vec3> att_err_rad;         // per output sample, body axes (truth -> estimate)
+  std::vector<double> nees;              // per output sample
 };
 
 // Four FOGs with biases of a few deg/h and navigation-grade noise.

@@ -67,7 +67,8 @@ TEST(GyroFusion, FlickerBiasTrackedConsistently) {
     for (double t : {1800.0, 3600.0}) {
       const size_t k = IndexAt(s.fused, t);
       for (int a = 0; a < 3; ++a) {
-        const double e = (s.fused.samples[k].bias_dph[a] - s.sim.body_bias_dph[k][a]) / s.fused.samples[k].bias_sigma_dph[a];
+        const double e =
+            (s.fused.samples[k].bias_dph[a] - s.sim.body_bias_dph[k][a]) / s.fused.samples[k].bias_sigma_dph[a];
         nees += e * e;
         ++dof;
       }
@@ -143,10 +144,14 @@ TEST_P(GyroFaultTest, StepOfTwentyDegPerHourDetectedIsolatedAndSolutionContinues
     bool out = false;
     for (int a = 0; a < 3; ++a) out |= std::abs(s.att_err_rad[k][a]) > 3 * s.fused.samples[k].sigma_rad[a];
     n_out += out;
-    if (s.fused.samples[k].t_s > f.t_detect_s + 1.5) max_cross_arcsec = std::max(max_cross_arcsec, std::hypot(s.att_err_rad[k][0], s.att_err_rad[k][1]) * kRadToArcsec);
+    if (s.fused.samples[k].t_s > f.t_detect_s + 1.5)
+      max_cross_arcsec =
+          std::max(max_cross_arcsec, std::hypot(s.att_err_rad[k][0], s.att_err_rad[k][1]) * kRadToArcsec);
   }
-  std::printf("transient: %ld of %ld samples outside 3 sigma, max cross error %.1f arcsec after the first fix, %ld fixes rejected\n", n_out,
-              n_tr, max_cross_arcsec, s.fused.n_st_rejected);
+  std::printf(
+      "transient: %ld of %ld samples outside 3 sigma, max cross error %.1f arcsec after the first fix, %ld fixes "
+      "rejected\n",
+      n_out, n_tr, max_cross_arcsec, s.fused.n_st_rejected);
   ASSERT_GT(n_tr, 0);
   // Errors are correlated over ~10 s, so a single run may still touch 3 sigma once; before the
   // covariance opened at detection, 9-16% of these samples were outside and fixes were refused.
@@ -230,8 +235,8 @@ std::string FaultsText(const FuseResult& r) {
   char b[256];
   for (const auto& f : r.faults) {
     std::snprintf(b, sizeof b, "[%s gyro %d %s onset %.1f detect %.1f isolate %.1f %s step %.1f ramp %.2f size %.1f] ",
-                  FaultStatusName(f.status), f.gyro, f.test.c_str(), f.t_onset_s, f.t_detect_s, f.t_isolate_s, f.shape.c_str(),
-                  f.step_dph, f.ramp_dph_per_s, f.fault_dph);
+                  FaultStatusName(f.status), f.gyro, f.test.c_str(), f.t_onset_s, f.t_detect_s, f.t_isolate_s,
+                  f.shape.c_str(), f.step_dph, f.ramp_dph_per_s, f.fault_dph);
     out += b;
   }
   return out;

@@ -39,10 +39,9 @@ TEST(GyroSim, StaticBenchSeesEarthRateAndThermalDriftFollowsTheModel) {
   GyroUnit u = IdealUnit(10);
   u.gyros[0].thermal.k_dph[1] = 0.8;  // K10: 0.8 deg/h per (T - 20)/10 C
   u.gyros[0].bias_dph = 1.0;
-  MotionProfile p = MotionProfileFromJson(
-      Json::parse(R"({"type": "temperature", "latitude_deg": 48.0, "azimuth_deg": 0,
+  MotionProfile p = MotionProfileFromJson(Json::parse(R"({"type": "temperature", "latitude_deg": 48.0, "azimuth_deg": 0,
                       "temperature": {"start_c": 20, "segments": [[600, 1.0]]}})"),
-      "mem");
+                                          "mem");
   GyroSimOptions o;
   o.duration_s = 900;
   const GyroSimulation s = SimulateGyro(u, p, o);
@@ -75,10 +74,10 @@ TEST(GyroSim, NoiseLevelsMatchTheErrorModel) {
 
 TEST(GyroSim, FaultAndOutageAreApplied) {
   const GyroUnit u = IdealUnit(10);
-  MotionProfile p = MotionProfileFromJson(
-      Json::parse(R"({"type": "slew", "faults": [{"gyro": 3, "t_s": 50, "step_dph": 20}],
+  MotionProfile p =
+      MotionProfileFromJson(Json::parse(R"({"type": "slew", "faults": [{"gyro": 3, "t_s": 50, "step_dph": 20}],
                       "star_tracker": {"outages_s": [[10.5, 20.5]]}})"),
-      "mem");
+                            "mem");
   GyroSimOptions o;
   o.duration_s = 100;
   const GyroSimulation s = SimulateGyro(u, p, o);

@@ -57,11 +57,11 @@ inline int RightMatches(const SimulatedScene& s, const std::vector<StarMatch>& m
 
 struct SceneCampaign {
   int scenes = 0;
-  int with4 = 0, solved4 = 0;  // scenes with >= 4 true stars and of them solved
-  int with3 = 0, solved3 = 0;  // exactly 3 true stars
-  int wrong = 0;               // solved more than 1 arcmin off
-  std::vector<double> ms;      // identify wall time per scene
-  std::vector<double> solved_ms;  // the same, solved scenes
+  int with4 = 0, solved4 = 0;                   // scenes with >= 4 true stars and of them solved
+  int with3 = 0, solved3 = 0;                   // exactly 3 true stars
+  int wrong = 0;                                // solved more than 1 arcmin off
+  std::vector<double> ms;                       // identify wall time per scene
+  std::vector<double> solved_ms;                // the same, solved scenes
   std::map<int, std::pair<int, int>> by_stars;  // true stars -> (scenes, solved)
 };
 
@@ -93,7 +93,8 @@ inline SceneCampaign RunKelvinsScenes(int n, uint64_t seed0, const IdentifyOptio
     const bool ok = r.status == "solved";
     if (ok) c.solved_ms.push_back(c.ms.back());
     if (ok && IsWrong(sr, s.q_inertial_from_sensor)) {
-      const double err_arcsec = AttitudeErrorRad(sr.attitude.q_inertial_from_sensor, s.q_inertial_from_sensor) * kRadToArcsec;
+      const double err_arcsec =
+          AttitudeErrorRad(sr.attitude.q_inertial_from_sensor, s.q_inertial_from_sensor) * kRadToArcsec;
       ++c.wrong;
       const int true_matches = RightMatches(s, r.matches);
       std::fprintf(stderr, "WRONG scene seed %llu: %.1f arcsec off, %zu matches (%d right), chance %.3g, %s\n",
@@ -128,7 +129,8 @@ inline Calibration RunRandomCentroids(int n, uint64_t seed0, const IdentifyOptio
     const bool ok = r.status == "solved";
     if (ok)
       std::fprintf(stderr, "FALSE random set seed %llu: %d centroids, %s, chance %.3g, %d hypotheses\n",
-                   static_cast<unsigned long long>(seed0 + k), m, r.message.c_str(), r.false_match_probability, r.hypotheses);
+                   static_cast<unsigned long long>(seed0 + k), m, r.message.c_str(), r.false_match_probability,
+                   r.hypotheses);
     c.false_solves += ok;
     c.solved += ok;
   }
@@ -160,11 +162,13 @@ inline Calibration RunWrongFocal(int n, uint64_t seed0, double tol_pct, Identify
       ++c.false_solves;
       const AttitudeErrorSplit e = SplitAttitudeError(r.attitude.q_inertial_from_sensor, s.q_inertial_from_sensor);
       const int true_matches = RightMatches(s, r.identification.matches);
-      std::fprintf(stderr, "WRONG focal seed %llu: cross %.1f roll %.1f arcsec (sigma %.1f), %zu matches (%d right), "
-                   "f %.1f (true %.1f, guess %.1f), chance %.3g, %s\n", static_cast<unsigned long long>(seed),
-                   e.cross_rad * kRadToArcsec, e.roll_rad * kRadToArcsec, r.attitude.sigma_roll_rad * kRadToArcsec,
-                   r.identification.matches.size(), true_matches, r.identification.focal_length_px, truth.focal_length_px,
-                   guess.focal_length_px, r.identification.false_match_probability, r.message.c_str());
+      std::fprintf(stderr,
+                   "WRONG focal seed %llu: cross %.1f roll %.1f arcsec (sigma %.1f), %zu matches (%d right), "
+                   "f %.1f (true %.1f, guess %.1f), chance %.3g, %s\n",
+                   static_cast<unsigned long long>(seed), e.cross_rad * kRadToArcsec, e.roll_rad * kRadToArcsec,
+                   r.attitude.sigma_roll_rad * kRadToArcsec, r.identification.matches.size(), true_matches,
+                   r.identification.focal_length_px, truth.focal_length_px, guess.focal_length_px,
+                   r.identification.false_match_probability, r.message.c_str());
     }
   }
   return c;

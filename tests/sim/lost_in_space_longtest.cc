@@ -18,15 +18,17 @@ using namespace testing;
 
 int Trials(int n) { return std::getenv("LIS_TRIALS") ? std::atoi(std::getenv("LIS_TRIALS")) : n; }
 // LIS_SEED overrides the first trial's seed (with LIS_TRIALS=1: one printed case alone).
-uint64_t Seed0(uint64_t seed0) { return std::getenv("LIS_SEED") ? std::strtoull(std::getenv("LIS_SEED"), nullptr, 10) : seed0; }
+uint64_t Seed0(uint64_t seed0) {
+  return std::getenv("LIS_SEED") ? std::strtoull(std::getenv("LIS_SEED"), nullptr, 10) : seed0;
+}
 
 TEST(LostInSpaceLong, KelvinsScenes1000) {
   for (double alpha : {1e-5, 1e-4, 1e-3}) {
     IdentifyOptions io = KelvinsIdentifyOptions();
     io.max_false_match_prob = alpha;
     SceneCampaign c = RunKelvinsScenes(Trials(1000), Seed0(1), io);
-    std::printf("Kelvins scenes at %g: %d scenes, >= 4 stars %d/%d (%.1f%%), 3 stars %d/%d, wrong %d\n", alpha, c.scenes,
-                c.solved4, c.with4, 100.0 * c.solved4 / std::max(1, c.with4), c.solved3, c.with3, c.wrong);
+    std::printf("Kelvins scenes at %g: %d scenes, >= 4 stars %d/%d (%.1f%%), 3 stars %d/%d, wrong %d\n", alpha,
+                c.scenes, c.solved4, c.with4, 100.0 * c.solved4 / std::max(1, c.with4), c.solved3, c.with3, c.wrong);
     for (const auto& [k, v] : c.by_stars) std::printf("  %d stars: %d/%d\n", k, v.second, v.first);
     if (alpha <= IdentifyOptions{}.max_false_match_prob) {
       EXPECT_EQ(c.wrong, 0);
@@ -47,19 +49,21 @@ TEST(LostInSpaceLong, KelvinsScenes1000) {
 TEST(LostInSpaceLong, KelvinsScenesFluxNoise) {
   for (double noise : {0.2, 0.5})
     for (bool photometry : {true, false}) {
-    for (double alpha : {IdentifyOptions{}.max_false_match_prob, 1e-3}) {
-      IdentifyOptions io = KelvinsIdentifyOptions();
-      io.max_false_match_prob = alpha;
-      io.use_photometry = photometry;
-      const SceneCampaign c = RunKelvinsScenes(Trials(1000), Seed0(1), io, noise);
-      std::printf("Kelvins scenes, flux noise %.1f mag, photometry %s, at %g: >= 4 stars %d/%d (%.1f%%), wrong %d; by stars:",
-                  noise, photometry ? "on" : "off", alpha, c.solved4, c.with4, 100.0 * c.solved4 / std::max(1, c.with4), c.wrong);
-      for (const auto& [k, v] : c.by_stars)
-        if (k >= 4 && k <= 6) std::printf(" %d: %d/%d", k, v.second, v.first);
-      std::printf("\n");
-      EXPECT_EQ(c.wrong, 0);
+      for (double alpha : {IdentifyOptions{}.max_false_match_prob, 1e-3}) {
+        IdentifyOptions io = KelvinsIdentifyOptions();
+        io.max_false_match_prob = alpha;
+        io.use_photometry = photometry;
+        const SceneCampaign c = RunKelvinsScenes(Trials(1000), Seed0(1), io, noise);
+        std::printf(
+            "Kelvins scenes, flux noise %.1f mag, photometry %s, at %g: >= 4 stars %d/%d (%.1f%%), wrong %d; by stars:",
+            noise, photometry ? "on" : "off", alpha, c.solved4, c.with4, 100.0 * c.solved4 / std::max(1, c.with4),
+            c.wrong);
+        for (const auto& [k, v] : c.by_stars)
+          if (k >= 4 && k <= 6) std::printf(" %d: %d/%d", k, v.second, v.first);
+        std::printf("\n");
+        EXPECT_EQ(c.wrong, 0);
+      }
     }
-  }
 }
 
 // Upper 1e-3 bound on the number of successes of Binomial(n, p) (normal approximation, +3 for
@@ -100,7 +104,8 @@ TEST(LostInSpaceLong, CalibrationStarFreeFrames) {
       const SolveResult r = SolveFrame(id, f.image.view(), cam, so);
       ++n;
       solved += r.status == "solved";
-      if (n % 500 == 0) std::printf("  star-free frames at %g: %d false of %d so far\n", alpha, solved, n), std::fflush(stdout);
+      if (n % 500 == 0)
+        std::printf("  star-free frames at %g: %d false of %d so far\n", alpha, solved, n), std::fflush(stdout);
     }
     std::printf("star-free frames at %g: %d false of %d\n", alpha, solved, n);
     EXPECT_LE(solved, Allowed(n, alpha));
@@ -113,8 +118,8 @@ TEST(LostInSpaceLong, CalibrationWrongFocalLength) {
     io.timeout_ms = 50;  // a tolerance-mode search of 15 % is long; the deadline keeps 10^4 trials feasible
     io.max_false_match_prob = alpha;
     const Calibration c = RunWrongFocal(Trials(10000), Seed0(200000), 15.0, io);
-    std::printf("focal length 5-15 %% wrong, tolerance 15 %%, at %g: %d wrong of %d (%d solved)\n", alpha, c.false_solves,
-                c.trials, c.solved);
+    std::printf("focal length 5-15 %% wrong, tolerance 15 %%, at %g: %d wrong of %d (%d solved)\n", alpha,
+                c.false_solves, c.trials, c.solved);
     EXPECT_LE(c.false_solves, Allowed(c.trials, alpha));
   }
 }

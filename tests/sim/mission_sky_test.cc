@@ -55,7 +55,8 @@ TEST(MissionSky, ProcessorRemovesTheAberrationTheFramesCarry) {
   const Vec3 bore = q_sensor * Vec3::UnitZ();
   const UtcTime t = AddSeconds(MissionSky(c).time, data.frame_t_s[4]);
   const double aberration_arcsec =
-      std::acos(std::min(1.0, AberrateDirection(bore, EarthBarycentricVelocityMS(t) + c.velocity_kms * 1e3).dot(bore))) *
+      std::acos(
+          std::min(1.0, AberrateDirection(bore, EarthBarycentricVelocityMS(t) + c.velocity_kms * 1e3).dot(bore))) *
       kRadToArcsec;
   EXPECT_GT(aberration_arcsec, 15.0);
   // ... which the processor removes: the star-only solutions' cross-boresight error is a fraction of it.

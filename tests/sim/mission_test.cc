@@ -2,6 +2,8 @@
 // inertial/online_fusion.h) on simulated missions (sim/mission.h), scored against the simulator's
 // truth. Small missions (512x512 frames, a few dozen frames) to stay lean under the sanitizers. The
 // same APIs on hand-made inputs: tests/inertial/online_fusion_test.cc.
+#include "sim/mission.h"
+
 #include <cmath>
 #include <cstdio>
 
@@ -9,7 +11,6 @@
 #include "core/error.h"
 #include "inertial/online_fusion.h"
 #include "sim/gyro_fusion_scenario.h"
-#include "sim/mission.h"
 #include "testing/testing.h"
 
 namespace ssiu {
@@ -61,7 +62,8 @@ TEST(OnlineFusion, ReproducesBatchFuseIncludingAFault) {
   ASSERT_EQ(on.q.size(), s.fused.samples.size());
   double max_q_arcsec = 0, max_b_dph = 0;
   for (size_t k = 0; k < on.q.size(); ++k) {
-    max_q_arcsec = std::max(max_q_arcsec, AttitudeErrorRad(on.q[k], s.fused.samples[k].q_inertial_from_body) * kRadToArcsec);
+    max_q_arcsec =
+        std::max(max_q_arcsec, AttitudeErrorRad(on.q[k], s.fused.samples[k].q_inertial_from_body) * kRadToArcsec);
     max_b_dph = std::max(max_b_dph, (on.bias_dph[k] - s.fused.samples[k].bias_dph).norm());
   }
   EXPECT_LT(max_q_arcsec, 1e-3);
@@ -229,11 +231,13 @@ TEST(Mission, OneHeadSlewingAtOneDegreePerSecondSolvesEveryFrame) {
   const Camera& cam = c.heads[0].camera;
   const SimStar* centre = nullptr;
   for (const SimStar& s : f.stars) {
-    if (!centre || std::hypot(s.x_px - cam.cx_px, s.y_px - cam.cy_px) < std::hypot(centre->x_px - cam.cx_px, centre->y_px - cam.cy_px)) centre = &s;
+    if (!centre || std::hypot(s.x_px - cam.cx_px, s.y_px - cam.cy_px) <
+                       std::hypot(centre->x_px - cam.cx_px, centre->y_px - cam.cy_px))
+      centre = &s;
   }
   ASSERT_NE(centre, nullptr);
-  const double expected_px = cam.focal_length_px * std::hypot(1.0, 0.3) / Vec3(1.0, 0.3, 0.1).norm() * kDegToRad *
-                             c.frame_sim.exposure_s;
+  const double expected_px =
+      cam.focal_length_px * std::hypot(1.0, 0.3) / Vec3(1.0, 0.3, 0.1).norm() * kDegToRad * c.frame_sim.exposure_s;
   EXPECT_NEAR(centre->smear_px, expected_px, 0.05 * expected_px);
   EXPECT_GT(expected_px, 3.0);
 
@@ -265,9 +269,10 @@ TEST(Mission, DetectorGetsTheGyroRateWhileSlewing) {
   const MissionResult on = RunMission(c, testing::Bsc());
   c.processor.solve.detect.smear.min_px = 1e9;
   const MissionResult off = RunMission(c, testing::Bsc());
-  std::printf("2 deg/s, 1024 px head: rate handed over: %.1f stars matched, star-only cross %.2f arcsec; not: %.1f, %.2f\n",
-              on.heads[0].mean_matches, on.star_only.cross_rms_arcsec, off.heads[0].mean_matches,
-              off.star_only.cross_rms_arcsec);
+  std::printf(
+      "2 deg/s, 1024 px head: rate handed over: %.1f stars matched, star-only cross %.2f arcsec; not: %.1f, %.2f\n",
+      on.heads[0].mean_matches, on.star_only.cross_rms_arcsec, off.heads[0].mean_matches,
+      off.star_only.cross_rms_arcsec);
   EXPECT_EQ(on.frames_solved, on.frames);
   EXPECT_GT(on.heads[0].mean_matches, 1.3 * off.heads[0].mean_matches);
   EXPECT_LT(on.star_only.cross_rms_arcsec, off.star_only.cross_rms_arcsec);
@@ -298,7 +303,8 @@ std::string ConfigError(const std::string& text) {
 }
 
 TEST(MissionConfig, BadConfigNamesTheFileAndField) {
-  const std::string head = R"({"camera": {"width": 512, "height": 512, "focal_length_px": 1755}, "q_body_sensor": [1, 0, 0, 0]})";
+  const std::string head =
+      R"({"camera": {"width": 512, "height": 512, "focal_length_px": 1755}, "q_body_sensor": [1, 0, 0, 0]})";
   const std::string ok = R"({"duration_s": 30, "frame_rate_hz": 1, "seed": 1, "heads": [)" + head + "]}";
   EXPECT_EQ(ConfigError(ok), "(no error)");
   EXPECT_THAT(ConfigError(R"({"frame_rate_hz": 1, "seed": 1, "heads": [)" + head + "]}"),
@@ -310,12 +316,17 @@ TEST(MissionConfig, BadConfigNamesTheFileAndField) {
   EXPECT_THAT(ConfigError(R"({"duration_s": 30, "frame_rate_hz": 1, "seed": 1, "heads": [)" + head + "," + head + "," +
                           head + "," + head + "]}"),
               HasSubstr("cfg.json: field 'heads': 4 heads given"));
-  EXPECT_THAT(ConfigError(R"({"duration_s": 30, "frame_rate_hz": 1, "seed": 1, "heads": [{"camera": {"width": 512, "height": 512, "focal_length_px": 1755}}]})"),
-              HasSubstr("cfg.json: heads[0]: missing field 'q_body_sensor'"));
-  EXPECT_THAT(ConfigError(R"({"duration_s": 30, "frame_rate_hz": 1, "seed": 1, "heads": [{"camera": {"width": 512, "height": 512}, "q_body_sensor": [1, 0, 0, 0]}]})"),
-              HasSubstr("cfg.json: heads[0].camera: missing field 'focal_length_px'"));
-  EXPECT_THAT(ConfigError(R"({"duration_s": 30, "frame_rate_hz": 1, "seed": 1, "heads": [)" + head + R"(], "durations": 3})"),
-              HasSubstr("cfg.json: unknown key 'durations' (did you mean 'duration_s'?)"));
+  EXPECT_THAT(
+      ConfigError(
+          R"({"duration_s": 30, "frame_rate_hz": 1, "seed": 1, "heads": [{"camera": {"width": 512, "height": 512, "focal_length_px": 1755}}]})"),
+      HasSubstr("cfg.json: heads[0]: missing field 'q_body_sensor'"));
+  EXPECT_THAT(
+      ConfigError(
+          R"({"duration_s": 30, "frame_rate_hz": 1, "seed": 1, "heads": [{"camera": {"width": 512, "height": 512}, "q_body_sensor": [1, 0, 0, 0]}]})"),
+      HasSubstr("cfg.json: heads[0].camera: missing field 'focal_length_px'"));
+  EXPECT_THAT(
+      ConfigError(R"({"duration_s": 30, "frame_rate_hz": 1, "seed": 1, "heads": [)" + head + R"(], "durations": 3})"),
+      HasSubstr("cfg.json: unknown key 'durations' (did you mean 'duration_s'?)"));
   EXPECT_THAT(ConfigError(R"({"duration_s": 30, "frame_rate_hz": 1, "seed": 1, "heads": [)" + head +
                           R"(], "processor": {"correlated_fraction": 1.5}})"),
               HasSubstr("correlated_fraction must be in [0, 1]"));
@@ -380,9 +391,10 @@ ThermalScore RunThermal(double floor_dph_per_sqrt_h) {
   s.nees = nees / (3.0 * n);
   s.span_x = hi - lo;
   s.faults = r.faults.size();
-  std::printf("thermal drift, bias walk floor %.2f deg/h/sqrt(h): body bias moves %.3f deg/h RMS per axis (x spans "
-              "%.3f), estimate error %.4f deg/h RMS per axis, bias NEES %.2f per axis (1 expected); faults %zu\n",
-              floor_dph_per_sqrt_h, s.drift_rms, s.span_x, s.err_rms, s.nees, s.faults);
+  std::printf(
+      "thermal drift, bias walk floor %.2f deg/h/sqrt(h): body bias moves %.3f deg/h RMS per axis (x spans "
+      "%.3f), estimate error %.4f deg/h RMS per axis, bias NEES %.2f per axis (1 expected); faults %zu\n",
+      floor_dph_per_sqrt_h, s.drift_rms, s.span_x, s.err_rms, s.nees, s.faults);
   return s;
 }
 
@@ -393,7 +405,7 @@ ThermalScore RunThermal(double floor_dph_per_sqrt_h) {
 TEST(GyroFusion, BiasEstimateTracksThermalDrift) {
   const ThermalScore plain = RunThermal(0.0);
   const ThermalScore floor = RunThermal(1.0);
-  ASSERT_GT(plain.drift_rms, 0.3);  // the drift is real: over half a deg/h RMS per axis
+  ASSERT_GT(plain.drift_rms, 0.3);                  // the drift is real: over half a deg/h RMS per axis
   EXPECT_LT(plain.err_rms, 0.3 * plain.drift_rms);  // the estimate follows most of it even unmodelled
   EXPECT_LT(floor.err_rms, 0.2 * floor.drift_rms);  // with the floor, closer
   EXPECT_LT(floor.err_rms, plain.err_rms);

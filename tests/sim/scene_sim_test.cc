@@ -39,8 +39,7 @@ TEST(SceneSim, TrueStarsAreCatalogStarsThroughTheCamera) {
     for (const auto& st : Bsc().stars) {
       const Vec3 b = q.conjugate() * st.unit;
       if (st.mag > o.mag_max || b.z() <= 0) continue;
-      const Vec2 p(cam.cx_px + cam.focal_length_px * b.x() / b.z(),
-                   cam.cy_px + cam.focal_length_px * b.y() / b.z());
+      const Vec2 p(cam.cx_px + cam.focal_length_px * b.x() / b.z(), cam.cy_px + cam.focal_length_px * b.y() / b.z());
       if (!cam.InImage(p)) continue;
       ++expected;
       const auto it = std::find(s.star_id.begin(), s.star_id.end(), st.id);
@@ -98,8 +97,8 @@ TEST(SceneSim, FalseObjectsAndMissingStars) {
   std::sort(false_mag.begin(), false_mag.end());
   std::sort(star_mag.begin(), star_mag.end());
   for (double qtl : {0.25, 0.5, 0.75}) {
-    EXPECT_NEAR(false_mag[static_cast<size_t>(qtl * false_mag.size())], star_mag[static_cast<size_t>(qtl * star_mag.size())],
-                0.1)
+    EXPECT_NEAR(false_mag[static_cast<size_t>(qtl * false_mag.size())],
+                star_mag[static_cast<size_t>(qtl * star_mag.size())], 0.1)
         << "quantile " << qtl;
   }
 }
@@ -165,8 +164,10 @@ TEST(SceneSim, BadOptionsNameTheField) {
 
 TEST(SceneSim, SimulateFrameWritesCentroidLists) {
   const std::string dir = testing::TempDir("scene_cli");
-  const auto r = testing::RunSsiu("simulate frame --centroids-only --random --seed 5 --count 3 --false-objects 10,20 "
-                                  "--missing-fraction 0 --centroid-noise-px 0.1 --out " + dir);
+  const auto r = testing::RunSsiu(
+      "simulate frame --centroids-only --random --seed 5 --count 3 --false-objects 10,20 "
+      "--missing-fraction 0 --centroid-noise-px 0.1 --out " +
+      dir);
   ASSERT_EQ(r.status, 0) << r.output;
   for (int k = 0; k < 3; ++k) {
     char name[64];

@@ -52,9 +52,11 @@ SweepRow Sweep(const Camera& cam, const Vec3& rate_dps, bool give_rate, int fram
         }
         std::string near;
         for (const auto& r : d.rejected) {
-          if (std::hypot(s.x_px - r.x_px, s.y_px - r.y_px) < 3 + 0.5 * s.smear_px) near += std::string(RejectReasonName(r.reason)) + "/" + r.detail + " ";
+          if (std::hypot(s.x_px - r.x_px, s.y_px - r.y_px) < 3 + 0.5 * s.smear_px)
+            near += std::string(RejectReasonName(r.reason)) + "/" + r.detail + " ";
         }
-        std::printf("  missed: seed %d x %.1f y %.1f snr %.1f mag %.2f smear %.1f  %s %s\n", int(seed), s.x_px, s.y_px, s.snr, s.mag, s.smear_px, near.c_str(), dets.c_str());
+        std::printf("  missed: seed %d x %.1f y %.1f snr %.1f mag %.2f smear %.1f  %s %s\n", int(seed), s.x_px, s.y_px,
+                    s.snr, s.mag, s.smear_px, near.c_str(), dets.c_str());
       }
     }
     for (const auto& r : d.rejected) {
@@ -86,17 +88,16 @@ TEST(SmearSweep, RecallAndCentroidErrorWhileSlewing) {
   const Camera cams[] = {Camera{}, MakeCamera(512, 512, 16.6)};
   for (const Camera& cam : cams) {
     std::printf("camera %dx%d, f %.0f px\n", cam.width, cam.height, cam.focal_length_px);
-    std::printf("%-18s %-5s %8s %10s %10s %6s  rejected on SNR>=10 stars\n", "rate deg/s", "given", "recall",
-                "rms_px", "false", "stars");
+    std::printf("%-18s %-5s %8s %10s %10s %6s  rejected on SNR>=10 stars\n", "rate deg/s", "given", "recall", "rms_px",
+                "false", "stars");
     for (const Case& c : cases) {
       for (bool give : {false, true}) {
         if (c.rate_dps.squaredNorm() == 0 && give) continue;
         const SweepRow r = Sweep(cam, c.rate_dps, give, cam.width > 600 ? 6 : 12);
         std::string rej;
         for (const auto& [k, n] : r.rejected) rej += k + " " + std::to_string(n) + "  ";
-        std::printf("%-18s %-5s %8.4f %10.4f %10d %6d  %s\n", c.name, give ? "yes" : "no",
-                    r.score.recall_snr10(), r.score.centroid_rms_px, r.score.false_detections,
-                    r.score.true_stars_snr10, rej.c_str());
+        std::printf("%-18s %-5s %8.4f %10.4f %10d %6d  %s\n", c.name, give ? "yes" : "no", r.score.recall_snr10(),
+                    r.score.centroid_rms_px, r.score.false_detections, r.score.true_stars_snr10, rej.c_str());
         if (give && c.rate_dps.norm() <= 2.0 + 1e-9) {
           EXPECT_GE(r.score.recall_snr10(), 0.98) << c.name;
           EXPECT_EQ(r.score.artefacts_as_stars, 0) << c.name;
@@ -121,10 +122,10 @@ TEST(SmearSweep, MissionWhileSlewing) {
         if (about_x) c.motion.axis_body = Vec3::UnitX();
         if (!model) c.processor.solve.detect.smear.min_px = 1e9;  // never fitted smeared
         const MissionResult r = RunMission(c, testing::Bsc());
-        std::printf("%-10.1f %-9s %-5s %7d %7d %9.2f %9.2f %9.2f %9.2f %6.1f%% %6.2f\n", rate, about_x ? "body X" : "default",
-                    model ? "on" : "off", r.heads[0].solved + r.heads[1].solved, 2 * r.frames, r.star_only.cross_rms_arcsec,
-                    r.star_only.roll_rms_arcsec, r.fused.cross_rms_arcsec, r.fused.roll_rms_arcsec,
-                    100 * r.within_3sigma_fraction, r.nees_mean);
+        std::printf("%-10.1f %-9s %-5s %7d %7d %9.2f %9.2f %9.2f %9.2f %6.1f%% %6.2f\n", rate,
+                    about_x ? "body X" : "default", model ? "on" : "off", r.heads[0].solved + r.heads[1].solved,
+                    2 * r.frames, r.star_only.cross_rms_arcsec, r.star_only.roll_rms_arcsec, r.fused.cross_rms_arcsec,
+                    r.fused.roll_rms_arcsec, 100 * r.within_3sigma_fraction, r.nees_mean);
         if (model) {
           EXPECT_EQ(r.frames_solved, r.frames);
         }

@@ -11,14 +11,14 @@
 #include "detect/detect.h"
 #include "sim/detection_score.h"
 #include "sim/frame_sim.h"
-#include "testing/testing.h"
 #include "sim_fixtures.h"
+#include "testing/testing.h"
 
 namespace ssiu {
 namespace {
 
-using ::testing::HasSubstr;
 using testing::Clean;
+using ::testing::HasSubstr;
 using testing::ImageMoments;
 using testing::Moments;
 
@@ -262,14 +262,15 @@ TEST(SmearDetect, OneDegreePerSecondWithTheRateGiven) {
   ASSERT_GT(given.true_stars_snr10, 150);
   ASSERT_GT(given.centroid_count, 80);
   const double z_rms = std::sqrt(norm2 / (2.0 * given.centroid_count));
-  std::printf("1 deg/s, 6.2 px smear: rate given: recall %.4f of %d, centroid RMS %.3f px per axis, normalised %.2f; "
-              "not given: recall %.4f, RMS %.3f px\n",
-              given.recall_snr10(), given.true_stars_snr10, given.centroid_rms_px, z_rms, blind.recall_snr10(),
-              blind.centroid_rms_px);
+  std::printf(
+      "1 deg/s, 6.2 px smear: rate given: recall %.4f of %d, centroid RMS %.3f px per axis, normalised %.2f; "
+      "not given: recall %.4f, RMS %.3f px\n",
+      given.recall_snr10(), given.true_stars_snr10, given.centroid_rms_px, z_rms, blind.recall_snr10(),
+      blind.centroid_rms_px);
   EXPECT_GE(given.recall_snr10(), 0.99);
   EXPECT_LT(given.centroid_rms_px, 0.12);
   EXPECT_LT(given.centroid_rms_px, 0.7 * blind.centroid_rms_px);  // the smeared model removes the blind fit's bias
-  EXPECT_GT(z_rms, 0.7);  // the reported centroid sigmas match the errors
+  EXPECT_GT(z_rms, 0.7);                                          // the reported centroid sigmas match the errors
   EXPECT_LT(z_rms, 1.5);
   EXPECT_EQ(given.artefacts_as_stars, 0);
 }

@@ -42,9 +42,9 @@ const StarCatalog& Bsc();
 }  // namespace ssiu::testing
 
 // Skips the test with a clear message when shared data is missing.
-#define SSIU_REQUIRE_SHARED(path_var, relative)                                        \
-  const std::string path_var = ::ssiu::testing::SharedData(relative);                  \
-  if (path_var.empty()) {                                                              \
+#define SSIU_REQUIRE_SHARED(path_var, relative)                                         \
+  const std::string path_var = ::ssiu::testing::SharedData(relative);                   \
+  if (path_var.empty()) {                                                               \
     GTEST_SKIP() << "shared data '" << relative << "' not found (../shared is absent)"; \
   }
 
