@@ -8,6 +8,7 @@
 
 #include "core/csv.h"
 #include "core/error.h"
+#include "core/stats.h"
 #include "sim/fog_bench_sim.h"
 
 namespace ssiu {
@@ -180,8 +181,7 @@ void CheckThermalRun(const ThermalRun& run) {
   // of more than 1000 median steps is two runs in one file.
   std::vector<double> dt(n - 1);
   for (size_t i = 1; i < n; ++i) dt[i - 1] = run.t_s[i] - run.t_s[i - 1];
-  std::nth_element(dt.begin(), dt.begin() + dt.size() / 2, dt.end());
-  const double median = dt[dt.size() / 2];
+  const double median = Median(std::move(dt));
   for (size_t i = 1; i < n; ++i) {
     if (run.t_s[i] - run.t_s[i - 1] > 1000 * median) {
       throw InputError(run.file, "column 't_s': gap of " + std::to_string(run.t_s[i] - run.t_s[i - 1]) + " s at row " +

@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "core/error.h"
+#include "core/stats.h"
 #include "detect/background.h"
 #include "detect/psf_fit.h"
 #include "detect/row_kernels.h"
@@ -531,9 +532,7 @@ double FramePsfSigma(const std::vector<Candidate>& cands, const std::vector<Peak
   if (bright.size() > 25) bright.resize(25);
   std::vector<double> s;
   for (const auto& b : bright) s.push_back(b.second);
-  if (s.size() < 3) return psf_guess;
-  std::nth_element(s.begin(), s.begin() + s.size() / 2, s.end());
-  return s[s.size() / 2];
+  return s.size() < 3 ? psf_guess : Median(std::move(s));
 }
 
 // Step 5d: is the candidate an interferer? Sets rej and returns true for a cosmic ray, hot pixel,

@@ -36,8 +36,7 @@ SpotFit FitSpot(const std::vector<float>& stamp, int half, double x_guess, doubl
   }
   const int np_free = fixed_c ? 4 : 7;
   if (border.size() < 4 || nvalid < np_free + 5) return out;
-  std::nth_element(border.begin(), border.begin() + border.size() / 2, border.end());
-  const double b0 = border[border.size() / 2];
+  const double b0 = Median(std::move(border));
   // Parameters: flux F, x0, y0, background B, precision matrix P = [[a, b], [b, c]] = C^-1.
   double p[7];
   p[0] = std::max(1.0, sum - b0 * nvalid);

@@ -9,6 +9,7 @@
 #include <numeric>
 
 #include "core/error.h"
+#include "core/stats.h"
 #include "identify/catalog_index.h"
 #include "identify/wahba_svd.h"
 
@@ -440,19 +441,13 @@ Context MakeContext(const StarIdentifier* id, const std::vector<Centroid>& c, co
   }
   ctx.m = std::min<int>(o.verify_centroids, static_cast<int>(c.size()));
   // Radius from the typical (median) centroid noise, at least 2 px.
-  std::vector<double> s = ctx.sigma_px;
-  double med = o.centroid_sigma_px;
-  if (!s.empty()) {
-    std::nth_element(s.begin(), s.begin() + s.size() / 2, s.end());
-    med = s[s.size() / 2];
-  }
-  ctx.median_sigma_px = med;
+  ctx.median_sigma_px = ctx.sigma_px.empty() ? o.centroid_sigma_px : Median(ctx.sigma_px);
   // Photometry needs a flux on every centroid; equal fluxes (e.g. all 1) carry no evidence.
   ctx.photometry = o.use_photometry && !c.empty();
   for (const auto& x : c) ctx.photometry = ctx.photometry && x.flux > 0 && std::isfinite(std::log(x.flux));
   if (ctx.photometry)
     ctx.photometry = std::any_of(c.begin(), c.end(), [&](const Centroid& x) { return x.flux != c[0].flux; });
-  ctx.match_radius_px = o.match_radius_px > 0 ? o.match_radius_px : std::max(2.0, 5.0 * med);
+  ctx.match_radius_px = o.match_radius_px > 0 ? o.match_radius_px : std::max(2.0, 5.0 * ctx.median_sigma_px);
   return ctx;
 }
 
