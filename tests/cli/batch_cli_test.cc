@@ -1,7 +1,13 @@
 // Batch runs of `ssiu solve` and `ssiu detect` (issue 17): every record equals the single-input
 // JSON of that input (run one process per input as the independent truth), input order kept on
 // several threads, an error record for a bad input in the middle (exit 1, the rest still done),
-// --list, the --csv columns, and no progress line when stderr is not a terminal.
+// --list, the --csv columns, and a progress line when, and only when, stderr is a terminal.
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -22,6 +28,43 @@ std::vector<std::string> Lines(const std::string& path) {
   std::vector<std::string> lines;
   for (std::string l; std::getline(in, l);) lines.push_back(l);
   return lines;
+}
+
+// Runs `ssiu args` with stdout and stderr on a fresh pseudo-terminal (as in an interactive shell);
+// returns what the terminal received and sets *status to the exit status.
+std::string RunOnTerminal(const std::string& args, int* status) {
+  const int master = ::posix_openpt(O_RDWR | O_NOCTTY);
+  if (master < 0 || ::grantpt(master) != 0 || ::unlockpt(master) != 0) return "no pseudo-terminal";
+  const std::string slave = ::ptsname(master);
+  const std::string command = testing::SsiuProgram() + " " + args;
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    ::setsid();
+    const int fd = ::open(slave.c_str(), O_RDWR);
+    if (fd < 0) ::_exit(126);
+    ::dup2(fd, STDOUT_FILENO);
+    ::dup2(fd, STDERR_FILENO);
+    ::close(master);
+    ::execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  std::string shown;
+  char buf[4096];
+  for (;;) {  // read until the child's side closes (EIO on Linux)
+    const ssize_t n = ::read(master, buf, sizeof buf);
+    if (n > 0) {
+      shown.append(buf, static_cast<size_t>(n));
+    } else if (n < 0 && errno == EINTR) {
+      continue;
+    } else {
+      break;
+    }
+  }
+  ::close(master);
+  int w = 0;
+  ::waitpid(pid, &w, 0);
+  *status = WIFEXITED(w) ? WEXITSTATUS(w) : -1;
+  return shown;
 }
 
 // The record without its run times (and "file", which the single-input JSON does not have).
@@ -123,6 +166,34 @@ TEST_F(BatchCli, SolveListAndCentroidsFlagsAreOneBatch) {
   const Result o = Ssiu("solve " + (*inputs_)[0] + " " + (*inputs_)[1] + Cam() + " --overlay " + P("o.png"));
   EXPECT_EQ(o.status, 1);
   EXPECT_THAT(o.output, HasSubstr("--overlay"));
+}
+
+TEST_F(BatchCli, ProgressLineOnlyOnATerminal) {
+  // 125 inputs (the frames and the list again and again, the bad one among them) on a terminal.
+  std::string all;
+  for (int k = 0; k < 25; ++k) {
+    for (const auto& in : *inputs_) all += " " + in;
+  }
+  int status = -1;
+  const std::string shown = RunOnTerminal("solve" + all + Cam() + " --threads 2 --jsonl " + P("t.jsonl"), &status);
+  EXPECT_EQ(status, 1) << shown;  // the bad input, 25 times
+  EXPECT_EQ(Lines(P("t.jsonl")).size(), 125u);
+  // Each progress line is redrawn in place ("\r" + erase to the end of line): done/total, the rate, the
+  // failures so far, and the time left while inputs remain (a redraw every 0.2 s, so how many
+  // there are depends on the machine); the last one shows 125/125.
+  std::vector<std::string> updates;
+  for (size_t p = shown.find("\r\033[Kssiu solve: "); p != std::string::npos;
+       p = shown.find("\r\033[Kssiu solve: ", p + 1)) {
+    const size_t end = shown.find_first_of("\r\n", p + 1);
+    updates.push_back(shown.substr(p + 4, end == std::string::npos ? std::string::npos : end - p - 4));
+  }
+  ASSERT_FALSE(updates.empty()) << shown;
+  EXPECT_THAT(updates.back(), ::testing::MatchesRegex("ssiu solve: 125/125 inputs, [0-9.]+/s, 25 failed")) << shown;
+  for (size_t i = 0; i + 1 < updates.size(); ++i) {
+    EXPECT_THAT(updates[i], ::testing::MatchesRegex("ssiu solve: [0-9]+/125 inputs, [0-9.]+/s, [0-9]+ s left.*"))
+        << shown;
+  }
+  EXPECT_THAT(shown, HasSubstr("bad.png: cannot decode image"));  // errors still shown, on their own line
 }
 
 TEST_F(BatchCli, DetectBatchEqualsSingleDetects) {
