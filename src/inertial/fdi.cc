@@ -29,6 +29,7 @@ void FdiOptions::Check() const {
   pos(cusum_fault_dph, "cusum_fault_dph");
   pos(isolation_min_s, "isolation_min_s");
   pos(isolation_sigma, "isolation_sigma");
+  pos(compensation_window_s, "compensation_window_s");
   if (!(noise_ratio > 1) || !std::isfinite(noise_ratio)) throw InputError("fdi options", "noise_ratio must be > 1");
 }
 
@@ -278,6 +279,7 @@ StarRateIsolator::StarRateIsolator(const GyroAxes& axes, const std::vector<bool>
     : axes_(axes), use_(use), correction_dph_(correction_dph) {
   pending_rad_ = GyroVec::Zero(axes.rows());
   residual_rad_ = GyroVec::Zero(axes.rows());
+  chain_angle_rad_ = GyroVec::Zero(axes.rows());
 }
 
 void StarRateIsolator::AddGyro(const GyroVec& g_dph, double dt_s) {
@@ -289,7 +291,9 @@ void StarRateIsolator::AddStar(double t_s, const Quat& q, const Mat3& r_body) {
   if (has_prev_ && pending_s_ > 0 && std::abs(pending_s_ - (t_s - t_prev_)) < 1e-6 * std::max(1.0, t_s)) {
     // Body rotation between the two star samples, in body axes at the first one.
     const Vec3 rot = RotationVectorFromQuat(q_prev_.conjugate() * q);
-    residual_rad_ += pending_rad_ - axes_ * rot;
+    const GyroVec d = pending_rad_ - axes_ * rot;
+    residual_rad_ += d;
+    chain_angle_rad_ += d;
     covered_s_ += t_s - t_prev_;
     // Along a chain the star noise of the inner samples cancels (to first order): only its two
     // ends count.
@@ -298,7 +302,10 @@ void StarRateIsolator::AddStar(double t_s, const Quat& q, const Mat3& r_body) {
   } else {
     if (chain_open_) end_cov_ += r_prev_;
     chain_open_ = false;
+    ++chain_id_;
+    chain_angle_rad_.setZero();
   }
+  points_.push_back({t_s, chain_id_, chain_angle_rad_, r_body});
   r_prev_ = r_body;
   has_prev_ = true;
   q_prev_ = q;
@@ -322,6 +329,51 @@ GyroVec StarRateIsolator::ResidualDph() const {
     if (use_[i]) r[i] = residual_rad_[i] / covered_s_ * kRadSToDph;
   }
   return r;
+}
+
+FaultFit StarRateIsolator::FitFault(int gi, double t_from_s, double t_now_s) const {
+  FaultFit fit;
+  // Unknowns: one offset per chain, then a (rad/s at t_now) and b (rad/s^2). The residual angle of a
+  // sample at t is offset + a (t - t_now) + b (t - t_now)^2 / 2 + its star error.
+  std::vector<const Point*> pts;
+  std::vector<int> chains;
+  for (const Point& p : points_) {
+    if (p.t_s < t_from_s - 1e-9 || p.t_s > t_now_s + 1e-9) continue;
+    if (chains.empty() || chains.back() != p.chain) chains.push_back(p.chain);
+    pts.push_back(&p);
+  }
+  const int nc = static_cast<int>(chains.size()), np = static_cast<int>(pts.size()), nu = nc + 2;
+  if (np - nu < 1) return fit;
+  const Vec3 axis = axes_.row(gi).transpose();
+  // A floor of 0.1 arcsec on the star error keeps a noiseless log's normal equations finite.
+  const double floor_rad2 = std::pow(0.1 * kArcsecToRad, 2);
+  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(np, nu);
+  Eigen::VectorXd y(np), w(np);
+  for (int k = 0, c = 0; k < np; ++k) {
+    if (pts[k]->chain != chains[c]) ++c;
+    const double x = pts[k]->t_s - t_now_s;
+    a(k, c) = 1;
+    a(k, nc) = x;
+    a(k, nc + 1) = 0.5 * x * x;
+    y[k] = pts[k]->angle_rad[gi];
+    w[k] = 1 / std::max(floor_rad2, axis.dot(pts[k]->r_body * axis));
+  }
+  const Eigen::MatrixXd n = a.transpose() * w.asDiagonal() * a;
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(n);
+  if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-14)) return fit;
+  const Eigen::VectorXd x = ldlt.solve(a.transpose() * w.asDiagonal() * y);
+  const Eigen::VectorXd r = y - a * x;
+  const double chi2_per_dof = r.dot(w.asDiagonal() * r) / (np - nu);
+  const Eigen::MatrixXd cov = ldlt.solve(Eigen::MatrixXd::Identity(nu, nu));
+  fit.value_dph = x[nc] * kRadSToDph;
+  fit.ramp_dph_per_s = x[nc + 1] * kRadSToDph;
+  fit.sigma_dph = std::sqrt(cov(nc, nc) * std::max(1.0, chi2_per_dof)) * kRadSToDph;
+  fit.n = np;
+  return fit;
+}
+
+void StarRateIsolator::ForgetBefore(double t_s) {
+  while (!points_.empty() && points_.front().t_s < t_s) points_.pop_front();
 }
 
 GyroVec StarRateIsolator::ResidualSigmaDph() const {

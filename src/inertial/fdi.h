@@ -19,6 +19,8 @@
 // parity direction alone isolates when it matches one gyro's column of V clearly.
 #pragma once
 
+#include <deque>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -43,6 +45,9 @@ struct FdiOptions {
   double noise_ratio = 4.0;            // parity noise variance growth the noise-burst CUSUM is tuned for
   double isolation_min_s = 3.0;        // star coverage before a star-rate isolation may be decided
   double isolation_sigma = 5.0;        // and the residual must exceed this many of its noise sigmas
+  // A faulty gyro that must stay in use (no spare) is compensated by a step + ramp fitted to its
+  // star-rate residual over at most this long a span (so that a fault that changes shape is followed).
+  double compensation_window_s = 120.0;
 
   void Check() const;  // InputError naming the bad field
 };
@@ -152,6 +157,14 @@ class ParityMonitor {
   double short_sigma_ = 0;
 };
 
+// One gyro's fault from the star rates: value and slope at t_now with the value's 1-sigma.
+struct FaultFit {
+  double value_dph = 0;                                        // fault at t_now
+  double ramp_dph_per_s = 0;                                   // its slope
+  double sigma_dph = std::numeric_limits<double>::infinity();  // 1 sigma of value_dph
+  int n = 0;                                                   // star samples the fit used (0: no fit)
+};
+
 // Accumulates each gyro's angle (bias-corrected) and the star tracker's body rotation between
 // consecutive star samples; residual = gyro angle - axis . star rotation.
 class StarRateIsolator {
@@ -171,6 +184,15 @@ class StarRateIsolator {
   GyroVec ResidualDph() const;
   // Its 1-sigma per gyro from the star noise at the ends of each chain of samples (deg/h).
   GyroVec ResidualSigmaDph() const;
+  // Step + ramp of gyro `gi`'s residual (0-based) from the star samples in [t_from_s, t_now_s]: the
+  // residual angle accumulated along each chain is fitted, by weighted least squares, as an offset
+  // per chain (the star error at its start) plus the integral of a + b (t - t_now); weights from the
+  // star covariance along the gyro's axis. sigma_dph is scaled by the fit's chi^2 per degree of
+  // freedom when above 1 (a fault that is not a step + ramp over the span). n = 0 with fewer than
+  // three samples beyond the chain offsets.
+  FaultFit FitFault(int gi, double t_from_s, double t_now_s) const;
+  // Drops stored samples before t_s (FitFault never needs them again).
+  void ForgetBefore(double t_s);
 
  private:
   GyroAxes axes_;
@@ -184,6 +206,15 @@ class StarRateIsolator {
   Mat3 end_cov_ = Mat3::Zero();  // star noise covariance of the chain ends so far
   Mat3 r_prev_ = Mat3::Zero();
   bool chain_open_ = false;
+  struct Point {
+    double t_s;
+    int chain;
+    GyroVec angle_rad;  // residual angle accumulated along the chain up to this star sample
+    Mat3 r_body;
+  };
+  std::deque<Point> points_;
+  GyroVec chain_angle_rad_;
+  int chain_id_ = 0;
 };
 
 // The largest body rate error (deg/h) a parity jump of jump_dph can imply if any one gyro in use

@@ -27,6 +27,7 @@ OnlineFusion::OnlineFusion(const GyroUnit& unit, const FuseOptions& options) : u
   use_.assign(n, true);
   correction_ = GyroVec::Zero(n);
   g_last_ = GyroVec::Zero(n);
+  dyn_ = GyroVec::Zero(n);
   SetSolver();
   dt_nominal_ = 1.0 / unit_.rate_hz;
   sample_sigma_dph_ = arw_ * (60.0 / std::sqrt(dt_nominal_));  // deg/sqrt(h) -> deg/h per sample
@@ -50,7 +51,8 @@ std::vector<int> OnlineFusion::GyrosInUse() const {
 void OnlineFusion::PropagateTo(double t_s, const Vec3& w, const GyroVec& g, bool coning) {
   const double d = t_s - t_cur_;
   filter_.Propagate(w, d, noise_, coning);
-  if (isolating_) isolator_.AddGyro(g, d);
+  if (isolating_) isolator_.AddGyro(g - dyn_, d);
+  if (tracked_ >= 0) tracker_.AddGyro(g, d);
   t_cur_ = t_s;
 }
 
@@ -127,10 +129,7 @@ void OnlineFusion::Isolate(int gi, double t, const char* method, const GyroVec& 
   t_settled_ = t + opt_.policy.settle_after_isolation_s;
   const Vec3 b_before = BiasAt(ev.t_onset_s);
   if (static_cast<int>(GyrosInUse().size()) <= 3) {
-    correction_[gi] += ev.fault_dph;
-    compensated_ = true;
-    const Vec3 leak_rad_s = solver_.Pinv().col(gi) * ev.fault_dph * kDphToRadS;
-    filter_.ShiftBias(-leak_rad_s);
+    Compensate(gi, t);
     innov_s_ = 0;
     innov_zero_t_ = t;
     return;
@@ -146,6 +145,64 @@ void OnlineFusion::Isolate(int gi, double t, const char* method, const GyroVec& 
   filter_.InflateBias(leak_rad_s.norm());
   innov_s_ = 0;
   innov_zero_t_ = t;
+}
+
+// No spare gyro: the isolated one stays in use with its fault subtracted. The first such fault is
+// tracked: its star-rate residual (the isolator's, from detection on) is fitted as a step + ramp at
+// every star sample and the fit is subtracted sample by sample, so that a slow ramp stays one fault
+// instead of a new detection each time the filter's bias has absorbed another slice of it. A later
+// detection that names the tracked gyro again is the same fault changing shape: the fit restarts at
+// its onset and no second event is reported. Another gyro failing as well gets the constant
+// compensation of its size at isolation.
+void OnlineFusion::Compensate(int gi, double t) {
+  compensated_ = true;
+  FaultEvent& ev = faults_.back();
+  if (tracked_ == gi) {
+    track_from_s_ = std::max(track_from_s_, ev.t_onset_s);
+    faults_.pop_back();
+    RefitTrackedFault(t);
+    return;
+  }
+  if (tracked_ < 0) {
+    const Vec3 b_before = BiasAt(ev.t_onset_s);
+    tracked_ = gi;
+    tracked_event_ = faults_.size() - 1;
+    tracker_ = isolator_;
+    track_from_s_ = track_onset0_s_ = ev.t_onset_s;
+    track_fit_ = FaultFit();
+    track_fit_.value_dph = ev.fault_dph;
+    track_fit_t_ = t;
+    RefitTrackedFault(t);
+    if (track_fit_.n > 0) ev.fault_dph = track_fit_.value_dph;
+    // The compensation covers the whole fault since onset: the bias goes back to its value then.
+    filter_.ShiftBias(b_before - filter_.bias());
+    dyn_[gi] = track_fit_.value_dph;
+    return;
+  }
+  correction_[gi] += ev.fault_dph;
+  filter_.ShiftBias(-solver_.Pinv().col(gi) * ev.fault_dph * kDphToRadS);
+}
+
+void OnlineFusion::RefitTrackedFault(double t) {
+  const double from = std::max(track_from_s_, t - opt_.fdi_options.compensation_window_s);
+  tracker_.ForgetBefore(from);
+  const FaultFit fit = tracker_.FitFault(tracked_, from, t);
+  if (fit.n == 0) return;
+  track_fit_ = fit;
+  track_fit_t_ = t;
+  FaultEvent& ev = faults_[tracked_event_];
+  // The onset of a ramp is where the fitted line crosses zero (the innovation CUSUM's last zero comes
+  // later, when the ramp has grown out of the noise), taken only within a minute before that.
+  const double ramp = fit.ramp_dph_per_s;
+  const double step0 = fit.value_dph - ramp * (t - track_onset0_s_);
+  ev.shape = FaultShape(GyroVec::Constant(1, step0), GyroVec::Constant(1, ramp), t - track_onset0_s_, 1.0);
+  ev.t_onset_s = track_onset0_s_;
+  if (ev.shape == "ramp" && step0 * ramp > 0) ev.t_onset_s = std::max(track_onset0_s_ - 60, t - fit.value_dph / ramp);
+  ev.ramp_dph_per_s = ramp;
+  ev.step_dph = fit.value_dph - ramp * (t - ev.t_onset_s);
+  // The compensation's own uncertainty reaches the body bias through this gyro's column of the rate
+  // solution: the filter must not be surer of the bias than that.
+  FloorBias(solver_.Pinv().col(tracked_).norm() * fit.sigma_dph * kDphToRadS);
 }
 
 void OnlineFusion::OnDetection(double t, const std::string& test, double onset_s, double parity_jump_dph) {
@@ -196,8 +253,13 @@ void OnlineFusion::AddGyro(double t_k, const GyroVec& g) {
   have_gyro_ = true;
   t_last_gyro_ = t_k;
   g_last_ = g;
+  // A tracked fault's compensation at the middle of this sample's interval.
+  if (tracked_ >= 0) {
+    const double t_mid = t_k - 0.5 * (t_k - t_prev);
+    dyn_[tracked_] = track_fit_.value_dph + track_fit_.ramp_dph_per_s * (t_mid - track_fit_t_);
+  }
   // The rate for this step comes from the gyros in use before any isolation at this sample (as Fuse()).
-  const Vec3 w = solver_.Solve(g - correction_) * kDphToRadS;
+  const Vec3 w = RateDph(g) * kDphToRadS;
   w_last_ = w;
   if (!initialised_ || t_k <= t_cur_) return;
   const double full = t_k - t_prev;
@@ -223,7 +285,7 @@ void OnlineFusion::AddGyro(double t_k, const GyroVec& g) {
     if (gi >= 0) {
       const double f = step.dot(monitor_.V().col(gi)) / monitor_.V().col(gi).squaredNorm();
       Isolate(gi, t_k, "parity", GyroVec::Zero(n), f);
-      w_last_ = solver_.Solve(g - correction_) * kDphToRadS;
+      w_last_ = RateDph(g) * kDphToRadS;
     } else {
       // Until isolation the fault feeds the bias: open its covariance (kept open sample by sample).
       filter_.InflateBias(worst_dph * kDphToRadS);
@@ -260,6 +322,11 @@ MekfUpdate OnlineFusion::AddAttitude(double t_j, const Quat& q_meas, const Mat3&
   if (isolating_) {
     if (gap > opt_.policy.isolation_chain_gap_s) isolator_.BreakChain();
     isolator_.AddStar(t_j, q_meas, r_body);
+  }
+  if (tracked_ >= 0) {
+    if (gap > opt_.policy.isolation_chain_gap_s) tracker_.BreakChain();
+    tracker_.AddStar(t_j, q_meas, r_body);
+    RefitTrackedFault(t_j);
   }
   // Without parity (three gyros left) a fault shows only in the star innovations: while one is
   // suspected, keep the bias open to the rate error the last innovation implies.
@@ -307,7 +374,7 @@ MekfUpdate OnlineFusion::AddAttitude(double t_j, const Quat& q_meas, const Mat3&
   const int gi = IsolateSequential(r, isolator_.ResidualSigmaDph(), isolator_.covered_s(), use_, opt_.fdi_options);
   if (gi >= 0) {
     Isolate(gi, t_j, "star_rates", r, r[gi]);
-    w_last_ = solver_.Solve(g_last_ - correction_) * kDphToRadS;
+    w_last_ = RateDph(g_last_) * kDphToRadS;
   } else if (t_j - ev.t_detect_s > opt_.fdi_options.isolation_timeout_s) {
     ev.status = FaultStatus::kUnresolved;  // still watched: a later isolation resolves it
     ev.residual_dph.assign(r.data(), r.data() + r.size());

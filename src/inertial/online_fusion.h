@@ -70,6 +70,9 @@ class OnlineFusion {
   void OpenCovarianceWhileUnresolved();
   void FloorBias(double sigma_rad_s);
   Vec3 BiasAt(double t_s) const;
+  void Compensate(int gi, double t);
+  void RefitTrackedFault(double t);
+  Vec3 RateDph(const GyroVec& g) const { return solver_.Solve(g - correction_ - dyn_); }
 
   GyroUnit unit_;
   FuseOptions opt_;
@@ -87,6 +90,14 @@ class OnlineFusion {
   GyroVec fit_step_, fit_ramp_;                          // parity fit since onset at the pending detection
   GyroParity fit_v_;                                     // the parity matrix it was made with
   double innov_s_ = 0, innov_zero_t_ = 0, innov_h_ = 0;  // star-innovation CUSUM (no parity left)
+  // A faulty gyro that stays in use (no spare) is compensated by the step + ramp fitted to its
+  // star-rate residual, refitted at every star sample, so that a ramp is followed as one fault.
+  int tracked_ = -1;          // that gyro (0-based), -1: none
+  size_t tracked_event_ = 0;  // its event in faults_
+  StarRateIsolator tracker_;  // its star rates since detection (fed the raw outputs)
+  FaultFit track_fit_;        // the latest fit, made at track_fit_t_
+  double track_fit_t_ = 0, track_from_s_ = 0, track_onset0_s_ = 0;
+  GyroVec dyn_;  // the compensation now (deg/h; non-zero on the tracked gyro only)
   double t_last_accepted_ = 0;
   double t_settled_ = -1;  // degraded until then after an isolation (the filter re-converging)
   std::deque<std::pair<double, Vec3>> bias_history_;  // (t, bias rad/s), one per accepted update

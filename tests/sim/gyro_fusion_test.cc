@@ -272,5 +272,41 @@ TEST(GyroFusion, RampThenSecondFaultStayTrustworthy) {
   EXPECT_NE(s.fused.status, FuseStatus::kFused);
 }
 
+// Two faults in a row, the second a slow ramp with no parity left: gyro 2 steps 20 deg/h at 100 s
+// and is isolated; gyro 4 then ramps 0.5 deg/h per s from 300 s. The star rates must follow the ramp
+// as one fault (before: a new "isolated" event of ~10 deg/h every 30 s, 6-18 of them, each a
+// constant compensation, and the rest absorbed by the bias, 94-171 deg/h on body y at the end).
+TEST(GyroFusion, StepThenSlowRampOnThreeGyrosIsOneTrackedFault) {
+  FusionScenario sc;
+  sc.rate_hz = 20;
+  sc.duration_s = 900;
+  sc.seed = 1617;
+  sc.faults = {GyroFault{2, 100.0, 20.0, 0.0}, GyroFault{4, 300.0, 0.0, 0.5 * 3600}};
+  const auto s = RunFusionScenario(sc, 900.0);
+  double bad_s = 0;
+  const double frac = TrustworthyFraction(s, 10.0, &bad_s);
+  const Vec3 b = s.fused.samples.back().bias_dph;
+  std::printf(
+      "step + slow ramp: %.2f%% trustworthy (%.1f s ok but outside 3 sigma), status %s, bias %.2f %.2f %.2f "
+      "deg/h, %s\n",
+      100 * frac, bad_s, FuseStatusName(s.fused.status), b[0], b[1], b[2], FaultsText(s.fused).c_str());
+  EXPECT_GE(frac, 0.99);
+  ASSERT_EQ(s.fused.faults.size(), 2u);
+  EXPECT_EQ(s.fused.faults[0].gyro, 2);
+  const FaultEvent& f = s.fused.faults[1];
+  EXPECT_EQ(f.gyro, 4);
+  EXPECT_EQ(f.status, FaultStatus::kIsolated);
+  EXPECT_EQ(f.test, "star_innovation");
+  EXPECT_EQ(f.shape, "ramp");
+  EXPECT_NEAR(f.ramp_dph_per_s, 0.5, 0.05);
+  EXPECT_GE(f.t_onset_s, 290.0);
+  EXPECT_LE(f.t_onset_s, f.t_detect_s);
+  EXPECT_GT(f.t_detect_s, 300.0);
+  EXPECT_LT(f.t_detect_s, 330.0);
+  // At 900 s the ramp is 300 deg/h; compensated, the body bias stays at the unit's few deg/h.
+  EXPECT_LT(b.norm(), 5.0);
+  EXPECT_NE(s.fused.status, FuseStatus::kFused);
+}
+
 }  // namespace
 }  // namespace ssiu
