@@ -152,12 +152,28 @@ std::vector<GyroErrorModel> ReadAllanNoise(const std::string& path) {
     throw InputError(path, "not an `ssiu allan --json` report (an object, or an array of them)");
   }
   const Json reports = j.is_array() ? j : Json::array({j});
+  // Every key `ssiu allan --json` writes (calibration/allan_io.cc AllanReportJson and its provenance
+  // in cli/allan.cc): anything else is a misspelling or another file, refused like every JSON input.
+  static const std::vector<std::string> kReportKeys = {
+      "file",    "column",    "channel",    "source",     "rate_unit", "tau_column", "sample_rate_hz",
+      "n",       "adev_unit", "confidence", "edf_source", "tau_s",     "adev",       "adev_lo",
+      "adev_hi", "edf",       "noise",      "model_adev", "fit",       "terms"};
+  static const std::vector<std::string> kTermNames = {"quantization_arcsec",  "arw_deg_per_sqrt_h",
+                                                      "bias_instability_dph", "rrw_deg_per_h_per_sqrt_h",
+                                                      "rate_ramp_deg_per_h2", "bias_instability_floor_dph"};
+  static const std::vector<std::string> kTermKeys = {
+      "value", "sigma", "unit", "tau_range_s", "significant", "max_variance_fraction", "upper_bound"};
   std::vector<GyroErrorModel> out;
   for (size_t r = 0; r < reports.size(); ++r) {
     const std::string at = j.is_array() ? "[" + std::to_string(r) + "]." : "";
     const Json& rep = reports[r];
     if (!rep.is_object() || !rep.contains("terms") || !rep.at("terms").is_object()) {
       throw InputError(path, "missing object '" + at + "terms' (give `ssiu allan --json` output)");
+    }
+    CheckKeys(rep, kReportKeys, path + (at.empty() ? "" : ": " + at.substr(0, at.size() - 1)));
+    CheckKeys(rep.at("terms"), kTermNames, path + ": " + at + "terms");
+    for (auto it = rep.at("terms").begin(); it != rep.at("terms").end(); ++it) {
+      if (it.value().is_object()) CheckKeys(it.value(), kTermKeys, path + ": " + at + "terms." + it.key());
     }
     // A term's value when the fit found it significant, else 0 (not distinguishable from none).
     auto term = [&](const char* key) {

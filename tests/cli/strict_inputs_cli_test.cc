@@ -109,5 +109,34 @@ TEST_F(StrictInputsCli, FrameSimulatorConfigRangeCheckedIntegers) {
                 {"unknown key 'cosmic_rayz'", "'cosmic_rays'"});
 }
 
+// `fuse --noise` reads `ssiu allan --json` output: a misspelt term, a misspelt key inside a term (a
+// "signficant" beside the real field was ignored) or an unknown top-level key (a "term" object beside
+// "terms" was ignored) is refused with the nearest key; a duplicate key is refused.
+TEST_F(StrictInputsCli, FuseNoiseFileFromAllan) {
+  const std::string gyro = Write("gyro.csv", "t_s,wx_dph,wy_dph,wz_dph\n0,0,0,0\n0.1,0,0,0\n0.2,0,0,0\n");
+  const std::string st = Write("st.csv", "t_s,qw,qx,qy,qz\n0,1,0,0,0\n0.2,1,0,0,0\n");
+  const std::string args = "fuse --gyro " + gyro + " --st " + st + " --json " + dir_ + "/fuse.json --noise ";
+  auto report = [](const std::string& arw_term, const std::string& extra_term_key, const std::string& top) {
+    return std::string(R"({"source": "log", )") + top + R"("terms": {")" + arw_term +
+           R"(": {"value": 0.01, "significant": true}, "bias_instability_dph": {"value": 0.05, )" + extra_term_key +
+           R"("significant": true}, "rrw_deg_per_h_per_sqrt_h": {"value": 0, "significant": false}}})";
+  };
+  const Result ok = testing::RunSsiu(args + Write("allan.json", report("arw_deg_per_sqrt_h", "", "")));
+  EXPECT_EQ(ok.status, 0) << ok.output;
+  ExpectRefused(args + Write("allan_term.json", report("arw_deg_per_sqrt_hh", "", "")), "allan_term.json",
+                {"unknown key 'arw_deg_per_sqrt_hh'", "did you mean 'arw_deg_per_sqrt_h'?"});
+  ExpectRefused(args + Write("allan_key.json", report("arw_deg_per_sqrt_h", R"("signficant": false, )", "")),
+                "allan_key.json",
+                {"terms.bias_instability_dph", "unknown key 'signficant'", "did you mean 'significant'?"});
+  ExpectRefused(args + Write("allan_top.json", report("arw_deg_per_sqrt_h", "", R"("term": {}, )")), "allan_top.json",
+                {"unknown key 'term'", "did you mean 'terms'?"});
+  ExpectRefused(args + Write("allan_dup.json", report("arw_deg_per_sqrt_h", R"("value": 0.5, )", "")), "allan_dup.json",
+                {"duplicate key 'value'"});
+  // In an array of reports the error names the report.
+  const std::string arr = Write("allan_arr.json", "[" + report("arw_deg_per_sqrt_h", "", "") + ", " +
+                                                      report("arw_deg_per_sqrt_h", "", R"("fle": "x", )") + "]");
+  ExpectRefused(args + arr, "allan_arr.json", {"[1]", "unknown key 'fle'", "'file'"});
+}
+
 }  // namespace
 }  // namespace ssiu
