@@ -136,27 +136,42 @@ TEST_P(GyroFaultTest, StepOfTwentyDegPerHourDetectedIsolatedAndSolutionContinues
   // know: the attitude error stays within its reported 3 sigma (the covariance opens at detection)
   // and the star tracker keeps it close, instead of the NIS gate refusing the fixes. (Between onset
   // and detection, 1-2 s here, nothing can know.)
-  long n_tr = 0, n_out = 0;
+  // Fraction of output samples in [t0, t1) with some axis outside 3 sigma.
+  auto fraction_outside = [&](double t0, double t1) {
+    long n = 0, out = 0;
+    for (size_t k = IndexAt(s.fused, t0), end = IndexAt(s.fused, t1); k < end; ++k, ++n) {
+      bool o = false;
+      for (int a = 0; a < 3; ++a) o |= std::abs(s.att_err_rad[k][a]) > 3 * s.fused.samples[k].sigma_rad[a];
+      out += o;
+    }
+    return n > 0 ? static_cast<double>(out) / n : 1.0;
+  };
   double max_cross_arcsec = 0;
   // (90 s from detection: the span up to a minute after the 30 s star-rate isolation of old; it is
   // decided sequentially now, within 6-9 s.)
-  for (size_t k = IndexAt(s.fused, f.t_detect_s); k < IndexAt(s.fused, f.t_detect_s + 90); ++k, ++n_tr) {
-    bool out = false;
-    for (int a = 0; a < 3; ++a) out |= std::abs(s.att_err_rad[k][a]) > 3 * s.fused.samples[k].sigma_rad[a];
-    n_out += out;
+  for (size_t k = IndexAt(s.fused, f.t_detect_s), end = IndexAt(s.fused, f.t_detect_s + 90); k < end; ++k) {
     if (s.fused.samples[k].t_s > f.t_detect_s + 1.5)
       max_cross_arcsec =
           std::max(max_cross_arcsec, std::hypot(s.att_err_rad[k][0], s.att_err_rad[k][1]) * kRadToArcsec);
   }
+  const double transient = fraction_outside(f.t_detect_s, f.t_detect_s + 90);
+  // The same measure on the fault-free stretch of this run (the fault comes at 600 s): its worst
+  // 90 s window.
+  double nominal = 0;
+  for (double t0 = 60; t0 + 90 <= 600; t0 += 10) nominal = std::max(nominal, fraction_outside(t0, t0 + 90));
   std::printf(
-      "transient: %ld of %ld samples outside 3 sigma, max cross error %.1f arcsec after the first fix, %ld fixes "
-      "rejected\n",
-      n_out, n_tr, max_cross_arcsec, s.fused.n_st_rejected);
-  ASSERT_GT(n_tr, 0);
-  // Errors are correlated over ~10 s, so a single run may still touch 3 sigma once; before the
-  // covariance opened at detection, 9-16% of these samples were outside and fixes were refused.
-  // (Gyro 3, whose loss leaves roll to gyro 4 alone, touches it for 5 s 50 s after isolation: 5.6%.)
-  EXPECT_LT(static_cast<double>(n_out) / n_tr, 0.07);
+      "transient: %.1f%% of samples outside 3 sigma (fault-free 90 s windows: up to %.1f%%), max cross error %.1f "
+      "arcsec after the first fix, %ld fixes rejected\n",
+      100 * transient, 100 * nominal, max_cross_arcsec, s.fused.n_st_rejected);
+  // Before the covariance opened at detection, 9-16% of these samples were outside and fixes were
+  // refused. Now at most 5%, or no more than the fault-free filter of the same run shows over 90 s:
+  // the roll error (30 arcsec star roll noise, a star-fix gain of about 8%) is correlated over tens
+  // of seconds, so one 90 s window of a consistent filter may hold a 5 s excursion. Gyro 3's run
+  // has one 53-58 s after isolation (5.6%; roll 21-35 arcsec at 8.5-9 arcsec sigma, moving only at
+  // the star fixes, 4-6 arcsec each); its fault-free stretch has windows up to 8.9% outside, and its
+  // normalised roll error RMS over the 300 s after isolation is 0.95 (x 1.09, y 0.96): consistent, not
+  // a covariance closed too early (docs/results.md).
+  EXPECT_LE(transient, std::max(0.05, nominal));
   EXPECT_EQ(s.fused.n_st_rejected, 0);
   // A 20 deg/h step moves the attitude 5.6 arcsec/s: unchecked over the 6-10 s to isolation that is
   // 35-56 arcsec. Measured: 16-19 arcsec (GCC), 27 arcsec (clang, gyro 4 isolated 2 s later).
