@@ -88,12 +88,13 @@ void RunLostInSpace(benchmark::State& state, Fixture& f) {
     const SolveResult r = SolveCentroids(*f.id, f.frames[k], f.cam, so);
     ms.push_back(CpuMs() - t0);
     hyp.push_back(r.identification.hypotheses);
-    solved += r.status == "solved";
+    solved += r.status == SolveStatus::kSolved;
     // Wrong: a boresight more than 1 arcmin off, or a roll off by more than 1 arcmin and 5 of its
     // reported sigmas (at 8 deg with the default 0.5 px systematic error, sigma_roll is ~1 arcmin).
     const AttitudeErrorSplit e = SplitAttitudeError(r.attitude.q_inertial_from_sensor, f.truth[k]);
     const double roll_limit = std::max(60.0, 5 * r.attitude.sigma_roll_rad * kRadToArcsec);
-    if (r.status == "solved" && (e.cross_rad * kRadToArcsec > 60 || std::abs(e.roll_rad) * kRadToArcsec > roll_limit)) {
+    if (r.status == SolveStatus::kSolved &&
+        (e.cross_rad * kRadToArcsec > 60 || std::abs(e.roll_rad) * kRadToArcsec > roll_limit)) {
       ++wrong;
       std::fprintf(stderr,
                    "WRONG (%.1f deg): frame %zu (seed %zu) cross %.1f, roll %.1f arcsec, %zu matches, chance %.2g\n",
@@ -164,7 +165,7 @@ void BM_LostInSpaceFalseObjects(benchmark::State& state) {
     const double t0 = CpuMs();
     const SolveResult r = SolveCentroids(id, sc.centroids, cam, opt);
     ms.push_back(CpuMs() - t0);
-    const bool ok = r.status == "solved";
+    const bool ok = r.status == SolveStatus::kSolved;
     if (sc.true_stars >= 4) ++with4, solved4 += ok;
     if (sc.true_stars == 3) ++with3, solved3 += ok;
     if (ok && IsWrong(r, sc.q_inertial_from_sensor)) ++wrong;
@@ -213,7 +214,7 @@ void BM_UnknownFov(benchmark::State& state) {
     const double t0 = CpuMs();
     const SolveResult r = SolveCentroids(id, sc.centroids, given, opt);
     ms.push_back(CpuMs() - t0);
-    if (r.status != "solved") continue;
+    if (r.status != SolveStatus::kSolved) continue;
     ++solved;
     focal_err_max = std::max(focal_err_max, std::abs(r.identification.focal_length_px / cam.focal_length_px - 1) * 100);
     wrong += IsWrong(r, sc.q_inertial_from_sensor);

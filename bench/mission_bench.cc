@@ -67,7 +67,7 @@ void BM_FrameSetTracking(benchmark::State& state) {
     s.Gyros(p.get(), s.data.frame_t_s[i - 1], s.data.frame_t_s[i]);
     state.ResumeTiming();
     const FrameReport r = p->OnFrames(s.data.frame_t_s[i], s.Views(i));
-    if (r.status != "solved") state.SkipWithError("frame set not solved");
+    if (r.status != SolveStatus::kSolved) state.SkipWithError("frame set not solved");
     ++i;
   }
 }
@@ -81,7 +81,7 @@ void BM_FrameSetLostInSpace(benchmark::State& state) {
     UnitProcessor p(s.config.heads, s.ids, s.config.unit, s.config.processor);
     state.ResumeTiming();
     const FrameReport r = p.OnFrames(s.data.frame_t_s[i], s.Views(i));
-    if (r.status != "solved") state.SkipWithError("frame set not solved");
+    if (r.status != SolveStatus::kSolved) state.SkipWithError("frame set not solved");
     i = (i + 1) % Setup::kFrames;
   }
 }

@@ -61,7 +61,7 @@ void BM_FrameToQuaternion(benchmark::State& state) {
     ms.push_back(t2 - t0);
     read_ms.push_back(t1 - t0);
     solve_ms.push_back(t2 - t1);
-    solved += r.status == "solved";
+    solved += r.status == SolveStatus::kSolved;
   }
   std::vector<double> detect_ms;
   DetectOptions dopt = so.detect;

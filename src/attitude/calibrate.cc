@@ -221,7 +221,7 @@ SolvedSet SolveAll(const StarIdentifier& id, const std::vector<CalibrationFrame>
   for (size_t i = 0; i < frames.size(); ++i) {
     SolveResult r = SolveCentroids(id, frames[i].centroids, cam, so);
     s.results.push_back(r);
-    if (r.status == "solved") ++s.solved;
+    if (r.status == SolveStatus::kSolved) ++s.solved;
   }
   return s;
 }
@@ -235,7 +235,7 @@ std::vector<Obs> Observations(const std::vector<CalibrationFrame>& frames, const
   rot0->clear();
   for (size_t i = 0; i < frames.size(); ++i) {
     const SolveResult& r = s.results[i];
-    if (r.status != "solved" || !include[i]) continue;
+    if (r.status != SolveStatus::kSolved || !include[i]) continue;
     const int k = static_cast<int>(fit_frame->size());
     fit_frame->push_back(static_cast<int>(i));
     rot0->push_back(r.attitude.q_inertial_from_sensor.toRotationMatrix());
@@ -392,7 +392,7 @@ CameraCalibration CalibrateCamera(const StarIdentifier& id, const std::vector<Ca
       CalibratedFrame cf;
       cf.name = frames[i].name;
       cf.status = s.results[i].status;
-      if (cf.status == "solved") {
+      if (cf.status == SolveStatus::kSolved) {
         cf.q_inertial_from_sensor = s.results[i].attitude.q_inertial_from_sensor;
         cf.covariance_rad2 = s.results[i].attitude.covariance_rad2;
         cf.matches = static_cast<int>(s.results[i].identification.matches.size());
@@ -463,7 +463,7 @@ CameraCalibration CalibrateCamera(const StarIdentifier& id, const std::vector<Ca
     cf.name = frames[i].name;
     cf.status = fin.results[i].status;
     cf.held_out = held.count(i) > 0;
-    if (cf.status == "solved") {
+    if (cf.status == SolveStatus::kSolved) {
       cf.q_inertial_from_sensor = fin.results[i].attitude.q_inertial_from_sensor;
       cf.covariance_rad2 = fin.results[i].attitude.covariance_rad2;
       cf.matches = static_cast<int>(fin.results[i].identification.matches.size());
@@ -515,8 +515,8 @@ Json CameraCalibrationToJson(const CameraCalibration& c) {
                    {"rms_after_px", c.held_out_rms_after_px}};
   Json fr = Json::array();
   for (const auto& f : c.frames) {
-    Json e = {{"name", f.name}, {"status", f.status}, {"held_out", f.held_out}};
-    if (f.status == "solved") {
+    Json e = {{"name", f.name}, {"status", SolveStatusName(f.status)}, {"held_out", f.held_out}};
+    if (f.status == SolveStatus::kSolved) {
       const auto q = ToWxyz(f.q_inertial_from_sensor);
       const RaDecRoll a = RaDecRollFromQuat(f.q_inertial_from_sensor);
       e["q"] = {q[0], q[1], q[2], q[3]};
@@ -546,7 +546,9 @@ HeadAlignment AlignHeads(const std::vector<std::vector<AttitudeSolution>>& att, 
     std::vector<Mat3> est;
     std::vector<Mat3> cov;
     for (const auto& e : att) {
-      if (static_cast<int>(e.size()) != nh || e[0].status != "solved" || e[h].status != "solved") continue;
+      if (static_cast<int>(e.size()) != nh || e[0].status != SolveStatus::kSolved ||
+          e[h].status != SolveStatus::kSolved)
+        continue;
       const Mat3 r1 = e[0].q_inertial_from_sensor.toRotationMatrix(),
                  rh = e[h].q_inertial_from_sensor.toRotationMatrix();
       const Mat3 a = rh.transpose() * r1;

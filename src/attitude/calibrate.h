@@ -48,7 +48,7 @@ struct CalibrationFrame {
 
 struct CalibratedFrame {
   std::string name;
-  std::string status;  // the solve's status with the fitted camera
+  SolveStatus status = SolveStatus::kNoMatch;  // the solve's status with the fitted camera
   Quat q_inertial_from_sensor = Quat::Identity();
   Mat3 covariance_rad2 = Mat3::Zero();
   int matches = 0;
@@ -81,7 +81,7 @@ CameraCalibration CalibrateCamera(const StarIdentifier& id, const std::vector<Ca
 
 Json CameraCalibrationToJson(const CameraCalibration& c);
 
-// Head alignment: attitudes[e][h] is head h's solution at epoch e (status != "solved" = missing).
+// Head alignment: attitudes[e][h] is head h's solution at epoch e (status not solved = missing).
 // Each head's q_body_sensor relative to head 1 (whose mount is kept): M_h = M_1 R_1^T R_h per epoch,
 // averaged with weights (P_h + A P_1 A^T)^-1, A = R_h^T R_1 (P the solutions' covariances).
 struct HeadAlignment {

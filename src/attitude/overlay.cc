@@ -40,7 +40,7 @@ void WriteSolveOverlay(const std::string& path, const ImageView& image, const Ca
     cv::drawMarker(img, p, red, cv::MARKER_TILTED_CROSS, 10, 1);
     cv::putText(img, RejectReasonName(rj.reason), p + cv::Point(6, -6), cv::FONT_HERSHEY_PLAIN, 0.8, red, 1);
   }
-  if (r.status == "solved") {
+  if (r.status == SolveStatus::kSolved) {
     std::set<int> matched_stars;
     for (const auto& m : r.identification.matches) matched_stars.insert(m.star);
     const Camera cam = FittedCamera(camera, r.identification);
@@ -56,8 +56,9 @@ void WriteSolveOverlay(const std::string& path, const ImageView& image, const Ca
       cv::putText(img, std::to_string(m.star_id), p + cv::Point(10, 14), cv::FONT_HERSHEY_PLAIN, 1.0, green, 1);
     }
   }
-  const std::string title = r.status + "  " + r.message;
-  cv::putText(img, title, cv::Point(10, 24), cv::FONT_HERSHEY_SIMPLEX, 0.6, r.status == "solved" ? green : red, 2);
+  const std::string title = SolveStatusName(r.status) + ("  " + r.message);
+  cv::putText(img, title, cv::Point(10, 24), cv::FONT_HERSHEY_SIMPLEX, 0.6,
+              r.status == SolveStatus::kSolved ? green : red, 2);
   cv::putText(img,
               "green: matched (star_id)  yellow: unmatched detection  blue: predicted, not detected  red: rejected",
               cv::Point(10, image.height - 12), cv::FONT_HERSHEY_PLAIN, 1.0, cv::Scalar(255, 255, 255), 1);

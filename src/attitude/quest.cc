@@ -115,7 +115,7 @@ AttitudeSolution SolveQuest(const std::vector<WahbaObservation>& obs) {
   AttitudeSolution out;
   out.num_observations = static_cast<int>(obs.size());
   if (obs.size() < 2) {
-    out.status = "too_few_stars";
+    out.status = SolveStatus::kTooFewStars;
     return out;
   }
   // Method of sequential rotations (Shuster & Oh 1981, sec. VI): if q4 is small (rotation near
@@ -136,7 +136,7 @@ AttitudeSolution SolveQuest(const std::vector<WahbaObservation>& obs) {
       }
     }
   }
-  out.status = "solved";
+  out.status = SolveStatus::kSolved;
   out.q_inertial_from_sensor = FromSensorToInertial(a);
   out.covariance_rad2 = QuestCovariance(obs);
   SetSigmas(&out);
@@ -161,7 +161,7 @@ Quat SolveDavenport(const std::vector<WahbaObservation>& obs) {
 }
 
 AttitudeSolution SolveAttitude(const Identification& id) {
-  if (id.status != "solved") {
+  if (id.status != SolveStatus::kSolved) {
     AttitudeSolution out;
     out.status = id.status;
     return out;
@@ -169,7 +169,7 @@ AttitudeSolution SolveAttitude(const Identification& id) {
   std::vector<WahbaObservation> obs;
   for (const auto& m : id.matches) obs.push_back({m.b_sensor, m.r_inertial, m.sigma_rad});
   AttitudeSolution out = SolveQuest(obs);
-  if (id.focal_length_fitted && out.status == "solved") {
+  if (id.focal_length_fitted && out.status == SolveStatus::kSolved) {
     // The focal length was fitted from the same stars: its uncertainty is part of the attitude's.
     out.covariance_rad2 = AttitudeInformation(obs, true).inverse();
     SetSigmas(&out);
@@ -192,17 +192,16 @@ MultiHeadSolution SolveMultiHeadChecked(const std::vector<Identification>& heads
                                        std::to_string(q_body_from_sensor.size()) + " mounts");
   const size_t n = heads.size();
   MultiHeadSolution out;
-  out.head_status.resize(n);
+  out.head_use.assign(n, HeadUse::kOwnStatus);
   out.q_inertial_from_body_per_head.assign(n, Quat::Identity());
   // Each solved head's own body attitude and its covariance in body axes: with
   // q_inertial_from_body = q_sensor * conj(mount), a sensor-frame error dtheta_s is R(mount) dtheta_s in body axes.
   std::vector<Mat3> p_body(n, Mat3::Zero());
   std::vector<int> solved;
   for (size_t h = 0; h < n; ++h) {
-    out.head_status[h] = heads[h].status;
-    if (heads[h].status != "solved") continue;
+    if (heads[h].status != SolveStatus::kSolved) continue;
     const AttitudeSolution s = SolveAttitude(heads[h]);
-    if (s.status != "solved") continue;
+    if (s.status != SolveStatus::kSolved) continue;
     const Quat m = q_body_from_sensor[h].normalized();
     const Mat3 rm = m.toRotationMatrix();
     out.q_inertial_from_body_per_head[h] = (s.q_inertial_from_sensor * m.conjugate()).normalized();
@@ -248,10 +247,10 @@ MultiHeadSolution SolveMultiHeadChecked(const std::vector<Identification>& heads
   for (int k = 0; k < ns; ++k) {
     const size_t h = static_cast<size_t>(solved[k]);
     if (!(best >> k & 1u)) {
-      out.head_status[h] = "inconsistent";
+      out.head_use[h] = HeadUse::kInconsistent;
       continue;
     }
-    out.head_status[h] = "used";
+    out.head_use[h] = HeadUse::kUsed;
     ++used;
     out.false_match_probability += heads[h].false_match_probability;
     const Mat3 r = q_body_from_sensor[h].normalized().toRotationMatrix();
@@ -267,8 +266,8 @@ MultiHeadSolution SolveMultiHeadChecked(const std::vector<Identification>& heads
   out.false_match_probability = std::min(1.0, out.false_match_probability);
   if (used == 0 || obs.size() < 3) {
     bool any_no_match = false;
-    for (const auto& id : heads) any_no_match |= id.status != "too_few_stars";
-    out.attitude.status = any_no_match || heads.empty() ? "no_match" : "too_few_stars";
+    for (const auto& id : heads) any_no_match |= id.status != SolveStatus::kTooFewStars;
+    out.attitude.status = any_no_match || heads.empty() ? SolveStatus::kNoMatch : SolveStatus::kTooFewStars;
     out.false_match_probability = 1.0;
     out.message = "no head solved";
     return out;

@@ -24,7 +24,7 @@ struct WahbaObservation {
 };
 
 struct AttitudeSolution {
-  std::string status = "no_match";  // as the identification's status
+  SolveStatus status = SolveStatus::kNoMatch;  // as the identification's status
   Quat q_inertial_from_sensor = Quat::Identity();
   Mat3 covariance_rad2 = Mat3::Zero();  // of dtheta in the sensor/body frame
   double sigma_cross_rad = 0;           // RMS of the two cross-boresight axes' 1-sigma
@@ -65,10 +65,17 @@ struct MultiHeadOptions {
   void Check() const;                    // throws InputError naming the field
 };
 
+// How the fusion treated a head: fused, left out as inconsistent (solved, but disagreeing with the
+// fused heads), or neither (not solved: its JSON "use" is then its own solve status, e.g. no_match).
+enum class HeadUse { kUsed, kInconsistent, kOwnStatus };
+// "used", "inconsistent", or SolveStatusName(own) for kOwnStatus.
+inline const char* HeadUseName(HeadUse u, SolveStatus own) {
+  return u == HeadUse::kUsed ? "used" : u == HeadUse::kInconsistent ? "inconsistent" : SolveStatusName(own);
+}
+
 struct MultiHeadSolution {
-  AttitudeSolution attitude;  // body attitude (q_inertial_from_sensor = inertial <- body), body-axis covariance
-  std::vector<std::string>
-      head_status;  // per head: "used", "inconsistent", or its own status (no_match, too_few_stars)
+  AttitudeSolution attitude;      // body attitude (q_inertial_from_sensor = inertial <- body), body-axis covariance
+  std::vector<HeadUse> head_use;  // per head (HeadUseName with the head's own status for the JSON)
   std::vector<Quat> q_inertial_from_body_per_head;  // each solved head's own body attitude (identity otherwise)
   double false_match_probability = 1.0;             // of the fused heads together: sum of theirs (union bound)
   std::string message;

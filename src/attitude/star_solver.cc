@@ -27,7 +27,7 @@ void Finish(const StarIdentifier& id, const SkyCorrections& sky, SolveResult* r)
   r->status = r->identification.status;
   r->message = r->identification.message;
   for (const auto& [k, v] : r->identification.timing_ms) r->timing_ms[k] = v;
-  if (r->status == "solved") {
+  if (r->status == SolveStatus::kSolved) {
     const auto t0 = Clock::now();
     r->attitude = SolveAttitude(r->identification);
     r->timing_ms["attitude"] = MsSince(t0);
@@ -153,10 +153,10 @@ SolveResult SolveFrame(const StarIdentifier& id, const ImageView& image, const C
 
 Json SolveResultToJson(const SolveResult& r) {
   Json j;
-  j["status"] = r.status;
+  j["status"] = SolveStatusName(r.status);
   j["mode"] = r.mode;
   j["message"] = r.message;
-  const bool ok = r.status == "solved";
+  const bool ok = r.status == SolveStatus::kSolved;
   const double nan = std::nan("");
   if (ok) {
     const auto q = ToWxyz(r.attitude.q_inertial_from_sensor);
@@ -354,17 +354,17 @@ SolveResult Tracker::Update(const std::vector<Centroid>& centroids, double t_s) 
         id_.MatchWithAttitude(centroids, camera_, q_pred, options_.track_search_radius_px, options_.identify);
     r.mode = "tracking";
   }
-  if (!locked_ || r.identification.status != "solved") {
+  if (!locked_ || r.identification.status != SolveStatus::kSolved) {
     r.identification = id_.Identify(centroids, camera_, options_.identify);
     r.mode = "lost_in_space";
     have_rate_ = false;
-    if (r.identification.status == "solved" && options_.identify.FocalSearched())
+    if (r.identification.status == SolveStatus::kSolved && options_.identify.FocalSearched())
       camera_ = FittedCamera(camera_, r.identification);  // keep the fitted focal length
   }
   SkyCorrections sky = options_.sky;
   if (sky.active()) sky.time = AddSeconds(sky.time, t_s);
   Finish(id_, sky, &r);
-  if (r.status == "solved") {
+  if (r.status == SolveStatus::kSolved) {
     const Quat q = r.attitude.q_inertial_from_sensor;
     if (locked_ && r.mode == "tracking") {  // a rate only from two attitudes of one lock
       const double dt = t_s - t_last_;

@@ -48,8 +48,8 @@ struct SolveOptions {
 };
 
 struct SolveResult {
-  std::string status = "too_few_stars";  // solved, no_match, too_few_stars
-  std::string mode = "lost_in_space";    // or "tracking"
+  SolveStatus status = SolveStatus::kTooFewStars;
+  std::string mode = "lost_in_space";  // or "tracking"
   std::string message;
   Identification identification;
   AttitudeSolution attitude;

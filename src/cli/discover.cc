@@ -184,7 +184,7 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
     }
     ssiu::Json j = ssiu::FrameDiscoveryToJson(d);
     j["frame_status"] = ssiu::Json::object();
-    for (size_t i = 0; i < set.status.size(); ++i) j["frame_status"][o->frames[i]] = set.status[i];
+    for (size_t i = 0; i < set.status.size(); ++i) j["frame_status"][o->frames[i]] = SolveStatusName(set.status[i]);
     if (!o->json.empty()) ssiu::WriteJsonFile(o->json, j);
     if (!o->plot.empty()) ssiu::WriteResidualQuiver(o->plot, d, cam);
     if (!o->compare_sim.empty()) {

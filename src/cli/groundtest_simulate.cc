@@ -90,7 +90,7 @@ SSIU_REGISTER_COMMAND(groundtest_simulate, [](CLI::App& root) {
       std::vector<AttitudeSample> comp;
       for (const auto& p : s.pictures) {
         const PictureSolve ps = SolveStandPicture(id, p.frame.view(), m.camera, so.view.detector.gain_e_per_adu, p.t_s);
-        if (ps.status == "solved") comp.push_back(ps.sample), ++solved;
+        if (ps.status == SolveStatus::kSolved) comp.push_back(ps.sample), ++solved;
       }
       WriteAttitudeCsv(o->out + "/computed.csv", comp);
     }

@@ -73,8 +73,8 @@ Camera LoadSolveCamera(const Opts& o) {
 }
 
 void PrintSummary(const std::string& what, const SolveResult& r) {
-  std::cerr << what << ": " << r.status;
-  if (r.status == "solved") {
+  std::cerr << what << ": " << SolveStatusName(r.status);
+  if (r.status == SolveStatus::kSolved) {
     const RaDecRoll a = RaDecRollFromQuat(r.attitude.q_inertial_from_sensor);
     std::cerr << " ra " << a.ra_rad * kRadToDeg << " dec " << a.dec_rad * kRadToDeg << " roll "
               << a.roll_rad * kRadToDeg << " deg, " << r.identification.matches.size() << " stars";
@@ -113,7 +113,7 @@ void RunSingle(const Opts& o) {
     if (fr.image.pixels.empty()) throw InputError(o.overlay, "--overlay needs a frame, not --centroids");
     WriteSolveOverlay(o.overlay, fr.image.view(), cam, id, r);
   }
-  if (!o.wcs.empty() && r.status == "solved") {
+  if (!o.wcs.empty() && r.status == SolveStatus::kSolved) {
     const Camera c = FittedCamera(cam, r.identification);
     WriteFileAtomic(o.wcs, TanWcsHeader(r.attitude.q_inertial_from_sensor, c));
   }
@@ -219,11 +219,11 @@ void RunHeads(const Opts& o) {
   // The JSON contract of a single-head solve, for the body attitude (inertial <- body, "frame": "body");
   // per-head results under "heads", each with "use": used / inconsistent / its own status.
   Json j;
-  j["status"] = s.status;
+  j["status"] = SolveStatusName(s.status);
   j["mode"] = "lost_in_space";
   j["frame"] = "body";
   j["message"] = mh.message;
-  const bool ok = s.status == "solved";
+  const bool ok = s.status == SolveStatus::kSolved;
   const RaDecRoll a = RaDecRollFromQuat(s.q_inertial_from_sensor);
   if (ok) {
     const auto q = ToWxyz(s.q_inertial_from_sensor);
@@ -242,8 +242,8 @@ void RunHeads(const Opts& o) {
   j["false_match_probability"] = mh.false_match_probability;
   Json matches = Json::array();
   for (size_t h = 0; h < ids.size(); ++h) {
-    heads[h]["use"] = mh.head_status[h];
-    if (!ok || mh.head_status[h] != "used") continue;
+    heads[h]["use"] = HeadUseName(mh.head_use[h], ids[h].status);
+    if (!ok || mh.head_use[h] != HeadUse::kUsed) continue;
     const Mat3 rm = mounts[h].normalized().toRotationMatrix();
     for (const auto& m : ids[h].matches) {
       const Vec3 pred = s.q_inertial_from_sensor.conjugate() * m.r_inertial;  // body axes

@@ -626,7 +626,7 @@ SolvedFrameSet SolveFrameSet(const StarIdentifier& id, const std::vector<ImageVi
       }
     }
     set.spikes.push_back(spikes);
-    if (r.status != "solved") continue;
+    if (r.status != SolveStatus::kSolved) continue;
     const int f = static_cast<int>(set.q.size());
     set.q.push_back(r.attitude.q_inertial_from_sensor);
     set.solved_index.push_back(static_cast<int>(i));

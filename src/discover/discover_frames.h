@@ -64,7 +64,7 @@ struct PixelSource {
 
 struct SolvedFrameSet {
   std::vector<std::string> names;
-  std::vector<std::string> status;  // per input frame
+  std::vector<SolveStatus> status;  // per input frame
   std::vector<Quat> q;              // per solved frame (index = FrameStar::frame)
   std::vector<int> solved_index;    // input frame of each solved frame
   std::vector<FrameStar> stars;

@@ -14,7 +14,7 @@ PictureSolve SolveStandPicture(const StarIdentifier& id, const ImageView& image,
   p.status = r.status;
   p.stars = static_cast<int>(r.identification.matches.size());
   p.sample.t_s = t_s;
-  if (r.status == "solved") {
+  if (r.status == SolveStatus::kSolved) {
     p.sample.q = r.attitude.q_inertial_from_sensor;
     p.sample.sigma_cross_rad = r.attitude.sigma_cross_rad;
     p.sample.sigma_roll_rad = r.attitude.sigma_roll_rad;

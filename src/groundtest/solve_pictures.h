@@ -11,9 +11,9 @@
 namespace ssiu {
 
 struct PictureSolve {
-  std::string status;     // as SolveResult::status
-  int stars = 0;          // matched stars
-  AttitudeSample sample;  // valid when status == "solved"
+  SolveStatus status = SolveStatus::kNoMatch;  // as SolveResult::status
+  int stars = 0;                               // matched stars
+  AttitudeSample sample;                       // valid when solved
 };
 
 // gain_e_per_adu: the tracker's gain for shot-noise weights (0 = unknown).

@@ -699,7 +699,7 @@ bool FinishHypothesis(const Context& ctx, const IdentifyOptions& o, const Camera
     prob_final = std::min(1.0, BinomialTail(ctx.m - 3, ct.u, j) * CountFactor(j) * phot_final * ct.hyp * ct.seq_factor);
     if (prob_final >= o.max_false_match_prob) return false;
   }
-  out->status = "solved";
+  out->status = SolveStatus::kSolved;
   out->q_inertial_from_sensor = Quat(rf.r).normalized();
   if (out->q_inertial_from_sensor.w() < 0) out->q_inertial_from_sensor.coeffs() *= -1;
   out->focal_length_px = rf.cam.focal_length_px;
@@ -740,7 +740,7 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
   out.focal_length_y_px = o.FovRange() ? std::nan("") : camera.FocalYPx();
   const int n = static_cast<int>(centroids.size());
   if (n < o.min_matches) {
-    out.status = "too_few_stars";
+    out.status = SolveStatus::kTooFewStars;
     out.message = std::to_string(n) + " centroids, need at least " + std::to_string(o.min_matches);
     out.timing_ms["identify"] = MsSince(t0);
     return out;
@@ -769,7 +769,7 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
   double best_prob = 1.0;
   int best_k = 0;
   auto give_up = [&](const std::string& why) {
-    out.status = "no_match";
+    out.status = SolveStatus::kNoMatch;
     out.message =
         why + " (best " + std::to_string(best_k) + " matches, chance probability " + std::to_string(best_prob) + ")";
     out.hypotheses = hyp;
@@ -872,7 +872,7 @@ Identification StarIdentifier::MatchWithAttitude(const std::vector<Centroid>& ce
   out.focal_length_y_px = camera.FocalYPx();
   const int n = static_cast<int>(centroids.size());
   if (n < min_k) {
-    out.status = "too_few_stars";
+    out.status = SolveStatus::kTooFewStars;
     out.message = std::to_string(n) + " centroids, need at least " + std::to_string(min_k);
     return out;
   }
@@ -881,7 +881,7 @@ Identification StarIdentifier::MatchWithAttitude(const std::vector<Centroid>& ce
   Verification v = Verify(ctx, camera, r_pred, std::max(search_radius_px, ctx.match_radius_px));
   const size_t initial_pairs = v.matches.size();
   if (static_cast<int>(v.matches.size()) < min_k) {
-    out.status = "no_match";
+    out.status = SolveStatus::kNoMatch;
     out.message = "lost lock: " + std::to_string(v.matches.size()) + " stars near their predicted positions";
     out.timing_ms["identify"] = MsSince(t0);
     return out;
@@ -900,7 +900,7 @@ Identification StarIdentifier::MatchWithAttitude(const std::vector<Centroid>& ce
   const double expected = std::min(rf.v.n_cat, ctx.m);
   out.false_match_probability = prob;
   if (k < kMinTrackedFraction * expected) {
-    out.status = "no_match";
+    out.status = SolveStatus::kNoMatch;
     out.message = "lost lock: " + std::to_string(k) + " of " + std::to_string(static_cast<int>(expected)) +
                   " predicted stars matched";
     return out;
@@ -909,13 +909,13 @@ Identification StarIdentifier::MatchWithAttitude(const std::vector<Centroid>& ce
   out.catalog_stars_in_field = rf.v.n_cat;
   out.timing_ms["identify"] = MsSince(t0);
   if (k >= min_k && prob < o.max_false_match_prob) {
-    out.status = "solved";
+    out.status = SolveStatus::kSolved;
     out.q_inertial_from_sensor = Quat(rf.r).normalized();
     if (out.q_inertial_from_sensor.w() < 0) out.q_inertial_from_sensor.coeffs() *= -1;
     out.matches = std::move(rf.v.matches);
     out.message = std::to_string(k) + " stars matched";
   } else {
-    out.status = "no_match";
+    out.status = SolveStatus::kNoMatch;
     out.message = "lost lock: " + std::to_string(k) + " matches, chance probability " + std::to_string(prob);
   }
   return out;

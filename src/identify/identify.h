@@ -3,7 +3,7 @@
 //
 //   StarIdentifier id(LoadSolverCatalog(dir));
 //   Identification r = id.Identify(centroids, camera, IdentifyOptions{});
-//   if (r.status == "solved") ... r.matches ...
+//   if (r.status == SolveStatus::kSolved) ... r.matches ...
 //
 // Method (docs/identify.md): triangles of the centroids in brightness order, deep into the list; the
 // side-length ratios (which do
@@ -23,6 +23,7 @@
 
 #include "core/camera.h"
 #include "core/types.h"
+#include "identify/solve_status.h"
 #include "identify/star_catalog.h"
 
 namespace ssiu {
@@ -92,7 +93,7 @@ struct StarMatch {
 };
 
 struct Identification {
-  std::string status = "too_few_stars";  // solved, no_match, too_few_stars
+  SolveStatus status = SolveStatus::kTooFewStars;
   std::string message;
   Quat q_inertial_from_sensor = Quat::Identity();  // from the matches (SVD); QUEST refines it
   double focal_length_px = 0;                      // fx used (fitted when the focal length is searched)

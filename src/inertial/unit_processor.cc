@@ -109,18 +109,18 @@ HeadResult UnitProcessor::SolveHead(int h, double t_s, const ImageView& image, I
     *id = sid.MatchWithAttitude(c, head.camera, q_pred, so.track_search_radius_px, so.identify);
     r.mode = "tracking";
   }
-  if (!fusion_.initialised() || suspect || id->status != "solved") {
+  if (!fusion_.initialised() || suspect || id->status != SolveStatus::kSolved) {
     *id = sid.Identify(c, head.camera, so.identify);
     r.mode = "lost_in_space";
   }
-  if (suspect && id->status != "solved") {
+  if (suspect && id->status != SolveStatus::kSolved) {
     const Quat q_pred = fusion_.q() * head.q_body_from_sensor;
     *id = sid.MatchWithAttitude(c, head.camera, q_pred, 4 * so.track_search_radius_px, so.identify);
     r.mode = "tracking";
   }
   r.timing_ms["identify"] = MsSince(t1);
   r.status = id->status;
-  if (id->status == "solved") {
+  if (id->status == SolveStatus::kSolved) {
     SkyCorrections sky = so.sky;  // the frame's time: the unit's clock t_s from sky.time
     if (sky.active()) sky.time = AddSeconds(sky.time, t_s);
     ApplySkyCorrections(sid, sky, id);
@@ -153,10 +153,10 @@ FrameReport UnitProcessor::OnFrames(double t_s, const std::vector<ImageView>& im
       continue;
     }
     f.heads.push_back(SolveHead(static_cast<int>(h), t_s, images[h], &ids[h]));
-    if (f.heads.back().status == "solved") ++f.heads_solved;
+    if (f.heads.back().status == SolveStatus::kSolved) ++f.heads_solved;
   }
   if (f.heads_solved == 0) {
-    f.status = "no_frame";
+    f.status = SolveStatus::kNoFrame;
     for (const auto& h : f.heads) {
       if (h.has_frame) f.status = h.status;  // the last head's reason
     }
@@ -165,12 +165,12 @@ FrameReport UnitProcessor::OnFrames(double t_s, const std::vector<ImageView>& im
   }
   // One QUEST over the matches of every solved head, in body axes (attitude/quest.h SolveMultiHead).
   const AttitudeSolution body = SolveMultiHead(ids, mounts);
-  if (body.status != "solved") {
+  if (body.status != SolveStatus::kSolved) {
     f.status = body.status;
     f.total_ms = MsSince(t0);
     return f;
   }
-  f.status = "solved";
+  f.status = SolveStatus::kSolved;
   f.q_inertial_from_body = body.q_inertial_from_sensor;
   const double s = options_.solution_sigma_scale;
   const double floor_rad = options_.solution_sigma_floor_arcsec * kArcsecToRad;

@@ -52,8 +52,8 @@ struct UnitProcessorOptions {
 // What one head's frame gave.
 struct HeadResult {
   bool has_frame = false;
-  std::string status = "no_frame";  // solved, no_match, too_few_stars, no_frame
-  std::string mode;                 // lost_in_space or tracking
+  SolveStatus status = SolveStatus::kNoFrame;
+  std::string mode;  // lost_in_space or tracking
   int detections = 0, matches = 0;
   double sigma_cross_arcsec = 0, sigma_roll_arcsec = 0;  // this head's own solution
   Quat q_inertial_from_sensor = Quat::Identity();        // when solved
@@ -64,7 +64,7 @@ struct HeadResult {
 struct FrameReport {
   double t_s = 0;
   std::vector<HeadResult> heads;
-  std::string status = "no_match";  // solved (at least one head) or the reason nothing was solved
+  SolveStatus status = SolveStatus::kNoMatch;  // solved (at least one head) or the reason nothing was solved
   int heads_solved = 0;
   Quat q_inertial_from_body = Quat::Identity();  // the star-only body attitude (all solved heads)
   Mat3 covariance_rad2 = Mat3::Zero();           // its error covariance, body axes

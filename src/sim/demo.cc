@@ -50,8 +50,8 @@ DemoReport RunDemo(const StarCatalog& catalog, uint64_t seed) {
             {"centroid_rms_px", sc.centroid_rms_px},
             {"centroid_rms_arcsec", sc.centroid_rms_px * arcsec_per_px},
             {"detect_ms", d.timing_ms.at("total")},
-            {"status", sr.status}};
-  if (sr.status == "solved") {
+            {"status", SolveStatusName(sr.status)}};
+  if (sr.status == SolveStatus::kSolved) {
     const Quat qe = sr.attitude.q_inertial_from_sensor;
     const RaDecRoll e = RaDecRollFromQuat(qe);
     const AttitudeErrorSplit err = SplitAttitudeError(qe, q);
@@ -61,16 +61,16 @@ DemoReport RunDemo(const StarCatalog& catalog, uint64_t seed) {
         "  solve: %s, %zu stars matched, false-match probability %.1e\n"
         "  attitude q = [%.8f, %.8f, %.8f, %.8f]: RA %.4f Dec %.4f roll %.4f deg\n"
         "  error vs truth: %.2f arcsec (cross-boresight %.2f, roll %.2f); reported 1-sigma %.2f / %.2f arcsec\n",
-        sr.status.c_str(), sr.identification.matches.size(), sr.identification.false_match_probability, we[0], we[1],
-        we[2], we[3], e.ra_rad * kRadToDeg, e.dec_rad * kRadToDeg, e.roll_rad * kRadToDeg, err.total_rad * kRadToArcsec,
-        err.cross_rad * kRadToArcsec, err.roll_rad * kRadToArcsec, sr.attitude.sigma_cross_rad * kRadToArcsec,
-        sr.attitude.sigma_roll_rad * kRadToArcsec);
+        SolveStatusName(sr.status), sr.identification.matches.size(), sr.identification.false_match_probability, we[0],
+        we[1], we[2], we[3], e.ra_rad * kRadToDeg, e.dec_rad * kRadToDeg, e.roll_rad * kRadToDeg,
+        err.total_rad * kRadToArcsec, err.cross_rad * kRadToArcsec, err.roll_rad * kRadToArcsec,
+        sr.attitude.sigma_cross_rad * kRadToArcsec, sr.attitude.sigma_roll_rad * kRadToArcsec);
     r.json["q"] = {we[0], we[1], we[2], we[3]};
     r.json["error_arcsec"] = err.total_rad * kRadToArcsec;
     r.json["error_cross_arcsec"] = err.cross_rad * kRadToArcsec;
     r.json["error_roll_arcsec"] = err.roll_rad * kRadToArcsec;
   } else {
-    n += std::snprintf(buf + n, sizeof(buf) - n, "  solve: %s (%s)\n", sr.status.c_str(), sr.message.c_str());
+    n += std::snprintf(buf + n, sizeof(buf) - n, "  solve: %s (%s)\n", SolveStatusName(sr.status), sr.message.c_str());
   }
   r.text = buf;
   return r;

@@ -416,7 +416,7 @@ void MissionRun::OnFrameTime(double t_f) {
   const Quat q_true = TrueAttitudeAt(data_, t_f);
   ScoreHeads(fr);
   Vec3 e_star = Vec3::Constant(std::nan(""));
-  if (fr.status == "solved") {
+  if (fr.status == SolveStatus::kSolved) {
     ++res_.frames_solved;
     e_star = BodyError(fr.q_inertial_from_body, q_true);
     if (t_f >= config_.score_after_s) star_acc_.Add(q_sensor1_from_body_ * e_star);
@@ -437,7 +437,7 @@ void MissionRun::ScoreHeads(const FrameReport& fr) {
     const HeadResult& hr = fr.heads[h];
     HeadSummary& s = res_.heads[h];
     ++s.frames;
-    if (hr.status == "solved") {
+    if (hr.status == SolveStatus::kSolved) {
       ++s.solved;
       s.mean_matches += hr.matches;
       s.mean_sigma_cross_arcsec += hr.sigma_cross_arcsec;
@@ -460,7 +460,7 @@ void MissionRun::RecordFrameRow(double t_f, const FrameReport& fr, const Vec3& e
   for (int i = 0; i < 3; ++i) frame_cols_[3 + i].push_back(e_star[i] * kRadToArcsec);
   for (int h = 0; h < nh_; ++h) {
     const HeadResult& hr = fr.heads[h];
-    const bool ok = hr.status == "solved";
+    const bool ok = hr.status == SolveStatus::kSolved;
     frame_cols_[6 + 5 * h].push_back(ok ? 1 : 0);
     frame_cols_[7 + 5 * h].push_back(ok ? (hr.mode == "tracking" ? 1 : 0) : std::nan(""));
     frame_cols_[8 + 5 * h].push_back(hr.matches);

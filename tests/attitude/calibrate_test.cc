@@ -75,7 +75,7 @@ TEST(Calibrate, TwentySimulatedFramesRecoverTheCameraWithinThreeSigma) {
       10 + 3 * std::hypot(c.sigma.at("cx_px") / truth.focal_length_px, c.sigma.at("cy_px") / truth.FocalYPx()) *
                kRadToArcsec;
   for (size_t i = 0; i < c.frames.size(); ++i) {
-    if (c.frames[i].status == "solved") {
+    if (c.frames[i].status == SolveStatus::kSolved) {
       EXPECT_THAT(c.frames[i].q_inertial_from_sensor, QuaternionNear(qs[i], tol_arcsec));
     }
   }

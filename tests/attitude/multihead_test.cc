@@ -67,11 +67,12 @@ void CheckFusion(int num_heads) {
     for (int h = 0; h < num_heads; ++h) {
       ids.push_back(rig.Solve(q_body, kMount[h], 500 + 100 * t + h));
       mounts.push_back(kMount[h]);
-      ASSERT_EQ(ids.back().status, "solved") << "trial " << t << " head " << h << ": " << ids.back().message;
+      ASSERT_EQ(ids.back().status, SolveStatus::kSolved)
+          << "trial " << t << " head " << h << ": " << ids.back().message;
     }
     const MultiHeadSolution mh = SolveMultiHeadChecked(ids, mounts);
-    ASSERT_EQ(mh.attitude.status, "solved") << mh.message;
-    for (int h = 0; h < num_heads; ++h) EXPECT_EQ(mh.head_status[h], "used") << "trial " << t << " head " << h;
+    ASSERT_EQ(mh.attitude.status, SolveStatus::kSolved) << mh.message;
+    for (int h = 0; h < num_heads; ++h) EXPECT_EQ(mh.head_use[h], HeadUse::kUsed) << "trial " << t << " head " << h;
     const AttitudeSolution& fused = mh.attitude;
     const Vec3 e = BodyError(fused.q_inertial_from_sensor, q_body);
     const double nees = e.dot(fused.covariance_rad2.inverse() * e);
@@ -111,20 +112,20 @@ TEST(MultiHeadFrames, BlindHeadDoesNotSpoilTheFusion) {
   blind.mag_max = -5;  // no stars: noise, hot pixels and cosmic rays only
   const Identification h0 = rig.Solve(q_body, kMount[0], 601), h1 = rig.Solve(q_body, kMount[1], 602),
                        h2 = rig.Solve(q_body, kMount[2], 603, blind);
-  ASSERT_EQ(h0.status, "solved");
-  ASSERT_EQ(h1.status, "solved");
-  ASSERT_NE(h2.status, "solved") << h2.message;
+  ASSERT_EQ(h0.status, SolveStatus::kSolved);
+  ASSERT_EQ(h1.status, SolveStatus::kSolved);
+  ASSERT_NE(h2.status, SolveStatus::kSolved) << h2.message;
   const MultiHeadSolution two = SolveMultiHeadChecked({h0, h1}, {kMount[0], kMount[1]});
   const MultiHeadSolution three = SolveMultiHeadChecked({h0, h1, h2}, {kMount[0], kMount[1], kMount[2]});
-  ASSERT_EQ(three.attitude.status, "solved") << three.message;
-  EXPECT_EQ(three.head_status[2], h2.status);
-  EXPECT_EQ(three.head_status[0], "used");
-  EXPECT_EQ(three.head_status[1], "used");
+  ASSERT_EQ(three.attitude.status, SolveStatus::kSolved) << three.message;
+  EXPECT_EQ(three.head_use[2], HeadUse::kOwnStatus);  // JSON "use": its own status
+  EXPECT_EQ(three.head_use[0], HeadUse::kUsed);
+  EXPECT_EQ(three.head_use[1], HeadUse::kUsed);
   EXPECT_THAT(three.attitude.q_inertial_from_sensor, QuaternionNear(two.attitude.q_inertial_from_sensor, 1e-6));
   EXPECT_THAT(three.attitude.q_inertial_from_sensor, QuaternionNear(q_body, 10.0));
   // All heads blind: no solution, never a made-up attitude.
   const MultiHeadSolution none = SolveMultiHeadChecked({h2, h2}, {kMount[0], kMount[2]});
-  EXPECT_NE(none.attitude.status, "solved");
+  EXPECT_NE(none.attitude.status, SolveStatus::kSolved);
 }
 
 // A head whose frame belongs to another attitude (a wrong solve, or a wrong mount in heads.json)
@@ -135,18 +136,18 @@ TEST(MultiHeadFrames, InconsistentHeadIsLeftOut) {
   const Quat q_other = q_body * Quat(Eigen::AngleAxisd(2 * kDegToRad, Vec3::UnitZ()));
   const Identification h0 = rig.Solve(q_body, kMount[0], 701), h1 = rig.Solve(q_body, kMount[1], 702),
                        h2 = rig.Solve(q_other, kMount[2], 703);
-  ASSERT_EQ(h2.status, "solved");
+  ASSERT_EQ(h2.status, SolveStatus::kSolved);
   const MultiHeadSolution mh = SolveMultiHeadChecked({h0, h1, h2}, {kMount[0], kMount[1], kMount[2]});
-  ASSERT_EQ(mh.attitude.status, "solved");
-  EXPECT_EQ(mh.head_status[0], "used");
-  EXPECT_EQ(mh.head_status[1], "used");
-  EXPECT_EQ(mh.head_status[2], "inconsistent");
+  ASSERT_EQ(mh.attitude.status, SolveStatus::kSolved);
+  EXPECT_EQ(mh.head_use[0], HeadUse::kUsed);
+  EXPECT_EQ(mh.head_use[1], HeadUse::kUsed);
+  EXPECT_EQ(mh.head_use[2], HeadUse::kInconsistent);
   EXPECT_THAT(mh.attitude.q_inertial_from_sensor, QuaternionNear(q_body, 10.0));
   // A mount error well inside the tolerance (20 arcsec) does not split the heads.
   const Quat m2_off = kMount[2] * Quat(Eigen::AngleAxisd(20 * kArcsecToRad, Vec3::UnitX()));
   const Identification h2b = rig.Solve(q_body, m2_off, 704);
   const MultiHeadSolution ok = SolveMultiHeadChecked({h0, h1, h2b}, {kMount[0], kMount[1], kMount[2]});
-  EXPECT_EQ(ok.head_status[2], "used") << ok.message;
+  EXPECT_EQ(ok.head_use[2], HeadUse::kUsed) << ok.message;
 }
 
 TEST(MultiHeadFrames, MismatchedMountCountIsInputError) {

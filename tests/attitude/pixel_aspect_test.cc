@@ -34,13 +34,14 @@ TEST(PixelAspect, FrameWithTallPixelsSolvedOnlyWithItsAspect) {
     SolveOptions so;
     so.detect.gain_e_per_adu = fo.gain_e_per_adu;
     const SolveResult r = SolveFrame(id, sf.image.view(), cam, so);
-    if (r.status == "solved") {
+    if (r.status == SolveStatus::kSolved) {
       ++solved;
       EXPECT_THAT(r.attitude.q_inertial_from_sensor, QuaternionNear(q, 10.0)) << "frame " << i;
       EXPECT_EQ(r.identification.focal_length_y_px, 1755);
     }
     const SolveResult rs = SolveFrame(id, sf.image.view(), square, so);
-    if (rs.status == "solved" && AttitudeErrorRad(rs.attitude.q_inertial_from_sensor, q) * kRadToArcsec < 60)
+    if (rs.status == SolveStatus::kSolved &&
+        AttitudeErrorRad(rs.attitude.q_inertial_from_sensor, q) * kRadToArcsec < 60)
       ++square_right;
   }
   std::printf("aspect 2: solved %d of %d with the aspect, %d right with square pixels\n", solved, n, square_right);
@@ -70,7 +71,7 @@ TEST(PixelAspect, CrossBoresightErrorAcrossAspects) {
       so.identify.systematic_px = 0;
       so.detect.gain_e_per_adu = fo.gain_e_per_adu;
       const SolveResult r = SolveFrame(id, sf.image.view(), cam, so);
-      if (r.status == "solved")
+      if (r.status == SolveStatus::kSolved)
         cross.push_back(SplitAttitudeError(r.attitude.q_inertial_from_sensor, q).cross_rad * kRadToArcsec);
     }
     std::sort(cross.begin(), cross.end());

@@ -103,11 +103,11 @@ TEST(MultiHead, TwoOrthogonalHeadsRemoveTheRollWeakness) {
       m.b_sensor = o.b_sensor, m.r_inertial = o.r_inertial, m.sigma_rad = o.sigma_rad;
       heads[h].matches.push_back(m);
     }
-    heads[h].status = "solved";
+    heads[h].status = SolveStatus::kSolved;
   }
   const AttitudeSolution one = SolveAttitude(heads[0]);
   const AttitudeSolution both = SolveMultiHead(heads, {m1, m2});
-  ASSERT_EQ(both.status, "solved");
+  ASSERT_EQ(both.status, SolveStatus::kSolved);
   EXPECT_THAT(both.q_inertial_from_sensor, QuaternionNear(q_body, 20.0));
   EXPECT_GT(one.sigma_roll_rad, 5 * one.sigma_cross_rad);
   EXPECT_LT(both.sigma_roll_rad, 2 * both.sigma_cross_rad);
@@ -174,7 +174,7 @@ Nees MeanNees(double catalog_fov_deg, const Camera& cam, const Camera& given, co
     const auto f = testing::MakeSyntheticFrame(id.catalog(), cam, q, so, &rng);
     const Identification idf = id.Identify(f.centroids, given, io);
     const AttitudeSolution s = SolveAttitude(idf);
-    if (s.status != "solved") continue;
+    if (s.status != SolveStatus::kSolved) continue;
     if (check) check(idf);
     const Vec3 e = SensorError(s.q_inertial_from_sensor, q);
     out.mean += e.dot(s.covariance_rad2.inverse() * e);

@@ -39,7 +39,7 @@ TEST(RealFrames, OpenStarTrackerWithinTenArcsecOfAstrometryNet) {
     SSIU_REQUIRE_SHARED(path, std::string("openstartracker/") + ref.file);
     const Frame fr = SubtractDark(ReadFrame(path), dark);
     const SolveResult r = SolveFrame(id, fr.image.view(), cam, so);
-    ASSERT_EQ(r.status, "solved") << ref.file << ": " << r.message;
+    ASSERT_EQ(r.status, SolveStatus::kSolved) << ref.file << ": " << r.message;
     const RaDecRoll a = RaDecRollFromQuat(r.attitude.q_inertial_from_sensor);
     const double err = SepArcsec(a.ra_rad * kRadToDeg, a.dec_rad * kRadToDeg, ref.ra_deg, ref.dec_deg);
     EXPECT_LT(err, 10.0) << ref.file;
@@ -82,7 +82,7 @@ TEST(RealFrames, OpenStarTrackerSevenFramesSolveWithDefaultOptions) {
   for (const auto& ref : refs) {
     SSIU_REQUIRE_SHARED(path, std::string("openstartracker/") + ref.file);
     const SolveResult r = SolveFrame(id, SubtractDark(ReadFrame(path), dark).image.view(), cam, so);
-    ASSERT_EQ(r.status, "solved") << ref.file << ": " << r.message;
+    ASSERT_EQ(r.status, SolveStatus::kSolved) << ref.file << ": " << r.message;
     EXPECT_LT(r.identification.false_match_probability, so.identify.max_false_match_prob) << ref.file;
     EXPECT_GE(r.identification.matches.size(), 5u) << ref.file;
     // 1.6 px: the uncalibrated lens puts corner stars up to 1.2 px (18 arcsec) off a pinhole.
@@ -114,7 +114,7 @@ TEST(RealFrames, Tetra3AllEightSolvedPublishedOnesWithinTenArcsec) {
     const std::string path = dir + "/2019-07-29T204726_" + n + "_Try1.tiff";
     const Frame fr = ReadFrame(path);
     const SolveResult r = SolveFrame(id, fr.image.view(), cam, so);
-    ASSERT_EQ(r.status, "solved") << n << ": " << r.message;
+    ASSERT_EQ(r.status, SolveStatus::kSolved) << n << ": " << r.message;
     const RaDecRoll a = RaDecRollFromQuat(r.attitude.q_inertial_from_sensor);
     double err = -1;
     if (std::string(n) == "Alt40_Azi-45")
@@ -145,9 +145,9 @@ TEST(RealFrames, OpenStarTrackerHardFramesAreNeverWrong) {
   for (const char* f : {"img1.png", "img5.png", "img8.png"}) {
     SSIU_REQUIRE_SHARED(path, std::string("openstartracker/") + f);
     const SolveResult r = SolveFrame(id, SubtractDark(ReadFrame(path), dark).image.view(), cam, so);
-    std::printf("%s: %s (%s)\n", f, r.status.c_str(), r.message.c_str());
-    EXPECT_NE(r.status, "too_few_stars") << f;
-    if (r.status == "solved") {
+    std::printf("%s: %s (%s)\n", f, SolveStatusName(r.status), r.message.c_str());
+    EXPECT_NE(r.status, SolveStatus::kTooFewStars) << f;
+    if (r.status == SolveStatus::kSolved) {
       EXPECT_LT(r.identification.false_match_probability, 1e-5);
       for (const auto& m : r.identification.matches) EXPECT_LT(m.residual_rad * kRadToArcsec, 15.0) << f;
     }

@@ -76,7 +76,7 @@ inline CampaignStats RunCampaign(int n_frames, uint64_t seed0) {
     const SolveResult r = SolveCentroids(*ids[key], cs, cam, so);
     ++st.frames;
     st.solve_ms.push_back(r.timing_ms.count("identify") ? r.timing_ms.at("identify") : 0.0);
-    if (r.status != "solved") {
+    if (r.status != SolveStatus::kSolved) {
       ++st.unsolved_by_fov_deg[static_cast<int>(fov)];
       continue;
     }

@@ -103,7 +103,7 @@ TEST(SkyMotion, TimeAndVelocityGiveIcrsAttitudeAndWithoutThemTheErrorIsTheAberra
     corrected.sky = SkyForSimulation(fo);
     const SolveResult rc = SolveCentroids(id, cs, cam, corrected);
     const SolveResult rp = SolveCentroids(id, cs, cam, plain);
-    if (rc.status != "solved" || rp.status != "solved") continue;
+    if (rc.status != SolveStatus::kSolved || rp.status != SolveStatus::kSolved) continue;
     ++solved;
     const Quat qc = rc.attitude.q_inertial_from_sensor, qp = rp.attitude.q_inertial_from_sensor;
     cross_corrected.push_back(SplitAttitudeError(qc, q).cross_rad * kRadToArcsec);
@@ -165,12 +165,12 @@ TEST(SkyMotion, NonSquarePixelsDistortionProperMotionAndAberrationTogether) {
       SolveOptions corrected = plain;
       corrected.sky = SkyForSimulation(fo);
       const SolveResult rc = SolveFrame(id, sf.image.view(), cam, corrected);
-      if (rc.status != "solved") continue;
+      if (rc.status != SolveStatus::kSolved) continue;
       ++solved;
       cross.push_back(SplitAttitudeError(rc.attitude.q_inertial_from_sensor, q).cross_rad * kRadToArcsec);
       nees.push_back(CrossNees(rc.attitude, q));
       const SolveResult rp = SolveFrame(id, sf.image.view(), cam, plain);
-      ASSERT_EQ(rp.status, "solved");
+      ASSERT_EQ(rp.status, SolveStatus::kSolved);
       const Quat q_expected = ExpectedUncorrected(id, rc);
       const Vec3 bore = q * Vec3::UnitZ();
       const double shift = (AberrateDirection(bore, corrected.sky.ObserverVelocityMS()) - bore).norm() * kRadToArcsec;

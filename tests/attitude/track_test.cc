@@ -33,7 +33,7 @@ TEST(Tracker, SlewingSequenceThenLostLockRecovery) {
     dopt.gain_e_per_adu = fo.gain_e_per_adu;
     const SolveResult r =
         tracker.Update(CentroidsFromDetections(Detect(sf.image.view(), dopt), so.detector_sigma_scale), t);
-    ASSERT_EQ(r.status, "solved") << "frame " << k << ": " << r.message;
+    ASSERT_EQ(r.status, SolveStatus::kSolved) << "frame " << k << ": " << r.message;
     const char* expected_mode = (k == 0 || k == 10) ? "lost_in_space" : "tracking";
     EXPECT_EQ(r.mode, expected_mode) << "frame " << k << ": " << r.message;
     EXPECT_LT(SplitAttitudeError(r.attitude.q_inertial_from_sensor, q).cross_rad * kRadToArcsec, 5.0) << "frame " << k;

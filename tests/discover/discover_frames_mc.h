@@ -30,7 +30,7 @@ namespace ssiu::testing {
 // frame set; its stars are added by the caller with FrameStar::frame = the returned index.
 inline int AddSolvedFrame(SolvedFrameSet* set, const Quat& q) {
   const int f = static_cast<int>(set->q.size());
-  set->status.push_back("solved");
+  set->status.push_back(SolveStatus::kSolved);
   set->names.push_back("f" + std::to_string(f));
   set->q.push_back(q);
   set->solved_index.push_back(f);

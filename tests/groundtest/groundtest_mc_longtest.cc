@@ -80,7 +80,7 @@ TEST(GroundtestMonteCarlo, MisalignmentRecoveryCoverage) {
     for (const auto& p : sim.pictures) {
       const PictureSolve ps =
           SolveStandPicture(*s.id, p.frame.view(), m.camera, so.view.detector.gain_e_per_adu, p.t_s, solve);
-      if (ps.status != "solved") continue;
+      if (ps.status != SolveStatus::kSolved) continue;
       est.push_back(ps.sample);
       const PlatePoseEstimate pe =
           EstimatePlatePose(m, so.aux, p.photo.data(), so.aux.camera.width, so.aux.camera.height, "photo");

@@ -149,7 +149,7 @@ TEST(GroundtestMask, ResolvingASimulatedPictureGivesTheDesignAttitude) {
   std::vector<ViewStar> stars;
   const Image16 img = RenderTrackerView(m, PlatePose{}, Quat::Identity(), vo, 5, &stars);
   const PictureSolve p = SolveStandPicture(Identifier(), img.view(), m.camera, vo.detector.gain_e_per_adu, 0);
-  ASSERT_EQ(p.status, "solved");
+  ASSERT_EQ(p.status, SolveStatus::kSolved);
   const AttitudeErrorSplit e = SplitAttitudeError(p.sample.q, kDesign);
   std::printf("design re-solve: %d stars, cross %.2f arcsec (sigma %.2f), roll %.2f arcsec (sigma %.2f)\n", p.stars,
               e.cross_rad * kRadToArcsec, p.sample.sigma_cross_rad * kRadToArcsec, e.roll_rad * kRadToArcsec,
@@ -168,7 +168,7 @@ TEST(GroundtestMask, DistortedTrackerNeedsNoCompensationOnThePlate) {
   TrackerViewOptions vo;
   const Image16 img = RenderTrackerView(m, PlatePose{}, Quat::Identity(), vo, 6);
   const PictureSolve p = SolveStandPicture(Identifier(), img.view(), cam, vo.detector.gain_e_per_adu, 0);
-  ASSERT_EQ(p.status, "solved");
+  ASSERT_EQ(p.status, SolveStatus::kSolved);
   const AttitudeErrorSplit e = SplitAttitudeError(p.sample.q, kDesign);
   EXPECT_LT(e.cross_rad, 3 * std::sqrt(2.0) * p.sample.sigma_cross_rad);
   EXPECT_LT(std::abs(e.roll_rad), 3 * p.sample.sigma_roll_rad);
@@ -205,7 +205,7 @@ TEST(GroundtestMask, PredistortedPlateShowsAPinholeSkyThroughTheDistortedLens) {
   EXPECT_LT(worst, 1e-3);
   EXPECT_GT(worst_plain, 1.0);  // without it the lens moves the stars by pixels
   const PictureSolve p = SolveStandPicture(Identifier(), img.view(), pinhole, vo.detector.gain_e_per_adu, 0);
-  ASSERT_EQ(p.status, "solved");
+  ASSERT_EQ(p.status, SolveStatus::kSolved);
   const AttitudeErrorSplit e = SplitAttitudeError(p.sample.q, kDesign);
   EXPECT_LT(e.cross_rad, 3 * std::sqrt(2.0) * p.sample.sigma_cross_rad);
   EXPECT_LT(std::abs(e.roll_rad), 3 * p.sample.sigma_roll_rad);
@@ -393,7 +393,7 @@ TEST(GroundtestVirtualStand, RecoversTheHiddenMisalignment) {
     solve.identify.systematic_px = 0;
     const PictureSolve ps =
         SolveStandPicture(Identifier(), p.frame.view(), m.camera, so.view.detector.gain_e_per_adu, p.t_s, solve);
-    ASSERT_EQ(ps.status, "solved") << "t " << p.t_s;
+    ASSERT_EQ(ps.status, SolveStatus::kSolved) << "t " << p.t_s;
     computed.push_back(ps.sample);
     const PlatePoseEstimate pe =
         EstimatePlatePose(m, so.aux, p.photo.data(), so.aux.camera.width, so.aux.camera.height, "photo");

@@ -121,7 +121,7 @@ TEST(CatalogIndex, FormatThreeCatalogStillLoadsAndSolvesTheSame) {
     const auto f = testing::MakeSyntheticFrame(built, cam, q, testing::SyntheticOptions{}, &rng);
     const Identification ra = a.Identify(f.centroids, cam, IdentifyOptions{}),
                          rb = b.Identify(f.centroids, cam, IdentifyOptions{});
-    EXPECT_EQ(ra.status, "solved");
+    EXPECT_EQ(ra.status, SolveStatus::kSolved);
     EXPECT_LT(AttitudeErrorRad(ra.q_inertial_from_sensor, q) * kRadToArcsec, 60);  // 0.2 px of 70"
     EXPECT_EQ(ra.status, rb.status);
     EXPECT_EQ(ra.q_inertial_from_sensor.coeffs(), rb.q_inertial_from_sensor.coeffs());

@@ -84,7 +84,7 @@ TEST(Identify, SolvesSyntheticFramesWithFalseAndMissingStars) {
     const Quat q = QuatFromUniform(rng.Uniform(), rng.Uniform(), rng.Uniform());
     const auto f = MakeSyntheticFrame(id.catalog(), cam, q, SyntheticOptions{}, &rng);
     const Identification r = id.Identify(f.centroids, cam, io);
-    if (r.status != "solved") continue;
+    if (r.status != SolveStatus::kSolved) continue;
     ++solved;
     EXPECT_LT(r.false_match_probability, 1e-5);
     if (AttitudeErrorRad(r.q_inertial_from_sensor, q) * kRadToArcsec > 60) ++wrong;
@@ -104,15 +104,15 @@ TEST(Identify, PureNoiseIsNeverSolved) {
     std::vector<Centroid> c(30);
     for (auto& x : c) x = {rng.Uniform(0, 1023), rng.Uniform(0, 1023), rng.Uniform(), 0.3};
     const Identification r = id.Identify(c, cam, IdentifyOptions{});
-    EXPECT_NE(r.status, "solved") << "noise frame " << i;
+    EXPECT_NE(r.status, SolveStatus::kSolved) << "noise frame " << i;
   }
 }
 
 TEST(Identify, TooFewStars) {
   const Camera cam = MakeCamera(1024, 1024, 16.6);
   std::vector<Centroid> c = {{100, 100, 1, 0.2}, {500, 300, 1, 0.2}, {900, 800, 1, 0.2}};
-  EXPECT_EQ(Bsc166().Identify(c, cam, IdentifyOptions{}).status, "too_few_stars");
-  EXPECT_EQ(Bsc166().Identify({}, cam, IdentifyOptions{}).status, "too_few_stars");
+  EXPECT_EQ(Bsc166().Identify(c, cam, IdentifyOptions{}).status, SolveStatus::kTooFewStars);
+  EXPECT_EQ(Bsc166().Identify({}, cam, IdentifyOptions{}).status, SolveStatus::kTooFewStars);
 }
 
 TEST(Identify, NonFiniteCentroidIsInputError) {
@@ -135,7 +135,7 @@ TEST(Identify, FindsFocalLengthWithinTolerance) {
     const Quat q = QuatFromUniform(rng.Uniform(), rng.Uniform(), rng.Uniform());
     const auto f = MakeSyntheticFrame(id.catalog(), truth, q, SyntheticOptions{}, &rng);
     const Identification r = id.Identify(f.centroids, guess, io);
-    if (r.status != "solved") continue;
+    if (r.status != SolveStatus::kSolved) continue;
     ++solved;
     // 0.2 px noise is 12 arcsec per star at 58 arcsec/px: boresight to a few arcsec, roll to ~30.
     EXPECT_NEAR(r.focal_length_px, truth.focal_length_px, 0.002 * truth.focal_length_px);
@@ -154,16 +154,16 @@ TEST(Identify, TrackingMatchesFromPredictedAttitude) {
   // Prediction 0.1 deg off: within a 30 px search radius (~0.5 deg) the tracker re-locks.
   const Quat q_pred = q * Quat(Eigen::AngleAxisd(0.1 * kDegToRad, Vec3(1, 1, 0).normalized()));
   const Identification r = id.MatchWithAttitude(f.centroids, cam, q_pred, 30.0, IdentifyOptions{});
-  ASSERT_EQ(r.status, "solved") << r.message;
+  ASSERT_EQ(r.status, SolveStatus::kSolved) << r.message;
   // Same matches as a lost-in-space solve of the frame, hence the same attitude.
   const Identification lis = id.Identify(f.centroids, cam, IdentifyOptions{});
-  ASSERT_EQ(lis.status, "solved");
+  ASSERT_EQ(lis.status, SolveStatus::kSolved);
   EXPECT_EQ(r.matches.size(), lis.matches.size());
   EXPECT_THAT(r.q_inertial_from_sensor, QuaternionNear(lis.q_inertial_from_sensor, 0.01));
   EXPECT_LT(SplitAttitudeError(r.q_inertial_from_sensor, q).cross_rad * kRadToArcsec, 10);
   // A prediction 3 deg off loses lock (reported, not a wrong attitude).
   const Quat q_far = q * Quat(Eigen::AngleAxisd(3 * kDegToRad, Vec3::UnitX()));
-  EXPECT_EQ(id.MatchWithAttitude(f.centroids, cam, q_far, 5.0, IdentifyOptions{}).status, "no_match");
+  EXPECT_EQ(id.MatchWithAttitude(f.centroids, cam, q_far, 5.0, IdentifyOptions{}).status, SolveStatus::kNoMatch);
 }
 
 }  // namespace

@@ -100,7 +100,7 @@ inline UnknownFovCampaign RunUnknownFov(int n, uint64_t seed0, const IdentifyOpt
     ++c.frames;
     c.ms.push_back(r.timing_ms.count("identify") ? r.timing_ms.at("identify") : 0.0);
     c.hypotheses_max = std::max(c.hypotheses_max, r.hypotheses);
-    if (r.status != "solved") {
+    if (r.status != SolveStatus::kSolved) {
       if (n <= 100)
         std::fprintf(stderr, "unsolved frame seed %llu (%.2f deg, %zu centroids): %s\n",
                      static_cast<unsigned long long>(seed0 + k), truth.FovXRad() * kRadToDeg, f.centroids.size(),
@@ -146,7 +146,7 @@ inline Calibration RunUnknownFovRandom(int n, uint64_t seed0, const IdentifyOpti
     for (auto& x : cs) x = {rng.Uniform(0, 1023), rng.Uniform(0, 767), rng.Uniform(), 0.3};
     ++c.trials;
     const Identification r = id.Identify(cs, cam, io);
-    if (r.status == "solved") {
+    if (r.status == SolveStatus::kSolved) {
       ++c.false_solves;
       std::fprintf(stderr, "FALSE random set seed %llu: %d centroids, %s, chance %.3g, %d hypotheses\n",
                    static_cast<unsigned long long>(seed0 + k), m, r.message.c_str(), r.false_match_probability,

@@ -98,7 +98,7 @@ TEST(UnitProcessor, ReportsMissingFramesAndRefusesAWrongSize) {
   UnitProcessor p(heads, {id, id}, unit, options);
   EXPECT_FALSE(p.Attitude().valid);
   const FrameReport none = p.OnFrames(0.0, {ImageView{}, ImageView{}});
-  EXPECT_EQ(none.status, "no_frame");
+  EXPECT_EQ(none.status, SolveStatus::kNoFrame);
   EXPECT_EQ(none.heads_solved, 0);
   EXPECT_FALSE(p.Attitude().valid);
   const Image16 small(64, 64, 100);

@@ -90,7 +90,7 @@ inline SceneCampaign RunKelvinsScenes(int n, uint64_t seed0, const IdentifyOptio
     const Identification& r = sr.identification;
     c.ms.push_back(r.timing_ms.count("identify") ? r.timing_ms.at("identify") : 0.0);
     ++c.scenes;
-    const bool ok = r.status == "solved";
+    const bool ok = r.status == SolveStatus::kSolved;
     if (ok) c.solved_ms.push_back(c.ms.back());
     if (ok && IsWrong(sr, s.q_inertial_from_sensor)) {
       const double err_arcsec =
@@ -126,7 +126,7 @@ inline Calibration RunRandomCentroids(int n, uint64_t seed0, const IdentifyOptio
     for (auto& x : cs) x = {rng.Uniform(0, 1023), rng.Uniform(0, 1023), rng.Uniform(), 0.3};
     ++c.trials;
     const Identification r = id.Identify(cs, cam, io);
-    const bool ok = r.status == "solved";
+    const bool ok = r.status == SolveStatus::kSolved;
     if (ok)
       std::fprintf(stderr, "FALSE random set seed %llu: %d centroids, %s, chance %.3g, %d hypotheses\n",
                    static_cast<unsigned long long>(seed0 + k), m, r.message.c_str(), r.false_match_probability,
@@ -157,8 +157,8 @@ inline Calibration RunWrongFocal(int n, uint64_t seed0, double tol_pct, Identify
     sopt.identify = io;
     const SolveResult r = SolveCentroids(id, s.centroids, guess, sopt);
     ++c.trials;
-    c.solved += r.status == "solved";
-    if (r.status == "solved" && IsWrong(r, s.q_inertial_from_sensor)) {
+    c.solved += r.status == SolveStatus::kSolved;
+    if (r.status == SolveStatus::kSolved && IsWrong(r, s.q_inertial_from_sensor)) {
       ++c.false_solves;
       const AttitudeErrorSplit e = SplitAttitudeError(r.attitude.q_inertial_from_sensor, s.q_inertial_from_sensor);
       const int true_matches = RightMatches(s, r.identification.matches);

@@ -103,7 +103,7 @@ TEST(LostInSpaceLong, CalibrationStarFreeFrames) {
       so.detect.gain_e_per_adu = fo.gain_e_per_adu;
       const SolveResult r = SolveFrame(id, f.image.view(), cam, so);
       ++n;
-      solved += r.status == "solved";
+      solved += r.status == SolveStatus::kSolved;
       if (n % 500 == 0)
         std::printf("  star-free frames at %g: %d false of %d so far\n", alpha, solved, n), std::fflush(stdout);
     }
@@ -146,7 +146,7 @@ TEST(LostInSpaceLong, ToleranceModeNees) {
     guess.focal_length_px *= (rng.Uniform() < 0.5 ? 1 - rng.Uniform(0.05, 0.15) : 1 + rng.Uniform(0.05, 0.15));
     const SimulatedScene s = SimulateScene(truth, Bsc(), RandomAttitude(seed), sc, seed);
     const SolveResult r = SolveCentroids(id, s.centroids, guess, so);
-    if (r.status != "solved") continue;
+    if (r.status != SolveStatus::kSolved) continue;
     Quat d = s.q_inertial_from_sensor.conjugate() * r.attitude.q_inertial_from_sensor;
     if (d.w() < 0) d.coeffs() = -d.coeffs();
     const Vec3 e = 2 * d.vec();  // sensor-frame error rotation

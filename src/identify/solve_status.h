@@ -1,0 +1,29 @@
+// How a solve ended (identification, attitude, a frame or a set of frames): expected failure is data,
+// not an exception. The JSON/CSV spelling (conventions.md "status values of a solve") is
+// SolveStatusName's, used only at the edges.
+#pragma once
+
+namespace ssiu {
+
+enum class SolveStatus {
+  kSolved,       // "solved"
+  kNoMatch,      // "no_match": no hypothesis verified (or the heads disagree)
+  kTooFewStars,  // "too_few_stars": fewer centroids or matches than a solution needs
+  kNoFrame,      // "no_frame": the unit processor's head had no frame at that time
+};
+
+inline const char* SolveStatusName(SolveStatus s) {
+  switch (s) {
+    case SolveStatus::kSolved:
+      return "solved";
+    case SolveStatus::kNoMatch:
+      return "no_match";
+    case SolveStatus::kTooFewStars:
+      return "too_few_stars";
+    case SolveStatus::kNoFrame:
+      return "no_frame";
+  }
+  return "no_match";  // not reached
+}
+
+}  // namespace ssiu
