@@ -401,7 +401,7 @@ CameraCalibration CalibrateCamera(const StarIdentifier& id, const std::vector<Ca
     }
     return out;
   }
-  out.status = "calibrated";
+  out.status = CalibrationStatus::kCalibrated;
   out.camera = cam;
   out.camera.Check("fitted camera");
   for (size_t a = 0; a < fit.free_index.size(); ++a) out.parameters.push_back(kNames[fit.free_index[a]]);
@@ -486,7 +486,7 @@ CameraCalibration CalibrateCamera(const StarIdentifier& id, const std::vector<Ca
 
 Json CameraCalibrationToJson(const CameraCalibration& c) {
   Json j;
-  j["status"] = c.status;
+  j["status"] = CalibrationStatusName(c.status);
   j["message"] = c.message;
   j["camera"] = CameraToJson(c.camera);
   j["guess"] = CameraToJson(c.guess);

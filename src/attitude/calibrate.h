@@ -56,8 +56,14 @@ struct CalibratedFrame {
   bool held_out = false;
 };
 
+// "calibrated", or "not_calibrated" (too few frames solved with the guess to fit; camera = guess).
+enum class CalibrationStatus { kCalibrated, kNotCalibrated };
+inline const char* CalibrationStatusName(CalibrationStatus s) {
+  return s == CalibrationStatus::kCalibrated ? "calibrated" : "not_calibrated";
+}
+
 struct CameraCalibration {
-  std::string status = "not_calibrated";  // calibrated, not_calibrated (too few frames solved)
+  CalibrationStatus status = CalibrationStatus::kNotCalibrated;
   std::string message;
   Camera guess;   // the guess the frames were first solved with (after try_aspects)
   Camera camera;  // fitted; equals guess when not calibrated

@@ -44,8 +44,8 @@ StarIdentifier IdentifierFor(const Opts& o, const Camera& guess) {
 }
 
 void PrintCalibration(const std::string& what, const CameraCalibration& c) {
-  std::cerr << what << ": " << c.status << " (" << c.message << ")\n";
-  if (c.status != "calibrated") return;
+  std::cerr << what << ": " << CalibrationStatusName(c.status) << " (" << c.message << ")\n";
+  if (c.status != CalibrationStatus::kCalibrated) return;
   for (const auto& p : c.parameters)
     std::cerr << "  " << p << " = " << c.value.at(p) << " +/- " << c.sigma.at(p) << "\n";
   for (const auto& u : c.unobservable) std::cerr << "  unobservable: " << u << "\n";
@@ -62,9 +62,9 @@ void RunSingle(const Opts& o) {
   for (const auto& f : o.frames) frames.push_back({f, CentroidsOf(f, o.cal.solve)});
   const CameraCalibration c = CalibrateCamera(id, frames, guess, o.cal);
   if (!o.json.empty()) WriteJsonFile(o.json, CameraCalibrationToJson(c));
-  if (c.status == "calibrated") WriteJsonFile(o.out, CameraToJson(c.camera));
+  if (c.status == CalibrationStatus::kCalibrated) WriteJsonFile(o.out, CameraToJson(c.camera));
   PrintCalibration("calibrate", c);
-  if (c.status != "calibrated") throw InputError(o.out, "not written: " + c.message);
+  if (c.status != CalibrationStatus::kCalibrated) throw InputError(o.out, "not written: " + c.message);
 }
 
 void RunHeads(const Opts& o) {
@@ -99,7 +99,7 @@ void RunHeads(const Opts& o) {
   Json out = Json::array(), report;
   Json heads = Json::array();
   for (size_t h = 0; h < nh; ++h) {
-    const Camera& c = cals[h].status == "calibrated" ? cals[h].camera : cams[h];
+    const Camera& c = cals[h].status == CalibrationStatus::kCalibrated ? cals[h].camera : cams[h];
     const auto q = ToWxyz(al.q_body_sensor[h]);
     out.push_back({{"camera", CameraToJson(c)}, {"q_body_sensor", {q[0], q[1], q[2], q[3]}}});
     Json r = CameraCalibrationToJson(cals[h]);

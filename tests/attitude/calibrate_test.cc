@@ -54,7 +54,7 @@ TEST(Calibrate, TwentySimulatedFramesRecoverTheCameraWithinThreeSigma) {
   o.solve.identify.systematic_px = 0;
   const StarIdentifier id = IdentifierFor(guess, o.fov_tolerance_pct);
   const CameraCalibration c = CalibrateCamera(id, frames, guess, o);
-  ASSERT_EQ(c.status, "calibrated") << c.message;
+  ASSERT_EQ(c.status, CalibrationStatus::kCalibrated) << c.message;
   const double want[5] = {truth.focal_length_px, truth.FocalYPx(), truth.cx_px, truth.cy_px, truth.distortion.k1};
   const char* names[5] = {"fx_px", "fy_px", "cx_px", "cy_px", "k1"};
   for (int k = 0; k < 5; ++k) {
