@@ -159,6 +159,7 @@ void OnlineFusion::Compensate(int gi, double t) {
   FaultEvent& ev = faults_.back();
   if (tracked_ == gi) {
     track_from_s_ = std::max(track_from_s_, ev.t_onset_s);
+    track_reporting_ = false;  // the event keeps the shape it had since its own onset
     faults_.pop_back();
     RefitTrackedFault(t);
     return;
@@ -169,6 +170,7 @@ void OnlineFusion::Compensate(int gi, double t) {
     tracked_event_ = faults_.size() - 1;
     tracker_ = isolator_;
     track_from_s_ = track_onset0_s_ = ev.t_onset_s;
+    track_reporting_ = true;
     track_fit_ = FaultFit();
     track_fit_.value_dph = ev.fault_dph;
     track_fit_t_ = t;
@@ -190,6 +192,13 @@ void OnlineFusion::RefitTrackedFault(double t) {
   if (fit.n == 0) return;
   track_fit_ = fit;
   track_fit_t_ = t;
+  // The compensation's own uncertainty reaches the body bias through this gyro's column of the rate
+  // solution: the filter must not be surer of the bias than that.
+  FloorBias(solver_.Pinv().col(tracked_).norm() * fit.sigma_dph * kDphToRadS);
+  // The event reports the fit over everything since detection; once the window has moved on, the
+  // fit follows the fault's latest shape for the compensation only (a ramp that stopped would
+  // otherwise be reported as a step of whatever is left).
+  if (!track_reporting_ || from > track_from_s_ + 1e-9) return;
   FaultEvent& ev = faults_[tracked_event_];
   // The onset of a ramp is where the fitted line crosses zero (the innovation CUSUM's last zero comes
   // later, when the ramp has grown out of the noise), taken only within a minute before that.
@@ -200,9 +209,6 @@ void OnlineFusion::RefitTrackedFault(double t) {
   if (ev.shape == "ramp" && step0 * ramp > 0) ev.t_onset_s = std::max(track_onset0_s_ - 60, t - fit.value_dph / ramp);
   ev.ramp_dph_per_s = ramp;
   ev.step_dph = fit.value_dph - ramp * (t - ev.t_onset_s);
-  // The compensation's own uncertainty reaches the body bias through this gyro's column of the rate
-  // solution: the filter must not be surer of the bias than that.
-  FloorBias(solver_.Pinv().col(tracked_).norm() * fit.sigma_dph * kDphToRadS);
 }
 
 void OnlineFusion::OnDetection(double t, const std::string& test, double onset_s, double parity_jump_dph) {

@@ -97,7 +97,8 @@ class OnlineFusion {
   StarRateIsolator tracker_;  // its star rates since detection (fed the raw outputs)
   FaultFit track_fit_;        // the latest fit, made at track_fit_t_
   double track_fit_t_ = 0, track_from_s_ = 0, track_onset0_s_ = 0;
-  GyroVec dyn_;  // the compensation now (deg/h; non-zero on the tracked gyro only)
+  bool track_reporting_ = false;  // the event still takes each new fit (its window reaches the onset)
+  GyroVec dyn_;                   // the compensation now (deg/h; non-zero on the tracked gyro only)
   double t_last_accepted_ = 0;
   double t_settled_ = -1;  // degraded until then after an isolation (the filter re-converging)
   std::deque<std::pair<double, Vec3>> bias_history_;  // (t, bias rad/s), one per accepted update
