@@ -1697,16 +1697,68 @@ void RefitResidualNoise(const Design& d, const GyroDiscoverOptions& o, const Vec
   }
 }
 
-// 1. The per-log noise model of the full model's OLS residual e_ols (and each log's variance).
-void FitLogNoise(const Design& d, const GyroDiscoverOptions& o, const VectorXd& e_ols, std::vector<NoiseModel>* nm,
-                 std::vector<double>* log_var) {
+// Restricted maximum likelihood (REML; Patterson & Thompson 1971, for time series Tunnicliffe Wilson 1989)
+// of the white + Gauss-Markov noise of one log y (m bins) under the regressors x (m x k, full column
+// rank; the log's bias among them): -ln L_R = 0.5 [ln|V| + ln|X' V^-1 X| + y' P y], P the GLS residual
+// projector, all through the noise model's Kalman whitening. Unlike the moment fit of the OLS residual,
+// it counts what the regressors can absorb of a slow wander: a realisation whose slow power the full
+// model's many slow columns partly take up is not read as a weaker wander. Wander tau <= tau_max_s, as
+// FitNoiseMle; starts from `start`.
+NoiseModel FitNoiseReml(const VectorXd& y, const MatrixXd& x, double bin_s, double tau_max_s, const NoiseModel& start) {
+  const int m = static_cast<int>(y.size()), k = static_cast<int>(x.cols());
+  const double g0 = std::max(start.var_w + start.var_g, 1e-30);
+  auto make = [&](const VectorXd& p) {
+    NoiseModel nm;
+    nm.var_w = std::exp(p(0)) * g0;
+    nm.var_g = std::exp(p(1)) * g0;
+    nm.phi = std::exp(-bin_s / std::max(tau_max_s / (1 + std::exp(-p(2))), 1e-9));
+    nm.Prepare(m);
+    return nm;
+  };
+  auto fn = [&](const VectorXd& p) {
+    if (!p.allFinite() || p.cwiseAbs().maxCoeff() > 40) return 1e300;
+    const NoiseModel nm = make(p);
+    MatrixXd xw(m, k);
+    for (int c = 0; c < k; ++c) xw.col(c) = nm.Whiten(x.col(c));
+    const VectorXd yw = nm.Whiten(y);
+    const Eigen::LDLT<MatrixXd> ldlt(xw.transpose() * xw);
+    if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0)) return 1e300;
+    const VectorXd xty = xw.transpose() * yw;
+    const double rss = yw.squaredNorm() - xty.dot(ldlt.solve(xty));
+    double nll = 0.5 * ldlt.vectorD().array().log().sum() + 0.5 * std::max(rss, 0.0);
+    for (int i = 0; i < m; ++i) nll -= std::log(nm.inv_sqrt_s[i]);
+    return nll;
+  };
+  VectorXd p0(3);
+  p0(0) = std::log(std::max(start.var_w, 1e-4 * g0) / g0);
+  p0(1) = std::log(std::max(start.var_g, 1e-4 * g0) / g0);
+  const double tau0 = start.phi > 0 && start.phi < 1 ? -bin_s / std::log(start.phi) : 0.5 * tau_max_s;
+  const double r = std::clamp(tau0 / tau_max_s, 1e-4, 1 - 1e-4);
+  p0(2) = std::log(r / (1 - r));
+  VectorXd p = NelderMead(fn, p0, 1.0, 300);
+  p = NelderMead(fn, p, 0.3, 150);  // restart: the simplex may have collapsed early
+  return fn(p) <= fn(p0) ? make(p) : start;
+}
+
+// 1. The per-log noise model of the full model x_full (OLS residual e_ols): the moment fit of the
+// residual's autocovariance as the start, then REML with the log's rows of x_full (its columns that
+// are not zero there, reduced to an orthonormal basis of their span) as the regressors; and each log's
+// variance.
+void FitLogNoise(const Design& d, const GyroDiscoverOptions& o, const MatrixXd& x_full, const VectorXd& e_ols,
+                 std::vector<NoiseModel>* nm, std::vector<double>* log_var) {
   const int l = static_cast<int>(d.bins.size());
   nm->clear();
   log_var->clear();
   for (int r = 0; r < l; ++r) {
     const int m = static_cast<int>(d.bins[r].t_s.size());
     const double phi_max = std::exp(-d.bins[r].bin_s / o.wander_tau_max_s);
-    nm->push_back(FitNoise(e_ols.segment(d.offset[r], m), o.max_noise_lag, phi_max));
+    const NoiseModel start = FitNoise(e_ols.segment(d.offset[r], m), o.max_noise_lag, phi_max);
+    const Eigen::JacobiSVD<MatrixXd> svd(x_full.middleRows(d.offset[r], m), Eigen::ComputeThinU);
+    const VectorXd& sv = svd.singularValues();
+    int rank = 0;
+    while (rank < sv.size() && sv(rank) > 1e-8 * sv(0)) ++rank;
+    nm->push_back(FitNoiseReml(d.y.segment(d.offset[r], m), svd.matrixU().leftCols(rank), d.bins[r].bin_s,
+                               o.wander_tau_max_s, start));
     log_var->push_back(nm->back().var_w + nm->back().var_g);
   }
 }
@@ -1836,7 +1888,7 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
     const LsFit ols = SolveLs(x_full, d.y);
     if (!ols.ok) throw InputError(logs.front().file, "degenerate regressors");
     const VectorXd e_ols = d.y - x_full * ols.beta;
-    FitLogNoise(d, o, e_ols, &nm, &log_var);
+    FitLogNoise(d, o, x_full, e_ols, &nm, &log_var);
     // 2. GLS of the full model; effective sample size from the whitened residuals.
     yw = WhitenRows(d, nm, d.y);
     const MatrixXd xw_full = WhitenRows(d, nm, x_full);

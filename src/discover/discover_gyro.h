@@ -11,9 +11,10 @@
 //       (sin psi, cos psi); misalignment delta * d(ref)/d(psi) (a fixed-phase harmonic, nested in
 //       the magnetic one); scale_factor ref * 1e-6 (ppm); time_delay -d(ref)/dt (seconds).
 //  2. The noise of the full model (every applicable regressor) is fitted as white + first-order
-//     Gauss-Markov (ARMA(1,1) autocovariance, as in fog_thermal) and the data are whitened exactly
-//     (GLS) by the innovations of its Kalman filter. Correlation left in the whitened residuals
-//     shrinks the sample size to n_eff = n / f (Bartlett-weighted integrated autocorrelation).
+//     Gauss-Markov by REML under the full model's columns (a slow wander is not read as weaker for what
+//     those columns absorb; started from the ARMA(1,1) autocovariance fit of fog_thermal) and the data are whitened
+//     exactly (GLS) by the innovations of its Kalman filter. Correlation left in the whitened residuals shrinks the
+//     sample size to n_eff = n / f (Bartlett-weighted integrated autocorrelation).
 //  3. Each candidate: Wald chi^2 of its terms against the base model (q <= 2 dof), scaled by f;
 //     `bias` (a step in the bias) is located by a scan and its p-value Bonferroni-corrected for the
 //     scanned positions;

@@ -47,6 +47,9 @@ TEST(DiscoverGyroLong, OutOfVocabularyIsUnexplained) {
     const auto& rc = s.per_cause.at(effect);
     EXPECT_GE(rc.first, 0.9 * rc.second) << effect;
   }
+  // A wrongly named cause <= 5 % (the figure; 0/32 measured with the REML noise fit).
+  const int none = s.found.count("none") ? s.found.at("none") : 0;
+  EXPECT_LE(s.with_cause - s.right_cause - none, 0.05 * s.with_cause);
 }
 
 // The telegraph bias on data the jumps test was not designed on: fresh seeds with the same 40 min mean
@@ -66,9 +69,10 @@ TEST(DiscoverGyroLong, TelegraphFreshSeedsAndFasterSwitching) {
     found += s.right_cause, cases += s.with_cause;
     wrong += s.with_cause - s.right_cause - (s.found.count("none") ? s.found.at("none") : 0);
   }
-  // Regression floors at the measured 38/80 and 10/80 (the 90 % / 5 % are not met here).
-  EXPECT_GE(found, 0.4 * cases);
-  EXPECT_LE(wrong, 0.15 * cases);
+  // Measured 47/80 `unexplained` and 1/80 wrongly named with the REML noise fit (38/80 and 10/80 before):
+  // the issue's <= 5 % wrongly named holds; the 90 % does not (the `none` cases, docs/discrepancy.md).
+  EXPECT_GE(found, 0.55 * cases);
+  EXPECT_LE(wrong, 0.05 * cases);
 }
 
 // False alarms need many clean logs to measure: 40 clean cases.
