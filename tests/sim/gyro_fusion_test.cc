@@ -320,6 +320,10 @@ TEST(GyroFusion, StepThenSlowRampOnThreeGyrosIsOneTrackedFault) {
   EXPECT_LT(f.t_detect_s, 330.0);
   // At 900 s the ramp is 300 deg/h; compensated, the body bias stays at the unit's few deg/h.
   EXPECT_LT(b.norm(), 5.0);
+  // From detection on, a faulty gyro stays in use (no spare): never "ok" again.
+  long ok_after = 0;
+  for (const FusedSample& fs : s.fused.samples) ok_after += fs.t_s >= f.t_detect_s && fs.status == FusionStatus::kOk;
+  EXPECT_EQ(ok_after, 0);
   EXPECT_NE(s.fused.status, FuseStatus::kFused);
 }
 
