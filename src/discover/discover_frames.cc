@@ -11,6 +11,7 @@
 #include "core/stats.h"
 #include "core/types.h"
 #include "discover/discover_frames_internal.h"
+#include "discover/discovery_json.h"
 
 namespace ssiu {
 namespace {
@@ -720,42 +721,32 @@ double discover_internal::FieldRadius2(const Camera& camera, double x_px, double
 }
 
 Json FrameDiscoveryToJson(const FrameDiscovery& d) {
-  Json j;
-  j["cause"] = d.cause;
-  j["parameters"] = Json::object();
-  for (const auto& [k, v] : d.parameters) j["parameters"][k] = v;
-  j["parameter_sigmas"] = Json::object();
-  for (const auto& [k, v] : d.sigmas) j["parameter_sigmas"][k] = v;
+  Json j = discover_internal::DiscoveryVerdictJson(d.cause, d.parameters, d.sigmas, d.gain, d.gain_z, d.gain_z_min,
+                                                   d.partial_cause);
   j["fitted_camera"] = CameraToJson(d.fitted_camera);
   j["residual_rms_before_arcsec"] = d.residual_rms_before_arcsec;
   j["residual_rms_after_arcsec"] = d.residual_rms_after_arcsec;
-  j["gain"] = d.gain;
-  j["gain_z"] = d.gain_z;
-  j["gain_z_min"] = d.gain_z_min;
-  if (!d.partial_cause.empty()) j["partial_cause"] = d.partial_cause;
   {
     const FrameResidual& r = d.residual;
-    Json rj = {{"structured", r.structured},
-               {"p_value", r.p_value},
-               {"finding", r.finding},
-               {"position_rms_px", r.position_rms_px},
-               {"position_rms_arcsec", r.position_rms_arcsec},
-               {"position_max_px", r.position_max_px},
-               {"position_max_arcsec", r.position_max_arcsec},
-               {"position_max_at_px", {r.position_max_x_px, r.position_max_y_px}},
-               {"position_max_angle_deg", r.position_max_angle_deg},
-               {"position_per_mag_px", r.position_per_mag_px},
-               {"photometry_rms_mag", r.photometry_rms_mag},
-               {"photometry_max_mag", r.photometry_max_mag},
-               {"photometry_max_at_px", {r.photometry_max_x_px, r.photometry_max_y_px}},
-               {"photometry_per_mag", r.photometry_per_mag},
-               {"grid", r.grid},
-               {"worst_cell",
-                {{"centre_px", {r.cell_x_px, r.cell_y_px}},
-                 {"stars", r.cell_stars},
-                 {"mean_dx_px", r.cell_dx_px},
-                 {"mean_dy_px", r.cell_dy_px},
-                 {"chi2", r.cell_chi2}}}};
+    Json rj = discover_internal::ResidualVerdictJson(r.structured, r.p_value, r.finding);
+    rj.update(Json{{"position_rms_px", r.position_rms_px},
+                   {"position_rms_arcsec", r.position_rms_arcsec},
+                   {"position_max_px", r.position_max_px},
+                   {"position_max_arcsec", r.position_max_arcsec},
+                   {"position_max_at_px", {r.position_max_x_px, r.position_max_y_px}},
+                   {"position_max_angle_deg", r.position_max_angle_deg},
+                   {"position_per_mag_px", r.position_per_mag_px},
+                   {"photometry_rms_mag", r.photometry_rms_mag},
+                   {"photometry_max_mag", r.photometry_max_mag},
+                   {"photometry_max_at_px", {r.photometry_max_x_px, r.photometry_max_y_px}},
+                   {"photometry_per_mag", r.photometry_per_mag},
+                   {"grid", r.grid},
+                   {"worst_cell",
+                    {{"centre_px", {r.cell_x_px, r.cell_y_px}},
+                     {"stars", r.cell_stars},
+                     {"mean_dx_px", r.cell_dx_px},
+                     {"mean_dy_px", r.cell_dy_px},
+                     {"chi2", r.cell_chi2}}}});
     rj["tests"] = Json::array();
     for (const auto& t : r.tests) {
       rj["tests"].push_back(

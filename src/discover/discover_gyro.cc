@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "core/rng.h"
 #include "core/types.h"
+#include "discover/discovery_json.h"
 
 namespace ssiu {
 namespace {
@@ -1994,17 +1995,10 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
 }
 
 Json GyroDiscoveryToJson(const GyroDiscovery& d) {
-  Json j;
-  j["cause"] = d.cause;
-  j["parameters"] = Json::object();
-  for (const auto& [k, v] : d.parameters) j["parameters"][k] = v;
-  j["parameter_sigmas"] = Json::object();
-  for (const auto& [k, v] : d.sigmas) j["parameter_sigmas"][k] = v;
+  Json j = discover_internal::DiscoveryVerdictJson(d.cause, d.parameters, d.sigmas, d.gain, d.gain_z, d.gain_z_min,
+                                                   d.partial_cause);
   j["rms_before_dph"] = d.rms_before_dph;
   j["rms_after_dph"] = d.rms_after_dph;
-  j["gain"] = d.gain;
-  j["gain_z"] = d.gain_z;
-  j["gain_z_min"] = d.gain_z_min;
   j["gain_method"] = d.cause == "rate_random_walk" ? "held-out one-step prediction (second half of each log)"
                                                    : "cross-validation on interleaved blocks";
   j["evidence"] = {{"n_bins", d.n_bins},
@@ -2014,41 +2008,38 @@ Json GyroDiscoveryToJson(const GyroDiscovery& d) {
                    {"noise_wander_dph", d.noise_wander_dph},
                    {"noise_wander_tau_s", d.noise_wander_tau_s},
                    {"alpha_per_candidate", d.alpha_per_candidate}};
-  if (!d.partial_cause.empty()) j["partial_cause"] = d.partial_cause;
   {
     const GyroResidual& r = d.residual;
-    Json rj = {{"structured", r.structured},
-               {"p_value", r.p_value},
-               {"finding", r.finding},
-               {"rms_dph", r.rms_dph},
-               {"period_s", r.period_s},
-               {"amplitude_dph", r.amplitude_dph},
-               {"spectral_chi2", r.spectral_chi2},
-               {"spectral_p", r.spectral_p},
-               {"ljung_box_q", r.ljung_box_q},
-               {"ljung_box_lags", r.ljung_box_lags},
-               {"ljung_box_p", r.ljung_box_p},
-               {"runs_z", r.runs_z},
-               {"runs_p", r.runs_p},
-               {"follows_column", r.follows_column},
-               {"column_coefficient_dph_per_unit", r.column_coefficient},
-               {"column_correlation", r.column_correlation},
-               {"column_p", r.column_p},
-               {"harmonics_p", r.harmonics_p},
-               {"harmonic_period_s", r.harmonic_period_s},
-               {"periodic_shape_chi2", r.periodic_shape_chi2},
-               {"periodic_shape_dof", r.periodic_shape_dof},
-               {"periodic_shape_p", r.periodic_shape_p},
-               {"jumps", r.jumps},
-               {"levels_within_ratio", r.levels_within_ratio},
-               {"jumps_p", r.jumps_p},
-               {"levels_within_p", r.levels_within_p},
-               {"telegraph_llr", r.telegraph_llr},
-               {"telegraph_p", r.telegraph_p},
-               {"telegraph_levels_dph", r.telegraph_levels_dph},
-               {"telegraph_dwell_s", r.telegraph_dwell_s},
-               {"jump_size_dph", r.jump_size_dph},
-               {"jump_times_s", r.jump_times_s}};
+    Json rj = discover_internal::ResidualVerdictJson(r.structured, r.p_value, r.finding);
+    rj.update(Json{{"rms_dph", r.rms_dph},
+                   {"period_s", r.period_s},
+                   {"amplitude_dph", r.amplitude_dph},
+                   {"spectral_chi2", r.spectral_chi2},
+                   {"spectral_p", r.spectral_p},
+                   {"ljung_box_q", r.ljung_box_q},
+                   {"ljung_box_lags", r.ljung_box_lags},
+                   {"ljung_box_p", r.ljung_box_p},
+                   {"runs_z", r.runs_z},
+                   {"runs_p", r.runs_p},
+                   {"follows_column", r.follows_column},
+                   {"column_coefficient_dph_per_unit", r.column_coefficient},
+                   {"column_correlation", r.column_correlation},
+                   {"column_p", r.column_p},
+                   {"harmonics_p", r.harmonics_p},
+                   {"harmonic_period_s", r.harmonic_period_s},
+                   {"periodic_shape_chi2", r.periodic_shape_chi2},
+                   {"periodic_shape_dof", r.periodic_shape_dof},
+                   {"periodic_shape_p", r.periodic_shape_p},
+                   {"jumps", r.jumps},
+                   {"levels_within_ratio", r.levels_within_ratio},
+                   {"jumps_p", r.jumps_p},
+                   {"levels_within_p", r.levels_within_p},
+                   {"telegraph_llr", r.telegraph_llr},
+                   {"telegraph_p", r.telegraph_p},
+                   {"telegraph_levels_dph", r.telegraph_levels_dph},
+                   {"telegraph_dwell_s", r.telegraph_dwell_s},
+                   {"jump_size_dph", r.jump_size_dph},
+                   {"jump_times_s", r.jump_times_s}});
     rj["columns"] = Json::array();
     for (const auto& c : r.columns) {
       rj["columns"].push_back({{"column", c.column},
