@@ -328,6 +328,9 @@ MekfUpdate OnlineFusion::AddAttitude(double t_j, const Quat& q_meas, const Mat3&
   if (isolating_) {
     if (gap > opt_.policy.isolation_chain_gap_s) isolator_.BreakChain();
     isolator_.AddStar(t_j, q_meas, r_body);
+    // Only a tracked fault's fit reads the stored samples, never older than its window: keep the
+    // store bounded while an unresolved fault stays watched.
+    isolator_.ForgetBefore(t_j - opt_.fdi_options.compensation_window_s);
   }
   if (tracked_ >= 0) {
     if (gap > opt_.policy.isolation_chain_gap_s) tracker_.BreakChain();
