@@ -1,5 +1,7 @@
 // Real frames with published plate solutions (../shared/data/SOURCES.md): openstartracker img0, 2,
 // 3 (astrometry.net), the other frames astrometry.net solved, and the tetra3 TIFFs. Skipped when ../shared is absent.
+#include "testing/real_frames.h"
+
 #include <cmath>
 #include <memory>
 #include <string>
@@ -25,10 +27,7 @@ struct Published {
 
 TEST(RealFrames, OpenStarTrackerWithinTenArcsecOfAstrometryNet) {
   SSIU_REQUIRE_SHARED(dark_path, "openstartracker/median_image.png");
-  Camera cam;
-  cam.width = 1392, cam.height = 1040;
-  cam.focal_length_px = 206264.806 / 15.7768356032;  // calibration.txt PIXSCALE
-  cam.cx_px = 695.5, cam.cy_px = 519.5;
+  const Camera cam = testing::OpenStarTrackerCamera(206264.806 / 15.7768356032);  // calibration.txt PIXSCALE
   SolveOptions so;
   so.identify.fov_tolerance_pct = 1.0;
   const StarIdentifier id = MakeIdentifierForCamera("", cam, so.identify.fov_tolerance_pct);
@@ -59,10 +58,7 @@ TEST(RealFrames, OpenStarTrackerWithinTenArcsecOfAstrometryNet) {
 // independent solution here and must at least be self-consistent.
 TEST(RealFrames, OpenStarTrackerSevenFramesSolveWithDefaultOptions) {
   SSIU_REQUIRE_SHARED(dark_path, "openstartracker/median_image.png");
-  Camera cam;
-  cam.width = 1392, cam.height = 1040;
-  cam.focal_length_px = 206264.806 / ((15.70898 + 15.77684 + 15.72696) / 3);
-  cam.cx_px = 695.5, cam.cy_px = 519.5;
+  const Camera cam = testing::OpenStarTrackerCamera(206264.806 / ((15.70898 + 15.77684 + 15.72696) / 3));
   const SolveOptions so;  // defaults: fixed focal length, max-false-prob 1e-5, 50 ms
   const StarIdentifier id = MakeIdentifierForCamera("", cam, so.identify.fov_tolerance_pct);
   const Frame dark = ReadFrame(dark_path);
@@ -134,10 +130,7 @@ TEST(RealFrames, OpenStarTrackerHardFramesAreNeverWrong) {
   // img1, 5, 8 have no published solution: a solve must at least be self-consistent (chance
   // probability below the threshold and sub-10-arcsec residuals); no_match is acceptable.
   SSIU_REQUIRE_SHARED(dark_path, "openstartracker/median_image.png");
-  Camera cam;
-  cam.width = 1392, cam.height = 1040;
-  cam.focal_length_px = 206264.806 / 15.7768356032;
-  cam.cx_px = 695.5, cam.cy_px = 519.5;
+  const Camera cam = testing::OpenStarTrackerCamera(206264.806 / 15.7768356032);
   SolveOptions so;
   so.identify.fov_tolerance_pct = 1.0;
   const StarIdentifier id = MakeIdentifierForCamera("", cam, so.identify.fov_tolerance_pct);

@@ -8,6 +8,7 @@
 #include "core/json.h"
 #include "core/rng.h"
 #include "discover_frames_mc.h"
+#include "testing/real_frames.h"
 #include "testing/testing.h"
 
 namespace ssiu {
@@ -262,25 +263,15 @@ namespace {
 // The real openstartracker frames (docs/discrepancy.md): the pinhole camera from the published
 // 15.777 arcsec/px scale is off in focal length; fitting it cuts the held-out residuals.
 TEST(DiscoverFramesReal, OpenStarTrackerFocalLength) {
-  SSIU_REQUIRE_SHARED(dark_path, "openstartracker/median_image.png");
-  Camera cam;
-  cam.width = 1392, cam.height = 1040;
-  cam.focal_length_px = 13073.9;
-  cam.cx_px = 695.5, cam.cy_px = 519.5;
+  const testing::RealFrames ost = testing::OpenStarTrackerFrames();
+  if (ost.frames.empty()) GTEST_SKIP() << "shared data 'openstartracker/img0..9.png, median_image.png' not found";
+  const Camera cam = testing::OpenStarTrackerCamera(13073.9);
   SolveOptions so;
   so.identify.fov_tolerance_pct = 1.0;
   const StarIdentifier id = MakeIdentifierForCamera("", cam, so.identify.fov_tolerance_pct);
-  const Frame dark = ReadFrame(dark_path);
-  std::vector<Frame> frames;
-  std::vector<std::string> names;
-  for (int i = 0; i < 10; ++i) {
-    SSIU_REQUIRE_SHARED(path, "openstartracker/img" + std::to_string(i) + ".png");
-    frames.push_back(SubtractDark(ReadFrame(path), dark));
-    names.push_back(path);
-  }
-  std::vector<ImageView> views;
-  for (const auto& f : frames) views.push_back(f.image.view());
-  so.detect.saturation_adu = frames.front().saturation_adu;
+  const std::vector<ImageView> views = ost.Views();
+  const std::vector<std::string>& names = ost.names;
+  so.detect.saturation_adu = ost.frames.front().saturation_adu;
   const SolvedFrameSet set = SolveFrameSet(id, views, names, cam, so);
   const FrameDiscovery d = DiscoverFrames(set, cam, {});
   EXPECT_GE(d.frames_solved, 7);

@@ -7,6 +7,7 @@
 
 #include "core/error.h"
 #include "discover_frames_mc.h"
+#include "testing/real_frames.h"
 #include "testing/testing.h"
 
 namespace ssiu {
@@ -175,27 +176,17 @@ TEST(FrameCompare, OptionsCheck) {
 // default PSF (1.2 px) is about 1.7x wider than the measured spots, its zero point and noise are
 // those of another camera; the extended model reproduces width, noise and background.
 TEST(FrameCompareReal, OpenStarTrackerAgainstTheSimulator) {
-  SSIU_REQUIRE_SHARED(dark_path, "openstartracker/median_image.png");
-  Camera cam;
-  cam.width = 1392, cam.height = 1040;
-  cam.focal_length_px = 13117.3;  // fitted by DiscoverFramesReal.OpenStarTrackerFocalLength
-  cam.cx_px = 695.5, cam.cy_px = 519.5;
+  const testing::RealFrames ost = testing::OpenStarTrackerFrames();
+  if (ost.frames.empty()) GTEST_SKIP() << "shared data 'openstartracker/img0..9.png, median_image.png' not found";
+  const Camera cam =
+      testing::OpenStarTrackerCamera(13117.3);  // fitted by DiscoverFramesReal.OpenStarTrackerFocalLength
   SolveOptions so;
   so.identify.fov_tolerance_pct = 1.0;
   so.identify.timeout_ms = 0;  // one simulated frame needs ~700 hypotheses: the count must not hang on CPU speed
   const StarIdentifier id = MakeIdentifierForCamera("", cam, so.identify.fov_tolerance_pct);
-  const Frame dark = ReadFrame(dark_path);
-  std::vector<Frame> frames;
-  std::vector<std::string> names;
-  for (int i = 0; i < 10; ++i) {
-    SSIU_REQUIRE_SHARED(path, "openstartracker/img" + std::to_string(i) + ".png");
-    frames.push_back(SubtractDark(ReadFrame(path), dark));
-    names.push_back(path);
-  }
-  std::vector<ImageView> views;
-  for (const auto& f : frames) views.push_back(f.image.view());
-  so.detect.saturation_adu = frames.front().saturation_adu;
-  const SolvedFrameSet set = SolveFrameSet(id, views, names, cam, so);
+  const std::vector<ImageView> views = ost.Views();
+  so.detect.saturation_adu = ost.frames.front().saturation_adu;
+  const SolvedFrameSet set = SolveFrameSet(id, views, ost.names, cam, so);
   FrameCompareOptions co;
   const StarCatalog sky = SkyForCamera(cam, 1.0, co.sim.mag_max);
   const FrameComparison before = CompareWithSimulation(set, views, cam, sky, id, so, co);
@@ -203,7 +194,7 @@ TEST(FrameCompareReal, OpenStarTrackerAgainstTheSimulator) {
   EXPECT_GT(before.simulated.psf_sigma_px, 1.1);
   FrameCompareOptions co2 = co;
   co2.sim = FitSimOptions(before.measured, co.sim);
-  co2.sim.bit_depth = frames.front().bit_depth;
+  co2.sim.bit_depth = ost.frames.front().bit_depth;
   const FrameComparison after = CompareWithSimulation(set, views, cam, sky, id, so, co2);
   EXPECT_NEAR(after.simulated.psf_sigma_px, after.measured.psf_sigma_px, 0.05);
   EXPECT_NEAR(after.simulated.noise_adu, after.measured.noise_adu, 0.1 * after.measured.noise_adu);
