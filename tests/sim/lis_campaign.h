@@ -114,27 +114,53 @@ struct Calibration {
   int trials = 0, false_solves = 0, solved = 0;
 };
 
+// A uniformly random centroid set for seed: min_centroids to max_centroids centroids anywhere on a
+// 1024 x 1024 px image, uniform random fluxes, sigma 0.3 px.
+inline std::vector<Centroid> RandomCentroidSet(uint64_t seed, int min_centroids, int max_centroids) {
+  Rng rng(seed);
+  const int m = min_centroids + static_cast<int>(rng.Uniform() * (max_centroids - min_centroids + 1));
+  std::vector<Centroid> cs(m);
+  for (auto& x : cs) x = {rng.Uniform(0, 1023), rng.Uniform(0, 1023), rng.Uniform(), 0.3};
+  return cs;
+}
+inline Camera RandomSetCamera() { return MakeCamera(1024, 1024, 16.6); }
+
 // Uniformly random centroid sets (8 to max_centroids) on a 1024-px 16.6-deg camera: every solve is false.
 inline Calibration RunRandomCentroids(int n, uint64_t seed0, const IdentifyOptions& io, int max_centroids = 40) {
-  const Camera cam = MakeCamera(1024, 1024, 16.6);
   const StarIdentifier& id = BscIdentifier(16.6);
   Calibration c;
   for (int k = 0; k < n; ++k) {
-    Rng rng(seed0 + k);
-    const int m = 8 + static_cast<int>(rng.Uniform() * (max_centroids - 7));
-    std::vector<Centroid> cs(m);
-    for (auto& x : cs) x = {rng.Uniform(0, 1023), rng.Uniform(0, 1023), rng.Uniform(), 0.3};
+    const std::vector<Centroid> cs = RandomCentroidSet(seed0 + k, 8, max_centroids);
     ++c.trials;
-    const Identification r = id.Identify(cs, cam, io);
+    const Identification r = id.Identify(cs, RandomSetCamera(), io);
     const bool ok = r.status == SolveStatus::kSolved;
     if (ok)
-      std::fprintf(stderr, "FALSE random set seed %llu: %d centroids, %s, chance %.3g, %d hypotheses\n",
-                   static_cast<unsigned long long>(seed0 + k), m, r.message.c_str(), r.false_match_probability,
+      std::fprintf(stderr, "FALSE random set seed %llu: %zu centroids, %s, chance %.3g, %d hypotheses\n",
+                   static_cast<unsigned long long>(seed0 + k), cs.size(), r.message.c_str(), r.false_match_probability,
                    r.hypotheses);
     c.false_solves += ok;
     c.solved += ok;
   }
   return c;
+}
+
+// The smallest chance probability of each random set's whole search (nothing accepted: the threshold is
+// 1e-300, so the search runs to its end and reports the best). The search is the same at every threshold
+// up to its first acceptance, so a set would be solved at alpha only if this is below alpha: the share
+// of sets below alpha bounds the false-solve rate at every threshold at once.
+inline std::vector<double> RandomSetsBestChance(int n, uint64_t seed0, IdentifyOptions io, int min_centroids,
+                                                int max_centroids) {
+  const StarIdentifier& id = BscIdentifier(16.6);
+  io.max_false_match_prob = 1e-300;
+  std::vector<double> best;
+  for (int k = 0; k < n; ++k) {
+    const Identification r =
+        id.Identify(RandomCentroidSet(seed0 + k, min_centroids, max_centroids), RandomSetCamera(), io);
+    if (r.status == SolveStatus::kSolved)
+      std::fprintf(stderr, "random set seed %llu solved at 1e-300\n", static_cast<unsigned long long>(seed0 + k));
+    best.push_back(r.status == SolveStatus::kSolved ? 0.0 : r.false_match_probability);
+  }
+  return best;
 }
 
 // Real stars (a Kelvins scene at the true focal length) solved with a camera whose focal length is

@@ -83,6 +83,28 @@ TEST(LostInSpaceLong, CalibrationRandomCentroids) {
   }
 }
 
+// The same random sets, every threshold at once: the best chance probability of each whole search
+// (RandomSetsBestChance) bounds the false-solve rate at alpha by the share of sets below alpha.
+// LIS_CENTROIDS=MIN,MAX sets the range of set sizes (default 8,40 as above).
+TEST(LostInSpaceLong, CalibrationRandomSetsBestChance) {
+  int lo = 8, hi = 40;
+  if (const char* e = std::getenv("LIS_CENTROIDS")) std::sscanf(e, "%d,%d", &lo, &hi);
+  IdentifyOptions io;
+  io.timeout_ms = 0;
+  io.pattern_centroids = 40;
+  io.use_photometry = !std::getenv("LIS_NO_PHOTOMETRY");
+  const std::vector<double> best = RandomSetsBestChance(Trials(10000), Seed0(100000), io, lo, hi);
+  const int n = static_cast<int>(best.size());
+  std::printf("random sets of %d-%d centroids, photometry %s, %d sets: best chance below", lo, hi,
+              io.use_photometry ? "on" : "off", n);
+  for (double a : {1e-1, 1e-2, 1e-3, 1e-4, 1e-5}) {
+    const int k = static_cast<int>(std::count_if(best.begin(), best.end(), [&](double p) { return p <= a; }));
+    std::printf(" %g: %d (%.2g)", a, k, static_cast<double>(k) / n);
+    EXPECT_LE(k, Allowed(n, a)) << "at " << a;
+  }
+  std::printf("\n");
+}
+
 // Star-free rendered frames (8 deg, 512 x 512: noise, hot pixels, cosmic rays, 5-40 false stars),
 // detected and solved with the defaults: every solve is false.
 TEST(LostInSpaceLong, CalibrationStarFreeFrames) {
