@@ -67,9 +67,126 @@ inline const std::vector<std::string>& UnexplainedGyroEffects() {
 
 inline double RandomSign(Rng& rng) { return rng.Uniform() < 0.5 ? -1.0 : 1.0; }
 
+// A case's drawn parameters: the base noise, the hidden cause's strength (0 when absent) and the
+// out-of-vocabulary effects, shared by its two runs.
+struct GyroCaseModel {
+  double omega_h = 0, omega_v = 0;  // Earth rate, horizontal and vertical (dph)
+  double arw = 0, gm = 0, gm_tau = 0, bias = 0, rrw = 0;
+  double k10 = 0, k20 = 0, k01 = 0, mag_amp = 0, mag_phase = 0, mis_rad = 0, sf_ppm = 0, delay_s = 0;
+  double step = 0, step_t = 0, per_amp = 0, per_period = 1, per_phase = 0, asym_ppm = 0, k_bh = 0;
+  double heater_amp = 0, chirp_amp = 0, chirp_phase = 0, tele_amp = 0, saw_amp = 0, saw_period = 3600;
+  std::vector<double> tele_switch;
+};
+
+// Static turntable run (12 h at 0.1 Hz). rng: the case's stream (continued), rng_x: the heater's.
+inline GyroBenchLog StaticRun(const GyroCaseModel& m, Rng& rng, Rng& rng_x, uint64_t seed) {
+  GyroBenchLog log;
+  log.file = "static.csv";
+  const double dt = 10.0;
+  BaseNoise noise{m.arw / std::sqrt(dt), m.gm, m.gm_tau, m.rrw / 60.0};
+  // A thermal test programme: 20 C, a ramp of 0.15-0.25 C/min for 60-100 min (9-25 C), a hold,
+  // back down to 18 C at 0.08-0.2 C/min.
+  const double t_ramp1 = rng.Uniform(3600, 6000), rate1 = rng.Uniform(0.15, 0.25);  // C/min
+  const double hold = rng.Uniform(3000, 7000), rate2 = -rng.Uniform(0.08, 0.2);
+  const double psi0 = rng.Uniform(0, 360);
+  // Logged field (uT): constant horizontal components (magnetometer noise 0.05 uT) and a vertical
+  // one driven by a coil programme: +-10-25 uT steps every 40-80 min plus a slow sine.
+  const double coil_amp = rng.Uniform(10, 25), coil_step_s = rng.Uniform(2400, 4800);
+  const double coil_sine = rng.Uniform(5, 15), coil_period = rng.Uniform(3, 6) * 3600;
+  Rng field_rng(seed ^ 0x9e3779b97f4a7c15ULL);  // the magnetometer's own noise stream
+  // A heater switched on and off at irregular times (20-60 min), logged as `heater_on`.
+  std::vector<double> toggles;
+  for (double tt = rng_x.Uniform(600, 3600); tt < 43200; tt += rng_x.Uniform(1200, 3600)) toggles.push_back(tt);
+  for (int k = 0; k * dt < 43200; ++k) {
+    const double t = k * dt;
+    // Temperature programme: 20 C, ramp up, hold, ramp down, hold.
+    double temp = 20, g = 0;
+    if (t < t_ramp1) {
+      temp = 20 + rate1 * t / 60, g = rate1;
+    } else if (t < t_ramp1 + hold) {
+      temp = 20 + rate1 * t_ramp1 / 60;
+    } else {
+      const double top = 20 + rate1 * t_ramp1 / 60;
+      const double t2 = t - t_ramp1 - hold;
+      const double dur2 = (top - 18) / -rate2 * 60;
+      temp = t2 < dur2 ? top + rate2 * t2 / 60 : 18;
+      g = t2 < dur2 ? rate2 : 0;
+    }
+    const double psi = std::fmod(psi0 + 45.0 * std::floor(t / 2700), 360.0) * kDegToRad;
+    const double ref = m.omega_h * std::cos(psi) + m.omega_v * 0;  // sensing axis horizontal
+    const double z1 = (temp - 20) / 10, z2 = g / 0.25;
+    double w = ref + m.bias + m.k10 * z1 + m.k20 * z1 * z1 + m.k01 * z2 + m.mag_amp * std::sin(psi + m.mag_phase);
+    w += m.omega_h * (std::cos(psi + m.mis_rad) - std::cos(psi));
+    if (m.step != 0 && t >= m.step_t) w += m.step;
+    w += m.per_amp * std::sin(2 * kPi * t / m.per_period + m.per_phase);
+    const double bh = 45 + coil_amp * (static_cast<int>(t / coil_step_s) % 2 == 0 ? 1 : -1) +
+                      coil_sine * std::sin(2 * kPi * t / coil_period);
+    w += m.k_bh * bh;
+    const double heater =
+        static_cast<double>((std::upper_bound(toggles.begin(), toggles.end(), t) - toggles.begin()) % 2);
+    w += m.heater_amp * heater;
+    w += m.tele_amp *
+         (((std::upper_bound(m.tele_switch.begin(), m.tele_switch.end(), t) - m.tele_switch.begin()) % 2) - 0.5);
+    w += m.saw_amp * (std::fmod(t, m.saw_period) / m.saw_period - 0.5);
+    // Chirp: frequency linear in time from 1/(4 h) to 1/(15 min) over the 12 h.
+    const double f0 = 1.0 / 14400, f1 = 1.0 / 900, rate = (f1 - f0) / 43200;
+    w += m.chirp_amp * std::sin(2 * kPi * (f0 * t + 0.5 * rate * t * t) + m.chirp_phase);
+    w += noise.Next(rng, dt);
+    log.t_s.push_back(t);
+    log.w_dph.push_back(w);
+    log.ref_dph.push_back(ref);
+    log.temp_c.push_back(temp + 0.02 * rng.Normal());
+    log.azimuth_deg.push_back(psi * kRadToDeg);
+    log.bn_ut.push_back(17 + 0.05 * field_rng.Normal());
+    log.be_ut.push_back(1 + 0.05 * field_rng.Normal());
+    log.bh_ut.push_back(bh + 0.05 * field_rng.Normal());
+    log.other["heater_on"].push_back(heater);
+  }
+  return log;
+}
+
+// Rate-table run: 100 Hz, 20 min, rate steps of a few deg/s with smooth 1 s edges and a sine.
+inline GyroBenchLog RateTableRun(const GyroCaseModel& m, Rng& rng) {
+  GyroBenchLog log;
+  log.file = "ratetable.csv";
+  const double dt = 0.01;
+  BaseNoise noise{m.arw / std::sqrt(dt), m.gm, m.gm_tau, 0.0};
+  std::vector<double> levels;
+  for (int i = 0; i < 10; ++i) levels.push_back(rng.Uniform(-20, 20) * 3600);  // dph
+  const double sine_amp = rng.Uniform(2, 10) * 3600, sine_period = 120.0 / std::floor(rng.Uniform(6, 15));
+  // Even 2-min segments: a smooth 1 s step between levels; odd ones: a whole number of sine
+  // periods on top of the level (the rate is continuous).
+  auto level = [&](int seg) { return seg < 0 ? 0.0 : levels[(seg / 2) % 10]; };
+  auto rate = [&](double t) {
+    const int seg = static_cast<int>(t / 120);
+    const double ts = t - seg * 120;
+    if (seg % 2 == 1) return level(seg - 1) + sine_amp * std::sin(2 * kPi * ts / sine_period);
+    const double prev = level(seg - 2), cur = level(seg);
+    const double u = std::min(1.0, ts / 1.0);
+    return prev + (cur - prev) * (3 * u * u - 2 * u * u * u);
+  };
+  const double temp = rng.Uniform(22, 26);
+  for (int k = 0; k * dt < 1200; ++k) {
+    const double t = k * dt;
+    const double ref = rate(t) + m.omega_v;  // axis vertical on the table
+    const double z1 = (temp - 20) / 10;
+    double w = rate(t - m.delay_s) + m.omega_v;
+    w += m.bias + m.k10 * z1 + m.k20 * z1 * z1 + m.sf_ppm * 1e-6 * ref + noise.Next(rng, dt);
+    w += 0.5 * m.asym_ppm * 1e-6 * std::abs(ref);
+    log.t_s.push_back(t);
+    log.w_dph.push_back(w);
+    log.ref_dph.push_back(ref);
+    log.temp_c.push_back(temp + 0.02 * rng.Normal());
+  }
+  return log;
+}
+
+// The case's parameters, then its two runs; every stream draws in the same order as ever, so that
+// a seed gives the data the tests' figures were measured on.
 inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
   Rng rng(seed);
   GyroCase c;
+  GyroCaseModel m;
   c.cause = cause == "magnetic_field_logged" ? "magnetic_field" : cause;
   if (cause == "square_wave_column" || cause == "chirp" || cause == "telegraph" || cause == "telegraph_fast" ||
       cause == "sawtooth") {
@@ -78,174 +195,72 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
   // The heater column and the out-of-vocabulary effects draw from their own stream, so that the other
   // cases keep their data.
   Rng rng_x(seed * 2654435761ULL + 17);
-  double heater_amp = 0, chirp_amp = 0, chirp_phase = rng_x.Uniform(-kPi, kPi);
-  if (cause == "square_wave_column") heater_amp = RandomSign(rng_x) * rng_x.Uniform(0.03, 0.06);
-  if (cause == "chirp") chirp_amp = rng_x.Uniform(0.04, 0.08);
+  m.chirp_phase = rng_x.Uniform(-kPi, kPi);
+  if (cause == "square_wave_column") m.heater_amp = RandomSign(rng_x) * rng_x.Uniform(0.03, 0.06);
+  if (cause == "chirp") m.chirp_amp = rng_x.Uniform(0.04, 0.08);
   Rng rng_y(seed * 40503ULL + 91);
-  double tele_amp = 0, saw_amp = 0, saw_period = 3600;
-  std::vector<double> tele_switch;
   if (cause == "telegraph" || cause == "telegraph_fast") {
     const double dwell_s = cause == "telegraph" ? 2400 : 1200;
-    tele_amp = rng_y.Uniform(0.04, 0.07);
+    m.tele_amp = rng_y.Uniform(0.04, 0.07);
     for (double tt = -dwell_s * std::log(1 - rng_y.Uniform()); tt < 43200;
          tt += -dwell_s * std::log(1 - rng_y.Uniform())) {
-      tele_switch.push_back(tt);
+      m.tele_switch.push_back(tt);
     }
     // Not parameters of a cause: the telegraph's levels apart and its switches in the static log.
-    c.truth = {{"telegraph_levels_dph", tele_amp}, {"telegraph_switches", static_cast<double>(tele_switch.size())}};
+    c.truth = {{"telegraph_levels_dph", m.tele_amp}, {"telegraph_switches", static_cast<double>(m.tele_switch.size())}};
   }
-  if (cause == "sawtooth") saw_amp = rng_y.Uniform(0.04, 0.08), saw_period = rng_y.Uniform(50, 80) * 60;
+  if (cause == "sawtooth") m.saw_amp = rng_y.Uniform(0.04, 0.08), m.saw_period = rng_y.Uniform(50, 80) * 60;
   const double lat = 50.0 * kDegToRad;
   const double earth_dph = 15.041067;
-  const double omega_h = earth_dph * std::cos(lat), omega_v = earth_dph * std::sin(lat);
+  m.omega_h = earth_dph * std::cos(lat), m.omega_v = earth_dph * std::sin(lat);
   // Base noise: ARW ~0.005 deg/sqrt(h) = 0.3 dph sqrt(s) -> per-sample sigma 0.3 / sqrt(dt).
-  const double arw = rng.Uniform(0.2, 0.4);  // dph sqrt(s)
-  const double gm = rng.Uniform(0.003, 0.008), gm_tau = rng.Uniform(300, 1500);
-  const double bias = rng.Uniform(-0.5, 0.5);
+  m.arw = rng.Uniform(0.2, 0.4);  // dph sqrt(s)
+  m.gm = rng.Uniform(0.003, 0.008), m.gm_tau = rng.Uniform(300, 1500);
+  m.bias = rng.Uniform(-0.5, 0.5);
   // Hidden-cause strengths.
-  double k10 = 0, k20 = 0, k01 = 0, mag_amp = 0, mag_phase = 0, mis_rad = 0, sf_ppm = 0, delay_s = 0;
-  double step = 0, step_t = 0, rrw = 0, per_amp = 0, per_period = 1, per_phase = 0, asym_ppm = 0, k_bh = 0;
   if (cause == "temperature") {
-    k10 = RandomSign(rng) * rng.Uniform(0.02, 0.06);
-    k20 = RandomSign(rng) * rng.Uniform(0.0, 0.03);
-    c.truth = {{"K10_dph", k10}, {"K20_dph", k20}};
+    m.k10 = RandomSign(rng) * rng.Uniform(0.02, 0.06);
+    m.k20 = RandomSign(rng) * rng.Uniform(0.0, 0.03);
+    c.truth = {{"K10_dph", m.k10}, {"K20_dph", m.k20}};
   } else if (cause == "temperature_gradient") {
-    k01 = RandomSign(rng) * rng.Uniform(0.02, 0.04);
-    c.truth = {{"K01_dph", k01}};
+    m.k01 = RandomSign(rng) * rng.Uniform(0.02, 0.04);
+    c.truth = {{"K01_dph", m.k01}};
   } else if (cause == "magnetic_field") {
-    mag_amp = rng.Uniform(0.01, 0.03);
-    mag_phase = rng.Uniform(-kPi, kPi);
-    c.truth = {{"amplitude_dph", mag_amp}, {"phase_deg", mag_phase * kRadToDeg}};
+    m.mag_amp = rng.Uniform(0.01, 0.03);
+    m.mag_phase = rng.Uniform(-kPi, kPi);
+    c.truth = {{"amplitude_dph", m.mag_amp}, {"phase_deg", m.mag_phase * kRadToDeg}};
   } else if (cause == "misalignment") {
-    mis_rad = RandomSign(rng) * rng.Uniform(300, 900) * kArcsecToRad;
-    c.truth = {{"misalignment_arcsec", mis_rad * kRadToArcsec}};
+    m.mis_rad = RandomSign(rng) * rng.Uniform(300, 900) * kArcsecToRad;
+    c.truth = {{"misalignment_arcsec", m.mis_rad * kRadToArcsec}};
   } else if (cause == "scale_factor") {
-    sf_ppm = RandomSign(rng) * rng.Uniform(20, 200);
-    c.truth = {{"scale_factor_ppm", sf_ppm}};
+    m.sf_ppm = RandomSign(rng) * rng.Uniform(20, 200);
+    c.truth = {{"scale_factor_ppm", m.sf_ppm}};
   } else if (cause == "time_delay") {
-    delay_s = rng.Uniform(0.5e-3, 3e-3);
-    c.truth = {{"delay_s", delay_s}};
+    m.delay_s = rng.Uniform(0.5e-3, 3e-3);
+    c.truth = {{"delay_s", m.delay_s}};
   } else if (cause == "bias_step") {
-    step = RandomSign(rng) * rng.Uniform(0.03, 0.06);
-    step_t = rng.Uniform(0.2, 0.8) * 43200;
-    c.truth = {{"step_dph", step}, {"step_time_s", step_t}};
+    m.step = RandomSign(rng) * rng.Uniform(0.03, 0.06);
+    m.step_t = rng.Uniform(0.2, 0.8) * 43200;
+    c.truth = {{"step_dph", m.step}, {"step_time_s", m.step_t}};
   } else if (cause == "periodic_drift") {
     // An orbital thermal cycle (80-110 min) that the logged temperature does not follow.
-    per_amp = rng.Uniform(0.03, 0.1);
-    per_period = rng.Uniform(80, 110) * 60;
-    per_phase = rng.Uniform(-kPi, kPi);
-    c.truth = {{"amplitude_dph", per_amp}, {"period_s", per_period}, {"phase_deg", per_phase * kRadToDeg}};
+    m.per_amp = rng.Uniform(0.03, 0.1);
+    m.per_period = rng.Uniform(80, 110) * 60;
+    m.per_phase = rng.Uniform(-kPi, kPi);
+    c.truth = {{"amplitude_dph", m.per_amp}, {"period_s", m.per_period}, {"phase_deg", m.per_phase * kRadToDeg}};
   } else if (cause == "scale_factor_asymmetry") {
-    asym_ppm = RandomSign(rng) * rng.Uniform(50, 170);  // scale factor +a/2 for positive rates, -a/2 negative
-    c.truth = {{"asymmetry_ppm", asym_ppm}};
+    m.asym_ppm = RandomSign(rng) * rng.Uniform(50, 170);  // scale factor +a/2 for positive rates, -a/2 negative
+    c.truth = {{"asymmetry_ppm", m.asym_ppm}};
   } else if (cause == "magnetic_field_logged") {
-    k_bh = RandomSign(rng) * rng.Uniform(0.001, 0.003);  // dph per uT of the vertical field
-    c.truth = {{"sensitivity_bh_dph_per_ut", k_bh}};
+    m.k_bh = RandomSign(rng) * rng.Uniform(0.001, 0.003);  // dph per uT of the vertical field
+    c.truth = {{"sensitivity_bh_dph_per_ut", m.k_bh}};
   } else if (cause == "rate_random_walk") {
-    rrw = rng.Uniform(0.05, 0.1);  // dph / sqrt(h)
-    c.truth = {{"K_dph_per_sqrt_h", rrw}};
+    m.rrw = rng.Uniform(0.05, 0.1);  // dph / sqrt(h)
+    c.truth = {{"K_dph_per_sqrt_h", m.rrw}};
   }
 
-  // Static turntable run.
-  {
-    GyroBenchLog log;
-    log.file = "static.csv";
-    const double dt = 10.0;
-    BaseNoise noise{arw / std::sqrt(dt), gm, gm_tau, rrw / 60.0};
-    // A thermal test programme: 20 C, a ramp of 0.15-0.25 C/min for 60-100 min (9-25 C), a hold,
-    // back down to 18 C at 0.08-0.2 C/min.
-    const double t_ramp1 = rng.Uniform(3600, 6000), rate1 = rng.Uniform(0.15, 0.25);  // C/min
-    const double hold = rng.Uniform(3000, 7000), rate2 = -rng.Uniform(0.08, 0.2);
-    const double psi0 = rng.Uniform(0, 360);
-    // Logged field (uT): constant horizontal components (magnetometer noise 0.05 uT) and a vertical
-    // one driven by a coil programme: +-10-25 uT steps every 40-80 min plus a slow sine.
-    const double coil_amp = rng.Uniform(10, 25), coil_step_s = rng.Uniform(2400, 4800);
-    const double coil_sine = rng.Uniform(5, 15), coil_period = rng.Uniform(3, 6) * 3600;
-    Rng field_rng(seed ^ 0x9e3779b97f4a7c15ULL);  // the magnetometer's own noise stream
-    // A heater switched on and off at irregular times (20-60 min), logged as `heater_on`.
-    std::vector<double> toggles;
-    for (double tt = rng_x.Uniform(600, 3600); tt < 43200; tt += rng_x.Uniform(1200, 3600)) toggles.push_back(tt);
-    for (int k = 0; k * dt < 43200; ++k) {
-      const double t = k * dt;
-      // Temperature programme: 20 C, ramp up, hold, ramp down, hold.
-      double temp = 20, g = 0;
-      if (t < t_ramp1) {
-        temp = 20 + rate1 * t / 60, g = rate1;
-      } else if (t < t_ramp1 + hold) {
-        temp = 20 + rate1 * t_ramp1 / 60;
-      } else {
-        const double top = 20 + rate1 * t_ramp1 / 60;
-        const double t2 = t - t_ramp1 - hold;
-        const double dur2 = (top - 18) / -rate2 * 60;
-        temp = t2 < dur2 ? top + rate2 * t2 / 60 : 18;
-        g = t2 < dur2 ? rate2 : 0;
-      }
-      const double psi = std::fmod(psi0 + 45.0 * std::floor(t / 2700), 360.0) * kDegToRad;
-      const double ref = omega_h * std::cos(psi) + omega_v * 0;  // sensing axis horizontal
-      const double z1 = (temp - 20) / 10, z2 = g / 0.25;
-      double w = ref + bias + k10 * z1 + k20 * z1 * z1 + k01 * z2 + mag_amp * std::sin(psi + mag_phase);
-      w += omega_h * (std::cos(psi + mis_rad) - std::cos(psi));
-      if (step != 0 && t >= step_t) w += step;
-      w += per_amp * std::sin(2 * kPi * t / per_period + per_phase);
-      const double bh = 45 + coil_amp * (static_cast<int>(t / coil_step_s) % 2 == 0 ? 1 : -1) +
-                        coil_sine * std::sin(2 * kPi * t / coil_period);
-      w += k_bh * bh;
-      const double heater =
-          static_cast<double>((std::upper_bound(toggles.begin(), toggles.end(), t) - toggles.begin()) % 2);
-      w += heater_amp * heater;
-      w += tele_amp * (((std::upper_bound(tele_switch.begin(), tele_switch.end(), t) - tele_switch.begin()) % 2) - 0.5);
-      w += saw_amp * (std::fmod(t, saw_period) / saw_period - 0.5);
-      // Chirp: frequency linear in time from 1/(4 h) to 1/(15 min) over the 12 h.
-      const double f0 = 1.0 / 14400, f1 = 1.0 / 900, rate = (f1 - f0) / 43200;
-      w += chirp_amp * std::sin(2 * kPi * (f0 * t + 0.5 * rate * t * t) + chirp_phase);
-      w += noise.Next(rng, dt);
-      log.t_s.push_back(t);
-      log.w_dph.push_back(w);
-      log.ref_dph.push_back(ref);
-      log.temp_c.push_back(temp + 0.02 * rng.Normal());
-      log.azimuth_deg.push_back(psi * kRadToDeg);
-      log.bn_ut.push_back(17 + 0.05 * field_rng.Normal());
-      log.be_ut.push_back(1 + 0.05 * field_rng.Normal());
-      log.bh_ut.push_back(bh + 0.05 * field_rng.Normal());
-      log.other["heater_on"].push_back(heater);
-    }
-    c.logs.push_back(std::move(log));
-  }
-  // Rate-table run: 100 Hz, 20 min, rate steps of a few deg/s with smooth 1 s edges and a sine.
-  {
-    GyroBenchLog log;
-    log.file = "ratetable.csv";
-    const double dt = 0.01;
-    BaseNoise noise{arw / std::sqrt(dt), gm, gm_tau, 0.0};
-    std::vector<double> levels;
-    for (int i = 0; i < 10; ++i) levels.push_back(rng.Uniform(-20, 20) * 3600);  // dph
-    const double sine_amp = rng.Uniform(2, 10) * 3600, sine_period = 120.0 / std::floor(rng.Uniform(6, 15));
-    // Even 2-min segments: a smooth 1 s step between levels; odd ones: a whole number of sine
-    // periods on top of the level (the rate is continuous).
-    auto level = [&](int seg) { return seg < 0 ? 0.0 : levels[(seg / 2) % 10]; };
-    auto rate = [&](double t) {
-      const int seg = static_cast<int>(t / 120);
-      const double ts = t - seg * 120;
-      if (seg % 2 == 1) return level(seg - 1) + sine_amp * std::sin(2 * kPi * ts / sine_period);
-      const double prev = level(seg - 2), cur = level(seg);
-      const double u = std::min(1.0, ts / 1.0);
-      return prev + (cur - prev) * (3 * u * u - 2 * u * u * u);
-    };
-    const double temp = rng.Uniform(22, 26);
-    for (int k = 0; k * dt < 1200; ++k) {
-      const double t = k * dt;
-      const double ref = rate(t) + omega_v;  // axis vertical on the table
-      const double z1 = (temp - 20) / 10;
-      double w = rate(t - delay_s) + omega_v;
-      w += bias + k10 * z1 + k20 * z1 * z1 + sf_ppm * 1e-6 * ref + noise.Next(rng, dt);
-      w += 0.5 * asym_ppm * 1e-6 * std::abs(ref);
-      log.t_s.push_back(t);
-      log.w_dph.push_back(w);
-      log.ref_dph.push_back(ref);
-      log.temp_c.push_back(temp + 0.02 * rng.Normal());
-    }
-    c.logs.push_back(std::move(log));
-  }
+  c.logs.push_back(StaticRun(m, rng, rng_x, seed));
+  c.logs.push_back(RateTableRun(m, rng));
   return c;
 }
 
