@@ -53,6 +53,11 @@ struct FusionPolicy {
   double failed_after_s = 30.0;
   // Status "degraded" this long after an isolation (the bias re-converging on the remaining gyros).
   double settle_after_isolation_s = 10.0;
+  // Status "degraded" once an isolation has left no spare gyro (three in use): without parity a new
+  // fault is seen only by the star innovations, 8-20 s into a slow ramp, and the attitude is not
+  // trustworthy to its sigma meanwhile (docs/inertial.md "Covariance and status"). The standard
+  // meaning of degraded: the unit has lost its fault tolerance.
+  bool degraded_without_spare = true;
   // The bias estimates at accepted fixes are kept this long: an isolation restores the bias from
   // before the fault's onset.
   double bias_history_s = 120.0;

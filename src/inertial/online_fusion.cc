@@ -60,6 +60,10 @@ FusionStatus OnlineFusion::Status() const {
   if (!initialised_) return FusionStatus::kFailed;
   bool unresolved = isolating_ || compensated_ || t_cur_ < t_settled_;
   for (const auto& f : faults_) unresolved |= f.status != FaultStatus::kIsolated;
+  if (opt_.policy.degraded_without_spare && !faults_.empty()) {
+    const size_t in_use = GyrosInUse().size();
+    unresolved |= in_use < use_.size() && in_use <= 3;
+  }
   if (!unresolved) return FusionStatus::kOk;
   return t_cur_ - t_last_accepted_ > opt_.policy.failed_after_s ? FusionStatus::kFailed : FusionStatus::kDegraded;
 }

@@ -50,7 +50,8 @@ class OnlineFusion {
   // Whether the attitude can be trusted now: "ok"; "degraded" while a fault is detected but not
   // isolated (the covariance is opened to cover it) and for policy.settle_after_isolation_s after its
   // isolation (the bias re-converging on the remaining gyros), or once a faulty gyro had to stay in
-  // use (three left, its fault compensated); "failed" when degraded and no star measurement has been
+  // use (three left, its fault compensated), or (policy.degraded_without_spare) once an isolation left
+  // no spare gyro; "failed" when degraded and no star measurement has been
   // accepted for policy.failed_after_s (nothing bounds the drift); "failed" before the first measurement.
   FusionStatus Status() const;
   // The default policies (FusionPolicy in fuse.h holds them and the options may change them).

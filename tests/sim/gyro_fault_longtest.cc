@@ -73,16 +73,15 @@ TEST(GyroFaultSweep, StepsRampsAndSequencesOnEveryGyroStayTrustworthy) {
                      {GyroFault{g, 100.0, 0.0, 36000.0}, GyroFault{g2, 200.0, 100.0, 0.0}}});
   }
   // A step, then a ramp on another gyro once no parity is left (three gyros): the star rates must
-  // follow the ramp as one fault. (After the cases above, which keep their seeds.) Not yet at the
-  // issue's 99%: with no parity the star innovations detect a 0.5-1 deg/h per s ramp 8-20 s after
-  // its onset, and the fused error passes its 3 sigma a few seconds before that (on the axis the
-  // ramp drives, the status still ok); measured 98.3-99.6% (docs/results.md), asserted >= 98%.
+  // follow the ramp as one fault. (After the cases above, which keep their seeds.) The star
+  // innovations detect a 0.5-1 deg/h per s ramp only 8-20 s after its onset; the status is degraded
+  // meanwhile because no spare gyro is left (policy.degraded_without_spare; docs/results.md).
   for (int g = 1; g <= 4; ++g) {
     const int g2 = g % 4 + 1;
     for (double ramp : {0.5, 1.0, 10.0}) {
       char name[80];
       std::snprintf(name, sizeof name, "gyro %d step 20 then %d ramp %g", g, g2, ramp);
-      cases.push_back({name, {GyroFault{g, 100.0, 20.0, 0.0}, GyroFault{g2, 200.0, 0.0, 3600.0 * ramp}}, 0.98});
+      cases.push_back({name, {GyroFault{g, 100.0, 20.0, 0.0}, GyroFault{g2, 200.0, 0.0, 3600.0 * ramp}}});
     }
   }
   int fails = 0, below99 = 0;

@@ -22,6 +22,7 @@ struct FusionScenario {
   // Flicker floor of each gyro (deg/h). 0 leaves turn-on biases and angle random walk only (the
   // acceptance case for the 0.02 deg/h bias figure, see docs/inertial.md).
   double bias_instability_dph = 0.05;
+  FusionPolicy policy;  // the estimator's policies (defaults)
 };
 
 struct FusionScore {
@@ -98,6 +99,7 @@ inline FusionScore RunFusionScenario(const FusionScenario& sc, double bias_check
   st.q_inertial_from_body = s.sim.st_q;
   FuseOptions fo;
   fo.fdi = sc.fdi;
+  fo.policy = sc.policy;
   s.fused = Fuse(log, st, unit, fo);
 
   const auto& out = s.fused.samples;  // one per gyro sample (output_every = 1)

@@ -320,11 +320,39 @@ TEST(GyroFusion, StepThenSlowRampOnThreeGyrosIsOneTrackedFault) {
   EXPECT_LT(f.t_detect_s, 330.0);
   // At 900 s the ramp is 300 deg/h; compensated, the body bias stays at the unit's few deg/h.
   EXPECT_LT(b.norm(), 5.0);
-  // From detection on, a faulty gyro stays in use (no spare): never "ok" again.
+  // Once gyro 2 is isolated no spare is left (policy.degraded_without_spare): never "ok" again, so the
+  // seconds before the ramp is detected are not reported as trustworthy either.
+  const double t_first = s.fused.faults[0].t_isolate_s;
   long ok_after = 0;
-  for (const FusedSample& fs : s.fused.samples) ok_after += fs.t_s >= f.t_detect_s && fs.status == FusionStatus::kOk;
+  for (const FusedSample& fs : s.fused.samples) ok_after += fs.t_s >= t_first && fs.status == FusionStatus::kOk;
   EXPECT_EQ(ok_after, 0);
   EXPECT_NE(s.fused.status, FuseStatus::kFused);
+}
+
+TEST(GyroFusion, NoSpareGyroLeftIsDegradedUnlessThePolicySaysOtherwise) {
+  // One 100 deg/h step, isolated within seconds; three gyros remain.
+  FusionScenario sc;
+  sc.rate_hz = 20;
+  sc.duration_s = 200;
+  sc.seed = 1618;
+  sc.faults = {GyroFault{3, 60.0, 100.0, 0.0}};
+  for (bool policy : {true, false}) {
+    sc.policy.degraded_without_spare = policy;
+    const auto s = RunFusionScenario(sc, 200.0);
+    ASSERT_EQ(s.fused.faults.size(), 1u);
+    const double t_iso = s.fused.faults[0].t_isolate_s;
+    ASSERT_LT(t_iso, 80.0);
+    long ok_before = 0, ok_late = 0, late = 0;
+    for (const FusedSample& fs : s.fused.samples) {
+      ok_before += fs.t_s > 10 && fs.t_s < 59 && fs.status == FusionStatus::kOk;
+      if (fs.t_s > t_iso + 20) {  // past the settling time after isolation
+        ++late;
+        ok_late += fs.status == FusionStatus::kOk;
+      }
+    }
+    EXPECT_GT(ok_before, 900) << policy;  // ok with four gyros
+    EXPECT_EQ(ok_late, policy ? 0 : late) << policy;
+  }
 }
 
 }  // namespace
