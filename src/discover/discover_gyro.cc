@@ -176,6 +176,19 @@ struct NoiseModel {
     }
     return out;
   }
+  // Whiten() of every column of x at once (one pass of the filter, its state per column).
+  MatrixXd WhitenCols(const MatrixXd& x) const {
+    MatrixXd out(x.rows(), x.cols());
+    Eigen::RowVectorXd wander = Eigen::RowVectorXd::Zero(x.cols()), level = wander;
+    for (int k = 0; k < x.rows(); ++k) {
+      if (k > 0) wander *= phi;
+      const Eigen::RowVectorXd e = x.row(k) - wander - level;
+      out.row(k) = e * inv_sqrt_s[k];
+      wander += gain[k](0) * e;
+      level += gain[k](1) * e;
+    }
+    return out;
+  }
   // Gaussian negative log-likelihood of v, leaving out the first (diffuse) innovation.
   double NegLogLik(const VectorXd& v) const {
     const VectorXd w = Whiten(v);
@@ -1707,6 +1720,8 @@ void RefitResidualNoise(const Design& d, const GyroDiscoverOptions& o, const Vec
 // FitNoiseMle; starts from `start`.
 NoiseModel FitNoiseReml(const VectorXd& y, const MatrixXd& x, double bin_s, double tau_max_s, const NoiseModel& start) {
   const int m = static_cast<int>(y.size()), k = static_cast<int>(x.cols());
+  MatrixXd xy(m, k + 1);
+  xy << x, y;
   const double g0 = std::max(start.var_w + start.var_g, 1e-30);
   auto make = [&](const VectorXd& p) {
     NoiseModel nm;
@@ -1719,9 +1734,9 @@ NoiseModel FitNoiseReml(const VectorXd& y, const MatrixXd& x, double bin_s, doub
   auto fn = [&](const VectorXd& p) {
     if (!p.allFinite() || p.cwiseAbs().maxCoeff() > 40) return 1e300;
     const NoiseModel nm = make(p);
-    MatrixXd xw(m, k);
-    for (int c = 0; c < k; ++c) xw.col(c) = nm.Whiten(x.col(c));
-    const VectorXd yw = nm.Whiten(y);
+    const MatrixXd xyw = nm.WhitenCols(xy);
+    const MatrixXd xw = xyw.leftCols(k);
+    const VectorXd yw = xyw.col(k);
     const Eigen::LDLT<MatrixXd> ldlt(xw.transpose() * xw);
     if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0)) return 1e300;
     const VectorXd xty = xw.transpose() * yw;

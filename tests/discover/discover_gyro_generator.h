@@ -21,6 +21,10 @@ struct GyroCase {
   std::string cause = "none";
   std::map<std::string, double> truth;  // parameter values under the library's names
   std::vector<GyroBenchLog> logs;
+  // Not parameters of a cause (for oracles of the tests): the base noise (ARW in dph sqrt(s), the
+  // Gauss-Markov wander and its correlation time) and a telegraph's switch times in the static log.
+  double arw_dph_sqrt_s = 0, wander_dph = 0, wander_tau_s = 0;
+  std::vector<double> telegraph_switch_s;
 };
 
 inline const std::vector<std::string>& GyroCauses() {
@@ -216,6 +220,8 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
   // Base noise: ARW ~0.005 deg/sqrt(h) = 0.3 dph sqrt(s) -> per-sample sigma 0.3 / sqrt(dt).
   m.arw = rng.Uniform(0.2, 0.4);  // dph sqrt(s)
   m.gm = rng.Uniform(0.003, 0.008), m.gm_tau = rng.Uniform(300, 1500);
+  c.arw_dph_sqrt_s = m.arw, c.wander_dph = m.gm, c.wander_tau_s = m.gm_tau;
+  c.telegraph_switch_s = m.tele_switch;
   m.bias = rng.Uniform(-0.5, 0.5);
   // Hidden-cause strengths.
   if (cause == "temperature") {
