@@ -154,7 +154,7 @@ SolveResult SolveFrame(const StarIdentifier& id, const ImageView& image, const C
 Json SolveResultToJson(const SolveResult& r) {
   Json j;
   j["status"] = SolveStatusName(r.status);
-  j["mode"] = r.mode;
+  j["mode"] = SolveModeName(r.mode);
   j["message"] = r.message;
   const bool ok = r.status == SolveStatus::kSolved;
   const double nan = std::nan("");
@@ -352,11 +352,11 @@ SolveResult Tracker::Update(const std::vector<Centroid>& centroids, double t_s) 
     }
     r.identification =
         id_.MatchWithAttitude(centroids, camera_, q_pred, options_.track_search_radius_px, options_.identify);
-    r.mode = "tracking";
+    r.mode = SolveMode::kTracking;
   }
   if (!locked_ || r.identification.status != SolveStatus::kSolved) {
     r.identification = id_.Identify(centroids, camera_, options_.identify);
-    r.mode = "lost_in_space";
+    r.mode = SolveMode::kLostInSpace;
     have_rate_ = false;
     if (r.identification.status == SolveStatus::kSolved && options_.identify.FocalSearched())
       camera_ = FittedCamera(camera_, r.identification);  // keep the fitted focal length
@@ -366,7 +366,7 @@ SolveResult Tracker::Update(const std::vector<Centroid>& centroids, double t_s) 
   Finish(id_, sky, &r);
   if (r.status == SolveStatus::kSolved) {
     const Quat q = r.attitude.q_inertial_from_sensor;
-    if (locked_ && r.mode == "tracking") {  // a rate only from two attitudes of one lock
+    if (locked_ && r.mode == SolveMode::kTracking) {  // a rate only from two attitudes of one lock
       const double dt = t_s - t_last_;
       if (dt > 0) {
         Quat d = q_last_.conjugate() * q;  // sensor-frame rotation over dt

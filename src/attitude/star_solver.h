@@ -47,9 +47,13 @@ struct SolveOptions {
   void Check() const;  // throws InputError naming the field
 };
 
+// How a frame was identified: lost in space, or by tracking from a predicted attitude (JSON "mode").
+enum class SolveMode { kLostInSpace, kTracking };
+inline const char* SolveModeName(SolveMode m) { return m == SolveMode::kTracking ? "tracking" : "lost_in_space"; }
+
 struct SolveResult {
   SolveStatus status = SolveStatus::kTooFewStars;
-  std::string mode = "lost_in_space";  // or "tracking"
+  SolveMode mode = SolveMode::kLostInSpace;
   std::string message;
   Identification identification;
   AttitudeSolution attitude;

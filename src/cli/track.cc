@@ -70,7 +70,7 @@ SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
       j["t_s"] = k * o->dt_s;
       out.push_back(j);
       solved += r.status == SolveStatus::kSolved;
-      tracked += r.mode == "tracking" && r.status == SolveStatus::kSolved;
+      tracked += r.mode == SolveMode::kTracking && r.status == SolveStatus::kSolved;
     }
     WriteJsonFile(o->json, out);
     std::cerr << "track: " << solved << "/" << o->frames.size() << " solved, " << tracked << " by tracking\n";

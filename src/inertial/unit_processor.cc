@@ -107,16 +107,16 @@ HeadResult UnitProcessor::SolveHead(int h, double t_s, const ImageView& image, I
   if (fusion_.initialised() && !suspect) {
     const Quat q_pred = fusion_.q() * head.q_body_from_sensor;
     *id = sid.MatchWithAttitude(c, head.camera, q_pred, so.track_search_radius_px, so.identify);
-    r.mode = "tracking";
+    r.mode = SolveMode::kTracking;
   }
   if (!fusion_.initialised() || suspect || id->status != SolveStatus::kSolved) {
     *id = sid.Identify(c, head.camera, so.identify);
-    r.mode = "lost_in_space";
+    r.mode = SolveMode::kLostInSpace;
   }
   if (suspect && id->status != SolveStatus::kSolved) {
     const Quat q_pred = fusion_.q() * head.q_body_from_sensor;
     *id = sid.MatchWithAttitude(c, head.camera, q_pred, 4 * so.track_search_radius_px, so.identify);
-    r.mode = "tracking";
+    r.mode = SolveMode::kTracking;
   }
   r.timing_ms["identify"] = MsSince(t1);
   r.status = id->status;

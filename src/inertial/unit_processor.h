@@ -53,7 +53,7 @@ struct UnitProcessorOptions {
 struct HeadResult {
   bool has_frame = false;
   SolveStatus status = SolveStatus::kNoFrame;
-  std::string mode;  // lost_in_space or tracking
+  SolveMode mode = SolveMode::kLostInSpace;  // when solved
   int detections = 0, matches = 0;
   double sigma_cross_arcsec = 0, sigma_roll_arcsec = 0;  // this head's own solution
   Quat q_inertial_from_sensor = Quat::Identity();        // when solved

@@ -442,7 +442,7 @@ void MissionRun::ScoreHeads(const FrameReport& fr) {
       s.mean_matches += hr.matches;
       s.mean_sigma_cross_arcsec += hr.sigma_cross_arcsec;
       s.mean_sigma_roll_arcsec += hr.sigma_roll_arcsec;
-      (hr.mode == "tracking" ? s.tracking : s.lost_in_space)++;
+      (hr.mode == SolveMode::kTracking ? s.tracking : s.lost_in_space)++;
     }
     auto ms = [&](const char* k) { return hr.timing_ms.count(k) ? hr.timing_ms.at(k) : 0.0; };
     s.detect_ms_mean += ms("detect");
@@ -462,7 +462,7 @@ void MissionRun::RecordFrameRow(double t_f, const FrameReport& fr, const Vec3& e
     const HeadResult& hr = fr.heads[h];
     const bool ok = hr.status == SolveStatus::kSolved;
     frame_cols_[6 + 5 * h].push_back(ok ? 1 : 0);
-    frame_cols_[7 + 5 * h].push_back(ok ? (hr.mode == "tracking" ? 1 : 0) : std::nan(""));
+    frame_cols_[7 + 5 * h].push_back(ok ? (hr.mode == SolveMode::kTracking ? 1 : 0) : std::nan(""));
     frame_cols_[8 + 5 * h].push_back(hr.matches);
     frame_cols_[9 + 5 * h].push_back(ok ? hr.sigma_cross_arcsec : std::nan(""));
     frame_cols_[10 + 5 * h].push_back(hr.timing_ms.count("total") ? hr.timing_ms.at("total") : 0.0);

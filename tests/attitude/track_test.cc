@@ -34,7 +34,7 @@ TEST(Tracker, SlewingSequenceThenLostLockRecovery) {
     const SolveResult r =
         tracker.Update(CentroidsFromDetections(Detect(sf.image.view(), dopt), so.detector_sigma_scale), t);
     ASSERT_EQ(r.status, SolveStatus::kSolved) << "frame " << k << ": " << r.message;
-    const char* expected_mode = (k == 0 || k == 10) ? "lost_in_space" : "tracking";
+    const SolveMode expected_mode = (k == 0 || k == 10) ? SolveMode::kLostInSpace : SolveMode::kTracking;
     EXPECT_EQ(r.mode, expected_mode) << "frame " << k << ": " << r.message;
     EXPECT_LT(SplitAttitudeError(r.attitude.q_inertial_from_sensor, q).cross_rad * kRadToArcsec, 5.0) << "frame " << k;
     EXPECT_THAT(r.attitude.q_inertial_from_sensor, QuaternionNear(q, 60.0)) << "frame " << k;
