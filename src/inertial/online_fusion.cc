@@ -60,9 +60,9 @@ FusionStatus OnlineFusion::Status() const {
   if (!initialised_) return FusionStatus::kFailed;
   bool unresolved = isolating_ || compensated_ || t_cur_ < t_settled_;
   for (const auto& f : faults_) unresolved |= f.status != FaultStatus::kIsolated;
-  if (opt_.policy.degraded_without_spare && !faults_.empty()) {
-    const size_t in_use = GyrosInUse().size();
-    unresolved |= in_use < use_.size() && in_use <= 3;
+  if (opt_.policy.degraded_without_spare) {  // called per gyro sample: count, do not build GyrosInUse()
+    const auto in_use = std::count(use_.begin(), use_.end(), true);
+    unresolved |= in_use < static_cast<long>(use_.size()) && in_use <= 3;
   }
   if (!unresolved) return FusionStatus::kOk;
   return t_cur_ - t_last_accepted_ > opt_.policy.failed_after_s ? FusionStatus::kFailed : FusionStatus::kDegraded;
@@ -133,7 +133,7 @@ void OnlineFusion::Isolate(int gi, double t, const char* method, const GyroVec& 
   t_settled_ = t + opt_.policy.settle_after_isolation_s;
   const Vec3 b_before = BiasAt(ev.t_onset_s);
   if (static_cast<int>(GyrosInUse().size()) <= 3) {
-    Compensate(gi, t);
+    Compensate(gi, t, b_before);
     innov_s_ = 0;
     innov_zero_t_ = t;
     return;
@@ -158,7 +158,7 @@ void OnlineFusion::Isolate(int gi, double t, const char* method, const GyroVec& 
 // detection that names the tracked gyro again is the same fault changing shape: the fit restarts at
 // its onset and no second event is reported. Another gyro failing as well gets the constant
 // compensation of its size at isolation.
-void OnlineFusion::Compensate(int gi, double t) {
+void OnlineFusion::Compensate(int gi, double t, const Vec3& b_before) {
   compensated_ = true;
   FaultEvent& ev = faults_.back();
   if (tracked_ == gi) {
@@ -169,7 +169,6 @@ void OnlineFusion::Compensate(int gi, double t) {
     return;
   }
   if (tracked_ < 0) {
-    const Vec3 b_before = BiasAt(ev.t_onset_s);
     tracked_ = gi;
     tracked_event_ = faults_.size() - 1;
     tracker_ = isolator_;

@@ -71,7 +71,8 @@ class OnlineFusion {
   void OpenCovarianceWhileUnresolved();
   void FloorBias(double sigma_rad_s);
   Vec3 BiasAt(double t_s) const;
-  void Compensate(int gi, double t);
+  // b_before: the bias estimate at the fault's onset (BiasAt), restored when the fault is tracked.
+  void Compensate(int gi, double t, const Vec3& b_before);
   void RefitTrackedFault(double t);
   Vec3 RateDph(const GyroVec& g) const { return solver_.Solve(g - correction_ - dyn_); }
 
