@@ -239,8 +239,9 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
       "Test candidate causes (temperature, magnetic_field, scale_factor, bias_step, periodic_drift, ...) against the "
       "base gyro model; a cause is named only when its held-out gain is significant and its parameters are within "
       "physical bounds; `unexplained` when the residual keeps structure (spectral peak, autocorrelation, runs, a "
-      "logged column, jumps between two levels, a periodic drift that is not a sinusoid) that no cause explains "
-      "(docs/discrepancy.md)");
+      "logged column, jumps between two levels, a periodic drift that is not a sinusoid, a change of the noise "
+      "level, outliers, a nonlinear function of the reference rate or the azimuth's second harmonic) that no cause "
+      "explains; the JSON's `residual` block gives each test's statistic and p-value (docs/discrepancy.md)");
   auto o = std::make_shared<GyroOpts>();
   cmd->add_option("logs", o->logs,
                   "Bench logs t_s,w_dph,ref_dph,temp_c[,azimuth_deg][,bn_ut,be_ut,bh_ut] (other numeric columns "
@@ -281,6 +282,14 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
       std::cerr << "  residual structure (" << d.residual.finding << ", p " << d.residual.p_value << "): period "
                 << d.residual.period_s << " s, amplitude " << d.residual.amplitude_dph << " deg/h, follows column "
                 << d.residual.follows_column << " (" << d.residual.column_coefficient << " deg/h per unit)";
+      if (d.residual.finding == "variance_change") {
+        std::cerr << "; noise level changes at " << d.residual.variance_change_time_s << " s (variance x"
+                  << d.residual.variance_ratio << ")";
+      } else if (d.residual.finding == "outliers") {
+        std::cerr << "; " << d.residual.outliers << " outliers (largest " << d.residual.outlier_max_sigma << " sigma)";
+      } else if (d.residual.finding == "nonlinearity") {
+        std::cerr << "; follows " << d.residual.nonlinear_term << " of the reference";
+      }
       if (!d.partial_cause.empty()) std::cerr << "; fitted first: " << d.partial_cause;
       std::cerr << "\n";
     }

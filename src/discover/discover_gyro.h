@@ -35,10 +35,12 @@
 //  4c. `unexplained`: the residual of the named cause (or of the base) is whitened with a noise model
 //     refitted on it and tested (spectral peak, Ljung-Box, runs, regression on every logged column, and
 //     jumps: a two-state hidden Markov model's likelihood ratio against the noise model, calibrated by a
-//     bootstrap of the noise model (a level that switches between two values); Bonferroni over the five at
-//     residual_alpha; after periodic_drift also its harmonics / folded shape, a test of the sinusoid of
-//     its own); structure left -> `unexplained`, the residual described (period, amplitude, the column
-//     it follows, the jumps) and the first cause kept as partial_cause.
+//     bootstrap of the noise model (a level that switches between two values); a change of the noise
+//     level (CUSUM of squares), outliers (generalized ESD) and nonlinear functions of the reference (ref^2,
+//     |ref|, ref^3; the azimuth's second harmonic); weighted Bonferroni over the eight at residual_alpha;
+//     after periodic_drift also its harmonics / folded shape, a test of the sinusoid of its own); structure left ->
+//     `unexplained`, the residual described (period, amplitude, the column it follows, the jumps) and the first cause
+//     kept as partial_cause.
 //  5. Gain: each log is cut into cv_blocks blocks; the model is fitted on the even blocks and scored
 //     on the odd ones and vice versa (bin RMS of the drift after a bias-only fit / after the cause).
 //     For rate_random_walk: one-step prediction of the bins of the second half of each log by a
@@ -86,7 +88,7 @@ struct GyroDiscoverOptions {
   double rrw_min_log_s = 3600;     // a random walk is tested only on logs at least this long
   double periodic_min_cycles = 3;  // a periodic drift must repeat at least this often within its log
   // `unexplained`: the residual of the named cause (or of the base model) is tested against the
-  // fitted noise model; family-wise false-alarm probability of the four residual tests.
+  // fitted noise model; family-wise false-alarm probability of the residual tests.
   double residual_alpha = 0.01;
   int residual_lags = 10;  // Ljung-Box lags (bins)
   void Check() const;
@@ -118,9 +120,11 @@ struct GyroResidualColumn {
 
 // The residual after the best cause (or the base model) against the fitted noise model.
 struct GyroResidual {
-  bool structured = false;  // significant at residual_alpha over the four tests
-  double p_value = 1;       // family-wise (Bonferroni over the five tests; or the harmonics test's own)
-  std::string finding;      // the most significant test: spectral_peak, autocorrelation, runs, column, jumps, harmonics
+  bool structured = false;  // significant at residual_alpha over the tests
+  double p_value = 1;       // family-wise (weighted Bonferroni over the eight tests; or the harmonics test's own)
+  // The most significant test: spectral_peak, autocorrelation, runs, column, jumps, variance_change,
+  // outliers, nonlinearity, harmonics.
+  std::string finding;
   double rms_dph = 0;
   double period_s = 0, amplitude_dph = 0, spectral_chi2 = 0, spectral_p = 1;  // strongest sinusoid
   double ljung_box_q = 0, ljung_box_p = 1;
@@ -143,6 +147,20 @@ struct GyroResidual {
   double telegraph_llr = 0, telegraph_p = 1;  // ln L(HMM) - ln L(noise model) (nats), its bootstrap p-value
   double telegraph_levels_dph = 0, telegraph_dwell_s = 0;  // the HMM's levels apart and mean dwell
   std::vector<double> jump_times_s;
+  // Variance change (CUSUM of squares, most significant log): statistic, p (Bonferroni over logs), the
+  // change time and the variance after / before it.
+  double variance_change_stat = 0, variance_change_p = 1, variance_change_time_s = 0, variance_ratio = 1;
+  // Outliers (generalized ESD): how many, when, the largest in standard deviations, p (over logs).
+  int outliers = 0;
+  double outlier_max_sigma = 0, outliers_p = 1;
+  std::vector<double> outlier_times_s;
+  // Nonlinear functions of the logged reference (ref^2, |ref|, ref^3; the azimuth's second harmonic): the
+  // most significant log's chi^2, dof, its function of largest chi^2 and the joint coefficients (dph per
+  // unit: ref scaled to its largest |value|, the harmonic's sin/cos), p (Bonferroni over logs).
+  double nonlinear_chi2 = 0, nonlinear_p = 1;
+  int nonlinear_dof = 0;
+  std::string nonlinear_term;
+  std::map<std::string, double> nonlinear_coefficients_dph;
 };
 
 struct GyroDiscovery {
