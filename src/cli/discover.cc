@@ -240,7 +240,8 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
       "base gyro model; a cause is named only when its held-out gain is significant and its parameters are within "
       "physical bounds; `unexplained` when the residual keeps structure (spectral peak, autocorrelation, runs, a "
       "logged column, jumps between two levels, a periodic drift that is not a sinusoid, a change of the noise "
-      "level, outliers, a nonlinear function of the reference rate or the azimuth's second harmonic) that no cause "
+      "level, outliers, a nonlinear function of the reference rate or the azimuth's second harmonic, a trend or a "
+      "warm-up in time) that no cause "
       "explains; the JSON's `residual` block gives each test's statistic and p-value (docs/discrepancy.md)");
   auto o = std::make_shared<GyroOpts>();
   cmd->add_option("logs", o->logs,
@@ -289,6 +290,9 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
         std::cerr << "; " << d.residual.outliers << " outliers (largest " << d.residual.outlier_max_sigma << " sigma)";
       } else if (d.residual.finding == "nonlinearity") {
         std::cerr << "; follows " << d.residual.nonlinear_term << " of the reference";
+      } else if (d.residual.finding == "trend") {
+        std::cerr << "; a shape in time: " << d.residual.trend_term;
+        if (d.residual.trend_term == "exp(-t/tau)") std::cerr << " with tau " << d.residual.warm_up_tau_s << " s";
       }
       if (!d.partial_cause.empty()) std::cerr << "; fitted first: " << d.partial_cause;
       std::cerr << "\n";

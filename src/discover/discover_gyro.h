@@ -161,6 +161,13 @@ struct GyroResidual {
   int nonlinear_dof = 0;
   std::string nonlinear_term;
   std::map<std::string, double> nonlinear_coefficients_dph;
+  // Shapes in time (a trend: Legendre P1, P2 over the log; a warm-up exp(-t/tau) from the log's start): the
+  // most significant log's chi^2, dof, its function of largest chi^2 alone, the joint coefficients (dph per
+  // unit), the warm-up's tau (0 when the log is too short for one), p (over the tau grid and the logs).
+  double trend_chi2 = 0, trend_p = 1, warm_up_tau_s = 0;
+  int trend_dof = 0;
+  std::string trend_term;
+  std::map<std::string, double> trend_coefficients_dph;
 };
 
 struct GyroDiscovery {

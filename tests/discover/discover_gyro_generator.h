@@ -84,6 +84,14 @@ inline const std::vector<std::string>& MoreUnexplainedGyroEffects() {
   return k;
 }
 
+// Drifts of a shape outside the vocabulary, in the static log: linear_trend (ageing: 0.03-0.08 deg/h over
+// the 12 h, either sign) and warm_up (a bias settling after switch-on: 0.05-0.15 deg/h at t = 0 decaying
+// with a 20-60 min time constant).
+inline const std::vector<std::string>& DriftShapeGyroEffects() {
+  static const std::vector<std::string> k = {"linear_trend", "warm_up"};
+  return k;
+}
+
 inline double RandomSign(Rng& rng) { return rng.Uniform() < 0.5 ? -1.0 : 1.0; }
 
 // A case's drawn parameters: the base noise, the hidden cause's strength (0 when absent) and the
@@ -98,6 +106,7 @@ struct GyroCaseModel {
   // MoreUnexplainedGyroEffects: white-noise factor and its stretch (s), spikes (sample index, dph), the
   // quadratic scale factor (ppm at 20 deg/s), the azimuth's second harmonic.
   double burst_factor = 1, burst_t0 = 0, burst_len = 0, q2_ppm = 0, az2_amp = 0, az2_phase = 0;
+  double trend_dph = 0, warm_dph = 0, warm_tau_s = 1;  // DriftShapeGyroEffects: over the 12 h; at t = 0
   std::map<int, double> spikes;
 };
 
@@ -162,6 +171,7 @@ inline GyroBenchLog StaticRun(const GyroCaseModel& m, Rng& rng, Rng& rng_x, uint
       w += std::sqrt(m.burst_factor * m.burst_factor - 1) * noise.white_dph * burst_rng.Normal();
     }
     if (m.spikes.count(k)) w += m.spikes.at(k);
+    w += m.trend_dph * (t / 43200 - 0.5) + m.warm_dph * std::exp(-t / m.warm_tau_s);
     log.t_s.push_back(t);
     log.w_dph.push_back(w);
     log.ref_dph.push_back(ref);
@@ -221,7 +231,7 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
   c.cause = cause == "magnetic_field_logged" ? "magnetic_field" : cause;
   if (cause == "square_wave_column" || cause == "chirp" || cause == "telegraph" || cause == "telegraph_fast" ||
       cause == "sawtooth" || cause == "noise_burst" || cause == "spikes" || cause == "scale_factor_quadratic" ||
-      cause == "azimuth_second_harmonic") {
+      cause == "azimuth_second_harmonic" || cause == "linear_trend" || cause == "warm_up") {
     c.cause = "unexplained";
   }
   // The heater column and the out-of-vocabulary effects draw from their own stream, so that the other
@@ -264,6 +274,11 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
     m.az2_amp = rng_z.Uniform(0.015, 0.04);
     m.az2_phase = rng_z.Uniform(-kPi, kPi);
     c.truth = {{"second_harmonic_dph", m.az2_amp}};
+  } else if (cause == "linear_trend") {
+    m.trend_dph = RandomSign(rng_z) * rng_z.Uniform(0.03, 0.08);
+  } else if (cause == "warm_up") {
+    m.warm_dph = RandomSign(rng_z) * rng_z.Uniform(0.05, 0.15);
+    m.warm_tau_s = rng_z.Uniform(1200, 3600);
   }
   const double lat = 50.0 * kDegToRad;
   const double earth_dph = 15.041067;

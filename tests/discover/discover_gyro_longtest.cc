@@ -81,6 +81,17 @@ TEST(DiscoverGyroLong, MoreOutOfVocabularyEffects) {
   check("one log", one);
 }
 
+// Drifts of a shape outside the vocabulary (DriftShapeGyroEffects: ageing trend, warm-up), 8 each.
+TEST(DiscoverGyroLong, DriftShapesAreUnexplained) {
+  const auto s = testing::RunGyroMonteCarlo(testing::DriftShapeGyroEffects(), 8, 454545, true);
+  std::cout << "unexplained " << s.right_cause << "/" << s.with_cause << "\n";
+  testing::PrintGyroRates(s);
+  for (const auto& [cause, n] : s.found) std::cout << "  found " << cause << " " << n << "\n";
+  const int none = s.found.count("none") ? s.found.at("none") : 0;
+  EXPECT_GE(s.right_cause, 0.9 * s.with_cause);
+  EXPECT_LE(s.with_cause - s.right_cause - none, 0.05 * s.with_cause);
+}
+
 // The telegraph bias on data the jumps test was not designed on: fresh seeds with the same 40 min mean
 // dwell (24 each) and with 20 min dwells (16 each; a switching rate closer to the wander's, so harder),
 // printed with the causes found (docs/discrepancy.md). The first group (5151, 6161) was looked at while
@@ -117,6 +128,7 @@ TEST(DiscoverGyroLong, CleanLogsGiveNone) {
     null_p["variance_change"].push_back(d.residual.variance_change_p);
     null_p["outliers"].push_back(d.residual.outliers_p);
     null_p["nonlinearity"].push_back(d.residual.nonlinear_p);
+    null_p["trend"].push_back(d.residual.trend_p);
   }
   std::cout << "none on " << none << " of 40 clean cases\n";
   for (auto& [test, ps] : null_p) {

@@ -186,6 +186,33 @@ TEST(DiscoverGyro, NonlinearRateAndAzimuthHarmonicAreUnexplained) {
               da.residual.nonlinear_p, da.partial_cause.c_str());
 }
 
+// Drifts of a shape in time (DriftShapeGyroEffects; seeds of DiscoverGyroLong.DriftShapesAreUnexplained, the
+// static log): an ageing trend was named rate_random_walk and a warm-up bias_step before the candidates were
+// compared with the shapes in time; now both are `unexplained`, finding `trend`, with the shape described.
+TEST(DiscoverGyro, TrendAndWarmUpAreUnexplained) {
+  const auto trend = testing::MakeGyroCase("linear_trend", 454545);
+  const GyroDiscovery dt = DiscoverGyro({trend.logs[0]}, GyroDiscoverOptions{});
+  ASSERT_EQ(dt.cause, "unexplained") << GyroDiscoveryToJson(dt).dump(1);
+  EXPECT_EQ(dt.residual.finding, "trend");
+  EXPECT_EQ(dt.residual.trend_term, "time (P1)");
+  bool walk_refused = false;
+  for (const auto& c : dt.candidates) {
+    walk_refused |= c.cause == "rate_random_walk" && c.verdict.rfind("follows a shape in time", 0) == 0;
+  }
+  EXPECT_TRUE(walk_refused);
+  const auto warm = testing::MakeGyroCase("warm_up", 454545 + 7919);
+  const GyroDiscovery dw = DiscoverGyro({warm.logs[0]}, GyroDiscoverOptions{});
+  ASSERT_EQ(dw.cause, "unexplained") << GyroDiscoveryToJson(dw).dump(1);
+  EXPECT_EQ(dw.residual.finding, "trend");
+  EXPECT_EQ(dw.residual.trend_term, "exp(-t/tau)");
+  EXPECT_GT(dw.residual.warm_up_tau_s, 0);
+  const Json j = GyroDiscoveryToJson(dw);
+  EXPECT_TRUE(j["residual"]["trend_coefficients_dph"].contains("exp(-t/tau)"));
+  std::printf("trend: chi2 %.1f (%d dof), p %.2g; warm-up: tau %.0f s, chi2 %.1f, p %.2g\n", dt.residual.trend_chi2,
+              dt.residual.trend_dof, dt.residual.trend_p, dw.residual.warm_up_tau_s, dw.residual.trend_chi2,
+              dw.residual.trend_p);
+}
+
 // The held-out gate: with the significance demanded of the held-out improvement out of reach, a cause
 // that passes every in-sample test is not named; every named cause of the Monte Carlo above has a
 // gain > 1 (TwelveHiddenCausesFoundOrNone).
