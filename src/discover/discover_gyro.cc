@@ -1275,7 +1275,8 @@ void OutlierTest(const VectorXd& v, const LogBins& b, double alpha, double* out_
 // With a periodic_drift fitted (fundamental_hz > 0 in log fundamental_log), a test of its own: its 2nd and
 // 3rd harmonics (2 positions, not a scan), so that a non-sinusoidal periodic drift (sawtooth, square
 // wave) is not taken for a sinusoid. Then the jumps (JumpsTest), and the later three: a change of the
-// noise level, outliers and nonlinear functions of the reference; the eight by a weighted Bonferroni.
+// noise level, outliers, nonlinear functions of the reference and shapes in time; the nine by a weighted
+// Bonferroni.
 GyroResidual TestResidual(const Design& d, const std::vector<NoiseModel>& nm, const VectorXd& e,
                           const GyroDiscoverOptions& o, double fundamental_hz = 0, int fundamental_log = 0) {
   GyroResidual res;

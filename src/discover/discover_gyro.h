@@ -37,7 +37,9 @@
 //     jumps: a two-state hidden Markov model's likelihood ratio against the noise model, calibrated by a
 //     bootstrap of the noise model (a level that switches between two values); a change of the noise
 //     level (CUSUM of squares), outliers (generalized ESD) and nonlinear functions of the reference (ref^2,
-//     |ref|, ref^3; the azimuth's second harmonic); weighted Bonferroni over the eight at residual_alpha;
+//     |ref|, ref^3; the azimuth's second harmonic) and shapes in time (a trend, a warm-up); weighted
+//     Bonferroni over the nine at residual_alpha; a candidate that a function of the reference or a shape in
+//     time explains as well is not named;
 //     after periodic_drift also its harmonics / folded shape, a test of the sinusoid of its own); structure left ->
 //     `unexplained`, the residual described (period, amplitude, the column it follows, the jumps) and the first cause
 //     kept as partial_cause.
@@ -121,7 +123,7 @@ struct GyroResidualColumn {
 // The residual after the best cause (or the base model) against the fitted noise model.
 struct GyroResidual {
   bool structured = false;  // significant at residual_alpha over the tests
-  double p_value = 1;       // family-wise (weighted Bonferroni over the eight tests; or the harmonics test's own)
+  double p_value = 1;       // family-wise (weighted Bonferroni over the nine tests; or the harmonics test's own)
   // The most significant test: spectral_peak, autocorrelation, runs, column, jumps, variance_change,
   // outliers, nonlinearity, harmonics.
   std::string finding;
