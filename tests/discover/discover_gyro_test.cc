@@ -311,6 +311,28 @@ TEST(DiscoverGyroCli, LoggedFieldAndUnknownColumnReachTheAnalysis) {
   }
 }
 
+// A warm-up in a bench log through the command line: `unexplained` with the trend test's JSON fields and
+// the summary line that names the shape.
+TEST(DiscoverGyroCli, WarmUpReportsTheShapeInTime) {
+  const std::string dir = testing::TempDir("discover_gyro_warm");
+  const auto c = testing::MakeGyroCase("warm_up", 454545 + 7919);
+  WriteLog(dir + "/static.csv", c.logs[0]);
+  std::string out;
+  ASSERT_EQ(
+      testing::Run(testing::SsiuProgram() + " discover gyro " + dir + "/static.csv --json " + dir + "/d.json", &out), 0)
+      << out;
+  const Json j = ReadJsonFile(dir + "/d.json");
+  ASSERT_EQ(j["cause"], "unexplained") << j.dump(1);
+  EXPECT_EQ(j["residual"]["finding"], "trend");
+  EXPECT_EQ(j["residual"]["trend_term"], "exp(-t/tau)");
+  EXPECT_LT(j["residual"]["trend_p"].get<double>(), 1e-4);
+  EXPECT_GT(j["residual"]["warm_up_tau_s"].get<double>(), 0.0);
+  for (const char* field : {"variance_change_p", "outliers", "outliers_p", "nonlinear_p", "nonlinear_term"}) {
+    EXPECT_TRUE(j["residual"].contains(field)) << field;
+  }
+  EXPECT_THAT(out, ::testing::HasSubstr("a shape in time: exp(-t/tau)"));
+}
+
 TEST(DiscoverGyroCli, BadInputExitsOneNamingTheField) {
   const auto c = testing::MakeGyroCase("none", 5);
   const std::string dir = testing::TempDir("discover_gyro_bad");
