@@ -241,7 +241,7 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
       "physical bounds; `unexplained` when the residual keeps structure (spectral peak, autocorrelation, runs, a "
       "logged column, jumps between two levels, a periodic drift that is not a sinusoid, a change of the noise "
       "level, outliers, a nonlinear function of the reference rate or the azimuth's second harmonic, a trend or a "
-      "warm-up in time) that no cause "
+      "warm-up in time, a spectral line above the bins' band in the raw samples) that no cause "
       "explains; the JSON's `residual` block gives each test's statistic and p-value (docs/discrepancy.md)");
   auto o = std::make_shared<GyroOpts>();
   cmd->add_option("logs", o->logs,
@@ -290,6 +290,9 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
         std::cerr << "; " << d.residual.outliers << " outliers (largest " << d.residual.outlier_max_sigma << " sigma)";
       } else if (d.residual.finding == "nonlinearity") {
         std::cerr << "; follows " << d.residual.nonlinear_term << " of the reference";
+      } else if (d.residual.finding == "spectral_line") {
+        std::cerr << "; a line at " << d.residual.line_frequency_hz << " Hz, amplitude "
+                  << d.residual.line_amplitude_dph << " deg/h (above the bins' band)";
       } else if (d.residual.finding == "trend") {
         std::cerr << "; a shape in time: " << d.residual.trend_term;
         if (d.residual.trend_term == "exp(-t/tau)") std::cerr << " with tau " << d.residual.warm_up_tau_s << " s";

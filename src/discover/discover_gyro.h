@@ -170,6 +170,10 @@ struct GyroResidual {
   int trend_dof = 0;
   std::string trend_term;
   std::map<std::string, double> trend_coefficients_dph;
+  // A spectral line above the bins' band (raw samples of an evenly sampled log whose bins hold >= 12 of
+  // them, e.g. a vibration pickup on a 100 Hz rate-table log): p (over the ordinates and the logs), the
+  // line's frequency and sinusoid amplitude, its power over the local noise level.
+  double line_p = 1, line_frequency_hz = 0, line_amplitude_dph = 0, line_power_ratio = 0;
 };
 
 struct GyroDiscovery {

@@ -129,6 +129,7 @@ TEST(DiscoverGyroLong, CleanLogsGiveNone) {
     null_p["outliers"].push_back(d.residual.outliers_p);
     null_p["nonlinearity"].push_back(d.residual.nonlinear_p);
     null_p["trend"].push_back(d.residual.trend_p);
+    null_p["spectral_line"].push_back(d.residual.line_p);
   }
   std::cout << "none on " << none << " of 40 clean cases\n";
   for (auto& [test, ps] : null_p) {

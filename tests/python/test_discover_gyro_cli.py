@@ -91,3 +91,35 @@ def test_causes_of_the_vocabulary_keep_their_names(tmp_path):
     d = discover(tmp_path, "temperature", seed=51, effect="temperature", size=0.05)
     assert d["cause"] == "temperature"
     assert abs(d["parameters"]["K10_dph"] - 0.05) < 0.015
+
+
+def write_rate_table_log(path, seed, tone_dph=0.0, tone_hz=0.0):
+    """A 20 min rate-table run at 100 Hz: 2 min levels up to 20 deg/s, white noise 0.3 deg/h sqrt(s), and a
+    tone (a vibration pickup) that the 1.2 s bins average away."""
+    rng = random.Random(seed)
+    dt, sigma = 0.01, 0.3 / math.sqrt(0.01)
+    levels = [rng.uniform(-20, 20) * 3600 for _ in range(10)]
+    earth_v = 15.041067 * math.sin(math.radians(50))
+    rows = ["t_s,w_dph,ref_dph,temp_c"]
+    for k in range(120000):
+        t = k * dt
+        ref = levels[(int(t / 120) // 2) % 10] + earth_v
+        w = ref + 0.3 + sigma * rng.gauss(0, 1) + tone_dph * math.sin(2 * math.pi * tone_hz * t)
+        rows.append(f"{t:.2f},{w:.5f},{ref:.5f},{24 + 0.02 * rng.gauss(0, 1):.3f}")
+    path.write_text("\n".join(rows) + "\n")
+
+
+def test_tone_above_the_bins_is_unexplained_with_its_frequency(tmp_path):
+    for name, kw in (("rt_clean", dict(seed=1)), ("rt_tone", dict(seed=2, tone_dph=0.5, tone_hz=2.0))):
+        log = tmp_path / f"{name}.csv"
+        write_rate_table_log(log, **kw)
+        out = tmp_path / f"{name}.json"
+        r = subprocess.run([BIN, "discover", "gyro", str(log), "--json", str(out)], capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+        d = json.loads(out.read_text())
+        if name == "rt_clean":
+            assert d["cause"] == "none" and d["residual"]["line_p"] > 0.01
+        else:
+            assert d["cause"] == "unexplained" and d["residual"]["finding"] == "spectral_line"
+            assert abs(d["residual"]["line_frequency_hz"] - 2.0) < 1 / 1200
+            assert abs(d["residual"]["line_amplitude_dph"] - 0.5) < 0.1
