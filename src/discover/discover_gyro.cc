@@ -279,6 +279,7 @@ LogBins MakeLogBins(const GyroBenchLog& log, const GyroDiscoverOptions& o) {
 struct NoiseModel {
   double var_w = 1, var_g = 0, phi = 0, q_rw = 0;
   bool diffuse_level = false;  // b starts diffuse even without a walk (the likelihood of the null)
+  bool known_level = false;    // b starts at 0 exactly, even with a walk (TelegraphInWanderLogLik)
   std::vector<Eigen::Vector2d> gain;
   std::vector<double> inv_sqrt_s;  // per bin
 
@@ -290,7 +291,7 @@ struct NoiseModel {
     const double g0 = var_w + var_g;
     Eigen::Matrix2d p = Eigen::Matrix2d::Zero();
     p(0, 0) = var_g;
-    p(1, 1) = q_rw > 0 || diffuse_level ? kDiffuse * g0 : 0.0;
+    p(1, 1) = (q_rw > 0 || diffuse_level) && !known_level ? kDiffuse * g0 : 0.0;
     const Eigen::Matrix2d f = Eigen::Vector2d(phi, 1).asDiagonal();
     const Eigen::Matrix2d q = Eigen::Vector2d(var_g * (1 - phi * phi), q_rw).asDiagonal();
     for (int k = 0; k < m; ++k) {
@@ -549,6 +550,21 @@ void BinSinusoid(const LogBins& b, double fr, VectorXd* sn, VectorXd* cs) {
   }
 }
 
+// Golden-section search for a maximum of fn on [lo, hi], iters steps; returns {x, fn(x)} of the better of
+// the last two points.
+std::pair<double, double> GoldenSectionMax(const std::function<double(double)>& fn, double lo, double hi, int iters) {
+  const double gr = 0.5 * (std::sqrt(5.0) - 1);
+  double x1 = hi - gr * (hi - lo), x2 = lo + gr * (hi - lo), f1 = fn(x1), f2 = fn(x2);
+  for (int it = 0; it < iters; ++it) {
+    if (f1 > f2) {
+      hi = x2, x2 = x1, f2 = f1, x1 = hi - gr * (hi - lo), f1 = fn(x1);
+    } else {
+      lo = x1, x1 = x2, f1 = f2, x2 = lo + gr * (hi - lo), f2 = fn(x2);
+    }
+  }
+  return f1 > f2 ? std::make_pair(x1, f1) : std::make_pair(x2, f2);
+}
+
 // GLS periodogram of one log: the chi^2 (2 dof, divided by `norm`) of a sinusoid against whitened
 // residual rr (whitened bias column cw projected out), frequencies f_lo..f_hi in steps of a quarter
 // of 1/duration, the best refined by golden section. Returns {frequency, chi^2}.
@@ -575,17 +591,8 @@ std::pair<double, double> ScanSinusoid(const LogBins& b, const NoiseModel& noise
     if (w > w_best) w_best = w, f_best = fr;
   }
   if (w_best <= 0) return {0.0, 0.0};
-  double a = std::max(f_lo, f_best - df), c = std::min(f_hi, f_best + df);
-  const double gr = 0.5 * (std::sqrt(5.0) - 1);
-  double c1 = c - gr * (c - a), c2 = a + gr * (c - a), w1 = stat(c1), w2 = stat(c2);
-  for (int it = 0; it < 30; ++it) {
-    if (w1 > w2) {
-      c = c2, c2 = c1, w2 = w1, c1 = c - gr * (c - a), w1 = stat(c1);
-    } else {
-      a = c1, c1 = c2, w1 = w2, c2 = a + gr * (c - a), w2 = stat(c2);
-    }
-  }
-  if (std::max(w1, w2) > w_best) w_best = std::max(w1, w2), f_best = w1 > w2 ? c1 : c2;
+  const auto [f_gold, w_gold] = GoldenSectionMax(stat, std::max(f_lo, f_best - df), std::min(f_hi, f_best + df), 30);
+  if (w_gold > w_best) w_best = w_gold, f_best = f_gold;
   return {f_best, w_best};
 }
 
@@ -832,6 +839,76 @@ TelegraphHmm FitTelegraphHmm(const VectorXd& v, const LevelSplit& start) {
   return h;
 }
 
+// A telegraph inside the wander: a share f of the Gauss-Markov wander's variance var_g of noise model g is
+// a symmetric random telegraph (levels -+ sqrt(f var_g), switching with probability a = (1 - phi) / 2 per
+// bin, so that its autocorrelation (1 - 2a)^k is the wander's phi^k), the rest, (1 - f) var_g, stays
+// Gauss-Markov; white noise and walk as in g. Every f has g's autocovariance, so the
+// likelihood ratio against f = 0 (which is g) sees only what second-order tests cannot: two values and
+// jumps between them. Log-likelihood of v (mean removed: the telegraph's centre and the walk's start at 0;
+// conditional on the first bin, as NoiseModel::NegLogLik, and without its 0.5 ln(2 pi) terms) by the
+// switching Kalman filter of Kim (1994): a filtered state per telegraph state, the four branches
+// (previous state, state) collapsed to two by their weights. The branches share the Kalman covariance of
+// the Gaussian part (the collapsed means' spread is left out), so the filter's gains are those of
+// NoiseModel::Prepare; exact at f = 0 (all branches equal). (With a diffuse level the branches' levels
+// differ by the telegraph's step from the first bin on, which that shared covariance cannot carry.)
+double TelegraphInWanderLogLik(const VectorXd& v, const NoiseModel& g, double f) {
+  const int m = static_cast<int>(v.size());
+  NoiseModel gp = g;
+  gp.var_g = (1 - f) * g.var_g;
+  gp.known_level = true;
+  gp.Prepare(m);
+  const double half = std::sqrt(f * g.var_g), a = 0.5 * (1 - g.phi);
+  const double mu[2] = {-half, half}, trans[2][2] = {{1 - a, a}, {a, 1 - a}};
+  double prob[2] = {0.5, 0.5};
+  Eigen::Vector2d state[2] = {Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero()};  // wander, level
+  double ll = 0;
+  for (int k = 0; k < m; ++k) {
+    Eigen::Vector2d pred[2], upd[2][2];
+    double arg[2][2], lo = std::numeric_limits<double>::infinity();
+    for (int j = 0; j < 2; ++j) {
+      pred[j] = state[j];
+      if (k > 0) pred[j](0) *= g.phi;
+      for (int s = 0; s < 2; ++s) {
+        const double e = v(k) - mu[s] - pred[j].sum();
+        arg[j][s] = 0.5 * e * e * gp.inv_sqrt_s[k] * gp.inv_sqrt_s[k];
+        upd[j][s] = pred[j] + gp.gain[k] * e;
+        lo = std::min(lo, arg[j][s]);
+      }
+    }
+    double w[2][2], total = 0;
+    for (int j = 0; j < 2; ++j) {
+      for (int s = 0; s < 2; ++s) {
+        w[j][s] = prob[j] * (k > 0 ? trans[j][s] : static_cast<double>(j == s)) * std::exp(lo - arg[j][s]);
+        total += w[j][s];
+      }
+    }
+    if (!(total > 0)) return -std::numeric_limits<double>::infinity();
+    if (k > 0) ll += std::log(total) - lo + std::log(gp.inv_sqrt_s[k]);
+    for (int s = 0; s < 2; ++s) {
+      const double ps = w[0][s] + w[1][s];
+      prob[s] = ps / total;
+      state[s] = ps > 0 ? Eigen::Vector2d((w[0][s] * upd[0][s] + w[1][s] * upd[1][s]) / ps) : upd[0][s];
+    }
+  }
+  return ll;
+}
+
+// The statistic of JumpsTest: max over f in [0, 1] of TelegraphInWanderLogLik(f) - (its value at f = 0),
+// a grid of f = 0.2 ... 1 refined by golden section around the best point. *share: the f of the maximum.
+double TelegraphInWanderLlr(const VectorXd& v, const NoiseModel& g, double* share = nullptr) {
+  const double l0 = TelegraphInWanderLogLik(v, g, 0);
+  double best = 0, best_f = 0;
+  auto at = [&](double f) {
+    const double l = TelegraphInWanderLogLik(v, g, f) - l0;
+    if (l > best + 1e-9) best = l, best_f = f;  // rounding at f near 0 is no share
+    return l;
+  };
+  for (int i = 1; i <= 5; ++i) at(0.2 * i);
+  GoldenSectionMax(at, std::max(0.0, best_f - 0.2), std::min(1.0, best_f + 0.2), 8);  // `at` keeps the best
+  if (share) *share = best_f;
+  return best;
+}
+
 // The residual of TestResidual whitened with the noise models, and each log's whitened bias column
 // projected out of it (wr), with its variance per log (s2) and pooled over logs (s2_pool).
 struct WhitenedResidual {
@@ -976,52 +1053,51 @@ void PeriodicShapeTest(const Design& d, const std::vector<NoiseModel>& nm, const
   *harm_p = std::min(1.0, 2 * std::min(*harm_p, res->periodic_shape_p));  // either of the two tests
 }
 
-// The bootstrap of JumpsTest on one log: p-values of the level split (p_split) and of the HMM's
-// log-likelihood ratio (p_hmm) from replicates of the noise model g, with Besag & Clifford's stopping.
+// The bootstrap of JumpsTest on one log: p-values of the level split (p_split) and of the test's
+// statistic (p_llr) from replicates of the noise model g, with Besag & Clifford's stopping.
 struct JumpsBootstrap {
-  double p_split = 1, p_hmm = 1;
+  double p_split = 1, p_llr = 1;
 };
 
-JumpsBootstrap BootstrapJumps(const NoiseModel& g, int m, int r, const LevelSplit& obs, double llr_obs,
-                              const std::function<double(const VectorXd&, const TelegraphHmm&)>& llr) {
+JumpsBootstrap BootstrapJumps(const NoiseModel& g, int m, int r, const LevelSplit& obs, double llr_obs) {
   Rng rng(0x5eed0000ULL + static_cast<uint64_t>(r));
   const double sd_w = std::sqrt(g.var_w), sd_g = std::sqrt(g.var_g), sd_x = std::sqrt(g.var_g * (1 - g.phi * g.phi));
   const double sd_rw = std::sqrt(g.q_rw);
   constexpr int kReplicates = 4999, kExceed = 10;
-  int exceed_split = 0, done_split = 0, exceed_hmm = 0, done_hmm = 0;
+  int exceed_split = 0, done_split = 0, exceed_llr = 0, done_llr = 0;
   auto running = [&](int exceed, int done) { return done < kReplicates && exceed < kExceed; };
   VectorXd z(m);
-  while (running(exceed_hmm, done_hmm)) {
+  while (running(exceed_llr, done_llr)) {
     double x = sd_g * rng.Normal(), walk = 0;
     for (int i = 0; i < m; ++i) {
       if (i > 0) x = g.phi * x + sd_x * rng.Normal(), walk += sd_rw * rng.Normal();
       z(i) = x + walk + sd_w * rng.Normal();
     }
     z.array() -= z.mean();
-    const LevelSplit zs = SplitLevels(z);
-    if (running(exceed_split, done_split)) exceed_split += zs.ratio <= obs.ratio, ++done_split;
-    exceed_hmm += !(llr(z, FitTelegraphHmm(z, zs)) < llr_obs), ++done_hmm;  // a NaN replicate counts against
+    if (running(exceed_split, done_split)) exceed_split += SplitLevels(z).ratio <= obs.ratio, ++done_split;
+    exceed_llr += !(TelegraphInWanderLlr(z, g) < llr_obs), ++done_llr;  // a NaN replicate counts against
   }
   auto p_of = [](int exceed, int done) {
     return exceed >= kExceed ? exceed / static_cast<double>(done) : (exceed + 1.0) / (done + 1.0);
   };
-  return {p_of(exceed_split, done_split), p_of(exceed_hmm, done_hmm)};
+  return {p_of(exceed_split, done_split), p_of(exceed_llr, done_llr)};
 }
 
 // Jumps of the level between a few values. A level that switches between two values (a random
 // telegraph bias, e.g. a light source hopping between modes) has to second order the autocovariance
 // of a Gauss-Markov wander, so the tests above, on data whitened with that wander, miss it; what tells
-// them apart is that its levels take two values and change at once. Statistic: the log-likelihood
-// ratio of the two-state hidden Markov model (FitTelegraphHmm) against the log's maximum-likelihood
-// white + Gauss-Markov noise model (and walk, when the walk is the cause). Its null distribution is
-// simulated (parametric bootstrap) from that noise model, with the sequential stopping of Besag &
-// Clifford (1991): stop at 10 replicates at least as large, else after 4999 (p >= 2e-4; a clean log
-// stops after a few dozen); Bonferroni over logs. (Until the HMM, the statistic was the level split of
-// SplitLevels, the within-group share of the variance of the levels of binary segmentation's pieces:
-// it keeps at most 16 switches and found fewer telegraphs, docs/discrepancy.md; it is still reported,
-// with its p-value on the same replicates.) The report: the switches between the two groups of levels,
-// their times, the levels' difference, and the HMM's levels and mean dwell. Returns the smallest p over
-// logs.
+// them apart is that its levels take two values and change at once. Statistic: TelegraphInWanderLlr,
+// the log-likelihood ratio of a telegraph carrying a share of the wander (same autocovariance) against
+// the log's maximum-likelihood white + Gauss-Markov noise model (and walk, when the walk is the cause):
+// nested, so that on the noise model's own replicates it stays near 0 (a two-state HMM in white noise
+// against the wander, the statistic until then, fitted a large wander's replicates too: a null spread of
+// 3-29 nats; docs/discrepancy.md). Its null distribution is simulated (parametric bootstrap) from that
+// noise model, with the sequential stopping of Besag & Clifford (1991): stop at 10 replicates at least as
+// large, else after 4999 (p >= 2e-4; a clean log stops after a few dozen); Bonferroni over logs. Also
+// reported: the level split of SplitLevels (the within-group share of the variance of the levels of binary
+// segmentation's pieces, with its p-value on the same replicates), the switches between its two groups of
+// levels and their times, and the two-state HMM's levels and mean dwell (FitTelegraphHmm). Returns the
+// smallest p over logs.
 double JumpsTest(const Design& d, const std::vector<NoiseModel>& nm, const VectorXd& e, const GyroDiscoverOptions& o,
                  GyroResidual* res) {
   const int l = static_cast<int>(d.bins.size());
@@ -1036,21 +1112,19 @@ double JumpsTest(const Design& d, const std::vector<NoiseModel>& nm, const Vecto
     if (obs.level.empty()) continue;
     const NoiseMle f0 = FitNoiseMle(v, b.bin_s, o.wander_tau_max_s, nm[r], nm[r].q_rw > 0);
     const NoiseModel& g = f0.model;
-    const TelegraphHmm hmm = FitTelegraphHmm(v, obs);
-    // ln L(HMM) - ln L(noise model); NegLogLik leaves out the 0.5 ln(2 pi) of each term.
-    auto llr = [&](const VectorXd& x, const TelegraphHmm& hx) {
-      return hx.loglik + g.NegLogLik(x) + 0.5 * (m - 1) * std::log(2 * kPi);
-    };
-    const double llr_obs = llr(v, hmm);
+    double share = 0;
+    const double llr_obs = TelegraphInWanderLlr(v, g, &share);
     if (!std::isfinite(llr_obs)) continue;  // a degenerate fit is no evidence (no replicate exceeds a NaN)
-    const JumpsBootstrap boot = BootstrapJumps(g, m, r, obs, llr_obs, llr);
-    if (!(boot.p_hmm < jump_p || res->jumps == 0)) continue;
-    jump_p = boot.p_hmm;
+    const JumpsBootstrap boot = BootstrapJumps(g, m, r, obs, llr_obs);
+    if (!(boot.p_llr < jump_p || res->jumps == 0)) continue;
+    jump_p = boot.p_llr;
+    const TelegraphHmm hmm = FitTelegraphHmm(v, obs);
     res->levels_within_ratio = obs.ratio;
     res->levels_within_p = boot.p_split;
     res->jump_size_dph = obs.high - obs.low;
     res->telegraph_llr = llr_obs;
-    res->telegraph_p = boot.p_hmm;
+    res->telegraph_share = share;
+    res->telegraph_p = boot.p_llr;
     res->telegraph_levels_dph = hmm.mu1 - hmm.mu0;
     res->telegraph_dwell_s = b.bin_s * 2 / (hmm.a01 + hmm.a10);
     res->jumps = 0;
@@ -2602,6 +2676,7 @@ Json GyroDiscoveryToJson(const GyroDiscovery& d) {
                    {"levels_within_p", r.levels_within_p},
                    {"telegraph_llr", r.telegraph_llr},
                    {"telegraph_p", r.telegraph_p},
+                   {"telegraph_share", r.telegraph_share},
                    {"telegraph_levels_dph", r.telegraph_levels_dph},
                    {"telegraph_dwell_s", r.telegraph_dwell_s},
                    {"jump_size_dph", r.jump_size_dph},

@@ -34,8 +34,8 @@
 //     and seen in the held-out blocks' own scatter too (paired block z > min_block_z).
 //  4c. `unexplained`: the residual of the named cause (or of the base) is whitened with a noise model
 //     refitted on it and tested (spectral peak, Ljung-Box, runs, regression on every logged column, and
-//     jumps: a two-state hidden Markov model's likelihood ratio against the noise model, calibrated by a
-//     bootstrap of the noise model (a level that switches between two values); a change of the noise
+//     jumps: the likelihood ratio of a telegraph carrying a share of the wander against the noise model,
+//     calibrated by a bootstrap of the noise model (a level that switches between two values); a change of the noise
 //     level (CUSUM of squares), outliers (generalized ESD) and nonlinear functions of the reference (ref^2,
 //     |ref|, ref^3; the azimuth's second harmonic) and shapes in time (a trend, a warm-up); weighted
 //     Bonferroni over the nine at residual_alpha; a candidate that a function of the reference or a shape in
@@ -141,12 +141,14 @@ struct GyroResidual {
   int periodic_shape_dof = 0;
   // Jumps of the level between two values (a telegraph bias), in the log where they are most significant:
   // the levels of the pieces of constant level (binary segmentation) split into two groups, the
-  // within-group share of their variance; and the likelihood ratio of a two-state hidden Markov model
-  // against the noise model (the test's statistic; jumps_p its bootstrap p-value, Bonferroni over logs).
+  // within-group share of their variance; the likelihood ratio of a telegraph carrying a share of the
+  // wander against the noise model (the test's statistic; jumps_p its bootstrap p-value, Bonferroni over
+  // logs); and a two-state hidden Markov model's levels and dwell.
   int jumps = 0;                                                   // switches between the two groups
   double levels_within_ratio = 1, jumps_p = 1, jump_size_dph = 0;  // split's statistic, test's p, levels apart
   double levels_within_p = 1;                 // the level split's bootstrap p-value on the same replicates (that log)
-  double telegraph_llr = 0, telegraph_p = 1;  // ln L(HMM) - ln L(noise model) (nats), its bootstrap p-value
+  double telegraph_llr = 0, telegraph_p = 1;  // ln L(telegraph in wander) - ln L(noise model) (nats), its p
+  double telegraph_share = 0;                 // the share of the wander's variance the telegraph carries there
   double telegraph_levels_dph = 0, telegraph_dwell_s = 0;  // the HMM's levels apart and mean dwell
   std::vector<double> jump_times_s;
   // Variance change (CUSUM of squares, most significant log): statistic, p (Bonferroni over logs), the

@@ -39,7 +39,9 @@ TEST(DiscoverGyroLong, NewCausesEightEach) {
 // Effects outside the vocabulary: 8 cases each. The drift following a logged column and the chirp must
 // be `unexplained` (>= 90 %, a wrongly named cause <= 5 %); the telegraph bias and the sawtooth are measured
 // and printed (docs/discrepancy.md: a telegraph with 40 min dwells is Gauss-Markov-like wander to second
-// order, found by the jumps test 4/8; the sawtooth by the folded shape after periodic_drift, 7/8).
+// order, found by the jumps test 5/8, the other 3 beyond any test at the required level: Neyman-Pearson
+// p 0.0013-0.0076 per log, TelegraphDetectabilityOracle; the
+// sawtooth by the folded shape after periodic_drift, 7/8).
 TEST(DiscoverGyroLong, OutOfVocabularyIsUnexplained) {
   const auto s = testing::RunGyroMonteCarlo(testing::UnexplainedGyroEffects(), 8, 272727, true);
   std::cout << "unexplained " << s.right_cause << "/" << s.with_cause << "\n";
@@ -109,9 +111,10 @@ TEST(DiscoverGyroLong, TelegraphFreshSeedsAndFasterSwitching) {
     found += s.right_cause, cases += s.with_cause;
     wrong += s.with_cause - s.right_cause - (s.found.count("none") ? s.found.at("none") : 0);
   }
-  // Measured 47/80 `unexplained` and 1/80 wrongly named with the REML noise fit (38/80 and 10/80 before):
-  // the issue's <= 5 % wrongly named holds; the 90 % does not (the `none` cases, docs/discrepancy.md).
-  EXPECT_GE(found, 0.55 * cases);
+  // Measured 57/80 `unexplained` and 1/80 wrongly named with the telegraph-in-wander jumps statistic (45/80
+  // and 1/80 with the HMM's, 38/80 and 10/80 before the REML noise fit): the issue's <= 5 % wrongly named
+  // holds; the 90 % does not (the `none` cases, docs/discrepancy.md).
+  EXPECT_GE(found, 0.68 * cases);
   EXPECT_LE(wrong, 0.05 * cases);
 }
 

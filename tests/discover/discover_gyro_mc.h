@@ -58,9 +58,10 @@ inline void ScoreGyroCase(const std::string& variant, const GyroCase& c, const G
               << " jumps " << d.residual.jumps << " (within " << d.residual.levels_within_ratio << ", p "
               << d.residual.jumps_p << ", levels differ " << d.residual.jump_size_dph << " deg/h) shape p "
               << d.residual.periodic_shape_p << " harmonics p " << d.residual.harmonics_p << "\n   levels split p "
-              << d.residual.levels_within_p << ", HMM llr " << d.residual.telegraph_llr << " p "
-              << d.residual.telegraph_p << " (levels " << d.residual.telegraph_levels_dph << " deg/h apart, dwell "
-              << d.residual.telegraph_dwell_s << " s)\n   variance change p " << d.residual.variance_change_p << " at "
+              << d.residual.levels_within_p << ", telegraph llr " << d.residual.telegraph_llr << " p "
+              << d.residual.telegraph_p << " share " << d.residual.telegraph_share << " (HMM levels "
+              << d.residual.telegraph_levels_dph << " deg/h apart, dwell " << d.residual.telegraph_dwell_s
+              << " s)\n   variance change p " << d.residual.variance_change_p << " at "
               << d.residual.variance_change_time_s << " s (ratio " << d.residual.variance_ratio << "), outliers "
               << d.residual.outliers << " p " << d.residual.outliers_p << " (largest " << d.residual.outlier_max_sigma
               << " sigma), nonlinear chi2 " << d.residual.nonlinear_chi2 << " (" << d.residual.nonlinear_dof << " dof, "

@@ -193,8 +193,9 @@ TEST(DiscoverGyroLong, TelegraphDetectabilityOracle) {
   }
   // Where even the most powerful test with every parameter known is beyond 1e-4 per log (10x below the
   // library's 1e-3 per log: 0.01 over two logs and five tests): measured 50/56 `unexplained` (none 5,
-  // wrongly named 1), the 90 % not quite met there (the HMM's fitted parameters cost power: its
-  // p on the 5 misses 0.003-0.035); a regression floor at 85 %.
+  // wrongly named 1) with the telegraph-in-wander statistic and the family of nine (51/56 with five; 50/56
+  // with the HMM's and five, whose fitted parameters cost power: its p on the 5 misses 0.003-0.035); a
+  // regression floor at 85 %.
   auto count = [&](int band, const std::string& what) {
     return by_band[band].count(what) ? by_band[band].at(what) : 0;
   };
