@@ -14,16 +14,18 @@ import subprocess
 BIN = os.path.join(os.environ.get("SSIU_BINARY_DIR", "build"), "ssiu")
 
 
-def write_log(path, seed, effect=None, size=0.0, when_s=0.0):
+def write_log(path, seed, effect=None, size=0.0, when_s=0.0, humidity_period_s=0.0):
     """A static run; effect: None, "ageing" (size deg/h over the 12 h, linear), "warm_up" (size deg/h at the
     start, decaying with time constant when_s), "bias_step" (size deg/h at when_s), "temperature" (size deg/h
-    per 10 C from 20 C)."""
+    per 10 C from 20 C), "humidity" (size deg/h per 15 % of a logged humidity_pct column that cycles with
+    humidity_period_s)."""
     rng = random.Random(seed)
     dt, arw, wander, tau = 10.0, 0.3, 0.005, 900.0  # s, deg/h sqrt(s), deg/h, s
     earth_h = 15.041067 * math.cos(math.radians(50))
     bias, psi0, x = 0.2, rng.uniform(0, 360), 0.0
     phi = math.exp(-dt / tau)
-    rows = ["t_s,w_dph,ref_dph,temp_c,azimuth_deg"]
+    humid = effect == "humidity"
+    rows = ["t_s,w_dph,ref_dph,temp_c,azimuth_deg" + (",humidity_pct" if humid else "")]
     for k in range(4320):
         t = k * dt
         # 20 C, +0.2 C/min for 75 min (35 C), hold 1.5 h, -0.15 C/min back to 18 C, hold.
@@ -44,9 +46,13 @@ def write_log(path, seed, effect=None, size=0.0, when_s=0.0):
             w += size if t >= when_s else 0.0
         elif effect == "temperature":
             w += size * (temp - 20) / 10
+        if humid:  # (its own draw only here: the other logs keep their data)
+            humidity = 40 + 15 * math.sin(2 * math.pi * t / humidity_period_s) + 0.3 * rng.gauss(0, 1)
+            w += size * (humidity - 40) / 15
         x = phi * x + wander * math.sqrt(1 - phi * phi) * rng.gauss(0, 1)
         w += x + arw / math.sqrt(dt) * rng.gauss(0, 1)
-        rows.append(f"{t:.1f},{w:.6f},{ref:.6f},{temp + 0.02 * rng.gauss(0, 1):.4f},{math.degrees(psi):.3f}")
+        row = f"{t:.1f},{w:.6f},{ref:.6f},{temp + 0.02 * rng.gauss(0, 1):.4f},{math.degrees(psi):.3f}"
+        rows.append(row + (f",{humidity:.3f}" if humid else ""))
     path.write_text("\n".join(rows) + "\n")
 
 
@@ -81,6 +87,16 @@ def test_warm_up_is_unexplained_with_its_time_constant(tmp_path):
     r = d["residual"]
     assert r["finding"] == "trend" and r["trend_p"] < 1e-3
     assert 1200 <= r["warm_up_tau_s"] <= 4800
+
+
+def test_drift_following_a_cycling_logged_column_is_not_a_periodic_drift(tmp_path):
+    # A humidity that cycles every 3 h: a periodic drift fits the drift as well, but the log says what it
+    # follows (periodic_drift 4 of 4 before the logged-column check).
+    d = discover(tmp_path, "humidity", seed=61, effect="humidity", size=0.06, humidity_period_s=10800.0)
+    assert d["cause"] == "unexplained", d["cause"]
+    assert d["residual"]["follows_column"] == "humidity_pct"
+    refused = [c for c in d["candidates"] if c["cause"] == "periodic_drift" and "logged column" in c.get("verdict", "")]
+    assert refused
 
 
 def test_causes_of_the_vocabulary_keep_their_names(tmp_path):
