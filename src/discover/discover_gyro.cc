@@ -2488,6 +2488,26 @@ std::vector<int> AzimuthLogs(const Design& d) {
   return out;
 }
 
+// The checks before the gates, in this order: a fixed function of the logged reference (FollowsReference:
+// periodic_drift on its log, scale_factor_asymmetry on the azimuth logs), a shape in time (FollowsTimeShape,
+// every candidate on `logs`, the logs where it acts; a walk survives when walk_survives says so) and a logged
+// column outside the models (FollowsLoggedColumn, the causes with no logged driver). True when one of them
+// explains the candidate at least as well (its verdict says which).
+bool ExplainedOtherwise(const Design& d, const std::vector<NoiseModel>& nm, const MatrixXd& bw,
+                        const VectorXd& base_res, double sigma2_f, const std::vector<int>& logs, int periodic_log,
+                        const std::function<bool(double)>& walk_survives, GyroCandidate* c) {
+  const bool walk = c->cause == "rate_random_walk";
+  if (c->cause == "periodic_drift" && FollowsReference(d, nm, bw, base_res, sigma2_f, {periodic_log}, c)) return true;
+  if (c->cause == "scale_factor_asymmetry" && FollowsReference(d, nm, bw, base_res, sigma2_f, AzimuthLogs(d), c)) {
+    return true;
+  }
+  if (FollowsTimeShape(d, nm, bw, base_res, sigma2_f, logs, walk ? walk_survives : std::function<bool(double)>(), c)) {
+    return true;
+  }
+  const bool undriven = walk || c->cause == "periodic_drift" || c->cause == "bias_step";
+  return undriven && FollowsLoggedColumn(d, nm, bw, base_res, sigma2_f, logs, c);
+}
+
 // Logs long enough to tell a random walk of the bias from the bounded wander.
 std::vector<int> WalkLogs(const Design& d, const GyroDiscoverOptions& o) {
   std::vector<int> walk_logs;
@@ -2636,17 +2656,8 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
     for (GyroCandidate* c : {upgrade(c0), c0}) {
       if (chosen || std::find(tried.begin(), tried.end(), Key(*c)) != tried.end()) continue;
       tried.push_back(Key(*c));
-      if ((c->cause == "periodic_drift" && FollowsReference(d, nm, bw, base_res, sigma2 * f, {best_periodic_log}, c)) ||
-          (c->cause == "scale_factor_asymmetry" &&
-           FollowsReference(d, nm, bw, base_res, sigma2 * f, AzimuthLogs(d), c)) ||
-          FollowsTimeShape(d, nm, bw, base_res, sigma2 * f,
-                           c->cause == "rate_random_walk" ? walk_logs : CandidateLogs(d, fits[Key(*c)]),
-                           c->cause == "rate_random_walk" ? walk_survives : std::function<bool(double)>(), c) ||
-          ((c->cause == "periodic_drift" || c->cause == "bias_step" || c->cause == "rate_random_walk") &&
-           FollowsLoggedColumn(d, nm, bw, base_res, sigma2 * f,
-                               c->cause == "rate_random_walk" ? walk_logs : CandidateLogs(d, fits[Key(*c)]), c))) {
-        continue;
-      }
+      const std::vector<int> c_logs = c->cause == "rate_random_walk" ? walk_logs : CandidateLogs(d, fits[Key(*c)]);
+      if (ExplainedOtherwise(d, nm, bw, base_res, sigma2 * f, c_logs, best_periodic_log, walk_survives, c)) continue;
       Evaluation ev = evaluate(*c);
       if (JudgeCandidate(ev, z_min, o, c)) chosen = c, chosen_ev = ev;
     }
