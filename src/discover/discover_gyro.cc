@@ -71,7 +71,8 @@ size_t SmoothLength(size_t n) {
 // error (relative sd 1.44 / sqrt(B), the median of B exponentials) is taken in as a lognormal factor,
 // P(g > x) = exp(-x + x^2 sd^2 / 2); Bonferroni over the M ordinates tested: p = M P(g_max > x).
 // The amplitude of a sinusoid at an ordinate is 2 sqrt(I_k / N).
-void SpectralLineTest(const GyroBenchLog& log, const std::vector<int>& bin_of, int nb, LogBins* b) {
+void SpectralLineTest(const GyroBenchLog& log, const std::vector<double>& dref, const std::vector<int>& bin_of, int nb,
+                      LogBins* b) {
   const size_t n = log.t_s.size();
   const double dt = (log.t_s.back() - log.t_s.front()) / static_cast<double>(n - 1);
   if (!(b->bin_s >= 12 * dt) || n < 4096) return;
@@ -82,9 +83,7 @@ void SpectralLineTest(const GyroBenchLog& log, const std::vector<int>& bin_of, i
   // keep memory at the FFT's own).
   constexpr int kCols = 3;
   auto row = [&](size_t i) {
-    const size_t a = i == 0 ? 0 : i - 1, c = i + 1 < n ? i + 1 : n - 1;
-    return Eigen::Vector4d(log.w_dph[i] - log.ref_dph[i], log.ref_dph[i], std::abs(log.ref_dph[i]),
-                           (log.ref_dph[c] - log.ref_dph[a]) / (log.t_s[c] - log.t_s[a]));
+    return Eigen::Vector4d(log.w_dph[i] - log.ref_dph[i], log.ref_dph[i], std::abs(log.ref_dph[i]), dref[i]);
   };
   std::vector<Eigen::Vector4d> mean(nb, Eigen::Vector4d::Zero());
   std::vector<double> cnt(nb, 0.0);
@@ -218,7 +217,7 @@ LogBins MakeLogBins(const GyroBenchLog& log, const GyroDiscoverOptions& o) {
   for (const auto& [name, v] : logged) {
     std::vector<double>& cs = col_sum[name];
     cs.assign(nb, 0.0);
-    for (size_t i = 0; i < n; ++i) cs[std::min(nb - 1, static_cast<int>((log.t_s[i] - t0) / b.bin_s))] += (*v)[i];
+    for (size_t i = 0; i < n; ++i) cs[bin_of[i]] += (*v)[i];
   }
   std::map<std::string, std::vector<double>> nl_sum;
   double ref_max = 0;
@@ -228,7 +227,7 @@ LogBins MakeLogBins(const GyroBenchLog& log, const GyroDiscoverOptions& o) {
                                                   : std::vector<std::string>{"ref^2", "|ref|", "ref^3"};
     for (const auto& name : names) nl_sum[name].assign(nb, 0.0);
     for (size_t i = 0; i < n; ++i) {
-      const int k = std::min(nb - 1, static_cast<int>((log.t_s[i] - t0) / b.bin_s));
+      const int k = bin_of[i];
       if (has_az) {
         const double p2 = 2 * log.azimuth_deg[i] * kDegToRad;
         nl_sum["sin(2 azimuth)"][k] += std::sin(p2);
@@ -269,7 +268,7 @@ LogBins MakeLogBins(const GyroBenchLog& log, const GyroDiscoverOptions& o) {
     b.x[k][kT2] = z1 * z1;
     b.x[k][kG1] = z2;
   }
-  SpectralLineTest(log, bin_of, nb, &b);
+  SpectralLineTest(log, dref, bin_of, nb, &b);
   return b;
 }
 
@@ -1296,6 +1295,17 @@ std::vector<std::pair<std::map<std::string, std::vector<double>>, double>> TimeS
   return shapes;
 }
 
+// The trend regressors of log b's bins: a column of ones (the bias), Legendre P1 and P2 over the log (TimeShapes).
+MatrixXd TrendColumns(const LogBins& b) {
+  const int m = static_cast<int>(b.t_s.size());
+  const auto shapes = TimeShapes(b);
+  MatrixXd x(m, 3);
+  x.col(0).setOnes();
+  x.col(1) = Eigen::Map<const VectorXd>(shapes[0].first.at("time (P1)").data(), m);
+  x.col(2) = Eigen::Map<const VectorXd>(shapes[0].first.at("time^2 (P2)").data(), m);
+  return x;
+}
+
 TimeShapeFit TimeShapeChi2(const Design& d, const std::vector<NoiseModel>& nm, const MatrixXd& bw, const VectorXd& wr,
                            int r, double s2) {
   TimeShapeFit out;
@@ -1328,12 +1338,7 @@ double TrendTest(const Design& d, const std::vector<NoiseModel>& nm, const Vecto
     if (m < 24) continue;
     std::vector<NoiseModel> nm_r = nm;
     if (nm[r].q_rw == 0) {
-      const auto shapes = TimeShapes(d.bins[r]);
-      const auto& trend = shapes[0].first;
-      MatrixXd x(m, 3);
-      x.col(0).setOnes();
-      x.col(1) = Eigen::Map<const VectorXd>(trend.at("time (P1)").data(), m);
-      x.col(2) = Eigen::Map<const VectorXd>(trend.at("time^2 (P2)").data(), m);
+      const MatrixXd x = TrendColumns(d.bins[r]);
       // Started from the moment fit of the detrended residual (the residual's own took the trend for wander).
       const VectorXd y = e.segment(d.offset[r], m);
       const VectorXd detrended = y - x * SolveLs(x, y).beta;
@@ -1507,11 +1512,12 @@ GyroResidual TestResidual(const Design& d, const std::vector<NoiseModel>& nm, co
     }
   }
   res.line_p = std::min(1.0, std::max(line_logs, 1) * res.line_p);
-  // Weighted Bonferroni (the weights sum to 1, so the family's false-alarm rate stays residual_alpha): the
-  // first five share most of alpha as before (each 0.17 of it, was 0.2); the three tests of issue 18's
-  // later effects are given less, the variance change and the outliers because the effects they are for
-  // are strong when real (p 1e-10 and below measured), the nonlinearity a little more; the spectral line
-  // 0.01 (taken from the trend's 0.07: a line that binning hides is thousands of sigma when it is there).
+  // Weighted Bonferroni (the weights sum to 1, so the family's false-alarm rate stays residual_alpha; the
+  // weights above): the first five share most of alpha as before (each 0.16 of it, was 0.2); the five tests
+  // of issue 18's later effects are given less, the variance change and the outliers because the effects
+  // they are for are strong when real (p 1e-10 and below measured), the nonlinearity and the trend a little
+  // more; the spectral line 0.01 (taken from the trend's 0.07: a line that binning hides is hundreds of
+  // sigma when it is there).
   const std::tuple<double, double, const char*> tests[] = {
       {res.spectral_p, kResidualWeightFirstFive, "spectral_peak"},
       {res.ljung_box_p, kResidualWeightFirstFive, "autocorrelation"},
@@ -2446,13 +2452,12 @@ bool WalkBeatsShape(const Design& d, const GyroDiscoverOptions& o, const std::ve
                     const std::vector<int>& walk_logs, double tau_s) {
   for (int r : walk_logs) {
     const int m = static_cast<int>(d.bins[r].t_s.size());
-    const auto shapes = TimeShapes(d.bins[r]);
-    MatrixXd x(m, tau_s > 0 ? 4 : 3);
-    x.col(0).setOnes();
-    x.col(1) = Eigen::Map<const VectorXd>(shapes[0].first.at("time (P1)").data(), m);
-    x.col(2) = Eigen::Map<const VectorXd>(shapes[0].first.at("time^2 (P2)").data(), m);
-    for (const auto& [fns, tau] : shapes) {
-      if (tau_s > 0 && tau == tau_s) x.col(3) = Eigen::Map<const VectorXd>(fns.at("exp(-t/tau)").data(), m);
+    MatrixXd x = TrendColumns(d.bins[r]);
+    if (tau_s > 0) {
+      x.conservativeResize(Eigen::NoChange, 4);
+      for (const auto& [fns, tau] : TimeShapes(d.bins[r])) {
+        if (tau == tau_s) x.col(3) = Eigen::Map<const VectorXd>(fns.at("exp(-t/tau)").data(), m);
+      }
     }
     const VectorXd y = d.y.segment(d.offset[r], m);
     const VectorXd shaped = y - x * SolveLs(x, y).beta;
