@@ -56,9 +56,10 @@ def write_log(path, seed, effect=None, size=0.0, when_s=0.0, humidity_period_s=0
     path.write_text("\n".join(rows) + "\n")
 
 
-def discover(tmp_path, name, **kw):
+def discover(tmp_path, name, writer=None, **kw):
+    """`ssiu discover gyro` on a log written by writer (write_log by default) with kw; its JSON."""
     log = tmp_path / f"{name}.csv"
-    write_log(log, **kw)
+    (writer or write_log)(log, **kw)
     out = tmp_path / f"{name}.json"
     r = subprocess.run([BIN, "discover", "gyro", str(log), "--json", str(out)], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
@@ -126,16 +127,9 @@ def write_rate_table_log(path, seed, tone_dph=0.0, tone_hz=0.0):
 
 
 def test_tone_above_the_bins_is_unexplained_with_its_frequency(tmp_path):
-    for name, kw in (("rt_clean", dict(seed=1)), ("rt_tone", dict(seed=2, tone_dph=0.5, tone_hz=2.0))):
-        log = tmp_path / f"{name}.csv"
-        write_rate_table_log(log, **kw)
-        out = tmp_path / f"{name}.json"
-        r = subprocess.run([BIN, "discover", "gyro", str(log), "--json", str(out)], capture_output=True, text=True)
-        assert r.returncode == 0, r.stderr
-        d = json.loads(out.read_text())
-        if name == "rt_clean":
-            assert d["cause"] == "none" and d["residual"]["line_p"] > 0.01
-        else:
-            assert d["cause"] == "unexplained" and d["residual"]["finding"] == "spectral_line"
-            assert abs(d["residual"]["line_frequency_hz"] - 2.0) < 1 / 1200
-            assert abs(d["residual"]["line_amplitude_dph"] - 0.5) < 0.1
+    d = discover(tmp_path, "rt_clean", write_rate_table_log, seed=1)
+    assert d["cause"] == "none" and d["residual"]["line_p"] > 0.01
+    d = discover(tmp_path, "rt_tone", write_rate_table_log, seed=2, tone_dph=0.5, tone_hz=2.0)
+    assert d["cause"] == "unexplained" and d["residual"]["finding"] == "spectral_line"
+    assert abs(d["residual"]["line_frequency_hz"] - 2.0) < 1 / 1200
+    assert abs(d["residual"]["line_amplitude_dph"] - 0.5) < 0.1
