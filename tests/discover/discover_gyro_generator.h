@@ -229,11 +229,11 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
   GyroCase c;
   GyroCaseModel m;
   c.cause = cause == "magnetic_field_logged" ? "magnetic_field" : cause;
-  if (cause == "square_wave_column" || cause == "chirp" || cause == "telegraph" || cause == "telegraph_fast" ||
-      cause == "sawtooth" || cause == "noise_burst" || cause == "spikes" || cause == "scale_factor_quadratic" ||
-      cause == "azimuth_second_harmonic" || cause == "linear_trend" || cause == "warm_up") {
-    c.cause = "unexplained";
+  // Every effect of the three out-of-vocabulary lists (and the faster telegraph) expects `unexplained`.
+  for (const auto* list : {&UnexplainedGyroEffects(), &MoreUnexplainedGyroEffects(), &DriftShapeGyroEffects()}) {
+    if (std::find(list->begin(), list->end(), cause) != list->end()) c.cause = "unexplained";
   }
+  if (cause == "telegraph_fast") c.cause = "unexplained";
   // The heater column and the out-of-vocabulary effects draw from their own stream, so that the other
   // cases keep their data.
   Rng rng_x(seed * 2654435761ULL + 17);
