@@ -1,6 +1,9 @@
-// `ssiu run [--config SSIU.json] [--json OUT] [--out DIR]`: the whole unit on a simulated mission
-// (sim/mission.h): frames of 1-3 heads and four-FOG logs -> detect -> solve -> fuse, scored against
-// the truth. Without --config the built-in default (a 120 s slew, two heads).
+// `ssiu run [--config SSIU.json] [--json OUT] [--out DIR [--write-frames]]`: the whole unit on a
+// simulated mission (sim/mission.h): frames of 1-3 heads and four-FOG logs -> detect -> solve -> fuse,
+// scored against the truth. Without --config the built-in default (a 120 s slew, two heads). With
+// --write-frames DIR also gets what the flight interface needs to replay the mission
+// (examples/flight, docs/flight.md): every frame (DIR/frames/*.pgm), the unit's flight.cfg and the
+// catalog blob (DIR/catalog/catalog.bin).
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -10,13 +13,31 @@
 #include "core/catalog.h"
 #include "core/error.h"
 #include "core/json.h"
+#include "core/output.h"
+#include "flight/flight_config.h"
+#include "identify/star_catalog.h"
 #include "sim/mission.h"
 
 namespace {
 struct RunOpts {
   std::string config, json, out;
-  bool print_config = false;
+  bool print_config = false, write_frames = false;
 };
+
+// DIR/catalog (head 1's catalog: the flight interface takes one blob for all heads) and DIR/flight.cfg.
+void WriteFlightFiles(const ssiu::MissionConfig& config, const std::string& dir) {
+  const ssiu::StarIdentifier id = ssiu::MakeIdentifierForCamera("", config.heads[0].camera, 0.0);
+  ssiu::SaveSolverCatalog(id.catalog(), dir + "/catalog");
+  const ssiu::CatalogDirState state = ssiu::CheckCatalogDir(dir + "/catalog");
+  if (state != ssiu::CatalogDirState::kOk) throw ssiu::InputError(dir + "/catalog", "catalog not written");
+  const std::string meta_path = dir + "/catalog/meta.json";
+  const ssiu::Json meta = ssiu::ReadJsonFile(meta_path);
+  const ssiu::MissionConfig known = ssiu::WithUnitKnowledge(config);  // as RunMission's processor has it
+  ssiu_flight_config c = ssiu::FlightConfigFor(known.heads, known.unit, known.processor, known.start_utc,
+                                               known.velocity_kms);
+  c.catalog_crc32 = static_cast<uint32_t>(ssiu::JsonInt(meta, "catalog_bin_crc32", 1, 0xffffffffLL, meta_path));
+  ssiu::WriteFileAtomic(dir + "/flight.cfg", ssiu::FlightConfigText(c));
+}
 }  // namespace
 
 SSIU_REGISTER_COMMAND(run, [](CLI::App& root) {
@@ -27,6 +48,8 @@ SSIU_REGISTER_COMMAND(run, [](CLI::App& root) {
   cmd->add_option("--json", opts->json, "Write the figures as JSON (- for stdout)");
   cmd->add_option("--out", opts->out, "Write attitude.csv, frames.csv, gyro.csv, truth.csv, first frames here");
   cmd->add_flag("--print-config", opts->print_config, "Print the mission config in use as JSON and exit");
+  cmd->add_flag("--write-frames", opts->write_frames,
+                "With --out: also every frame (frames/*.pgm), flight.cfg and catalog/ for examples/flight");
   cmd->callback([opts] {
     const ssiu::MissionConfig config =
         opts->config.empty() ? ssiu::DefaultMissionConfig() : ssiu::LoadMissionConfig(opts->config);
@@ -34,6 +57,7 @@ SSIU_REGISTER_COMMAND(run, [](CLI::App& root) {
       ssiu::WriteJsonFile("-", ssiu::MissionConfigToJson(config));
       return;
     }
+    if (opts->write_frames && opts->out.empty()) throw ssiu::InputError("--write-frames", "needs --out DIR");
     if (!opts->out.empty()) {  // before the mission runs, and as bad input (not a filesystem exception)
       std::error_code ec;
       std::filesystem::create_directories(opts->out, ec);
@@ -45,7 +69,9 @@ SSIU_REGISTER_COMMAND(run, [](CLI::App& root) {
                 config.heads.size(), config.frame_rate_hz, config.unit.size(), config.unit.rate_hz,
                 static_cast<unsigned long long>(config.seed));
     std::fflush(stdout);
-    const ssiu::MissionResult r = ssiu::RunMission(config, ssiu::LoadXplanetBsc(ssiu::DefaultBscPath()), opts->out);
+    const ssiu::MissionResult r =
+        ssiu::RunMission(config, ssiu::LoadXplanetBsc(ssiu::DefaultBscPath()), opts->out, opts->write_frames);
+    if (opts->write_frames) WriteFlightFiles(config, opts->out);
     std::fputs(r.Text().c_str(), stdout);
     if (!opts->json.empty()) {
       ssiu::Json j = r.ToJson();

@@ -382,6 +382,17 @@ void WritePng16(const std::string& path, const Image16& image) {
   WritePng(path, image.pixels.data(), image.width, image.height, 1, 16, static_cast<size_t>(image.width) * 2);
 }
 
+void WritePgm16(const std::string& path, const Image16& image) {
+  std::string bytes = "P5\n" + std::to_string(image.width) + " " + std::to_string(image.height) + "\n65535\n";
+  const size_t header = bytes.size();
+  bytes.resize(header + 2 * image.pixels.size());
+  for (size_t i = 0; i < image.pixels.size(); ++i) {
+    bytes[header + 2 * i] = static_cast<char>(image.pixels[i] >> 8);
+    bytes[header + 2 * i + 1] = static_cast<char>(image.pixels[i] & 0xff);
+  }
+  WriteFileAtomic(path, bytes);
+}
+
 void WritePng8(const std::string& path, int width, int height, const std::vector<uint8_t>& pixels) {
   WritePng(path, pixels.data(), width, height, 1, 8, static_cast<size_t>(width));
 }

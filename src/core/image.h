@@ -86,6 +86,9 @@ std::string PngBytes(const void* pixels, int width, int height, int channels, in
 // InputError unless `path` names a PNG (extension .png, or none): checked before work is done.
 void CheckPngOutputName(const std::string& path);
 void WritePng16(const std::string& path, const Image16& image);
+// Binary 16-bit PGM (Netpbm P5, maxval 65535, big-endian samples): a frame any C program reads with
+// one read() (examples/flight).
+void WritePgm16(const std::string& path, const Image16& image);
 void WritePng8(const std::string& path, int width, int height, const std::vector<uint8_t>& pixels);
 // 16-bit FITS (BITPIX 16 with BZERO 32768), first stored row = y 0.
 void WriteFits16(const std::string& path, const Image16& image);

@@ -507,13 +507,13 @@ CatalogDirState CheckCatalogDirKeep(const std::string& dir, std::string* why, st
   return CatalogDirState::kOk;
 }
 
-// Parses catalog.bin (format 4, or 3 whose features and index are recomputed) checked by CheckCatalogDirKeep.
-SolverCatalog ParseCatalog(const MappedFile& bin, const Json& meta, const std::string& dir) {
-  const std::string path = dir + "/catalog.bin";
+// Parses catalog.bin's bytes (format 4, or 3 whose features and index are recomputed) as a fixed-FOV
+// catalog (the smallest FOV of a range catalog is in meta.json).
+SolverCatalog ParseCatalogBytes(const char* data, size_t size, const std::string& path) {
   size_t pos = 0;
   auto get = [&](void* p, size_t n) {
-    if (n > bin.size() - pos) throw InputError(path, "truncated catalog file");
-    std::memcpy(p, bin.data() + pos, n);
+    if (n > size - pos) throw InputError(path, "truncated catalog file");
+    std::memcpy(p, data + pos, n);
     pos += n;
   };
   char magic[8];
@@ -525,13 +525,8 @@ SolverCatalog ParseCatalog(const MappedFile& bin, const Json& meta, const std::s
   get(hdr, sizeof hdr);
   cat.epoch_year = hdr[0], cat.fov_deg = hdr[1], cat.mag_max = hdr[2], cat.double_star_arcsec = hdr[3],
   cat.build_time_s = hdr[4];
-  // The smallest FOV of a range catalog is in meta.json only (catalogs written before it have one FOV).
-  {
-    const std::string meta_path = dir + "/meta.json";
-    cat.fov_min_deg = JsonNumberOr(meta, "fov_min_deg", cat.fov_deg, meta_path);
-    if (!(cat.fov_min_deg > 0 && cat.fov_min_deg <= cat.fov_deg))
-      throw InputError(meta_path, "field 'fov_min_deg' must be in (0, fov_deg]");
-  }
+  if (!(cat.fov_deg > 0 && cat.fov_deg < 180)) throw InputError(path, "corrupt catalog header (fov_deg)");
+  cat.fov_min_deg = cat.fov_deg;
   int64_t counts[4], slen;
   get(counts, sizeof counts);
   get(&slen, 8);
@@ -571,7 +566,21 @@ SolverCatalog ParseCatalog(const MappedFile& bin, const Json& meta, const std::s
     t.ratio_b = static_cast<float>(s1 / s2);
   }
   cat.index = v3 ? std::make_shared<const CatalogIndex>(cat)
-                 : std::make_shared<const CatalogIndex>(cat, bin.data() + pos, bin.size() - pos, path);
+                 : std::make_shared<const CatalogIndex>(cat, data + pos, size - pos, path);
+  return cat;
+}
+
+// Parses catalog.bin checked by CheckCatalogDirKeep, with the smallest FOV of a range catalog from
+// meta.json (catalogs written before it have one FOV).
+SolverCatalog ParseCatalog(const MappedFile& bin, const Json& meta, const std::string& dir) {
+  const std::string meta_path = dir + "/meta.json";
+  const double fov_min_deg = JsonNumberOr(meta, "fov_min_deg", 0.0, meta_path);
+  SolverCatalog cat = ParseCatalogBytes(bin.data(), bin.size(), dir + "/catalog.bin");
+  if (meta.contains("fov_min_deg")) {
+    if (!(fov_min_deg > 0 && fov_min_deg <= cat.fov_deg))
+      throw InputError(meta_path, "field 'fov_min_deg' must be in (0, fov_deg]");
+    cat.fov_min_deg = fov_min_deg;
+  }
   return cat;
 }
 
@@ -585,6 +594,11 @@ CatalogDirState CheckCatalogDir(const std::string& dir, std::string* why) {
   std::unique_ptr<MappedFile> bin;
   Json meta;
   return CheckCatalogDirKeep(dir, why, &bin, &meta);
+}
+
+SolverCatalog ParseSolverCatalog(const void* data, size_t bytes, const std::string& name) {
+  if (data == nullptr) throw InputError(name, "no catalog data");
+  return ParseCatalogBytes(static_cast<const char*>(data), bytes, name);
 }
 
 SolverCatalog LoadSolverCatalog(const std::string& dir) {

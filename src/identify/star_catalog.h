@@ -117,6 +117,11 @@ void SaveSolverCatalog(const SolverCatalog& catalog, const std::string& dir);
 // loads, its index rebuilt in memory (slower: `ssiu catalog build` anew to store it).
 SolverCatalog LoadSolverCatalog(const std::string& dir);
 
+// catalog.bin's bytes (in memory or ROM, e.g. a flight image) as one fixed-FOV catalog: the stars,
+// triangles and stored index are read without rebuilding anything. InputError naming `name` when the
+// bytes are not a whole catalog (the CRC is meta.json's; flight/ssiu_flight.h checks it).
+SolverCatalog ParseSolverCatalog(const void* data, size_t bytes, const std::string& name);
+
 enum class CatalogDirState { kAbsent, kIncomplete, kDamaged, kOk };
 // Checks a catalog directory against its meta.json without parsing it; `why` says what is wrong.
 CatalogDirState CheckCatalogDir(const std::string& dir, std::string* why = nullptr);

@@ -284,9 +284,6 @@ SimulatedFrame SimulateMissionFrame(const MissionConfig& config, const MissionDa
   return SimulateFrame(h.camera, catalog, q_sensor, so, seed);
 }
 
-namespace {
-
-// The unit's knowledge of itself, which the processor takes from the simulator's truth.
 MissionConfig WithUnitKnowledge(const MissionConfig& config_in) {
   MissionConfig config = config_in;
   // The processor knows its cameras' gain (a property of the unit); the simulator's is the truth.
@@ -301,6 +298,8 @@ MissionConfig WithUnitKnowledge(const MissionConfig& config_in) {
   config.processor.solve.sky = MissionSky(config);
   return config;
 }
+
+namespace {
 
 // One identifier per distinct field of view (MakeIdentifierForCamera's catalog key).
 std::vector<std::shared_ptr<const StarIdentifier>> IdentifiersForHeads(const std::vector<OpticalHead>& heads) {
@@ -321,7 +320,7 @@ std::vector<std::shared_ptr<const StarIdentifier>> IdentifiersForHeads(const std
 class MissionRun {
  public:
   MissionRun(const MissionConfig& config, const MissionData& data, const StarCatalog& catalog,
-             const std::string& out_dir);
+             const std::string& out_dir, bool write_frames);
   MissionResult Run();
 
  private:
@@ -340,7 +339,7 @@ class MissionRun {
   const StarCatalog& catalog_;
   const std::string out_dir_;
   const int nh_;
-  const bool write_;
+  const bool write_, write_frames_;
   UnitProcessor proc_;
   MissionResult res_;
   const Quat q_sensor1_from_body_;
@@ -355,7 +354,7 @@ class MissionRun {
 };
 
 MissionRun::MissionRun(const MissionConfig& config, const MissionData& data, const StarCatalog& catalog,
-                       const std::string& out_dir)
+                       const std::string& out_dir, bool write_frames)
     : config_(config),
       data_(data),
       g_(data.gyro),
@@ -363,11 +362,13 @@ MissionRun::MissionRun(const MissionConfig& config, const MissionData& data, con
       out_dir_(out_dir),
       nh_(static_cast<int>(config.heads.size())),
       write_(!out_dir.empty()),
+      write_frames_(write_frames && write_),
       proc_(config.heads, IdentifiersForHeads(config.heads), config.unit, config.processor),
       q_sensor1_from_body_(config.heads[0].q_body_from_sensor.conjugate()) {
   res_.heads.resize(nh_);
   res_.frames = static_cast<int>(data.frame_t_s.size());
   if (write_) std::filesystem::create_directories(out_dir_);
+  if (write_frames_) std::filesystem::create_directories(out_dir_ + "/frames");
   att_cols_.resize(write_ ? 19 : 0);
   frame_cols_.resize(write_ ? 6 + 5 * nh_ : 0);
 }
@@ -401,6 +402,9 @@ std::vector<SimulatedFrame> MissionRun::SimulateFrameSet() {
   if (write_ && fi_ == 0) {
     for (int h = 0; h < nh_; ++h)
       WritePng16(out_dir_ + "/head" + std::to_string(h + 1) + "_first.png", frames[h].image);
+  }
+  if (write_frames_) {
+    for (int h = 0; h < nh_; ++h) WritePgm16(MissionFramePath(out_dir_, h, static_cast<int>(fi_)), frames[h].image);
   }
   return frames;
 }
@@ -570,17 +574,24 @@ void MissionRun::WriteCsvs() const {
   std::vector<std::string> gh = {"t_s"};
   for (int i = 1; i <= config_.unit.size(); ++i) gh.push_back("g" + std::to_string(i) + "_dph");
   gh.push_back("temp_c");
-  WriteCsv(out_dir_ + "/gyro.csv", gh, gc, 12);
+  WriteCsv(out_dir_ + "/gyro.csv", gh, gc, 17);  // all digits: a replay feeds the same doubles
   WriteCsv(out_dir_ + "/truth.csv", {"t_s", "qw", "qx", "qy", "qz"}, tc, 15);
 }
 
 }  // namespace
 
-MissionResult RunMission(const MissionConfig& config_in, const StarCatalog& catalog, const std::string& out_dir) {
+std::string MissionFramePath(const std::string& out_dir, int head, int frame) {
+  char name[48];
+  std::snprintf(name, sizeof name, "/frames/head%d_%05d.pgm", head + 1, frame);
+  return out_dir + name;
+}
+
+MissionResult RunMission(const MissionConfig& config_in, const StarCatalog& catalog, const std::string& out_dir,
+                         bool write_frames) {
   config_in.Check("mission");
   const MissionConfig config = WithUnitKnowledge(config_in);
   const MissionData data = SimulateMission(config);
-  return MissionRun(config, data, catalog, out_dir).Run();
+  return MissionRun(config, data, catalog, out_dir, write_frames).Run();
 }
 
 std::string MissionResult::Text() const {

@@ -47,6 +47,10 @@ MissionConfig DefaultMissionConfig();
 // error. InputError naming `file` and the field.
 MissionConfig MissionConfigFromJson(const Json& j, const std::string& file);
 MissionConfig LoadMissionConfig(const std::string& path);
+// The config as the unit's processor knows itself (RunMission runs it so): the cameras' gain and
+// exposure (the detector then expects the smear of the rate the gyros measure) from the simulator's,
+// and the mission clock and velocity as its sky corrections.
+MissionConfig WithUnitKnowledge(const MissionConfig& config);
 // The mission clock's start and the spacecraft velocity as the processor's sky corrections.
 SkyCorrections MissionSky(const MissionConfig& config);
 Json MissionConfigToJson(const MissionConfig& c);
@@ -106,7 +110,11 @@ struct MissionResult {
 // each head's camera by MakeIdentifierForCamera. With out_dir non-empty writes DIR/attitude.csv (the
 // fused attitude and its error at every gyro sample), DIR/frames.csv (per frame and head),
 // DIR/gyro.csv and DIR/truth.csv (conventions.md logs) and DIR/head<h>_first.png (each head's first
-// frame).
-MissionResult RunMission(const MissionConfig& config, const StarCatalog& catalog, const std::string& out_dir = "");
+// frame); with write_frames also every frame of every head, DIR/frames/head<h>_<frame>.pgm (16-bit
+// binary PGM, frame numbered from 0 with five digits, in the order of frames.csv).
+MissionResult RunMission(const MissionConfig& config, const StarCatalog& catalog, const std::string& out_dir = "",
+                         bool write_frames = false);
+// The name of head h's (0-based) frame number `frame` under DIR/frames.
+std::string MissionFramePath(const std::string& out_dir, int head, int frame);
 
 }  // namespace ssiu

@@ -1,0 +1,335 @@
+// The C interface (ssiu_flight.h) over the unit's processor (inertial/unit_processor.h). The handle
+// lives in the caller's memory; nothing crosses the interface but plain structs and statuses (every
+// C++ exception stops here and becomes SSIU_ERR_INTERNAL, with the handle unchanged where the call
+// failed before it changed anything).
+#include "flight/ssiu_flight.h"
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <memory>
+#include <new>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/output.h"
+#include "flight/flight_config.h"
+#include "identify/star_catalog.h"
+#include "inertial/unit_processor.h"
+
+#ifndef SSIU_VERSION_STRING
+#define SSIU_VERSION_STRING "0.1.0"
+#endif
+
+namespace {
+
+constexpr uint64_t kMagic = 0x53534955464c5431ULL;  // "SSIUFLT1"
+constexpr int32_t kInterfaceVersion = 1;
+
+void CopyText(const char* text, char* out, size_t bytes) {
+  if (bytes == 0) return;
+  std::snprintf(out, bytes, "%s", text);
+}
+
+void Store(const ssiu::Quat& q_in, double out[4]) {
+  const ssiu::Quat q = q_in.normalized();
+  const double s = q.w() < 0 ? -1 : 1;
+  out[0] = s * q.w(), out[1] = s * q.x(), out[2] = s * q.y(), out[3] = s * q.z();
+}
+
+int32_t SolveCode(ssiu::SolveStatus s) {
+  switch (s) {
+    case ssiu::SolveStatus::kSolved:
+      return SSIU_SOLVE_SOLVED;
+    case ssiu::SolveStatus::kNoMatch:
+      return SSIU_SOLVE_NO_MATCH;
+    case ssiu::SolveStatus::kTooFewStars:
+      return SSIU_SOLVE_TOO_FEW_STARS;
+    case ssiu::SolveStatus::kNoFrame:
+      return SSIU_SOLVE_NO_FRAME;
+  }
+  return SSIU_SOLVE_NO_MATCH;
+}
+
+}  // namespace
+
+struct ssiu_flight {
+  uint64_t magic = kMagic;  // first: Live() reads it raw
+  ssiu_flight_config config{};
+  std::shared_ptr<const ssiu::StarIdentifier> identifier;
+  std::optional<ssiu::UnitProcessor> processor;
+  std::vector<ssiu::ImageView> views;  // one per head, reserved at init
+  int64_t gyro_samples = 0, gyro_rejected = 0, frame_sets = 0, frame_sets_solved = 0;
+  double t_last_gyro_s = -HUGE_VAL;
+  bool have_gyro = false;
+  char error[256] = {0};
+
+  bool Fail(const char* what) {
+    CopyText(what, error, sizeof error);
+    return false;
+  }
+};
+
+extern "C" {
+
+const char* ssiu_flight_version(void) { return SSIU_VERSION_STRING; }
+int32_t ssiu_flight_interface_version(void) { return kInterfaceVersion; }
+
+void ssiu_flight_default_config(ssiu_flight_config* c) {
+  if (c == nullptr) return;
+  std::memset(c, 0, sizeof *c);
+  // Two 512x512 heads of 16.6 deg: head 1 along body +Z, head 2 along body -Y (90 deg about +X),
+  // each head's poorly observed roll the other's cross-boresight; the four-FOG unit.
+  const ssiu::Camera cam = ssiu::MakeCamera(512, 512, 16.6);
+  std::vector<ssiu::OpticalHead> heads(2);
+  heads[0].camera = heads[1].camera = cam;
+  heads[1].q_body_from_sensor = ssiu::Quat(Eigen::AngleAxisd(M_PI / 2, ssiu::Vec3::UnitX()));
+  *c = ssiu::FlightConfigFor(heads, ssiu::DefaultFourFogUnit(), ssiu::UnitProcessorOptions{}, "",
+                             ssiu::Vec3::Zero());
+}
+
+ssiu_result ssiu_flight_parse_config(const char* text, size_t bytes, ssiu_flight_config* config, char* why,
+                                     size_t why_bytes) {
+  if (text == nullptr || config == nullptr || (why == nullptr && why_bytes > 0)) return SSIU_ERR_NULL;
+  try {
+    *config = ssiu::ParseFlightConfigText(std::string(text, bytes), "flight.cfg");
+    return SSIU_OK;
+  } catch (const std::exception& e) {
+    if (why) CopyText(e.what(), why, why_bytes);
+    return SSIU_ERR_CONFIG;
+  }
+}
+
+ssiu_result ssiu_flight_check_config(const ssiu_flight_config* config) {
+  if (config == nullptr) return SSIU_ERR_NULL;
+  try {
+    ssiu::FlightSetupFrom(*config);
+    return SSIU_OK;
+  } catch (const std::exception&) {
+    return SSIU_ERR_CONFIG;
+  }
+}
+
+size_t ssiu_flight_memory_bytes(const ssiu_flight_config* config) {
+  if (ssiu_flight_check_config(config) != SSIU_OK) return 0;
+  return sizeof(ssiu_flight);
+}
+
+ssiu_result ssiu_flight_init(const ssiu_flight_config* config, const void* catalog_blob, size_t catalog_bytes,
+                             void* memory, size_t memory_bytes, ssiu_flight** out) {
+  if (out != nullptr) *out = nullptr;
+  if (config == nullptr || memory == nullptr || out == nullptr) return SSIU_ERR_NULL;
+  // On failure the memory holds the reason as a C string (there is no handle to ask).
+  char* why = static_cast<char*>(memory);
+  ssiu::FlightSetup setup;
+  try {
+    setup = ssiu::FlightSetupFrom(*config);
+  } catch (const std::exception& e) {
+    CopyText(e.what(), why, memory_bytes);
+    return SSIU_ERR_CONFIG;
+  }
+  if (memory_bytes < sizeof(ssiu_flight) ||
+      reinterpret_cast<uintptr_t>(memory) % alignof(ssiu_flight) != 0) {
+    CopyText("memory: smaller than ssiu_flight_memory_bytes() or not aligned", why, memory_bytes);
+    return SSIU_ERR_MEMORY;
+  }
+  if (catalog_blob == nullptr || catalog_bytes == 0) {
+    CopyText("catalog: no catalog blob", why, memory_bytes);
+    return SSIU_ERR_CATALOG;
+  }
+  // The blob's checksum before a byte of it is parsed: a corrupt blob is refused, never read.
+  if (config->catalog_crc32 == 0 || ssiu::Crc32(catalog_blob, catalog_bytes) != config->catalog_crc32) {
+    CopyText(config->catalog_crc32 == 0 ? "catalog: catalog_crc32 not given (meta.json catalog_bin_crc32)"
+                                        : "catalog: CRC-32 differs from catalog_crc32 (corrupt or another catalog)",
+             why, memory_bytes);
+    return SSIU_ERR_CATALOG;
+  }
+  ssiu_flight* f = nullptr;
+  try {
+    auto id = std::make_shared<const ssiu::StarIdentifier>(
+        ssiu::ParseSolverCatalog(catalog_blob, catalog_bytes, "catalog blob"));
+    // The catalog must serve every head's field of view (ssiu::kCatalogFovTolerance, as the CLI asks).
+    for (const auto& h : setup.heads) {
+      const double fov_deg = h.camera.FovMaxRad() * ssiu::kRadToDeg;
+      if (std::abs(fov_deg / id->catalog().fov_deg - 1) > ssiu::kCatalogFovTolerance) {
+        CopyText("catalog: built for another field of view than a head's", why, memory_bytes);
+        return SSIU_ERR_CATALOG;
+      }
+    }
+    f = new (memory) ssiu_flight();
+    f->config = *config;
+    f->identifier = id;
+    std::vector<std::shared_ptr<const ssiu::StarIdentifier>> ids(setup.heads.size(), id);
+    f->processor.emplace(setup.heads, ids, setup.unit, setup.options);
+    f->views.resize(setup.heads.size());
+  } catch (const std::exception& e) {
+    if (f != nullptr) f->~ssiu_flight();
+    CopyText((std::string("init: ") + e.what()).c_str(), why, memory_bytes);
+    return SSIU_ERR_CATALOG;
+  }
+  *out = f;
+  return SSIU_OK;
+}
+
+// A handle's first bytes are its magic, read raw: after shutdown (or in memory never initialised) they
+// are not kMagic and no member is touched.
+static bool Live(const ssiu_flight* f) {
+  if (f == nullptr) return false;
+  uint64_t magic = 0;
+  std::memcpy(&magic, static_cast<const void*>(f), sizeof magic);
+  return magic == kMagic;
+}
+
+ssiu_result ssiu_flight_gyro(ssiu_flight* f, double t_s, const double* g_dph, int32_t n, ssiu_gyro_status* status) {
+  if (f == nullptr || g_dph == nullptr) return SSIU_ERR_NULL;
+  if (!Live(f)) return SSIU_ERR_NOT_INITIALISED;
+  if (n != f->config.n_gyros) {
+    f->Fail("gyro: n differs from config.n_gyros");
+    return SSIU_ERR_ARGUMENT;
+  }
+  ssiu_gyro_status st = SSIU_GYRO_ACCEPTED;
+  ssiu::GyroVec g(n);
+  bool finite = std::isfinite(t_s);
+  bool in_range = true;
+  for (int i = 0; i < n; ++i) {
+    g[i] = g_dph[i];
+    finite = finite && std::isfinite(g_dph[i]);
+    if (f->config.gyro_max_abs_dph > 0 && std::abs(g_dph[i]) > f->config.gyro_max_abs_dph) in_range = false;
+  }
+  if (!finite) {
+    st = SSIU_GYRO_REJECTED_NON_FINITE;
+  } else if (!in_range) {
+    st = SSIU_GYRO_REJECTED_OUT_OF_RANGE;
+  } else if (f->have_gyro && t_s < f->t_last_gyro_s) {
+    st = SSIU_GYRO_REJECTED_OUT_OF_ORDER;
+  } else if (f->have_gyro && t_s == f->t_last_gyro_s) {
+    st = SSIU_GYRO_REJECTED_REPEATED;
+  }
+  ++f->gyro_samples;
+  if (st != SSIU_GYRO_ACCEPTED) {
+    ++f->gyro_rejected;
+    if (status) *status = st;
+    return SSIU_OK;
+  }
+  try {
+    f->processor->OnGyroSample(t_s, g);
+  } catch (const std::exception& e) {
+    f->Fail(e.what());
+    return SSIU_ERR_INTERNAL;
+  }
+  f->have_gyro = true;
+  f->t_last_gyro_s = t_s;
+  if (status) *status = st;
+  return SSIU_OK;
+}
+
+ssiu_result ssiu_flight_frames(ssiu_flight* f, double t_s, const ssiu_frame* frames, int32_t n,
+                               ssiu_frame_report* report) {
+  if (f == nullptr || frames == nullptr) return SSIU_ERR_NULL;
+  if (!Live(f)) return SSIU_ERR_NOT_INITIALISED;
+  if (n != f->config.n_heads) {
+    f->Fail("frames: n differs from config.n_heads");
+    return SSIU_ERR_ARGUMENT;
+  }
+  ssiu_frame_report r;
+  std::memset(&r, 0, sizeof r);
+  r.t_s = t_s;
+  r.status = SSIU_SOLVE_NO_FRAME;
+  // Frames the processor cannot take are reported here and left out (a frame of the wrong size, a
+  // stride shorter than a row, a time that is not a number).
+  bool any = false;
+  for (int h = 0; h < n; ++h) {
+    const ssiu_frame& in = frames[h];
+    const ssiu_head_config& hc = f->config.heads[h];
+    ssiu::ImageView& v = f->views[static_cast<size_t>(h)];
+    v = ssiu::ImageView{};
+    r.heads[h].status = SSIU_SOLVE_NO_FRAME;
+    if (in.pixels == nullptr) continue;
+    const int32_t stride = in.stride_px == 0 ? in.width_px : in.stride_px;
+    if (in.width_px != hc.width_px || in.height_px != hc.height_px || stride < in.width_px || !std::isfinite(t_s)) {
+      r.heads[h].status = SSIU_SOLVE_BAD_FRAME;
+      continue;
+    }
+    v.width = in.width_px, v.height = in.height_px, v.stride = stride, v.data = in.pixels;
+    any = true;
+  }
+  ++f->frame_sets;
+  if (!any) {
+    for (int h = 0; h < n; ++h)
+      if (r.heads[h].status == SSIU_SOLVE_BAD_FRAME) r.status = SSIU_SOLVE_BAD_FRAME;
+    if (report) *report = r;
+    return SSIU_OK;
+  }
+  try {
+    const ssiu::FrameReport fr = f->processor->OnFrames(t_s, f->views);
+    for (int h = 0; h < n; ++h) {
+      const ssiu::HeadResult& hr = fr.heads[static_cast<size_t>(h)];
+      ssiu_head_report& o = r.heads[h];
+      if (!hr.has_frame) continue;  // keeps bad_frame / no_frame from above
+      o.status = SolveCode(hr.status);
+      o.lost_in_space = hr.mode == ssiu::SolveMode::kLostInSpace;
+      o.detections = hr.detections;
+      o.matches = hr.matches;
+      o.sigma_cross_arcsec = hr.sigma_cross_arcsec;
+      o.sigma_roll_arcsec = hr.sigma_roll_arcsec;
+      if (hr.status == ssiu::SolveStatus::kSolved) Store(hr.q_inertial_from_sensor, o.q_inertial_from_sensor);
+    }
+    r.status = SolveCode(fr.status);
+    r.heads_solved = fr.heads_solved;
+    if (fr.status == ssiu::SolveStatus::kSolved) {
+      ++f->frame_sets_solved;
+      Store(fr.q_inertial_from_body, r.q_inertial_from_body);
+    }
+    r.initialised_filter = fr.initialised_filter;
+    r.update_accepted = fr.update.accepted;
+    r.nis = fr.update.nis;
+  } catch (const std::exception& e) {
+    f->Fail(e.what());
+    return SSIU_ERR_INTERNAL;
+  }
+  if (report) *report = r;
+  return SSIU_OK;
+}
+
+ssiu_result ssiu_flight_state(const ssiu_flight* f, ssiu_state* s) {
+  if (f == nullptr || s == nullptr) return SSIU_ERR_NULL;
+  if (!Live(f)) return SSIU_ERR_NOT_INITIALISED;
+  std::memset(s, 0, sizeof *s);
+  try {
+    const ssiu::UnitAttitude a = f->processor->Attitude();
+    s->valid = a.valid;
+    s->status = static_cast<int32_t>(a.status);
+    s->t_s = a.t_s;
+    Store(a.q_inertial_from_body, s->q_inertial_from_body);
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) s->covariance_rad2[3 * i + j] = a.covariance_rad2(i, j);
+      s->bias_dph[i] = a.bias_dph[i];
+      s->bias_sigma_dph[i] = a.bias_sigma_dph[i];
+    }
+    for (int g : a.gyros_in_use) s->gyros_in_use |= 1u << (g - 1);
+    s->n_faults = static_cast<int32_t>(a.faults.size());
+    for (size_t k = 0; k < a.faults.size() && k < SSIU_FLIGHT_MAX_FAULTS; ++k) {
+      const ssiu::FaultEvent& e = a.faults[k];
+      s->faults[k] = ssiu_fault{e.gyro, e.t_onset_s, e.t_detect_s, e.t_isolate_s, e.fault_dph};
+    }
+  } catch (const std::exception&) {
+    return SSIU_ERR_INTERNAL;
+  }
+  s->gyro_samples = f->gyro_samples;
+  s->gyro_rejected = f->gyro_rejected;
+  s->frame_sets = f->frame_sets;
+  s->frame_sets_solved = f->frame_sets_solved;
+  return SSIU_OK;
+}
+
+void ssiu_flight_shutdown(ssiu_flight* f) {
+  if (!Live(f)) return;
+  f->~ssiu_flight();
+  const uint64_t zero = 0;
+  std::memcpy(static_cast<void*>(f), &zero, sizeof zero);
+}
+
+const char* ssiu_flight_last_error(const ssiu_flight* f) { return Live(f) ? f->error : ""; }
+
+}  // extern "C"

@@ -1,0 +1,324 @@
+// The C interface of the unit's processor (flight/ssiu_flight.h): the same answers as the C++
+// processor on a simulated two-head mission, against the simulator's truth; its configuration text;
+// and a loop that bad inputs cannot break (issue 26 item 6): NaN and out-of-order gyro samples,
+// frames of the wrong size, a corrupt catalog blob at init.
+#include "flight/ssiu_flight.h"
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <vector>
+
+#include "core/attitude.h"
+#include "core/output.h"
+#include "flight/flight_config.h"
+#include "identify/star_catalog.h"
+#include "sim/mission.h"
+#include "testing/testing.h"
+
+namespace ssiu {
+namespace {
+
+using ::testing::HasSubstr;
+
+MissionConfig SmallMission() {
+  MissionConfig c = DefaultMissionConfig();
+  c.duration_s = 16;
+  c.frame_rate_hz = 1;
+  c.seed = 7;
+  return WithUnitKnowledge(c);
+}
+
+// The mission's frames, gyro samples and truth, made once per program.
+struct Data {
+  MissionConfig config = SmallMission();
+  MissionData data;
+  std::vector<std::vector<Image16>> frames;  // [frame][head]
+  std::string blob;                          // catalog.bin of head 1's catalog
+  uint32_t crc = 0;
+};
+const Data& TheData() {
+  static const Data d = [] {
+    Data x;
+    x.data = SimulateMission(x.config);
+    for (size_t i = 0; i < x.data.frame_t_s.size(); ++i) {
+      std::vector<Image16> set;
+      for (size_t h = 0; h < x.config.heads.size(); ++h)
+        set.push_back(SimulateMissionFrame(x.config, x.data, testing::Bsc(), static_cast<int>(i), static_cast<int>(h)).image);
+      x.frames.push_back(std::move(set));
+    }
+    const std::string dir = testing::TempDir("flight_catalog");
+    SaveSolverCatalog(MakeIdentifierForCamera("", x.config.heads[0].camera, 0.0).catalog(), dir);
+    std::ifstream in(dir + "/catalog.bin", std::ios::binary);
+    std::ostringstream s;
+    s << in.rdbuf();
+    x.blob = s.str();
+    x.crc = Crc32(x.blob.data(), x.blob.size());
+    return x;
+  }();
+  return d;
+}
+
+ssiu_flight_config ConfigFor(const Data& d) {
+  ssiu_flight_config c = FlightConfigFor(d.config.heads, d.config.unit, d.config.processor, d.config.start_utc,
+                                         d.config.velocity_kms);
+  c.catalog_crc32 = d.crc;
+  return c;
+}
+
+// A handle in memory of its own, shut down at the end.
+struct Handle {
+  std::vector<std::max_align_t> memory;
+  ssiu_flight* f = nullptr;
+  ssiu_result rc = SSIU_ERR_INTERNAL;
+  Handle(const ssiu_flight_config& c, const std::string& blob) {
+    memory.resize(std::max<size_t>(ssiu_flight_memory_bytes(&c), 4096) / sizeof(std::max_align_t) + 1);
+    rc = ssiu_flight_init(&c, blob.data(), blob.size(), memory.data(), memory.size() * sizeof(std::max_align_t), &f);
+  }
+  ~Handle() { ssiu_flight_shutdown(f); }
+  const char* why() const { return reinterpret_cast<const char*>(memory.data()); }
+};
+
+ssiu_frame FrameOf(const Image16& im) {
+  ssiu_frame f;
+  std::memset(&f, 0, sizeof f);
+  f.pixels = im.pixels.data();
+  f.width_px = im.width;
+  f.height_px = im.height;
+  return f;
+}
+
+Quat QuatOf(const double q[4]) { return Quat(q[0], q[1], q[2], q[3]); }
+
+// Feeds the mission through the handle in time order (frames before the first gyro sample after
+// them), with `bad_gyro(k, &t, g)` to spoil sample k. Returns the frame reports.
+template <typename Spoil>
+std::vector<ssiu_frame_report> Replay(const Data& d, ssiu_flight* f, Spoil spoil,
+                                      std::vector<ssiu_gyro_status>* gyro_status = nullptr) {
+  std::vector<ssiu_frame_report> reports;
+  const GyroSimulation& g = d.data.gyro;
+  size_t fi = 0;
+  auto frames_until = [&](double t, bool inclusive) {
+    while (fi < d.data.frame_t_s.size() &&
+           (inclusive ? d.data.frame_t_s[fi] <= t + 1e-9 : d.data.frame_t_s[fi] < t - 1e-9)) {
+      std::vector<ssiu_frame> fr;
+      for (const Image16& im : d.frames[fi]) fr.push_back(FrameOf(im));
+      ssiu_frame_report r;
+      EXPECT_EQ(ssiu_flight_frames(f, d.data.frame_t_s[fi], fr.data(), static_cast<int32_t>(fr.size()), &r), SSIU_OK);
+      reports.push_back(r);
+      ++fi;
+    }
+  };
+  for (size_t k = 0; k < g.t_s.size(); ++k) {
+    frames_until(g.t_s[k], false);
+    double t = g.t_s[k];
+    std::vector<double> s(g.gyro_dph[k].data(), g.gyro_dph[k].data() + g.gyro_dph[k].size());
+    spoil(k, &t, &s);
+    ssiu_gyro_status st;
+    EXPECT_EQ(ssiu_flight_gyro(f, t, s.data(), static_cast<int32_t>(s.size()), &st), SSIU_OK);
+    if (gyro_status) gyro_status->push_back(st);
+    frames_until(g.t_s[k], true);
+  }
+  return reports;
+}
+
+double FinalErrorArcsec(const Data& d, const ssiu_state& s) {
+  size_t best = 0;
+  for (size_t k = 0; k < d.data.gyro.t_s.size(); ++k)
+    if (std::abs(d.data.gyro.t_s[k] - s.t_s) < std::abs(d.data.gyro.t_s[best] - s.t_s)) best = k;
+  return AttitudeErrorRad(QuatOf(s.q_inertial_from_body), d.data.gyro.q_true[best]) * kRadToArcsec;
+}
+
+// The C interface gives what the C++ processor gives on the same inputs, and both are near the truth.
+TEST(FlightInterface, SameAnswersAsTheProcessorAndNearTheTruth) {
+  const Data& d = TheData();
+  Handle h(ConfigFor(d), d.blob);
+  ASSERT_EQ(h.rc, SSIU_OK) << h.why();
+  const auto reports = Replay(d, h.f, [](size_t, double*, std::vector<double>*) {});
+  ASSERT_EQ(reports.size(), d.frames.size());
+
+  UnitProcessor p(d.config.heads,
+                  {std::make_shared<const StarIdentifier>(ParseSolverCatalog(d.blob.data(), d.blob.size(), "blob")),
+                   std::make_shared<const StarIdentifier>(ParseSolverCatalog(d.blob.data(), d.blob.size(), "blob"))},
+                  d.config.unit, d.config.processor);
+  size_t fi = 0;
+  const GyroSimulation& g = d.data.gyro;
+  auto frames_until = [&](double t, bool inclusive) {
+    while (fi < d.data.frame_t_s.size() &&
+           (inclusive ? d.data.frame_t_s[fi] <= t + 1e-9 : d.data.frame_t_s[fi] < t - 1e-9)) {
+      const FrameReport r = p.OnFrames(d.data.frame_t_s[fi], {d.frames[fi][0].view(), d.frames[fi][1].view()});
+      const ssiu_frame_report& c = reports[fi];
+      EXPECT_EQ(c.status, static_cast<int>(r.status)) << fi;
+      EXPECT_EQ(c.heads_solved, r.heads_solved) << fi;
+      for (int hd = 0; hd < 2; ++hd) EXPECT_EQ(c.heads[hd].matches, r.heads[hd].matches) << fi;
+      if (r.status == SolveStatus::kSolved) {
+        EXPECT_EQ(AttitudeErrorRad(QuatOf(c.q_inertial_from_body), r.q_inertial_from_body), 0.0) << fi;
+      }
+      ++fi;
+    }
+  };
+  for (size_t k = 0; k < g.t_s.size(); ++k) {
+    frames_until(g.t_s[k], false);
+    p.OnGyroSample(g.t_s[k], g.gyro_dph[k]);
+    frames_until(g.t_s[k], true);
+  }
+  ssiu_state s;
+  ASSERT_EQ(ssiu_flight_state(h.f, &s), SSIU_OK);
+  const UnitAttitude a = p.Attitude();
+  ASSERT_TRUE(s.valid);
+  EXPECT_EQ(s.t_s, a.t_s);
+  EXPECT_EQ(AttitudeErrorRad(QuatOf(s.q_inertial_from_body), a.q_inertial_from_body), 0.0);
+  EXPECT_EQ(s.status, SSIU_STATUS_OK);
+  EXPECT_EQ(s.frame_sets, static_cast<int64_t>(d.frames.size()));
+  EXPECT_EQ(s.frame_sets_solved, static_cast<int64_t>(d.frames.size()));
+  EXPECT_EQ(s.gyros_in_use, 0xfu);
+  // Every frame set solved on both heads (lost in space first, then tracking), and the final
+  // attitude within a few arcsec of the truth (two 16.6-deg heads: ~1-2 arcsec).
+  EXPECT_EQ(reports[0].heads[0].lost_in_space, 1);
+  EXPECT_EQ(reports.back().heads[0].lost_in_space, 0);
+  for (const auto& r : reports) EXPECT_EQ(r.heads_solved, 2);
+  EXPECT_LT(FinalErrorArcsec(d, s), 5.0);
+}
+
+// A NaN or infinite output, a sample back in time or at the same time: refused with the reason, the
+// filter goes on and ends as near the truth as without them.
+TEST(FlightInterface, BadGyroSamplesAreRefusedAndTheFilterGoesOn) {
+  const Data& d = TheData();
+  Handle h(ConfigFor(d), d.blob);
+  ASSERT_EQ(h.rc, SSIU_OK) << h.why();
+  std::vector<ssiu_gyro_status> st;
+  // Between frames, after the filter started: a NaN on gyro 2, +inf on gyro 4, a time 0.5 s back,
+  // the last accepted sample's time again.
+  const auto spoil = [&d](size_t k, double* t, std::vector<double>* g) {
+    if (k == 350) (*g)[1] = std::nan("");
+    if (k == 351) (*g)[3] = HUGE_VAL;
+    if (k == 352) *t -= 0.5;
+    if (k == 353) *t = d.data.gyro.t_s[349];
+  };
+  Replay(d, h.f, spoil, &st);
+  EXPECT_EQ(st[349], SSIU_GYRO_ACCEPTED);
+  EXPECT_EQ(st[350], SSIU_GYRO_REJECTED_NON_FINITE);
+  EXPECT_EQ(st[351], SSIU_GYRO_REJECTED_NON_FINITE);
+  EXPECT_EQ(st[352], SSIU_GYRO_REJECTED_OUT_OF_ORDER);
+  EXPECT_EQ(st[353], SSIU_GYRO_REJECTED_REPEATED);
+  EXPECT_EQ(st[354], SSIU_GYRO_ACCEPTED);
+  ssiu_state s;
+  ASSERT_EQ(ssiu_flight_state(h.f, &s), SSIU_OK);
+  EXPECT_EQ(s.gyro_rejected, 4);
+  ASSERT_TRUE(s.valid);
+  for (double q : s.q_inertial_from_body) EXPECT_TRUE(std::isfinite(q));
+  EXPECT_LT(FinalErrorArcsec(d, s), 5.0);
+}
+
+// A frame of the wrong size is that head's `bad_frame`, the other head still solves; a wrong number
+// of frames is an argument error; nothing throws.
+TEST(FlightInterface, WrongFramesAreStatusesNotCrashes) {
+  const Data& d = TheData();
+  Handle h(ConfigFor(d), d.blob);
+  ASSERT_EQ(h.rc, SSIU_OK) << h.why();
+  ssiu_frame fr[2] = {FrameOf(d.frames[0][0]), FrameOf(d.frames[0][1])};
+  fr[0].width_px -= 1;
+  ssiu_frame_report r;
+  ASSERT_EQ(ssiu_flight_frames(h.f, 0.0, fr, 2, &r), SSIU_OK);
+  EXPECT_EQ(r.heads[0].status, SSIU_SOLVE_BAD_FRAME);
+  EXPECT_EQ(r.heads[1].status, SSIU_SOLVE_SOLVED);
+  EXPECT_EQ(r.status, SSIU_SOLVE_SOLVED);
+  EXPECT_EQ(ssiu_flight_frames(h.f, 1.0, fr, 1, &r), SSIU_ERR_ARGUMENT);
+  EXPECT_THAT(ssiu_flight_last_error(h.f), HasSubstr("n_heads"));
+  fr[0] = FrameOf(d.frames[1][0]);
+  fr[1].pixels = nullptr;  // head 2 silent
+  ASSERT_EQ(ssiu_flight_frames(h.f, 1.0, fr, 2, &r), SSIU_OK);
+  EXPECT_EQ(r.heads[1].status, SSIU_SOLVE_NO_FRAME);
+  EXPECT_EQ(r.heads[0].status, SSIU_SOLVE_SOLVED);
+  const double nan_t = std::nan("");
+  ASSERT_EQ(ssiu_flight_frames(h.f, nan_t, fr, 2, &r), SSIU_OK);
+  EXPECT_EQ(r.heads[0].status, SSIU_SOLVE_BAD_FRAME);
+}
+
+// A blob that is not the catalog the configuration names is refused before it is read: a flipped
+// byte, a truncated blob, random bytes (with a matching CRC, so that the parser itself sees them).
+TEST(FlightInterface, CorruptCatalogBlobIsRefusedAtInit) {
+  const Data& d = TheData();
+  ssiu_flight_config c = ConfigFor(d);
+  std::string blob = d.blob;
+  blob[blob.size() / 2] ^= 0x10;
+  {
+    Handle h(c, blob);
+    EXPECT_EQ(h.rc, SSIU_ERR_CATALOG);
+    EXPECT_EQ(h.f, nullptr);
+    EXPECT_THAT(h.why(), HasSubstr("CRC"));
+  }
+  for (const std::string& bad : {d.blob.substr(0, d.blob.size() / 3), d.blob.substr(0, 40), std::string(5000, '\x5a')}) {
+    c.catalog_crc32 = Crc32(bad.data(), bad.size());
+    Handle h(c, bad);
+    EXPECT_EQ(h.rc, SSIU_ERR_CATALOG);
+    EXPECT_EQ(h.f, nullptr);
+    EXPECT_THAT(h.why(), HasSubstr("catalog"));
+  }
+  c.catalog_crc32 = 0;
+  Handle h(c, d.blob);
+  EXPECT_EQ(h.rc, SSIU_ERR_CATALOG);
+  EXPECT_THAT(h.why(), HasSubstr("catalog_crc32"));
+}
+
+TEST(FlightInterface, BadConfigAndMemoryAreRefusedWithTheField) {
+  const Data& d = TheData();
+  ssiu_flight_config c = ConfigFor(d);
+  c.heads[1].focal_length_px = -3;
+  EXPECT_EQ(ssiu_flight_check_config(&c), SSIU_ERR_CONFIG);
+  EXPECT_EQ(ssiu_flight_memory_bytes(&c), 0u);
+  {
+    Handle h(c, d.blob);
+    EXPECT_EQ(h.rc, SSIU_ERR_CONFIG);
+    EXPECT_THAT(h.why(), HasSubstr("head2"));
+  }
+  c = ConfigFor(d);
+  c.n_gyros = 2;
+  EXPECT_EQ(ssiu_flight_check_config(&c), SSIU_ERR_CONFIG);
+  c = ConfigFor(d);
+  std::vector<std::max_align_t> small(2);
+  ssiu_flight* f = reinterpret_cast<ssiu_flight*>(1);
+  EXPECT_EQ(ssiu_flight_init(&c, d.blob.data(), d.blob.size(), small.data(), sizeof(std::max_align_t) * 2, &f),
+            SSIU_ERR_MEMORY);
+  EXPECT_EQ(f, nullptr);
+  EXPECT_EQ(ssiu_flight_init(nullptr, d.blob.data(), d.blob.size(), small.data(), 32, &f), SSIU_ERR_NULL);
+  // After shutdown the handle is gone: calls say so.
+  Handle h(c, d.blob);
+  ASSERT_EQ(h.rc, SSIU_OK);
+  ssiu_flight_shutdown(h.f);
+  const double g[4] = {0, 0, 0, 0};
+  EXPECT_EQ(ssiu_flight_gyro(h.f, 0.0, g, 4, nullptr), SSIU_ERR_NOT_INITIALISED);
+  ssiu_state s;
+  EXPECT_EQ(ssiu_flight_state(h.f, &s), SSIU_ERR_NOT_INITIALISED);
+  h.f = nullptr;
+}
+
+// flight.cfg: every field written and read back exactly; bad lines named.
+TEST(FlightConfig, TextRoundTripsAndNamesBadLines) {
+  const Data& d = TheData();
+  const ssiu_flight_config c = ConfigFor(d);
+  const std::string text = FlightConfigText(c);
+  ssiu_flight_config back;
+  char why[256] = {0};
+  ASSERT_EQ(ssiu_flight_parse_config(text.data(), text.size(), &back, why, sizeof why), SSIU_OK) << why;
+  EXPECT_EQ(FlightConfigText(back), text);
+  EXPECT_EQ(back.n_heads, 2);
+  EXPECT_EQ(back.heads[1].q_body_sensor[1], c.heads[1].q_body_sensor[1]);
+  EXPECT_EQ(back.catalog_crc32, d.crc);
+  EXPECT_STREQ(back.epoch_utc, d.config.start_utc.c_str());
+  EXPECT_EQ(back.systematic_px, d.config.processor.solve.identify.systematic_px);
+  const FlightSetup s = FlightSetupFrom(back);
+  EXPECT_EQ(s.heads[1].camera.width, 512);
+  EXPECT_NEAR(AttitudeErrorRad(s.heads[1].q_body_from_sensor, d.config.heads[1].q_body_from_sensor), 0, 1e-15);
+  for (const std::string& bad : {std::string("n_heads 2\nhead1.size_px 512\n"), std::string("n_heads two\n"),
+                                 std::string("n_heads 2\nfocal 3\n"), std::string("velocity_kms 1 2 3 4\n")}) {
+    EXPECT_EQ(ssiu_flight_parse_config(bad.data(), bad.size(), &back, why, sizeof why), SSIU_ERR_CONFIG) << bad;
+    EXPECT_THAT(why, HasSubstr("flight.cfg:")) << bad;
+  }
+  EXPECT_THAT(testing::ErrorOf([] { ParseFlightConfigText("n_heads 2\nhead1.size_px 512\n", "unit.cfg"); }),
+              HasSubstr("unit.cfg:2: key 'head1.size_px' needs 2 values"));
+}
+
+}  // namespace
+}  // namespace ssiu
