@@ -1,0 +1,67 @@
+// The integrator's path end to end (issue 26 item 4): `ssiu run --out DIR --write-frames` writes a
+// mission's frames, logs, flight.cfg and catalog blob; examples/flight's C program replays them
+// through the C interface only and ends where `ssiu run` ended, against the same truth.
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "core/csv.h"
+#include "core/json.h"
+#include "testing/testing.h"
+
+namespace ssiu {
+namespace {
+
+using ::testing::HasSubstr;
+
+std::string DemoProgram() {
+  return std::filesystem::path(testing::SsiuProgram()).parent_path().string() + "/ssiu-flight-demo";
+}
+
+TEST(FlightDemo, ReplaysTheWrittenMissionAsSsiuRunDid) {
+  const std::string dir = testing::TempDir("flight_demo");
+  std::ofstream(dir + "/ssiu.json") << R"({"seed": 4, "duration_s": 12, "frame_rate_hz": 1, "score_after_s": 4,
+    "heads": [{"camera": {"width": 512, "height": 512, "focal_length_px": 1754.8162132636639}, "q_body_sensor": [1, 0, 0, 0]},
+              {"camera": {"width": 512, "height": 512, "focal_length_px": 1754.8162132636639},
+               "q_body_sensor": [0.7071067811865476, 0.7071067811865476, 0, 0]}]})";
+  const auto run = testing::RunSsiu("run --config " + dir + "/ssiu.json --json " + dir + "/run.json --out " + dir +
+                                    "/out --write-frames");
+  ASSERT_EQ(run.status, 0) << run.output;
+  for (const char* f : {"flight.cfg", "catalog/catalog.bin", "catalog/meta.json", "frames/head1_00000.pgm",
+                        "frames/head2_00012.pgm", "gyro.csv", "frames.csv", "truth.csv"})
+    EXPECT_TRUE(std::filesystem::exists(dir + "/out/" + f)) << f;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/out/frames/head1_00013.pgm"));
+
+  std::string out;
+  ASSERT_EQ(testing::Run(DemoProgram() + " " + dir + "/out --json " + dir + "/demo.json --csv " + dir + "/demo.csv",
+                         &out),
+            0)
+      << out;
+  const Json d = ReadJsonFile(dir + "/demo.json");
+  const Json r = ReadJsonFile(dir + "/run.json");
+  EXPECT_EQ(d["frames_processed"], 13);
+  EXPECT_EQ(d["frames_solved"], r["frames_solved"]);
+  EXPECT_EQ(d["status"], r["status"]);
+  EXPECT_EQ(d["gyro_rejected"], 0);
+  EXPECT_TRUE(d["frame_ms_mean"].is_number());
+  EXPECT_GE(d["frame_ms_max"].get<double>(), d["frame_ms_mean"].get<double>());
+  // The same inputs in the same order give the same final attitude, so the same error against the
+  // simulator's truth (truth.csv there, the simulation itself here).
+  EXPECT_EQ(d["t_s"], r["final"]["t_s"]);
+  EXPECT_NEAR(d["attitude_error_arcsec"].get<double>(), r["final"]["error_arcsec"].get<double>(), 1e-3);
+  EXPECT_LT(d["attitude_error_arcsec"].get<double>(), 10.0);
+  // Per frame set, the matched stars are those `ssiu run` recorded.
+  const CsvTable demo = ReadCsv(dir + "/demo.csv"), frames = ReadCsv(dir + "/out/frames.csv");
+  ASSERT_EQ(demo.rows(), frames.rows());
+  EXPECT_EQ(demo.Column("head1_matches"), frames.Column("head1_matches"));
+  EXPECT_EQ(demo.Column("head2_matches"), frames.Column("head2_matches"));
+  // --frames N stops after N frame sets.
+  ASSERT_EQ(testing::Run(DemoProgram() + " " + dir + "/out --frames 3 --json -", &out), 0) << out;
+  EXPECT_THAT(out, HasSubstr("\"frames_processed\": 3"));
+  // A directory without flight.cfg: one line naming the file, exit 1.
+  EXPECT_EQ(testing::Run(DemoProgram() + " " + dir, &out), 1);
+  EXPECT_THAT(out, HasSubstr("flight.cfg"));
+}
+
+}  // namespace
+}  // namespace ssiu
