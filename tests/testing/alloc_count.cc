@@ -1,5 +1,7 @@
 #include "testing/alloc_count.h"
 
+#include <dlfcn.h>
+
 #include <atomic>
 #include <cstddef>
 #include <cstdlib>
@@ -15,7 +17,7 @@
 #endif
 
 namespace {
-std::atomic<long> g_count{0}, g_bytes{0};
+std::atomic<long> g_count{0}, g_bytes{0}, g_throws{0};
 void Note(std::size_t n) {
   g_count.fetch_add(1, std::memory_order_relaxed);
   g_bytes.fetch_add(static_cast<long>(n), std::memory_order_relaxed);
@@ -87,6 +89,15 @@ void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
 void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 
+// Every throw goes through the C++ runtime's __cxa_throw: counted, then handed to the real one.
+extern "C" [[noreturn]] void __cxa_throw(void* object, void* type, void (*destroy)(void*)) {
+  using Throw = void (*)(void*, void*, void (*)(void*));
+  static const Throw real = reinterpret_cast<Throw>(dlsym(RTLD_NEXT, "__cxa_throw"));
+  g_throws.fetch_add(1, std::memory_order_relaxed);
+  real(object, type, destroy);
+  __builtin_unreachable();
+}
+
 namespace ssiu::testing {
 
 bool CountsMalloc() {
@@ -100,9 +111,11 @@ bool CountsMalloc() {
 AllocationCounter::AllocationCounter() { Reset(); }
 long AllocationCounter::Count() const { return g_count.load() - count0_; }
 long AllocationCounter::Bytes() const { return g_bytes.load() - bytes0_; }
+long AllocationCounter::Exceptions() const { return g_throws.load() - throws0_; }
 void AllocationCounter::Reset() {
   count0_ = g_count.load();
   bytes0_ = g_bytes.load();
+  throws0_ = g_throws.load();
 }
 
 }  // namespace ssiu::testing

@@ -21,10 +21,11 @@ class AllocationCounter {
   // construction or the last Reset().
   long Count() const;
   long Bytes() const;  // their requested bytes
+  long Exceptions() const;  // C++ exceptions thrown (caught or not) since then
   void Reset();
 
  private:
-  long count0_ = 0, bytes0_ = 0;
+  long count0_ = 0, bytes0_ = 0, throws0_ = 0;
 };
 
 }  // namespace ssiu::testing
