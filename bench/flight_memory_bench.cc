@@ -1,0 +1,98 @@
+// Memory of the flight interface (flight/ssiu_flight.h) for 1, 2 and 3 heads of 512^2 and 1024^2
+// (16.6 deg): the handle's own bytes (ssiu_flight_memory_bytes), the heap taken at init (counted by
+// tests/testing/alloc_count.h's replaced allocation functions), split into the catalog as loaded
+// (stars, triangles, search index) and the rest (per-head buffers, filter); and the heap taken by a
+// frame set after init (0 when the flight path keeps its rule). Reported as counters:
+//   ./build/bench/flight_memory_bench --benchmark_counters_tabular=true
+#include <benchmark/benchmark.h>
+
+#include <fstream>
+#include <sstream>
+#include <vector>
+
+#include "core/output.h"
+#include "flight/flight_config.h"
+#include "flight/ssiu_flight.h"
+#include "identify/star_catalog.h"
+#include "sim/mission.h"
+#include "testing/alloc_count.h"
+
+namespace ssiu {
+namespace {
+
+struct Blob {
+  std::string bytes;
+  uint32_t crc = 0;
+};
+const Blob& TheBlob() {
+  static const Blob b = [] {
+    Blob x;
+    const std::string dir = "/tmp/ssiu_flight_memory_bench_catalog";
+    SaveSolverCatalog(MakeIdentifierForCamera("", MakeCamera(512, 512, 16.6), 0.0).catalog(), dir);
+    std::ifstream in(dir + "/catalog.bin", std::ios::binary);
+    std::ostringstream s;
+    s << in.rdbuf();
+    x.bytes = s.str();
+    x.crc = Crc32(x.bytes.data(), x.bytes.size());
+    return x;
+  }();
+  return b;
+}
+
+void BM_FlightMemory(benchmark::State& state) {
+  const int heads = static_cast<int>(state.range(0)), size = static_cast<int>(state.range(1));
+  const Blob& blob = TheBlob();
+  ssiu_flight_config c;
+  ssiu_flight_default_config(&c);
+  const Camera cam = MakeCamera(size, size, 16.6);
+  c.n_heads = heads;
+  for (int h = 0; h < heads; ++h) {
+    c.heads[h] = c.heads[h % 2];
+    c.heads[h].width_px = c.heads[h].height_px = size;
+    c.heads[h].focal_length_px = cam.focal_length_px;
+    c.heads[h].cx_px = c.heads[h].cy_px = cam.cx_px;
+  }
+  c.catalog_crc32 = blob.crc;
+  testing::AllocationCounter n;
+  const SolverCatalog cat = ParseSolverCatalog(blob.bytes.data(), blob.bytes.size(), "blob");
+  const long catalog_heap = n.Bytes();
+  const size_t handle = ssiu_flight_memory_bytes(&c);
+  std::vector<std::max_align_t> memory(handle / sizeof(std::max_align_t) + 1);
+  long init_heap = 0, frame_heap = 0, frame_allocs = 0;
+  std::vector<uint16_t> dark(static_cast<size_t>(size) * size, 100);
+  for (auto _ : state) {
+    ssiu_flight* f = nullptr;
+    n.Reset();
+    if (ssiu_flight_init(&c, blob.bytes.data(), blob.bytes.size(), memory.data(),
+                         memory.size() * sizeof(std::max_align_t), &f) != SSIU_OK) {
+      state.SkipWithError("init failed");
+      break;
+    }
+    init_heap = n.Bytes();
+    ssiu_frame fr[SSIU_FLIGHT_MAX_HEADS] = {};
+    for (int h = 0; h < heads; ++h) fr[h] = ssiu_frame{dark.data(), size, size, 0};
+    ssiu_frame_report r;
+    n.Reset();
+    ssiu_flight_frames(f, 0.0, fr, heads, &r);
+    frame_heap = n.Bytes();
+    frame_allocs = n.Count();
+    ssiu_flight_shutdown(f);
+  }
+  state.counters["blob_bytes"] = static_cast<double>(blob.bytes.size());
+  state.counters["handle_bytes"] = static_cast<double>(handle);
+  state.counters["init_heap_bytes"] = static_cast<double>(init_heap);
+  state.counters["catalog_heap_bytes"] = static_cast<double>(catalog_heap);
+  state.counters["other_init_heap_bytes"] = static_cast<double>(init_heap - catalog_heap);
+  state.counters["frame_heap_bytes"] = static_cast<double>(frame_heap);
+  state.counters["frame_allocs"] = static_cast<double>(frame_allocs);
+}
+BENCHMARK(BM_FlightMemory)
+    ->ArgsProduct({{1, 2, 3}, {512, 1024}})
+    ->ArgNames({"heads", "size"})
+    ->Iterations(1)
+    ->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace ssiu
+
+BENCHMARK_MAIN();
