@@ -8,7 +8,12 @@ libapriltag-dev libboost-dev libcfitsio-dev libdeflate-dev libgtest-dev libgmock
 python3-dev python3-pybind11 python3-numpy python3-pytest python3-dask python3-distributed \
 clang libclang-rt-dev"
 missing=""
-for p in $PKGS; do dpkg -s "$p" >/dev/null 2>&1 || missing="$missing $p"; done
+# With foreign architectures added (scripts/cross-test.sh), a name installed for both is ambiguous to
+# dpkg: ask for the native one then.
+native=$(dpkg --print-architecture)
+for p in $PKGS; do
+  dpkg -s "$p" >/dev/null 2>&1 || dpkg -s "$p:$native" >/dev/null 2>&1 || missing="$missing $p"
+done
 if [ -n "$missing" ]; then
   export DEBIAN_FRONTEND=noninteractive
   apt-get update -qq
