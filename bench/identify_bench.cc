@@ -9,8 +9,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <ctime>
 #include <cstdlib>
+#include <ctime>
 #include <fstream>
 #include <memory>
 #include <numeric>
@@ -346,22 +346,14 @@ void BM_EsaScenes(benchmark::State& state) {
 }
 // The CPU-time deadline before issue 26 (50 ms, 200,000 hypotheses), the default count budget (no
 // clock), and the solve rate as a function of the budget; the same with the focal length searched (15%).
-BENCHMARK(BM_EsaScenes)
-    ->Args({200000, 0, 50, 0})
-    ->Args({0, 0, 0, 0})
-    ->Args({25, 0, 0, 0})
-    ->Args({50, 0, 0, 0})
-    ->Args({100, 0, 0, 0})
-    ->Args({200, 0, 0, 0})
-    ->Args({0, 20000, 0, 0})
-    ->Args({0, 50000, 0, 0})
-    ->Args({200000, 0, 50, 15})
-    ->Args({0, 0, 0, 15})
-    ->Args({2000, 0, 0, 15})
-    ->Args({5000, 0, 0, 15})
-    ->Args({20000, 0, 0, 15})
-    ->Iterations(1)
-    ->Unit(benchmark::kMillisecond);
+void EsaBudgets(benchmark::internal::Benchmark* b) {
+  const std::vector<std::vector<int64_t>> args = {
+      {200000, 0, 50, 0}, {0, 0, 0, 0},     {25, 0, 0, 0},    {50, 0, 0, 0},       {100, 0, 0, 0},
+      {200, 0, 0, 0},     {0, 20000, 0, 0}, {0, 50000, 0, 0}, {200000, 0, 50, 15}, {0, 0, 0, 15},
+      {2000, 0, 0, 15},   {5000, 0, 0, 15}, {20000, 0, 0, 15}};
+  for (const auto& a : args) b->Args(a);
+}
+BENCHMARK(BM_EsaScenes)->Apply(EsaBudgets)->Iterations(1)->Unit(benchmark::kMillisecond);
 
 void BM_TrackingUpdate(benchmark::State& state) {
   Fixture& f = F();

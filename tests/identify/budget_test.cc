@@ -79,7 +79,7 @@ TEST(WorkBudget, HypothesisBudgetStopsTheSearchAtTheCount) {
   IdentifyOptions io = Options();
   const Identification full = Bsc166().Identify(c, Cam(), io);
   ASSERT_EQ(full.status, SolveStatus::kNoMatch);
-  ASSERT_EQ(full.stop, SearchStop::kExhausted);   // C(60, 3) triangles, far below max_patterns
+  ASSERT_EQ(full.stop, SearchStop::kExhausted);  // C(60, 3) triangles, far below max_patterns
   EXPECT_GT(full.patterns, 0);
   EXPECT_LE(full.patterns, 60 * 59 * 58 / 6);  // the triangles that fit the catalog's field
   ASSERT_GT(full.hypotheses, 20) << "a budget test needs a search with hypotheses";
