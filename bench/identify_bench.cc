@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <fstream>
 #include <memory>
@@ -18,6 +19,7 @@
 #include "attitude/star_solver.h"
 #include "core/attitude.h"
 #include "core/catalog.h"
+#include "core/json.h"
 #include "core/rng.h"
 #include "sim/frame_sim.h"
 #include "sim/scene_sim.h"
@@ -37,6 +39,13 @@ bool IsWrong(const SolveResult& r, const Quat& truth) {
   const AttitudeErrorSplit e = SplitAttitudeError(r.attitude.q_inertial_from_sensor, truth);
   const double roll_limit = std::max(60.0, 5 * r.attitude.sigma_roll_rad * kRadToArcsec);
   return e.cross_rad * kRadToArcsec > 60 || std::abs(e.roll_rad) * kRadToArcsec > roll_limit;
+}
+
+// SSIU_BENCH_DUMP set: one line per solve (tag, index, CPU ms, patterns, hypotheses, solved) on stderr.
+void Dump(const char* tag, size_t i, double ms, const Identification& r) {
+  if (std::getenv("SSIU_BENCH_DUMP"))
+    std::fprintf(stderr, "dump %s %zu %.3f %d %d %d\n", tag, i, ms, r.patterns, r.hypotheses,
+                 r.status == SolveStatus::kSolved);
 }
 
 struct Fixture {
@@ -87,6 +96,7 @@ void RunLostInSpace(benchmark::State& state, Fixture& f) {
     const double t0 = CpuMs();
     const SolveResult r = SolveCentroids(*f.id, f.frames[k], f.cam, so);
     ms.push_back(CpuMs() - t0);
+    Dump("frames", ms.size(), ms.back(), r.identification);
     hyp.push_back(r.identification.hypotheses);
     solved += r.status == SolveStatus::kSolved;
     // Wrong: a boresight more than 1 arcmin off, or a roll off by more than 1 arcmin and 5 of its
@@ -165,6 +175,7 @@ void BM_LostInSpaceFalseObjects(benchmark::State& state) {
     const double t0 = CpuMs();
     const SolveResult r = SolveCentroids(id, sc.centroids, cam, opt);
     ms.push_back(CpuMs() - t0);
+    Dump("kelvins", ms.size(), ms.back(), r.identification);
     const bool ok = r.status == SolveStatus::kSolved;
     if (sc.true_stars >= 4) ++with4, solved4 += ok;
     if (sc.true_stars == 3) ++with3, solved3 += ok;
@@ -214,6 +225,7 @@ void BM_UnknownFov(benchmark::State& state) {
     const double t0 = CpuMs();
     const SolveResult r = SolveCentroids(id, sc.centroids, given, opt);
     ms.push_back(CpuMs() - t0);
+    Dump("unknown_fov", ms.size(), ms.back(), r.identification);
     if (r.status != SolveStatus::kSolved) continue;
     ++solved;
     focal_err_max = std::max(focal_err_max, std::abs(r.identification.focal_length_px / cam.focal_length_px - 1) * 100);
@@ -227,6 +239,121 @@ void BM_UnknownFov(benchmark::State& state) {
   state.counters["focal_err_max_pct"] = focal_err_max;
 }
 BENCHMARK(BM_UnknownFov)->Arg(0)->Arg(40)->Iterations(300)->Unit(benchmark::kMillisecond);
+
+// ESA's false-star scenes (../shared/data/esa/generated.jsonl, SOURCES.md: the Kelvins "Star Trackers:
+// First Contact" simulator's `random` settings, 1000 scenes, 10 x 7.5 deg, 1920 x 1440 px, 20
+// microradian noise, 0-80 false objects, Hipparcos stars). Solved with the BSC 10-deg catalog, each
+// centroid's sigma the simulator's 20 microradian, flux 10^(-0.4 (mag - 10)), default options but
+// systematic_px 0 and the budget of the arguments: range(0) = max_hypotheses (0 = default), range(1)
+// = max_patterns (0 = default), range(2) = timeout_ms (CPU), range(3) = fov_tolerance_pct (the focal
+// length searched). Wrong: as IsWrong, against the file's
+// R_inertial_from_sensor (scenes with >= 2 true stars). Time: this thread's CPU time per scene.
+struct EsaScene {
+  Camera cam;
+  std::vector<Centroid> centroids;
+  int n_true = 0;
+  bool has_truth = false;
+  Quat truth = Quat::Identity();
+};
+
+const std::vector<EsaScene>& EsaScenes() {
+  static const std::vector<EsaScene> scenes = [] {
+    std::vector<EsaScene> v;
+    // $SSIU_SHARED_DIR, else ../shared from the source tree or from its build directory.
+    const char* env = std::getenv("SSIU_SHARED_DIR");
+    std::ifstream in;
+    for (const char* dir : {env ? env : "", "../shared", "../../shared"}) {
+      if (*dir && !in.is_open()) in.open(std::string(dir) + "/data/esa/generated.jsonl");
+    }
+    for (std::string line; std::getline(in, line);) {
+      const Json j = Json::parse(line);
+      EsaScene s;
+      s.cam.width = j["width"];
+      s.cam.height = j["height"];
+      s.cam.focal_length_px = j["focal_length_px"];
+      s.cam.cx_px = j["principal_point"][0];
+      s.cam.cy_px = j["principal_point"][1];
+      for (const auto& c : j["centroids"]) {
+        Centroid x;
+        x.x_px = c[0];
+        x.y_px = c[1];
+        x.flux = std::pow(10.0, -0.4 * (c[2].get<double>() - 10));
+        x.sigma_px = 20e-6 * s.cam.focal_length_px;
+        s.centroids.push_back(x);
+      }
+      s.n_true = j["n_true"];
+      if (!j["R_inertial_from_sensor"].is_null()) {
+        Mat3 r;
+        for (int a = 0; a < 3; ++a)
+          for (int b = 0; b < 3; ++b) r(a, b) = j["R_inertial_from_sensor"][a][b];
+        s.truth = Quat(r).normalized();
+        s.has_truth = true;
+      }
+      v.push_back(std::move(s));
+    }
+    return v;
+  }();
+  return scenes;
+}
+
+void BM_EsaScenes(benchmark::State& state) {
+  const std::vector<EsaScene>& scenes = EsaScenes();
+  if (scenes.empty()) {
+    state.SkipWithError("../shared/data/esa/generated.jsonl not found (set SSIU_SHARED_DIR)");
+    return;
+  }
+  static const StarIdentifier id = [] {
+    CatalogBuildOptions co;
+    co.fov_deg = 10.0;
+    return StarIdentifier(BuildSolverCatalog(LoadSourceCatalog(DefaultBscPath()), co));
+  }();
+  SolveOptions opt;
+  opt.identify.systematic_px = 0;
+  if (state.range(0) > 0) opt.identify.max_hypotheses = static_cast<int>(state.range(0));
+  if (state.range(1) > 0) opt.identify.max_patterns = static_cast<int>(state.range(1));
+  opt.identify.timeout_ms = static_cast<double>(state.range(2));
+  opt.identify.fov_tolerance_pct = static_cast<double>(state.range(3));
+  std::vector<double> ms;
+  std::vector<int> pats, hyps;
+  int solved = 0, solved4 = 0, with4 = 0, wrong = 0;
+  for (auto _ : state) {
+    for (const EsaScene& s : scenes) {
+      const double t0 = CpuMs();
+      const SolveResult r = SolveCentroids(id, s.centroids, s.cam, opt);
+      ms.push_back(CpuMs() - t0);
+      Dump("esa", ms.size(), ms.back(), r.identification);
+      pats.push_back(r.identification.patterns);
+      hyps.push_back(r.identification.hypotheses);
+      const bool ok = r.status == SolveStatus::kSolved;
+      solved += ok;
+      if (s.n_true >= 4) ++with4, solved4 += ok;
+      if (ok && (!s.has_truth || IsWrong(r, s.truth))) ++wrong;
+    }
+  }
+  auto quantile = [](std::vector<double> x, double q) {
+    std::sort(x.begin(), x.end());
+    return x[std::min(x.size() - 1, static_cast<size_t>(q * x.size()))];
+  };
+  state.counters["solved"] = solved;
+  state.counters["solved_4plus"] = solved4;
+  state.counters["scenes_4plus"] = with4;
+  state.counters["wrong"] = wrong;
+  state.counters["median_cpu_ms"] = quantile(ms, 0.5);
+  state.counters["p99_cpu_ms"] = quantile(ms, 0.99);
+  state.counters["max_cpu_ms"] = quantile(ms, 1.0);
+  state.counters["max_patterns"] = *std::max_element(pats.begin(), pats.end());
+  state.counters["max_hypotheses"] = *std::max_element(hyps.begin(), hyps.end());
+}
+// The CPU-time deadline before issue 26 (50 ms, 200,000 hypotheses), the default count budget (no
+// clock), and the solve rate as a function of the budget; the same with the focal length searched (15%).
+void EsaBudgets(benchmark::internal::Benchmark* b) {
+  const std::vector<std::vector<int64_t>> args = {
+      {200000, 0, 50, 0}, {0, 0, 0, 0},     {25, 0, 0, 0},    {50, 0, 0, 0},       {100, 0, 0, 0},
+      {200, 0, 0, 0},     {0, 20000, 0, 0}, {0, 50000, 0, 0}, {200000, 0, 50, 15}, {0, 0, 0, 15},
+      {2000, 0, 0, 15},   {5000, 0, 0, 15}, {20000, 0, 0, 15}};
+  for (const auto& a : args) b->Args(a);
+}
+BENCHMARK(BM_EsaScenes)->Apply(EsaBudgets)->Iterations(1)->Unit(benchmark::kMillisecond);
 
 void BM_TrackingUpdate(benchmark::State& state) {
   Fixture& f = F();

@@ -49,8 +49,15 @@ void AddSolverFlags(CLI::App* cmd, Opts* o) {
   cmd->add_flag_callback(
       "--no-photometry", [o] { o->solve.identify.use_photometry = false; },
       "Lost in space: leave the centroids' fluxes out of the chance probability (geometry only)");
+  cmd->add_option("--max-hypotheses", o->solve.identify.max_hypotheses,
+                  "Lost in space: give up (no_match) after this many hypotheses (the deterministic work budget)")
+      ->capture_default_str();
+  cmd->add_option("--max-patterns", o->solve.identify.max_patterns,
+                  "Lost in space: give up (no_match) after this many centroid triangles looked up")
+      ->capture_default_str();
   cmd->add_option("--timeout-ms", o->solve.identify.timeout_ms,
-                  "Lost in space: stop the hypothesis search after this much CPU time, no_match (0 = no limit)")
+                  "Lost in space: also stop after this much CPU time, no_match (0 = no limit; the answer then "
+                  "depends on the processor)")
       ->capture_default_str();
   cmd->add_option("--centroid-sigma-px", o->solve.identify.centroid_sigma_px, "Centroid noise when not measured")
       ->capture_default_str();

@@ -22,12 +22,7 @@ constexpr double kMinTrackedFraction = 0.3;  // tracking: matched / min(predicte
 constexpr int kMinTrackedMatches = 5;        // tracking: its chance probability is calibrated for >= 5
 constexpr int kMaxOutliers = 5;              // more inconsistent matches than this: the hypothesis is dropped
 double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
-#ifndef SSIU_DEADLINE_SCALE
-#define SSIU_DEADLINE_SCALE 1  // src/identify/CMakeLists.txt: 10 in sanitizer builds
-#endif
-constexpr double kDeadlineScale = SSIU_DEADLINE_SCALE;
-// CPU time of the calling thread: the search deadline counts the work done for this frame, so the
-// result does not depend on how busy the machine is (or on other threads of a batch).
+// CPU time of the calling thread, for the optional outer safety limit (IdentifyOptions::timeout_ms).
 double ThreadCpuMs() {
   timespec ts{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
@@ -488,6 +483,7 @@ void IdentifyOptions::Check() const {
   if (!(max_false_match_prob > 0 && max_false_match_prob < 1)) bad("max_false_match_prob", "must be in (0, 1)");
   if (min_matches < 4) bad("min_matches", "must be >= 4");
   if (max_hypotheses < 1) bad("max_hypotheses", "must be >= 1");
+  if (max_patterns < 1) bad("max_patterns", "must be >= 1");
   if (!(verify_sigmas >= 1 && verify_sigmas <= 10)) bad("verify_sigmas", "must be in [1, 10]");
   if (!(outlier_sigmas >= 3 && outlier_sigmas <= 100)) bad("outlier_sigmas", "must be in [3, 100]");
   if (!(timeout_ms >= 0 && timeout_ms <= 3.6e6)) bad("timeout_ms", "must be in [0, 3600000] (0 = no limit)");
@@ -760,19 +756,23 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
   // Sequential testing: the search stops at the first hypothesis h (1-based) whose chance
   // probability p_h passes p_h * h * H <= alpha, H = 1 + ln(max_hypotheses) >= sum_{h<=max} 1/h, so
   // that the chance of accepting any chance pattern over the whole search is at most
-  // sum_h alpha / (h H) <= alpha (a union bound with weights 1/(h H)).
+  // sum_h alpha / (h H) <= alpha (a union bound with weights 1/(h H)). Every hypothesis counts in h
+  // and the search never tests one past max_hypotheses, whatever else stops it (max_patterns, the
+  // timeout, the end of the triangles): those only end the sum earlier.
   const double seq_factor = 1.0 + std::log(static_cast<double>(o.max_hypotheses));
-  const double deadline_cpu_ms = ThreadCpuMs() + o.timeout_ms * kDeadlineScale;
+  const double deadline_cpu_ms = o.timeout_ms > 0 ? ThreadCpuMs() + o.timeout_ms : 0.0;
 
   std::vector<std::vector<int>> idx(1);
-  int hyp = 0;
+  int hyp = 0, patterns = 0;
   double best_prob = 1.0;
   int best_k = 0;
-  auto give_up = [&](const std::string& why) {
+  auto give_up = [&](SearchStop stop, const std::string& why) {
     out.status = SolveStatus::kNoMatch;
+    out.stop = stop;
     out.message =
         why + " (best " + std::to_string(best_k) + " matches, chance probability " + std::to_string(best_prob) + ")";
     out.hypotheses = hyp;
+    out.patterns = patterns;
     out.false_match_probability = best_prob;
     out.timing_ms["identify"] = MsSince(t0);
     return out;
@@ -782,7 +782,7 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
   for (int c = 2; c < k_pat; ++c) {
     for (int b = 1; b < c; ++b) {
       if (o.timeout_ms > 0 && ThreadCpuMs() > deadline_cpu_ms)
-        return give_up("timed out after " + std::to_string(hyp) + " hypotheses");
+        return give_up(SearchStop::kTimeout, "timed out after " + std::to_string(hyp) + " hypotheses");
       for (int a = 0; a < b; ++a) {
         const int vtx[3] = {a, b, c};
         // Side-length tolerance (rad) from this triangle's own centroid noise (a poorly measured
@@ -801,6 +801,9 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
         const double tol_l = ln_half + 1.1 * tol_side / (s[2] * scale_lo) + 1e-4;
         std::vector<int>& cand = idx[0];
         cand.clear();
+        if (patterns == o.max_patterns)
+          return give_up(SearchStop::kPatternBudget, "gave up after " + std::to_string(patterns) + " patterns");
+        ++patterns;
         index_->ForEachInBox(s[0] / s[2], s[1] / s[2], std::log(s[2]) - ln_mid, tol_r, tol_l, catalog_,
                              [&](int ti) { cand.push_back(ti); });
         for (int ti : idx[0]) {
@@ -817,10 +820,9 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
             Mat3 rot;
             int tri_c[3], tri_s[3];
             if (!TriangleHypothesis(ctx, o, centroids, t, tm, focal_searched, &cam, &rot, tri_c, tri_s)) continue;
-            if (++hyp > o.max_hypotheses) {
-              hyp = o.max_hypotheses;
-              return give_up("gave up after " + std::to_string(o.max_hypotheses) + " hypotheses");
-            }
+            if (hyp == o.max_hypotheses)
+              return give_up(SearchStop::kHypothesisBudget, "gave up after " + std::to_string(hyp) + " hypotheses");
+            ++hyp;
             // Unknown FOV: hundreds of catalog triangles fit each query; skip the full test (which
             // predicts every catalog star in the field) unless one of the brightest other centroids
             // has a catalog star within its test radius. A skipped hypothesis still counts in h.
@@ -850,6 +852,8 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
             if (!FinishHypothesis(ctx, o, cam, rot, std::move(ht), {u, prob, phot, seq_factor, hyp, k}, focal_searched,
                                   centroids.size(), &out))
               continue;
+            out.patterns = patterns;
+            out.stop = SearchStop::kAccepted;
             out.timing_ms["identify"] = MsSince(t0);
             return out;
           }
@@ -857,7 +861,7 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
       }
     }
   }
-  return give_up("no hypothesis verified (" + std::to_string(hyp) + " tried)");
+  return give_up(SearchStop::kExhausted, "no hypothesis verified (" + std::to_string(hyp) + " tried)");
 }
 
 Identification StarIdentifier::MatchWithAttitude(const std::vector<Centroid>& centroids, const Camera& camera,

@@ -64,12 +64,22 @@ struct IdentifyOptions {
   // solutions): calibrated in every mode (observed false rates at or below it, docs/results.md), and
   // it solves 95% of Kelvins-style scenes with >= 4 stars among up to 80 false objects.
   double max_false_match_prob = 1e-4;
-  int min_matches = 4;          // fewer verified matches: never solved
-  int max_hypotheses = 200000;  // give up (no_match) after this many hypotheses
-  // Give up (no_match) after this much CPU time of the calling thread (0 = no limit; CPU, not wall
-  // clock, so that a loaded machine or a batch on many threads gives the same answers). 50 ms: on 300 Kelvins-style
-  // scenes (docs/results.md) 99% of the solved ones needed less, and the 10-deg p99 budget is 50 ms.
-  double timeout_ms = 50.0;
+  int min_matches = 4;  // fewer verified matches: never solved
+  // The work budget (docs/identify.md, "Work budget"): the search gives up (no_match) after
+  // max_hypotheses hypotheses (vertex correspondences that pass the side check, each tested or, with
+  // an unknown FOV, pre-screened) or max_patterns centroid triangles looked up in the index, whichever
+  // comes first. Counts, not time, so that a frame gives the same answer on every processor and at
+  // every load. max_hypotheses also sets the sequential-testing factor 1 + ln(max_hypotheses) (step 5).
+  // 12,000: what 50 ms of CPU bought in the focal-searched modes (the unknown-FOV scenes of
+  // bench/identify_bench.cc solved at up to 11,785); a fixed focal length needs far fewer (<= 477 on
+  // ESA's 1000 false-star scenes). 200,000 patterns: more than the 161,700 triangles of the default 100
+  // pattern centroids, so it binds only when pattern_centroids is raised.
+  int max_hypotheses = 12000;
+  int max_patterns = 200000;
+  // An outer safety limit on the CPU time of the calling thread (0 = off, the default): a search that
+  // hits it before the counts depends on the processor's speed (Identification::stop says which
+  // limit ended a search).
+  double timeout_ms = 0.0;
   // Photometric evidence (docs/identify.md, step 5): under a chance match the matched centroids'
   // fluxes are independent of the catalog magnitudes, so their agreement multiplies the chance
   // probability by a calibrated factor (at most 2 when the photometry disagrees). Off when the
@@ -78,6 +88,16 @@ struct IdentifyOptions {
   void Check() const;  // throws InputError naming the field
   bool FovRange() const { return fov_max_deg > 0; }
   bool FocalSearched() const { return fov_tolerance_pct > 0 || FovRange(); }
+};
+
+// Why a lost-in-space search ended.
+enum class SearchStop {
+  kNone,              // no search (too few centroids; tracking)
+  kAccepted,          // a hypothesis passed the test
+  kExhausted,         // every triangle of the pattern centroids tried
+  kHypothesisBudget,  // max_hypotheses reached
+  kPatternBudget,     // max_patterns reached
+  kTimeout,           // timeout_ms of CPU time reached (the one outcome that depends on the processor)
 };
 
 struct StarMatch {
@@ -105,7 +125,9 @@ struct Identification {
   // The photometric factor in false_match_probability (2 / (1 + E), docs/identify.md step 5); 1 = not used.
   double photometric_factor = 1.0;
   std::vector<StarMatch> matches;
-  int hypotheses = 0;  // hypotheses verified
+  int hypotheses = 0;  // hypotheses counted against max_hypotheses (the accepted one's index h when solved)
+  int patterns = 0;    // centroid triangles looked up in the pattern index (against max_patterns)
+  SearchStop stop = SearchStop::kNone;
   int catalog_stars_in_field = 0;
   std::map<std::string, double> timing_ms;
 };

@@ -14,18 +14,9 @@
 namespace ssiu {
 namespace {
 
+using testing::Bsc166;
 using testing::MakeSyntheticFrame;
 using testing::SyntheticOptions;
-
-// One BSC catalog for a 16.6 deg field, built once for the whole program.
-const StarIdentifier& Bsc166() {
-  static const std::unique_ptr<StarIdentifier> id = [] {
-    CatalogBuildOptions o;
-    o.fov_deg = 16.6;
-    return std::make_unique<StarIdentifier>(BuildSolverCatalog(LoadSourceCatalog(DefaultBscPath()), o));
-  }();
-  return *id;
-}
 
 TEST(BinomialTail, MatchesDirectSums) {
   EXPECT_NEAR(BinomialTail(3, 0.5, 2), 0.5, 1e-12);  // (3 + 1) / 8

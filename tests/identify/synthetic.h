@@ -3,9 +3,11 @@
 #pragma once
 
 #include <cmath>
+#include <memory>
 #include <vector>
 
 #include "core/camera.h"
+#include "core/catalog.h"
 #include "core/rng.h"
 #include "identify/identify.h"
 #include "identify/star_catalog.h"
@@ -23,6 +25,16 @@ struct SyntheticOptions {
   int false_stars = 3;
   double mag_max = 99;
 };
+
+// One BSC solver catalog for a 16.6 deg field, built once per test program.
+inline const StarIdentifier& Bsc166() {
+  static const std::unique_ptr<StarIdentifier> id = [] {
+    CatalogBuildOptions o;
+    o.fov_deg = 16.6;
+    return std::make_unique<StarIdentifier>(BuildSolverCatalog(LoadSourceCatalog(DefaultBscPath()), o));
+  }();
+  return *id;
+}
 
 inline SyntheticFrame MakeSyntheticFrame(const SolverCatalog& cat, const Camera& cam, const Quat& q,
                                          const SyntheticOptions& o, Rng* rng) {
