@@ -91,6 +91,7 @@ void FusionPolicy::Check() const {
     }
   };
   count(max_fault_events, "max_fault_events", 1 << 16);
+  count(resync_after_samples, "resync_after_samples", 1 << 20);
   count(bias_history_max, "bias_history_max", 1 << 20);
   count(max_star_samples_kept, "max_star_samples_kept", 1 << 20);
 }

@@ -69,6 +69,10 @@ struct FusionPolicy {
   // is then taken afresh from the next star solution (the gyros did not cover the gap). The same for
   // a star solution this far beyond the filter's time (the gyros silent): the second one confirms.
   double max_gyro_gap_s = 10.0;
+  // This many consecutive gyro samples before the last accepted one, in order among themselves: the
+  // clock went back (or the last accepted time tag was corrupt). The stream's time is taken from the
+  // last of them and the attitude restarts from the next star fix (whatever its time).
+  int resync_after_samples = 100;
   // Fixed storage, reserved at construction so that the per-sample calls never allocate: fault
   // events kept (beyond it the oldest resolved event is dropped, counted by n_faults_dropped()), bias
   // estimates kept for bias_history_s (beyond it the oldest go first), star samples a fault's

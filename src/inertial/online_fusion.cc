@@ -40,6 +40,8 @@ const char* GyroSampleStatusName(GyroSampleStatus s) {
       return "rejected_wrong_size";
     case GyroSampleStatus::kRejectedTimeJump:
       return "rejected_time_jump";
+    case GyroSampleStatus::kAcceptedTimeReset:
+      return "accepted_time_reset";
   }
   return "rejected_bad_time";
 }
@@ -52,6 +54,8 @@ const char* RestartReasonName(RestartReason r) {
       return "non_finite";
     case RestartReason::kGyroGap:
       return "gyro_gap";
+    case RestartReason::kTimeReset:
+      return "time_reset";
   }
   return "none";
 }
@@ -441,11 +445,21 @@ GyroSampleStatus OnlineFusion::AddGyro(double t_k, const GyroVec& g_in) {
   // The time tag first: a refused sample changes nothing.
   if (g_in.size() != n) return done(GyroSampleStatus::kRejectedWrongSize);
   if (!std::isfinite(t_k)) return done(GyroSampleStatus::kRejectedBadTime);
-  bool after_gap = false;
+  bool after_gap = false, time_reset = false;
+  double t_back_prev = 0;
   if (have_gyro_) {
     const double dt = t_k - t_last_gyro_;
     if (std::abs(dt) <= 1e-9) return done(GyroSampleStatus::kRejectedRepeated);
-    if (dt < 0) return done(GyroSampleStatus::kRejectedOutOfOrder);
+    if (dt < 0) {
+      // Refused; but a long run of them that follow one another is the clock gone back (or the last
+      // accepted tag corrupt): without this, one such event would lock out every later sample.
+      const bool follows = n_back_ > 0 && t_k > t_back_ + 1e-9 && t_k - t_back_ <= opt_.policy.max_gyro_gap_s;
+      n_back_ = follows ? n_back_ + 1 : 1;
+      t_back_prev = t_back_;
+      t_back_ = t_k;
+      if (n_back_ < opt_.policy.resync_after_samples) return done(GyroSampleStatus::kRejectedOutOfOrder);
+      time_reset = true;
+    }
     if (dt > opt_.policy.max_gyro_gap_s) {
       // One corrupt time tag far ahead must not lock out every later sample: the jump is believed
       // when the next sample follows it.
@@ -457,17 +471,27 @@ GyroSampleStatus OnlineFusion::AddGyro(double t_k, const GyroVec& g_in) {
       after_gap = true;
     }
   }
-  const double t_prev = after_gap ? t_jump_ : have_gyro_ ? t_last_gyro_ : t_k - dt_nominal_;
+  const double t_prev = time_reset ? t_back_prev : after_gap ? t_jump_ : have_gyro_ ? t_last_gyro_ : t_k - dt_nominal_;
   have_jump_ = false;
+  n_back_ = 0;
   GyroVec g = g_in;
   bool partial = false;
   const GyroSampleStatus outputs = CheckOutputs(&g, &partial);
-  if (outputs == GyroSampleStatus::kRejectedNonFinite || outputs == GyroSampleStatus::kRejectedOutOfRange) {
+  const bool held = outputs == GyroSampleStatus::kRejectedNonFinite || outputs == GyroSampleStatus::kRejectedOutOfRange;
+  if (held && !have_gyro_) {
+    last_partial_ = true;
+    return done(outputs);  // no rate yet to hold
+  }
+  have_gyro_ = true;
+  t_last_gyro_ = t_k;
+  // The gyros did not cover the gap, or the clock went back: the attitude is taken afresh from the
+  // next star solution.
+  if (after_gap && initialised_ && t_k - t_cur_ > opt_.policy.max_gyro_gap_s) RequestRestart(RestartReason::kGyroGap);
+  if (time_reset && initialised_) RequestRestart(RestartReason::kTimeReset);
+  if (held) {
     // No rate from this sample: the last one is held over its interval (the filter's process noise
     // grows as usual); the star-rate chains break (the gyro angle over it is unknown).
     last_partial_ = true;
-    if (!have_gyro_) return done(outputs);  // nothing to hold
-    t_last_gyro_ = t_k;
     if (initialised_ && !restart_pending_ && t_k > t_cur_) {
       isolator_.BreakChain();
       tracker_.BreakChain();
@@ -478,9 +502,9 @@ GyroSampleStatus OnlineFusion::AddGyro(double t_k, const GyroVec& g_in) {
     }
     return done(outputs);
   }
-  const GyroSampleStatus status = after_gap ? GyroSampleStatus::kAcceptedAfterGap : outputs;
-  have_gyro_ = true;
-  t_last_gyro_ = t_k;
+  const GyroSampleStatus status = time_reset ? GyroSampleStatus::kAcceptedTimeReset
+                                  : after_gap ? GyroSampleStatus::kAcceptedAfterGap
+                                              : outputs;
   g_last_ = g;
   last_partial_ = partial;
   // A tracked fault's compensation at the middle of this sample's interval.
@@ -491,8 +515,6 @@ GyroSampleStatus OnlineFusion::AddGyro(double t_k, const GyroVec& g_in) {
   // The rate for this step comes from the gyros in use before any isolation at this sample (as Fuse()).
   const Vec3 w = RateDph(g) * kDphToRadS;
   w_last_ = w;
-  // The gyros did not cover the gap: the attitude is taken afresh from the next star solution.
-  if (after_gap && initialised_ && t_k - t_cur_ > opt_.policy.max_gyro_gap_s) RequestRestart(RestartReason::kGyroGap);
   if (!initialised_ || restart_pending_ || t_k <= t_cur_) return done(status);
   const double full = t_k - t_prev;
   ++n_gyro_;
@@ -532,7 +554,6 @@ GyroSampleStatus OnlineFusion::AddGyro(double t_k, const GyroVec& g_in) {
   return done(status);
 }
 
-
 MekfUpdate OnlineFusion::AddAttitude(double t_j, const Quat& q_in, const Mat3& r_body) {
   MekfUpdate u;
   // A measurement the filter cannot use changes nothing.
@@ -543,6 +564,33 @@ MekfUpdate OnlineFusion::AddAttitude(double t_j, const Quat& q_in, const Mat3& r
     return u;
   }
   const Quat q_meas = std::abs(qn - 1) > 1e-9 ? q_in.normalized() : q_in;
+  if (initialised_ && t_j < t_cur_ - 1e-9 && !restart_pending_) {  // (a restart takes a fix of any time)
+    ++n_late_;
+    u.status = UpdateStatus::kRejectedLate;
+    return u;
+  }
+  if (initialised_ && std::abs(t_j - t_last_st_) <= 1e-9) {  // the same frame again would count twice
+    ++n_repeat_meas_;
+    u.status = UpdateStatus::kRejectedRepeated;
+    return u;
+  }
+  const double max_gap = opt_.policy.max_gyro_gap_s;
+  // The latest time the estimator knows: the filter's, or the gyros' (ahead of it when a restart
+  // waits for this fix, or before the first fix).
+  const double t_known = !have_gyro_ ? t_cur_ : initialised_ ? std::max(t_cur_, t_last_gyro_) : t_last_gyro_;
+  bool jumped = false;
+  if ((initialised_ || have_gyro_) && t_j - t_known > max_gap) {
+    // Far beyond: a corrupt time tag, or the gyros silent. Believed when the next measurement
+    // follows it.
+    if (!(have_meas_jump_ && t_j > t_meas_jump_ + 1e-9 && t_j - t_meas_jump_ <= max_gap)) {
+      have_meas_jump_ = true;
+      t_meas_jump_ = t_j;
+      u.status = UpdateStatus::kRejectedTimeJump;
+      return u;
+    }
+    jumped = true;
+  }
+  have_meas_jump_ = false;
   if (!initialised_) {
     Mat6 p0 = Mat6::Zero();
     p0.block<3, 3>(0, 0) = r_body;
@@ -557,36 +605,10 @@ MekfUpdate OnlineFusion::AddAttitude(double t_j, const Quat& q_in, const Mat3& r
     u.status = UpdateStatus::kInitialised;
     return u;
   }
-  if (t_j < t_cur_ - 1e-9) {
-    ++n_late_;
-    u.status = UpdateStatus::kRejectedLate;
-    return u;
-  }
-  if (std::abs(t_j - t_last_st_) <= 1e-9) {  // the same frame again would count its information twice
-    ++n_repeat_meas_;
-    u.status = UpdateStatus::kRejectedRepeated;
-    return u;
-  }
-  const double max_gap = opt_.policy.max_gyro_gap_s;
-  // The latest time the estimator knows: the filter's, or the gyros' when a restart waits for this fix.
-  const double t_known = have_gyro_ ? std::max(t_cur_, t_last_gyro_) : t_cur_;
-  if (t_j - t_known > max_gap) {
-    // Far beyond the filter's time: a corrupt time tag, or the gyros silent. Believed when the next
-    // measurement follows it.
-    if (!(have_meas_jump_ && t_j > t_meas_jump_ + 1e-9 && t_j - t_meas_jump_ <= max_gap)) {
-      have_meas_jump_ = true;
-      t_meas_jump_ = t_j;
-      u.status = UpdateStatus::kRejectedTimeJump;
-      return u;
-    }
-    last_restart_ = RestartReason::kGyroGap;
-    restart_pending_ = true;
-  }
-  have_meas_jump_ = false;
-  // Gyros silent for longer than max_gap: nothing carries the attitude between fixes, each one
-  // restarts it (a star-only attitude; Status() says degraded).
-  if (have_gyro_ && t_j - t_last_gyro_ > max_gap && !restart_pending_) {
-    last_restart_ = RestartReason::kGyroGap;
+  // Beyond the gap, or the gyros silent for longer than it: nothing carries the attitude to this fix,
+  // it restarts from it (a star-only attitude while the gyros stay silent; Status() says degraded).
+  if (jumped || (have_gyro_ && t_j - t_last_gyro_ > max_gap)) {
+    if (!restart_pending_) last_restart_ = RestartReason::kGyroGap;
     restart_pending_ = true;
   }
   if (restart_pending_) {

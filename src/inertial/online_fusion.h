@@ -42,12 +42,14 @@ enum class GyroSampleStatus {
   kRejectedWrongSize,    // "rejected_wrong_size": not one output per gyro (state unchanged)
   kRejectedTimeJump,     // "rejected_time_jump": more than policy.max_gyro_gap_s after the last sample; taken
                          // if the next sample follows it (state unchanged otherwise)
+  kAcceptedTimeReset,    // "accepted_time_reset": the last of policy.resync_after_samples out-of-order samples
+                         // in a row: their time taken, the attitude restarts from the next star fix
 };
-constexpr int kGyroSampleStatusCount = 10;
+constexpr int kGyroSampleStatusCount = 11;
 const char* GyroSampleStatusName(GyroSampleStatus s);
 inline bool GyroSampleUsed(GyroSampleStatus s) {
   return s == GyroSampleStatus::kAccepted || s == GyroSampleStatus::kAcceptedPartial ||
-         s == GyroSampleStatus::kAcceptedAfterGap;
+         s == GyroSampleStatus::kAcceptedAfterGap || s == GyroSampleStatus::kAcceptedTimeReset;
 }
 
 // Why the filter restarted from a star solution (OnlineFusion::last_restart).
@@ -55,6 +57,7 @@ enum class RestartReason {
   kNone,       // "none"
   kNonFinite,  // "non_finite": its state was not finite (restored to the last finite one meanwhile)
   kGyroGap,    // "gyro_gap": the gyros did not cover more than policy.max_gyro_gap_s
+  kTimeReset,  // "time_reset": the gyro stream's time went back (GyroSampleStatus::kAcceptedTimeReset)
 };
 const char* RestartReasonName(RestartReason r);
 
@@ -196,6 +199,8 @@ class OnlineFusion {
   bool last_partial_ = false;      // the last gyro sample had an output dropped (or was rejected)
   bool have_jump_ = false;         // a rejected time jump, taken if the next sample confirms it
   double t_jump_ = 0;
+  int n_back_ = 0;                 // consecutive out-of-order samples, in order among themselves
+  double t_back_ = 0;              // the last of them
   bool have_meas_jump_ = false;    // likewise for a star solution far beyond the filter's time
   double t_meas_jump_ = 0;
   bool restart_pending_ = false;

@@ -2,14 +2,19 @@
 // truth for the inertial tests that must not depend on the simulator (a stage above this one). The
 // gyro outputs are the exact mean rate over each interval plus each gyro's bias, white noise of its
 // angle random walk and an optional step fault; the star fixes are the true attitude turned by white
-// noise of 5 arcsec (cross) and 30 arcsec (roll). Generating allocates nothing.
+// noise of 5 arcsec (cross) and 30 arcsec (roll). Generating allocates nothing. Also the two-head
+// processor the unit processor tests use.
 #pragma once
 
 #include <cmath>
+#include <memory>
 #include <random>
 
+#include "core/camera.h"
 #include "inertial/gyro_unit.h"
 #include "inertial/propagate.h"
+#include "inertial/unit_processor.h"
+#include "testing/testing.h"
 
 namespace ssiu::testing {
 
@@ -48,6 +53,13 @@ struct AnalyticFusion {
     }
   }
 
+  // A step of step_dph on gyro `gyro0` (0-based) from t_s on.
+  void SetFault(int gyro0, double t_s, double step_dph) {
+    fault_gyro = gyro0;
+    fault_t_s = t_s;
+    fault_dph = step_dph;
+  }
+
   Quat Truth(double t_s) const { return q0 * QuatFromRotationVector(w_rad_s * t_s); }
 
   // The outputs of the sample ending at t_s (deg/h).
@@ -70,5 +82,17 @@ struct AnalyticFusion {
     return RotationVectorFromQuat(Truth(t_s).conjugate() * q_est).norm();
   }
 };
+
+// The default mission's two 512x512 heads of 16.6 deg, 90 deg apart, on `unit`, with the built-in
+// catalog's identifier.
+inline std::unique_ptr<UnitProcessor> TwoHeadProcessor(const GyroUnit& unit, const UnitProcessorOptions& options) {
+  OpticalHead h1;
+  h1.camera = MakeCamera(512, 512, 16.6);
+  OpticalHead h2 = h1;
+  h2.q_body_from_sensor = Quat(Eigen::AngleAxisd(90 * kDegToRad, Vec3::UnitX()));
+  const auto id = std::make_shared<const StarIdentifier>(MakeIdentifierForCamera("", h1.camera, 0.0));
+  return std::make_unique<UnitProcessor>(std::vector<OpticalHead>{h1, h2},
+                                         std::vector<std::shared_ptr<const StarIdentifier>>{id, id}, unit, options);
+}
 
 }  // namespace ssiu::testing

@@ -218,6 +218,45 @@ TEST(BadInput, TimeJumpsAreConfirmedBeforeTheyAreBelieved) {
   EXPECT_EQ(g.Status(), FusionStatus::kOk);
 }
 
+// The clock goes back 30 s at 40 s (or the last accepted time tag was wrong): the samples are
+// refused until policy.resync_after_samples of them have followed one another, then the stream's time
+// is taken and the attitude restarts from the next fix. A corrupt first time tag is the same case.
+TEST(BadInput, AClockGoneBackIsFollowedAfterARunOfSamples) {
+  AnalyticFusion sim;
+  OnlineFusion f(sim.unit, FuseOptions{});
+  RunAnalytic(&sim, &f, 40, NoEdit, AllAccepted);
+  const int n = FusionPolicy{}.resync_after_samples;
+  Mat3 r;
+  for (int k = 1; k <= 1000; ++k) {
+    const double t = 10 + 0.01 * k;  // the true time is 40 s later
+    const GyroSampleStatus s = f.AddGyro(t, sim.Gyro(t + 30));
+    EXPECT_EQ(s, k < n    ? GyroSampleStatus::kRejectedOutOfOrder
+                 : k == n ? GyroSampleStatus::kAcceptedTimeReset
+                          : GyroSampleStatus::kAccepted)
+        << k;
+    if (k == n) {
+      EXPECT_TRUE(f.restart_pending());
+      EXPECT_EQ(f.last_restart(), RestartReason::kTimeReset);
+      EXPECT_EQ(f.Status(), FusionStatus::kFailed);
+    }
+    if (k % 100 == 0) {
+      const Quat q = sim.Star(t + 30, &r);  // the truth of the true time, tagged on the new clock
+      EXPECT_EQ(f.AddAttitude(t, q, r).status, k == 100 ? UpdateStatus::kInitialised : UpdateStatus::kAccepted) << k;
+    }
+  }
+  const Vec3 e = RotationVectorFromQuat(sim.Truth(50).conjugate() * f.q());
+  for (int a = 0; a < 3; ++a) EXPECT_LT(std::abs(e[a]), 3 * f.attitude_sigma_rad()[a]) << a;
+
+  AnalyticFusion sim2;
+  OnlineFusion g(sim2.unit, FuseOptions{});
+  EXPECT_EQ(g.AddGyro(1e6, sim2.Gyro(0.01)), GyroSampleStatus::kAccepted);  // nothing to compare it with
+  for (int k = 1; k <= n; ++k) {
+    EXPECT_EQ(g.AddGyro(0.01 * k, sim2.Gyro(0.01 * k)),
+              k < n ? GyroSampleStatus::kRejectedOutOfOrder : GyroSampleStatus::kAcceptedTimeReset);
+  }
+  EXPECT_EQ(g.AddGyro(0.01 * (n + 1), sim2.Gyro(0.01 * (n + 1))), GyroSampleStatus::kAccepted);
+}
+
 // Star fixes: before the filter's time, at the same time as the last, with a NaN, far in the future.
 TEST(BadInput, BadMeasurementsAreRefusedWithTheirReason) {
   AnalyticFusion sim;
@@ -318,12 +357,8 @@ TEST(BadInput, GyrosSilentForMinutes) {
 // The unit processor: frames of the wrong size or stride are that head's "bad_frame", a wrong number
 // of views or a NaN time tag every head's; nothing throws, and a bad gyro sample's status comes back.
 TEST(BadInput, UnitProcessorReportsBadFramesAsStatuses) {
-  OpticalHead h1;
-  h1.camera = MakeCamera(512, 512, 16.6);
-  OpticalHead h2 = h1;
-  h2.q_body_from_sensor = Quat(Eigen::AngleAxisd(90 * kDegToRad, Vec3::UnitX()));
-  const auto id = std::make_shared<const StarIdentifier>(MakeIdentifierForCamera("", h1.camera, 0.0));
-  UnitProcessor p({h1, h2}, {id, id}, DefaultFourFogUnit(), UnitProcessorOptions{});
+  const auto processor = testing::TwoHeadProcessor(DefaultFourFogUnit(), UnitProcessorOptions{});
+  UnitProcessor& p = *processor;
   const Image16 small(64, 64, 100);
   FrameReport f;
   ASSERT_NO_THROW(f = p.OnFrames(1.0, {small.view(), ImageView{}}));
