@@ -10,6 +10,8 @@ enum class SolveStatus {
   kNoMatch,      // "no_match": no hypothesis verified (or the heads disagree)
   kTooFewStars,  // "too_few_stars": fewer centroids or matches than a solution needs
   kNoFrame,      // "no_frame": the unit processor's head had no frame at that time
+  kBadFrame,     // "bad_frame": the unit processor refused the frame (wrong size or stride, a bad time
+                 // tag, not one view per head); nothing was solved from it
 };
 
 inline const char* SolveStatusName(SolveStatus s) {
@@ -22,6 +24,8 @@ inline const char* SolveStatusName(SolveStatus s) {
       return "too_few_stars";
     case SolveStatus::kNoFrame:
       return "no_frame";
+    case SolveStatus::kBadFrame:
+      return "bad_frame";
   }
   return "no_match";  // not reached
 }

@@ -81,29 +81,68 @@ Json FaultEvent::ToJson() const {
 }
 
 ParityMonitor::ParityMonitor(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& sigma_dph, double dt_s,
-                             const FdiOptions& options)
-    : opt_(options), dt_(dt_s) {
+                             const FdiOptions& options) {
+  Reset(axes, use, sigma_dph, dt_s, options);
+}
+
+void ParityMonitor::Reset(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& sigma_dph, double dt_s,
+                          const FdiOptions& options) {
+  // Every member back to its initial value, the buffers kept (their capacity is the point: after the
+  // first construction a reset on the per-sample path allocates nothing).
+  std::vector<GyroVec> ring = std::move(ring_), short_ring = std::move(short_ring_);
+  std::vector<std::pair<double, GyroVec>> hist = std::move(hist_);
+  std::vector<int> hyp_gyro = std::move(hyp_gyro_);
+  std::vector<GyroVec> hyp_w = std::move(hyp_w_);
+  std::vector<double> hyp_k = std::move(hyp_k_), hyp_h = std::move(hyp_h_), s = std::move(s_),
+                      s_zero_t = std::move(s_zero_t_);
+  *this = ParityMonitor();
+  ring_ = std::move(ring);
+  short_ring_ = std::move(short_ring);
+  hist_ = std::move(hist);
+  hyp_gyro_ = std::move(hyp_gyro);
+  hyp_w_ = std::move(hyp_w);
+  hyp_k_ = std::move(hyp_k);
+  hyp_h_ = std::move(hyp_h);
+  s_ = std::move(s);
+  s_zero_t_ = std::move(s_zero_t);
+  ring_.clear();
+  short_ring_.clear();
+  hist_.clear();
+  hyp_gyro_.clear();
+  hyp_w_.clear();
+  hyp_k_.clear();
+  hyp_h_.clear();
+  s_.clear();
+  s_zero_t_.clear();
+  opt_ = options;
+  dt_ = dt_s;
   v_ = ParityMatrix(axes, use);
   const int m = static_cast<int>(v_.rows());
   if (m == 0) return;
   window_n_ = std::max(1, static_cast<int>(std::lround(options.window_s / dt_s)));
   GyroParity sigma2 = GyroParity::Zero(axes.rows(), axes.rows());
   for (int i = 0; i < axes.rows(); ++i) sigma2(i, i) = sigma_dph[i] * sigma_dph[i];
-  const Eigen::MatrixXd c = Eigen::MatrixXd(v_ * sigma2 * v_.transpose()) / window_n_;
+  const GyroParity c = GyroParity(v_ * sigma2 * v_.transpose()) / window_n_;
   cov_window_inv_ = c.inverse();
   ring_.assign(window_n_, GyroVec::Zero(m));
   sum_ = GyroVec::Zero(m);
   baseline_ = GyroVec::Zero(m);
   jump_ = GyroVec::Zero(m);
   warm_sum_ = GyroVec::Zero(m);
+  warm_mean_ = GyroVec::Zero(m);
+  warm_m2_ = GyroParity::Zero(m, m);
   hist_n_ = std::max(1, static_cast<int>(std::lround(120.0 / dt_s)));
+  hist_.reserve(hist_n_);  // filled when the warm-up ends
   short_n_ = std::max(1, static_cast<int>(std::lround(1.0 / dt_s)));
   short_ring_.assign(short_n_, GyroVec::Zero(m));
   short_sum_ = GyroVec::Zero(m);
   short_mean_ = GyroVec::Zero(m);
+  hyp_gyro_.reserve(kMaxGyros);
   for (int i = 0; i < axes.rows(); ++i) {
     if (use[i]) hyp_gyro_.push_back(i);
   }
+  for (auto* v : {&hyp_k_, &hyp_h_, &s_, &s_zero_t_}) v->reserve(2 * kMaxGyros);
+  hyp_w_.reserve(2 * kMaxGyros);
   const int n_tests = 2 * static_cast<int>(hyp_gyro_.size()) + 1;
   h_ = CusumThreshold(n_tests, 1.0 / dt_s, options.false_alarm_per_h);
 }
@@ -122,7 +161,9 @@ bool ParityMonitor::Feed(double t_s, const GyroVec& g_dph) {
   if (!ready_) {
     warm_sum_ += p;
     ++warm_n_;
-    warm_samples_.push_back(p);
+    const GyroVec d = p - warm_mean_;
+    warm_mean_ += d / static_cast<double>(warm_n_);
+    warm_m2_ += d * (p - warm_mean_).transpose();
     if (t_s - t_first_ >= opt_.warmup_s && ring_count_ == window_n_) {
       baseline_ = warm_sum_ / static_cast<double>(warm_n_);
       StartCusum(t_s);
@@ -169,14 +210,11 @@ void ParityMonitor::UpdateShort(const GyroVec& e) {
 
 void ParityMonitor::StartCusum(double t_s) {
   const int m = static_cast<int>(v_.rows());
-  Eigen::MatrixXd c = Eigen::MatrixXd::Zero(m, m);
-  for (const auto& p : warm_samples_) c += (p - baseline_) * (p - baseline_).transpose();
-  c /= static_cast<double>(std::max<size_t>(2, warm_samples_.size()) - 1);
+  // The warm-up covariance about its mean (= baseline_ here).
+  GyroParity c = (warm_m2_ + warm_m2_.transpose()) / (2.0 * static_cast<double>(std::max<long>(2, warm_n_) - 1));
   // Never below a tenth of the modelled noise: a quantised or silent log must not make C singular.
-  const Eigen::MatrixXd c_model = Eigen::MatrixXd(cov_window_inv_.inverse()) * window_n_;
+  const GyroParity c_model = GyroParity(cov_window_inv_.inverse()) * window_n_;
   for (int i = 0; i < m; ++i) c(i, i) = std::max(c(i, i), 0.1 * c_model(i, i));
-  warm_samples_.clear();
-  warm_samples_.shrink_to_fit();
   if (has_inherited_) baseline_ = v_ * inherited_;
   c_inv_ = c.inverse();
   short_sigma_ = std::sqrt(c.diagonal().maxCoeff() / short_n_);
@@ -275,8 +313,21 @@ GyroVec ParityMonitor::StepEstimate(double* age_s) const {
   return best;
 }
 
-StarRateIsolator::StarRateIsolator(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& correction_dph)
-    : axes_(axes), use_(use), correction_dph_(correction_dph) {
+StarRateIsolator::StarRateIsolator(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& correction_dph,
+                                   int max_points) {
+  points_.resize(static_cast<size_t>(std::max(1, max_points)));
+  Reset(axes, use, correction_dph);
+}
+
+void StarRateIsolator::Reset(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& correction_dph) {
+  std::vector<Point> points = std::move(points_);
+  std::vector<bool> use_kept = std::move(use_);
+  *this = StarRateIsolator();
+  points_ = std::move(points);
+  use_ = std::move(use_kept);
+  use_ = use;  // same size: no allocation
+  axes_ = axes;
+  correction_dph_ = correction_dph;
   pending_rad_ = GyroVec::Zero(axes.rows());
   residual_rad_ = GyroVec::Zero(axes.rows());
   chain_angle_rad_ = GyroVec::Zero(axes.rows());
@@ -305,7 +356,15 @@ void StarRateIsolator::AddStar(double t_s, const Quat& q, const Mat3& r_body) {
     ++chain_id_;
     chain_angle_rad_.setZero();
   }
-  points_.push_back({t_s, chain_id_, chain_angle_rad_, r_body});
+  // A full store drops its oldest sample (a fit then covers less than compensation_window_s).
+  if (points_.empty()) points_.resize(kDefaultMaxPoints);
+  if (n_points_ == static_cast<int>(points_.size())) {
+    first_point_ = (first_point_ + 1) % n_points_;
+    --n_points_;
+    ++n_dropped_;
+  }
+  points_[(first_point_ + n_points_) % points_.size()] = {t_s, chain_id_, chain_angle_rad_, r_body};
+  ++n_points_;
   r_prev_ = r_body;
   has_prev_ = true;
   q_prev_ = q;
@@ -334,46 +393,84 @@ GyroVec StarRateIsolator::ResidualDph() const {
 FaultFit StarRateIsolator::FitFault(int gi, double t_from_s, double t_now_s) const {
   FaultFit fit;
   // Unknowns: one offset per chain, then a (rad/s at t_now) and b (rad/s^2). The residual angle of a
-  // sample at t is offset + a (t - t_now) + b (t - t_now)^2 / 2 + its star error.
-  std::vector<const Point*> pts;
-  std::vector<int> chains;
-  for (const Point& p : points_) {
-    if (p.t_s < t_from_s - 1e-9 || p.t_s > t_now_s + 1e-9) continue;
-    if (chains.empty() || chains.back() != p.chain) chains.push_back(p.chain);
-    pts.push_back(&p);
-  }
-  const int nc = static_cast<int>(chains.size()), np = static_cast<int>(pts.size()), nu = nc + 2;
-  if (np - nu < 1) return fit;
+  // sample at t is offset + a (t - t_now) + b (t - t_now)^2 / 2 + its star error. Each chain's offset
+  // is eliminated (its weighted mean; the Schur complement of the normal equations), leaving 2 x 2
+  // normal equations in (a, b) whose inverse is their marginal covariance: no storage per sample or
+  // chain, so the fit allocates nothing.
   const Vec3 axis = axes_.row(gi).transpose();
   // A floor of 0.1 arcsec on the star error keeps a noiseless log's normal equations finite.
   const double floor_rad2 = std::pow(0.1 * kArcsecToRad, 2);
-  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(np, nu);
-  Eigen::VectorXd y(np), w(np);
-  for (int k = 0, c = 0; k < np; ++k) {
-    if (pts[k]->chain != chains[c]) ++c;
-    const double x = pts[k]->t_s - t_now_s;
-    a(k, c) = 1;
-    a(k, nc) = x;
-    a(k, nc + 1) = 0.5 * x * x;
-    y[k] = pts[k]->angle_rad[gi];
-    w[k] = 1 / std::max(floor_rad2, axis.dot(pts[k]->r_body * axis));
+  auto in_span = [&](const Point& p) { return p.t_s >= t_from_s - 1e-9 && p.t_s <= t_now_s + 1e-9; };
+  auto weight = [&](const Point& p) { return 1 / std::max(floor_rad2, axis.dot(p.r_body * axis)); };
+  // Calls f(w, f1, f2, y) for each sample in the span, with the regressors x, x^2/2 and the residual
+  // angle y centred on its chain's weighted mean.
+  auto for_each_centred = [&](auto&& f) {
+    int k = 0;
+    while (k < n_points_) {
+      if (!in_span(point(k))) {
+        ++k;
+        continue;
+      }
+      const int chain = point(k).chain;
+      int end = k;
+      double sw = 0, sx1 = 0, sx2 = 0, sy = 0;
+      for (; end < n_points_ && point(end).chain == chain; ++end) {
+        const Point& p = point(end);
+        if (!in_span(p)) continue;
+        const double w = weight(p), x = p.t_s - t_now_s;
+        sw += w;
+        sx1 += w * x;
+        sx2 += w * 0.5 * x * x;
+        sy += w * p.angle_rad[gi];
+      }
+      for (int j = k; j < end; ++j) {
+        const Point& p = point(j);
+        if (!in_span(p)) continue;
+        const double x = p.t_s - t_now_s;
+        f(weight(p), x - sx1 / sw, 0.5 * x * x - sx2 / sw, p.angle_rad[gi] - sy / sw);
+      }
+      k = end;
+    }
+  };
+  int np = 0, nc = 0, last_chain = 0;
+  for (int k = 0; k < n_points_; ++k) {
+    const Point& p = point(k);
+    if (!in_span(p)) continue;
+    if (np == 0 || p.chain != last_chain) ++nc;
+    last_chain = p.chain;
+    ++np;
   }
-  const Eigen::MatrixXd n = a.transpose() * w.asDiagonal() * a;
-  const Eigen::LDLT<Eigen::MatrixXd> ldlt(n);
-  if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-14)) return fit;
-  const Eigen::VectorXd x = ldlt.solve(a.transpose() * w.asDiagonal() * y);
-  const Eigen::VectorXd r = y - a * x;
-  const double chi2_per_dof = r.dot(w.asDiagonal() * r) / (np - nu);
-  const Eigen::MatrixXd cov = ldlt.solve(Eigen::MatrixXd::Identity(nu, nu));
-  fit.value_dph = x[nc] * kRadSToDph;
-  fit.ramp_dph_per_s = x[nc + 1] * kRadSToDph;
-  fit.sigma_dph = std::sqrt(cov(nc, nc) * std::max(1.0, chi2_per_dof)) * kRadSToDph;
+  const int nu = nc + 2;
+  if (np - nu < 1) return fit;
+  Eigen::Matrix2d n = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d r = Eigen::Vector2d::Zero();
+  for_each_centred([&](double w, double f1, double f2, double y) {
+    const Eigen::Vector2d f(f1, f2);
+    n += w * f * f.transpose();
+    r += w * y * f;
+  });
+  const double det = n.determinant();
+  if (!(det > 1e-14 * n(0, 0) * n(1, 1))) return fit;
+  const Eigen::Matrix2d cov = n.inverse();
+  const Eigen::Vector2d ab = cov * r;
+  double chi2 = 0;
+  for_each_centred([&](double w, double f1, double f2, double y) {
+    const double e = y - ab[0] * f1 - ab[1] * f2;
+    chi2 += w * e * e;
+  });
+  const double chi2_per_dof = chi2 / (np - nu);
+  fit.value_dph = ab[0] * kRadSToDph;
+  fit.ramp_dph_per_s = ab[1] * kRadSToDph;
+  fit.sigma_dph = std::sqrt(cov(0, 0) * std::max(1.0, chi2_per_dof)) * kRadSToDph;
   fit.n = np;
   return fit;
 }
 
 void StarRateIsolator::ForgetBefore(double t_s) {
-  while (!points_.empty() && points_.front().t_s < t_s) points_.pop_front();
+  while (n_points_ > 0 && point(0).t_s < t_s) {
+    first_point_ = (first_point_ + 1) % static_cast<int>(points_.size());
+    --n_points_;
+  }
 }
 
 GyroVec StarRateIsolator::ResidualSigmaDph() const {

@@ -19,7 +19,6 @@
 // parity direction alone isolates when it matches one gyro's column of V clearly.
 #pragma once
 
-#include <deque>
 #include <limits>
 #include <string>
 #include <utility>
@@ -84,6 +83,10 @@ class ParityMonitor {
   // `use`: gyros in service; `sigma_dph`: per-sample white noise of each gyro (deg/h).
   ParityMonitor(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& sigma_dph, double dt_s,
                 const FdiOptions& options);
+  // Starts over as a monitor of `use` (after an isolation), in the buffers it already has: with the
+  // same dt_s and options as at construction it allocates nothing.
+  void Reset(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& sigma_dph, double dt_s,
+             const FdiOptions& options);
   bool active() const { return v_.rows() > 0; }
   // Starts the baseline from gyro-level parity biases (V' p of the monitor this one replaces, after an
   // isolation) instead of the warm-up mean, which a warm-up shorter than the motion's period biases;
@@ -126,7 +129,7 @@ class ParityMonitor {
   void UpdateShort(const GyroVec& e);
   FdiOptions opt_;
   GyroParity v_;
-  Eigen::MatrixXd cov_window_inv_;  // inverse covariance of a window mean
+  GyroParity cov_window_inv_;  // inverse covariance of a window mean
   int window_n_ = 1;
   double dt_ = 0.01;
   std::vector<GyroVec> ring_;
@@ -137,8 +140,9 @@ class ParityMonitor {
   GyroVec warm_sum_;
   long warm_n_ = 0;
   // CUSUM state.
-  std::vector<GyroVec> warm_samples_;  // warm-up residuals, for C
-  Eigen::MatrixXd c_inv_;              // inverse noise covariance of one parity sample
+  GyroVec warm_mean_;     // running mean and sum of squared deviations of the warm-up parity, for C
+  GyroParity warm_m2_;    // (Welford 1962: no store of the samples)
+  GyroParity c_inv_;      // inverse noise covariance of one parity sample
   std::vector<int> hyp_gyro_;          // gyro of each mean hypothesis
   std::vector<GyroVec> hyp_w_;         // f * C^-1 d_i (signed)
   std::vector<double> hyp_k_;          // f^2 d_i' C^-1 d_i / 2
@@ -170,7 +174,12 @@ struct FaultFit {
 class StarRateIsolator {
  public:
   StarRateIsolator() = default;
-  StarRateIsolator(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& correction_dph);
+  // Keeps at most max_points star samples (the oldest go first; FitFault then sees less history).
+  StarRateIsolator(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& correction_dph,
+                   int max_points = kDefaultMaxPoints);
+  static constexpr int kDefaultMaxPoints = 4096;
+  // Starts over (a new fault) in the storage it has: allocates nothing when `use` has the size it had.
+  void Reset(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& correction_dph);
   // Gyro sample: outputs (deg/h) over dt.
   void AddGyro(const GyroVec& g_dph, double dt_s);
   // Star sample at time t (body -> inertial); intervals since the previous star sample count when the
@@ -193,6 +202,8 @@ class StarRateIsolator {
   FaultFit FitFault(int gi, double t_from_s, double t_now_s) const;
   // Drops stored samples before t_s (FitFault never needs them again).
   void ForgetBefore(double t_s);
+  int points_stored() const { return n_points_; }
+  long points_dropped() const { return n_dropped_; }  // taken out unread because the store was full
 
  private:
   GyroAxes axes_;
@@ -212,7 +223,10 @@ class StarRateIsolator {
     GyroVec angle_rad;  // residual angle accumulated along the chain up to this star sample
     Mat3 r_body;
   };
-  std::deque<Point> points_;
+  const Point& point(int k) const { return points_[(first_point_ + k) % points_.size()]; }
+  std::vector<Point> points_;  // ring of max_points: n_points_ from first_point_ on
+  int first_point_ = 0, n_points_ = 0;
+  long n_dropped_ = 0;
   GyroVec chain_angle_rad_;
   int chain_id_ = 0;
 };

@@ -83,6 +83,17 @@ void FusionPolicy::Check() const {
     throw InputError("fuse options", "policy.settle_after_isolation_s must be a finite number >= 0");
   }
   pos(bias_history_s, "bias_history_s");
+  pos(max_gyro_output_dph, "max_gyro_output_dph");
+  pos(max_gyro_gap_s, "max_gyro_gap_s");
+  auto count = [](int v, const char* name, int most) {
+    if (v < 1 || v > most) {
+      throw InputError("fuse options", "policy." + std::string(name) + " must be in [1, " + std::to_string(most) + "]");
+    }
+  };
+  count(max_fault_events, "max_fault_events", 1 << 16);
+  count(resync_after_samples, "resync_after_samples", 1 << 20);
+  count(bias_history_max, "bias_history_max", 1 << 20);
+  count(max_star_samples_kept, "max_star_samples_kept", 1 << 20);
 }
 
 void FuseOptions::Check() const {

@@ -61,6 +61,25 @@ struct FusionPolicy {
   // The bias estimates at accepted fixes are kept this long: an isolation restores the bias from
   // before the fault's onset.
   double bias_history_s = 120.0;
+  // Input checks (OnlineFusion::AddGyro's GyroSampleStatus). A gyro output beyond this magnitude
+  // (deg/h) is unusable like a NaN: 3.6e6 deg/h = 1000 deg/s, beyond any FOG's range.
+  double max_gyro_output_dph = 3.6e6;
+  // A gyro sample more than this after the previous one is a time jump: taken only when the next
+  // sample confirms it (one corrupt time tag must not lock out every later sample), and the attitude
+  // is then taken afresh from the next star solution (the gyros did not cover the gap). The same for
+  // a star solution this far beyond the filter's time (the gyros silent): the second one confirms.
+  double max_gyro_gap_s = 10.0;
+  // This many consecutive gyro samples before the last accepted one, in order among themselves: the
+  // clock went back (or the last accepted time tag was corrupt). The stream's time is taken from the
+  // last of them and the attitude restarts from the next star fix (whatever its time).
+  int resync_after_samples = 100;
+  // Fixed storage, reserved at construction so that the per-sample calls never allocate: fault
+  // events kept (beyond it the oldest resolved event is dropped, counted by n_faults_dropped()), bias
+  // estimates kept for bias_history_s (beyond it the oldest go first), star samples a fault's
+  // isolator keeps (beyond it the oldest go first; at 10 Hz, 120 s need 1,200).
+  int max_fault_events = 32;
+  int bias_history_max = 4096;
+  int max_star_samples_kept = 4096;
 
   void Check() const;  // InputError naming the field
 };

@@ -214,6 +214,10 @@ Json GyroUnitToJson(const GyroUnit& unit) {
 GyroUnit LoadGyroUnit(const std::string& path) { return GyroUnitFromJson(ReadJsonFile(path), path); }
 
 RateSolver::RateSolver(const GyroAxes& axes, const GyroVec& sigma, const std::vector<bool>& use) {
+  if (!Make(axes, sigma, use, this)) throw InputError("unit", "the gyros in use do not span 3-D");
+}
+
+bool RateSolver::Make(const GyroAxes& axes, const GyroVec& sigma, const std::vector<bool>& use, RateSolver* out) {
   const int n = static_cast<int>(axes.rows());
   Mat3 info = Mat3::Zero();
   for (int i = 0; i < n; ++i) {
@@ -221,28 +225,30 @@ RateSolver::RateSolver(const GyroAxes& axes, const GyroVec& sigma, const std::ve
     info += axes.row(i).transpose() * axes.row(i) / (sigma[i] * sigma[i]);
   }
   Eigen::SelfAdjointEigenSolver<Mat3> eig(info);
-  if (eig.eigenvalues()(0) <= 1e-9 * eig.eigenvalues()(2)) throw InputError("unit", "the gyros in use do not span 3-D");
-  cov_ = info.inverse();
-  pinv_ = GyroPinv::Zero(3, n);
+  if (!(eig.eigenvalues()(0) > 1e-9 * eig.eigenvalues()(2))) return false;
+  out->cov_ = info.inverse();
+  out->pinv_ = GyroPinv::Zero(3, n);
   for (int i = 0; i < n; ++i) {
-    if (use[i]) pinv_.col(i) = cov_ * axes.row(i).transpose() / (sigma[i] * sigma[i]);
+    if (use[i]) out->pinv_.col(i) = out->cov_ * axes.row(i).transpose() / (sigma[i] * sigma[i]);
   }
+  return true;
 }
 
 GyroParity ParityMatrix(const GyroAxes& axes, const std::vector<bool>& use) {
   const int n = static_cast<int>(axes.rows());
-  std::vector<int> idx;
+  // Fixed-capacity storage: called again when a gyro is isolated, on the per-sample path.
+  int idx[kMaxGyros];
+  int m = 0;
   for (int i = 0; i < n; ++i) {
-    if (use[i]) idx.push_back(i);
+    if (use[i]) idx[m++] = i;
   }
-  const int m = static_cast<int>(idx.size());
   GyroParity v = GyroParity::Zero(std::max(m - 3, 0), n);
   if (m <= 3) return v;
-  Eigen::MatrixXd hs(m, 3);
+  GyroAxes hs(m, 3);
   for (int r = 0; r < m; ++r) hs.row(r) = axes.row(idx[r]);
   // The last m - 3 left singular vectors of H_s span its left null space.
-  Eigen::JacobiSVD<Eigen::MatrixXd> svd(hs, Eigen::ComputeFullU);
-  const Eigen::MatrixXd null = svd.matrixU().rightCols(m - 3);
+  Eigen::JacobiSVD<GyroAxes> svd(hs, Eigen::ComputeFullU);
+  const GyroParity null = svd.matrixU().rightCols(m - 3);
   for (int k = 0; k < m - 3; ++k) {
     // Sign convention: the last used gyro's entry is negative (gives the four-FOG unit the familiar
     // p = (g1 + g2 + g3)/sqrt(6) - g4/sqrt(2)).

@@ -80,6 +80,9 @@ class RateSolver {
   RateSolver() = default;
   // Weights 1 / sigma^2. InputError when the selected axes do not span 3-D.
   RateSolver(const GyroAxes& axes, const GyroVec& sigma, const std::vector<bool>& use);
+  // The same without an exception (the per-sample path): false, and *out untouched, when the selected
+  // axes do not span 3-D. Allocates nothing.
+  static bool Make(const GyroAxes& axes, const GyroVec& sigma, const std::vector<bool>& use, RateSolver* out);
   Vec3 Solve(const GyroVec& g) const { return pinv_ * g; }
   const GyroPinv& Pinv() const { return pinv_; }
   // Covariance of the solved rate, (H' W H)^-1, in the unit of sigma squared.

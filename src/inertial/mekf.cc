@@ -60,6 +60,26 @@ void Mekf::Propagate(const Vec3& w_meas, double dt, const MekfNoise& noise, bool
   p_ = 0.5 * (p_ + p_.transpose());
 }
 
+const char* UpdateStatusName(UpdateStatus s) {
+  switch (s) {
+    case UpdateStatus::kAccepted:
+      return "accepted";
+    case UpdateStatus::kInitialised:
+      return "initialised";
+    case UpdateStatus::kRejectedGate:
+      return "rejected_nis";
+    case UpdateStatus::kRejectedLate:
+      return "rejected_late";
+    case UpdateStatus::kRejectedRepeated:
+      return "rejected_repeated";
+    case UpdateStatus::kRejectedBadInput:
+      return "rejected_bad_input";
+    case UpdateStatus::kRejectedTimeJump:
+      return "rejected_time_jump";
+  }
+  return "rejected_bad_input";
+}
+
 MekfUpdate Mekf::UpdateAttitude(const Quat& q_meas, const Mat3& r_body, double nis_gate) {
   MekfUpdate out;
   // Measurement model: q_meas = q_true * exp(v), so dz = log(q_est^-1 q_meas) = dtheta + v, H = [I 0].
@@ -80,6 +100,7 @@ MekfUpdate Mekf::UpdateAttitude(const Quat& q_meas, const Mat3& r_body, double n
   p_ = ikh * p_ * ikh.transpose() + k * r_body * k.transpose();
   p_ = 0.5 * (p_ + p_.transpose());
   out.accepted = true;
+  out.status = UpdateStatus::kAccepted;
   return out;
 }
 

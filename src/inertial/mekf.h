@@ -32,7 +32,20 @@ struct MekfNoise {
   Mat3 bias_walk = Mat3::Identity() * 1e-18;
 };
 
+// What became of an attitude measurement (OnlineFusion::AddAttitude; JSON spelling UpdateStatusName).
+enum class UpdateStatus {
+  kAccepted,          // "accepted": the filter was updated
+  kInitialised,       // "initialised": it started the filter (or restarted it: OnlineFusion::n_restarts)
+  kRejectedGate,      // "rejected_nis": NIS beyond the gate
+  kRejectedLate,      // "rejected_late": before the filter's time
+  kRejectedRepeated,  // "rejected_repeated": the same time as the last measurement
+  kRejectedBadInput,  // "rejected_bad_input": a non-finite time, quaternion or covariance
+  kRejectedTimeJump,  // "rejected_time_jump": too far beyond the filter's time, not (yet) confirmed
+};
+const char* UpdateStatusName(UpdateStatus s);
+
 struct MekfUpdate {
+  UpdateStatus status = UpdateStatus::kRejectedGate;
   bool accepted = false;
   Vec3 residual_rad = Vec3::Zero();  // 2 vec(q_est^-1 * q_meas) before the update, body axes
   double nis = 0;                    // normalised innovation squared (chi^2 with 3 dof)

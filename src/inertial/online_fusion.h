@@ -8,9 +8,14 @@
 //   f.AddGyro(t_k, g_dph);                    // every gyro sample, in time order
 //   f.AddAttitude(t_j, q_body, r_body_rad2);  // every star solution (t_j >= last gyro time)
 //   f.q(), f.P(), f.bias_rad_s(), f.faults()
+//
+// Flight rules (docs/inertial.md "Bad inputs"): after construction AddGyro allocates nothing and
+// neither call throws; what a call did with its input is its status (GyroSampleStatus,
+// MekfUpdate::status), counted per kind; no input can make the state non-finite, and if it ever is
+// the filter restarts from the next star solution (Status() says "failed" until then).
 #pragma once
 
-#include <deque>
+#include <array>
 #include <utility>
 #include <vector>
 
@@ -22,23 +27,65 @@
 
 namespace ssiu {
 
+// What AddGyro did with a sample (JSON spelling GyroSampleStatusName).
+enum class GyroSampleStatus {
+  kAccepted = 0,         // "accepted"
+  kAcceptedPartial,      // "accepted_partial": an output unusable (NaN/inf or beyond policy.max_gyro_output_dph),
+                         // the rate from the other gyros in use
+  kAcceptedAfterGap,     // "accepted_after_gap": confirms a time jump; the attitude restarts from the next star fix
+  kRejectedNonFinite,    // "rejected_non_finite": NaN/inf outputs and the rest give no rate: the last rate is
+                         // held over the interval
+  kRejectedOutOfRange,   // "rejected_out_of_range": the same for outputs beyond the range
+  kRejectedOutOfOrder,   // "rejected_out_of_order": before the last sample (state unchanged)
+  kRejectedRepeated,     // "rejected_repeated": the last sample's time again (state unchanged)
+  kRejectedBadTime,      // "rejected_bad_time": a NaN/inf time (state unchanged)
+  kRejectedWrongSize,    // "rejected_wrong_size": not one output per gyro (state unchanged)
+  kRejectedTimeJump,     // "rejected_time_jump": more than policy.max_gyro_gap_s after the last sample; taken
+                         // if the next sample follows it (state unchanged otherwise)
+  kAcceptedTimeReset,    // "accepted_time_reset": the last of policy.resync_after_samples out-of-order samples
+                         // in a row: their time taken, the attitude restarts from the next star fix
+};
+constexpr int kGyroSampleStatusCount = 11;
+const char* GyroSampleStatusName(GyroSampleStatus s);
+inline bool GyroSampleUsed(GyroSampleStatus s) {
+  return s == GyroSampleStatus::kAccepted || s == GyroSampleStatus::kAcceptedPartial ||
+         s == GyroSampleStatus::kAcceptedAfterGap || s == GyroSampleStatus::kAcceptedTimeReset;
+}
+
+// Why the filter restarted from a star solution (OnlineFusion::last_restart).
+enum class RestartReason {
+  kNone,       // "none"
+  kNonFinite,  // "non_finite": its state was not finite (restored to the last finite one meanwhile)
+  kGyroGap,    // "gyro_gap": the gyros did not cover more than policy.max_gyro_gap_s
+  kTimeReset,  // "time_reset": the gyro stream's time went back (GyroSampleStatus::kAcceptedTimeReset)
+};
+const char* RestartReasonName(RestartReason r);
+
 class OnlineFusion {
  public:
   // Raw gyro outputs of `unit` (its size, axes and noise figures; the sample interval is
   // 1 / unit.rate_hz). InputError for a bad unit or bad options.
   OnlineFusion(const GyroUnit& unit, const FuseOptions& options);
 
-  // One gyro sample: the mean outputs (deg/h) over (t_prev, t_s]. Ignored before the first attitude
-  // measurement (nothing to start from) and when not later than the current time.
-  void AddGyro(double t_s, const GyroVec& g_dph);
+  // One gyro sample: the mean outputs (deg/h) over (t_prev, t_s]. Kept as the latest rate but not
+  // propagated before the first attitude measurement (nothing to start from) and when not later than
+  // the filter's time. Bad samples are refused or repaired as the status says; the filter goes on.
+  GyroSampleStatus AddGyro(double t_s, const GyroVec& g_dph);
 
   // An attitude measurement (body -> inertial) at t_s with error covariance r_body (rad^2, body axes).
   // The first one initialises the filter. A measurement after the last gyro sample is reached by
   // propagating with the last gyro rate (zero-order hold, the on-board case of a frame arriving before
-  // the gyro sample that covers it); one before the current time is refused (returned not accepted).
+  // the gyro sample that covers it); one before the current time is refused (returned not accepted),
+  // as are the other cases of UpdateStatus.
   MekfUpdate AddAttitude(double t_s, const Quat& q_inertial_from_body, const Mat3& r_body);
 
+  // True from the first measurement on (also while awaiting a restart: q() is then the last finite
+  // estimate, and Status() "failed").
   bool initialised() const { return initialised_; }
+  // Waiting for a star solution to restart from (restart_pending()), and why it last restarted.
+  bool restart_pending() const { return restart_pending_; }
+  RestartReason last_restart() const { return last_restart_; }
+  long n_restarts() const { return n_restarts_; }
   double t_s() const { return t_cur_; }
   const Quat& q() const { return filter_.q(); }
   const Mat6& P() const { return filter_.P(); }
@@ -52,12 +99,26 @@ class OnlineFusion {
   // isolation (the bias re-converging on the remaining gyros), or once a faulty gyro had to stay in
   // use (three left, its fault compensated), or (policy.degraded_without_spare) once an isolation left
   // no spare gyro; "failed" when degraded and no star measurement has been
-  // accepted for policy.failed_after_s (nothing bounds the drift); "failed" before the first measurement.
+  // accepted for policy.failed_after_s (nothing bounds the drift); "failed" before the first measurement
+  // and while a restart is pending (restart_pending()); "degraded" while gyro outputs are being
+  // dropped (the last sample accepted_partial or rejected: the unit runs without its redundancy) and
+  // while the gyros have been silent for more than policy.max_gyro_gap_s (star-only attitude).
   FusionStatus Status() const;
   // The default policies (FusionPolicy in fuse.h holds them and the options may change them).
   static constexpr double kFailedAfterS = FusionPolicy{}.failed_after_s;
   static constexpr double kSettleS = FusionPolicy{}.settle_after_isolation_s;
   std::vector<int> GyrosInUse() const;  // 1-based
+  int n_gyros_in_use() const;
+  const std::vector<bool>& gyros_in_use_mask() const { return use_; }  // 0-based, allocation-free
+  // The body rate of the last usable gyro sample (rad/s, bias not removed; gyros in use, faults compensated).
+  const Vec3& last_rate_rad_s() const { return w_last_; }
+  // Samples of each GyroSampleStatus, and single outputs found unusable (NaN/inf, out of range).
+  long n_gyro_status(GyroSampleStatus s) const { return n_status_[static_cast<size_t>(s)]; }
+  long n_outputs_non_finite() const { return n_out_nonfinite_; }
+  long n_outputs_out_of_range() const { return n_out_range_; }
+  long n_bad_measurements() const { return n_bad_meas_; }    // rejected_bad_input
+  long n_repeated_measurements() const { return n_repeat_meas_; }
+  long n_faults_dropped() const { return n_faults_dropped_; }  // beyond policy.max_fault_events
   long n_gyro_samples() const { return n_gyro_; }
   long n_updates() const { return n_used_; }
   long n_rejected() const { return n_rejected_; }
@@ -65,9 +126,21 @@ class OnlineFusion {
 
  private:
   void PropagateTo(double t_s, const Vec3& w, const GyroVec& g, bool coning);
+  // Repairs g's unusable outputs (each replaced by what the other gyros in use predict for it) and
+  // says what it found; *partial: a gyro in use was among them.
+  GyroSampleStatus CheckOutputs(GyroVec* g, bool* partial);
+  // Saves the filter state before a step, and if the step left it non-finite restores it and asks
+  // for a restart; true when it had to.
+  void SaveFilter();
+  bool GuardFilter();
+  void RequestRestart(RestartReason why);
+  void Restart(double t, const Quat& q, const Mat3& r_body);
+  MekfUpdate Update(double t, const Quat& q, const Mat3& r_body);  // AddAttitude past its checks
+  void StartEvent(FaultEvent* ev);
+  void PushEvent(FaultEvent&& ev);
   void Isolate(int gi, double t, const char* method, const GyroVec& resid, double fault_dph);
   void SetSolver();
-  void OnDetection(double t, const std::string& test, double onset_s, double parity_jump_dph);
+  void OnDetection(double t, const char* test, double onset_s, double parity_jump_dph);
   void OpenCovarianceWhileUnresolved();
   void FloorBias(double sigma_rad_s);
   Vec3 BiasAt(double t_s) const;
@@ -103,7 +176,13 @@ class OnlineFusion {
   GyroVec dyn_;                   // the compensation now (deg/h; non-zero on the tracked gyro only)
   double t_last_accepted_ = 0;
   double t_settled_ = -1;  // degraded until then after an isolation (the filter re-converging)
-  std::deque<std::pair<double, Vec3>> bias_history_;  // (t, bias rad/s), one per accepted update
+  // (t, bias rad/s), one per accepted update: a ring of policy.bias_history_max, n_bias_ from bias_first_.
+  std::vector<std::pair<double, Vec3>> bias_history_;
+  size_t bias_first_ = 0, n_bias_ = 0;
+  const std::pair<double, Vec3>& bias_entry(size_t k) const {
+    return bias_history_[(bias_first_ + k) % bias_history_.size()];
+  }
+  std::vector<std::vector<double>> spare_residuals_;  // reserved residual_dph buffers for new events
 
   Mekf filter_;
   bool initialised_ = false;
@@ -115,6 +194,23 @@ class OnlineFusion {
   int consecutive_rejects_ = 0;
   long n_gyro_ = 0, n_used_ = 0, n_rejected_ = 0, n_late_ = 0;
   std::vector<FaultEvent> faults_;
+  // Input checks.
+  std::vector<bool> use_scratch_;  // use_ less the unusable outputs of one sample
+  bool last_partial_ = false;      // the last gyro sample had an output dropped (or was rejected)
+  bool have_jump_ = false;         // a rejected time jump, taken if the next sample confirms it
+  double t_jump_ = 0;
+  int n_back_ = 0;                 // consecutive out-of-order samples, in order among themselves
+  double t_back_ = 0;              // the last of them
+  bool have_meas_jump_ = false;    // likewise for a star solution far beyond the filter's time
+  double t_meas_jump_ = 0;
+  bool restart_pending_ = false;
+  RestartReason last_restart_ = RestartReason::kNone;
+  long n_restarts_ = 0;
+  Quat q_saved_ = Quat::Identity();
+  Vec3 bias_saved_ = Vec3::Zero();
+  Mat6 p_saved_ = Mat6::Identity();
+  std::array<long, kGyroSampleStatusCount> n_status_{};
+  long n_out_nonfinite_ = 0, n_out_range_ = 0, n_bad_meas_ = 0, n_repeat_meas_ = 0, n_faults_dropped_ = 0;
 };
 
 }  // namespace ssiu

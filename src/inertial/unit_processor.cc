@@ -57,53 +57,51 @@ UnitProcessor::UnitProcessor(std::vector<OpticalHead> heads,
     if (!ids_[h]) throw InputError("heads", "head " + std::to_string(h + 1) + " has no star identifier");
     heads_[h].camera.Check("head " + std::to_string(h + 1) + " camera");
     heads_[h].q_body_from_sensor.normalize();
+    mounts_.push_back(heads_[h].q_body_from_sensor);
   }
-  gyro_axes_ = unit.Axes();
-  gyro_sigma_ = unit.NoiseArw();
+  ids_scratch_.resize(heads_.size());
 }
 
-void UnitProcessor::OnGyroSample(double t_s, const GyroVec& g_dph) {
-  fusion_.AddGyro(t_s, g_dph);
-  g_last_dph_ = g_dph;
-  have_gyro_ = true;
+GyroSampleStatus UnitProcessor::OnGyroSample(double t_s, const GyroVec& g_dph) {
+  const GyroSampleStatus s = fusion_.AddGyro(t_s, g_dph);
+  have_gyro_ |= GyroSampleUsed(s);
+  return s;
 }
 
-HeadResult UnitProcessor::SolveHead(int h, double t_s, const ImageView& image, Identification* id) {
+void UnitProcessor::SolveHead(int h, double t_s, const ImageView& image, Identification* id, HeadResult* out) {
   const auto t0 = Clock::now();
-  HeadResult r;
+  HeadResult& r = *out;
+  r = HeadResult();
   r.has_frame = true;
   const OpticalHead& head = heads_[h];
   const StarIdentifier& sid = *ids_[h];
   const SolveOptions& so = options_.solve;
-  if (image.width != head.camera.width || image.height != head.camera.height) {
-    throw InputError("head " + std::to_string(h + 1), "frame is " + std::to_string(image.width) + "x" +
-                                                          std::to_string(image.height) + " but the camera is " +
-                                                          std::to_string(head.camera.width) + "x" +
-                                                          std::to_string(head.camera.height));
+  if (image.width != head.camera.width || image.height != head.camera.height || image.stride < image.width) {
+    r.status = SolveStatus::kBadFrame;  // nothing to solve from (a wrong stride would read out of bounds)
+    return;
   }
   DetectOptions dopt = so.detect;
   if (dopt.gain_e_per_adu == 0) dopt.gain_e_per_adu = head.camera.gain_e_per_adu;
   if (dopt.smear.exposure_s > 0 && have_gyro_) {
-    // Motion during the exposure: the body rate of the last gyro sample (gyros in use, less the
-    // estimated bias) in this head's sensor axes. Its error (deg/h) is far below what smears.
-    std::vector<bool> use(static_cast<size_t>(gyro_axes_.rows()), false);
-    for (int g : fusion_.GyrosInUse()) use[static_cast<size_t>(g - 1)] = true;
-    const Vec3 w_body = RateSolver(gyro_axes_, gyro_sigma_, use).Solve(g_last_dph_) / kRadSToDph -
-                        (fusion_.initialised() ? fusion_.bias_rad_s() : Vec3::Zero());
+    // Motion during the exposure: the body rate of the last gyro sample (gyros in use, faults
+    // compensated, less the estimated bias) in this head's sensor axes. Its error (deg/h) is far
+    // below what smears.
+    const Vec3 w_body = fusion_.last_rate_rad_s() - (fusion_.initialised() ? fusion_.bias_rad_s() : Vec3::Zero());
     dopt.smear.rate_rad_s = head.q_body_from_sensor.conjugate() * w_body;
     dopt.smear.camera = head.camera;
   }
   const Detections det = Detect(image, dopt);
-  r.timing_ms["detect"] = MsSince(t0);
+  r.detect_ms = MsSince(t0);
   r.detections = static_cast<int>(det.stars.size());
   const std::vector<Centroid> c = CentroidsFromDetections(det, so.detector_sigma_scale);
 
   // Tracking around the attitude the gyros carried forward; lost in space before the first fix or
   // when tracking fails (the same fallback as attitude/star_solver.h's Tracker). While the fused
-  // attitude is suspect (a gyro fault not yet resolved) its prediction may be far off and would pull
-  // tracking onto wrong stars: lost in space first, then tracking with a search radius four times wider.
+  // attitude is suspect (a gyro fault not yet resolved, a restart pending) its prediction may be far
+  // off and would pull tracking onto wrong stars: lost in space first, then tracking with a search
+  // radius four times wider.
   const auto t1 = Clock::now();
-  const bool suspect = fusion_.initialised() && fusion_.Status() != FusionStatus::kOk;
+  const bool suspect = fusion_.initialised() && (fusion_.Status() != FusionStatus::kOk || fusion_.restart_pending());
   if (fusion_.initialised() && !suspect) {
     const Quat q_pred = fusion_.q() * head.q_body_from_sensor;
     *id = sid.MatchWithAttitude(c, head.camera, q_pred, so.track_search_radius_px, so.identify);
@@ -118,7 +116,7 @@ HeadResult UnitProcessor::SolveHead(int h, double t_s, const ImageView& image, I
     *id = sid.MatchWithAttitude(c, head.camera, q_pred, 4 * so.track_search_radius_px, so.identify);
     r.mode = SolveMode::kTracking;
   }
-  r.timing_ms["identify"] = MsSince(t1);
+  r.identify_ms = MsSince(t1);
   r.status = id->status;
   if (id->status == SolveStatus::kSolved) {
     SkyCorrections sky = so.sky;  // the frame's time: the unit's clock t_s from sky.time
@@ -126,65 +124,99 @@ HeadResult UnitProcessor::SolveHead(int h, double t_s, const ImageView& image, I
     ApplySkyCorrections(sid, sky, id);
     const auto t2 = Clock::now();
     const AttitudeSolution a = SolveAttitude(*id);
-    r.timing_ms["attitude"] = MsSince(t2);
+    r.attitude_ms = MsSince(t2);
     r.matches = static_cast<int>(id->matches.size());
     r.q_inertial_from_sensor = a.q_inertial_from_sensor;
     r.sigma_cross_arcsec = a.sigma_cross_rad * kRadToArcsec;
     r.sigma_roll_arcsec = a.sigma_roll_rad * kRadToArcsec;
   }
-  r.timing_ms["total"] = MsSince(t0);
-  return r;
+  r.total_ms = MsSince(t0);
+  if (options_.diagnostics) {
+    r.timing_ms["detect"] = r.detect_ms;
+    r.timing_ms["identify"] = r.identify_ms;
+    if (id->status == SolveStatus::kSolved) r.timing_ms["attitude"] = r.attitude_ms;
+    r.timing_ms["total"] = r.total_ms;
+  }
 }
 
 FrameReport UnitProcessor::OnFrames(double t_s, const std::vector<ImageView>& images) {
-  const auto t0 = Clock::now();
-  if (images.size() != heads_.size()) {
-    throw InputError("frames", std::to_string(images.size()) + " frames for " + std::to_string(heads_.size()) +
-                                   " heads (give an empty view for a head without a frame)");
-  }
   FrameReport f;
+  OnFrames(t_s, images, &f);
+  return f;
+}
+
+void UnitProcessor::OnFrames(double t_s, const std::vector<ImageView>& images, FrameReport* out) {
+  const auto t0 = Clock::now();
+  FrameReport& f = *out;
+  f.heads.resize(heads_.size());
   f.t_s = t_s;
-  std::vector<Identification> ids(heads_.size());
-  std::vector<Quat> mounts;
+  f.status = SolveStatus::kNoMatch;
+  f.heads_solved = 0;
+  f.q_inertial_from_body = Quat::Identity();
+  f.covariance_rad2 = Mat3::Zero();
+  f.initialised_filter = false;
+  f.update = MekfUpdate();
+  f.total_ms = 0;
+  if (images.size() != heads_.size() || !std::isfinite(t_s)) {
+    // Which view belongs to which head is unknown (or when it was taken): nothing is used.
+    for (auto& h : f.heads) {
+      h = HeadResult();
+      h.status = SolveStatus::kBadFrame;
+    }
+    f.status = SolveStatus::kBadFrame;
+    ++frames_refused_;
+    f.total_ms = MsSince(t0);
+    return;
+  }
+  bool bad = false;
   for (size_t h = 0; h < heads_.size(); ++h) {
-    mounts.push_back(heads_[h].q_body_from_sensor);
+    ids_scratch_[h].matches.clear();
+    ids_scratch_[h].status = SolveStatus::kNoFrame;
     if (images[h].data == nullptr) {
-      f.heads.emplace_back();
+      f.heads[h] = HeadResult();
       continue;
     }
-    f.heads.push_back(SolveHead(static_cast<int>(h), t_s, images[h], &ids[h]));
-    if (f.heads.back().status == SolveStatus::kSolved) ++f.heads_solved;
+    SolveHead(static_cast<int>(h), t_s, images[h], &ids_scratch_[h], &f.heads[h]);
+    bad |= f.heads[h].status == SolveStatus::kBadFrame;
+    if (f.heads[h].status == SolveStatus::kSolved) ++f.heads_solved;
   }
+  frames_refused_ += bad;
   if (f.heads_solved == 0) {
     f.status = SolveStatus::kNoFrame;
     for (const auto& h : f.heads) {
       if (h.has_frame) f.status = h.status;  // the last head's reason
     }
     f.total_ms = MsSince(t0);
-    return f;
+    return;
   }
   // One QUEST over the matches of every solved head, in body axes (attitude/quest.h SolveMultiHead).
-  const AttitudeSolution body = SolveMultiHead(ids, mounts);
+  const AttitudeSolution body = SolveMultiHead(ids_scratch_, mounts_);
   if (body.status != SolveStatus::kSolved) {
     f.status = body.status;
     f.total_ms = MsSince(t0);
-    return f;
+    return;
   }
   f.status = SolveStatus::kSolved;
   f.q_inertial_from_body = body.q_inertial_from_sensor;
   const double s = options_.solution_sigma_scale;
   const double floor_rad = options_.solution_sigma_floor_arcsec * kArcsecToRad;
   f.covariance_rad2 = body.covariance_rad2 * (s * s) + Mat3::Identity() * (floor_rad * floor_rad);
-  f.initialised_filter = !fusion_.initialised();
+  f.initialised_filter = !fusion_.initialised() || fusion_.restart_pending();
   f.update = fusion_.AddAttitude(t_s, f.q_inertial_from_body, f.covariance_rad2);
-  if (f.initialised_filter || f.update.accepted) last_fix_covariance_ = f.covariance_rad2;
+  f.initialised_filter = f.initialised_filter && f.update.status == UpdateStatus::kInitialised;
+  if (f.update.accepted) last_fix_covariance_ = f.covariance_rad2;
   f.total_ms = MsSince(t0);
-  return f;
 }
 
 UnitAttitude UnitProcessor::Attitude() const {
   UnitAttitude a;
-  a.valid = fusion_.initialised();
+  Attitude(&a);
+  return a;
+}
+
+void UnitProcessor::Attitude(UnitAttitude* out) const {
+  UnitAttitude& a = *out;
+  a.valid = fusion_.initialised() && !fusion_.restart_pending();
   a.t_s = fusion_.t_s();
   a.q_inertial_from_body = fusion_.q();
   a.covariance_rad2 = FloorCovariance(fusion_.P().block<3, 3>(MekfIndex::kAttitude, MekfIndex::kAttitude),
@@ -192,9 +224,22 @@ UnitAttitude UnitProcessor::Attitude() const {
   a.bias_dph = fusion_.bias_rad_s() * kRadSToDph;
   a.bias_sigma_dph = fusion_.bias_sigma_dph();
   a.faults = fusion_.faults();
-  a.gyros_in_use = fusion_.GyrosInUse();
+  a.gyros_in_use.clear();
+  const std::vector<bool>& use = fusion_.gyros_in_use_mask();
+  for (size_t i = 0; i < use.size(); ++i) {
+    if (use[i]) a.gyros_in_use.push_back(static_cast<int>(i) + 1);
+  }
   a.status = fusion_.Status();
-  return a;
+  a.restart_pending = fusion_.restart_pending();
+  a.last_restart = fusion_.last_restart();
+  a.restarts = fusion_.n_restarts();
+  a.gyro_samples_refused = 0;
+  for (int k = 0; k < kGyroSampleStatusCount; ++k) {
+    const auto st = static_cast<GyroSampleStatus>(k);
+    if (!GyroSampleUsed(st)) a.gyro_samples_refused += fusion_.n_gyro_status(st);
+  }
+  a.gyro_samples_partial = fusion_.n_gyro_status(GyroSampleStatus::kAcceptedPartial);
+  a.frames_refused = frames_refused_;
 }
 
 }  // namespace ssiu

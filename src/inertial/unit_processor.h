@@ -8,6 +8,10 @@
 //   p.OnGyroSample(t_s, g_dph);              // every gyro sample (mean output over the interval)
 //   FrameReport f = p.OnFrames(t_s, views);  // one ImageView per head (empty view: no frame)
 //   UnitAttitude a = p.Attitude();           // body attitude, covariance, bias, faults
+//
+// No input breaks the loop (docs/inertial.md "Bad inputs"): a bad gyro sample is refused or repaired
+// as its GyroSampleStatus says, a bad frame is a head status "bad_frame", a frame before the filter's
+// time is refused by the filter (FrameReport::update.status), and nothing throws after construction.
 #pragma once
 
 #include <map>
@@ -46,6 +50,9 @@ struct UnitProcessorOptions {
   // 0.6: mean NEES 3.7 for one head, 2.0 / 1.7 for two / three (whose QUEST covariance is already
   // conservative) on the default 120 s mission; 1 gives 2.2 / 1.2 / 1.0, 0 gives 19 / 4.0 / 3.1.
   double correlated_fraction = 0.6;
+  // HeadResult::timing_ms (a std::map) filled: false on the flight path (the plain *_ms fields are
+  // always filled).
+  bool diagnostics = true;
   void Check() const;  // InputError naming the field
 };
 
@@ -57,7 +64,8 @@ struct HeadResult {
   int detections = 0, matches = 0;
   double sigma_cross_arcsec = 0, sigma_roll_arcsec = 0;  // this head's own solution
   Quat q_inertial_from_sensor = Quat::Identity();        // when solved
-  std::map<std::string, double> timing_ms;               // detect, identify, attitude, total
+  std::map<std::string, double> timing_ms;               // detect, identify, attitude, total (options.diagnostics)
+  double detect_ms = 0, identify_ms = 0, attitude_ms = 0, total_ms = 0;  // the same, always
 };
 
 // What one set of simultaneous frames gave.
@@ -75,7 +83,7 @@ struct FrameReport {
 
 // The unit's current estimate.
 struct UnitAttitude {
-  bool valid = false;  // false until the first solved frame
+  bool valid = false;  // false until the first solved frame, and while the filter awaits a restart
   double t_s = 0;
   Quat q_inertial_from_body = Quat::Identity();
   Mat3 covariance_rad2 = Mat3::Zero();  // attitude error, body axes
@@ -83,6 +91,12 @@ struct UnitAttitude {
   std::vector<FaultEvent> faults;
   std::vector<int> gyros_in_use;                // 1-based
   FusionStatus status = FusionStatus::kFailed;  // OnlineFusion::Status()
+  bool restart_pending = false;                 // the filter restarts from the next solved frame
+  RestartReason last_restart = RestartReason::kNone;
+  long restarts = 0;
+  long gyro_samples_refused = 0;  // gyro samples not used (every rejected_* status)
+  long gyro_samples_partial = 0;  // used with an output dropped
+  long frames_refused = 0;        // frame sets with a bad_frame head or refused as a whole
 };
 
 class UnitProcessor {
@@ -92,26 +106,33 @@ class UnitProcessor {
   UnitProcessor(std::vector<OpticalHead> heads, std::vector<std::shared_ptr<const StarIdentifier>> identifiers,
                 const GyroUnit& unit, const UnitProcessorOptions& options);
 
-  // A gyro sample: the outputs g1..gN (deg/h), mean over (t_prev, t_s], in time order.
-  void OnGyroSample(double t_s, const GyroVec& g_dph);
+  // A gyro sample: the outputs g1..gN (deg/h), mean over (t_prev, t_s], in time order. What became of
+  // it is the status (OnlineFusion::AddGyro); allocates nothing.
+  GyroSampleStatus OnGyroSample(double t_s, const GyroVec& g_dph);
   // Frames taken at t_s (mid-exposure), one view per head in head order; a view with data == nullptr
-  // means that head has no frame this time. Expected failures (no stars, no match) are in the report.
+  // means that head has no frame this time. Expected failures (no stars, no match) and bad input are
+  // in the report: a view of the wrong size or stride is that head's "bad_frame", a wrong number of
+  // views or a non-finite t_s makes every head's (and the report's) status "bad_frame".
   FrameReport OnFrames(double t_s, const std::vector<ImageView>& images);
+  // The same into a caller-owned report (its vectors keep their capacity).
+  void OnFrames(double t_s, const std::vector<ImageView>& images, FrameReport* out);
 
   UnitAttitude Attitude() const;
+  void Attitude(UnitAttitude* out) const;  // into a caller-owned one (its vectors keep their capacity)
   const std::vector<OpticalHead>& heads() const { return heads_; }
   const OnlineFusion& fusion() const { return fusion_; }
 
  private:
-  HeadResult SolveHead(int h, double t_s, const ImageView& image, Identification* id);
+  void SolveHead(int h, double t_s, const ImageView& image, Identification* id, HeadResult* r);
 
   std::vector<OpticalHead> heads_;
   std::vector<std::shared_ptr<const StarIdentifier>> ids_;
-  // The last gyro sample, for the body rate handed to the detector (expected smear,
-  // SolveOptions::detect.smear: active when its exposure_s > 0).
-  GyroAxes gyro_axes_;
-  GyroVec gyro_sigma_, g_last_dph_;
+  // A gyro sample was used: the body rate handed to the detector (expected smear,
+  // SolveOptions::detect.smear: active when its exposure_s > 0) is the fusion's last rate.
   bool have_gyro_ = false;
+  std::vector<Identification> ids_scratch_;  // per head, reused frame to frame
+  std::vector<Quat> mounts_;
+  long frames_refused_ = 0;
   UnitProcessorOptions options_;
   OnlineFusion fusion_;
   Mat3 last_fix_covariance_ = Mat3::Zero();  // of the last accepted solution (body axes, rad^2)

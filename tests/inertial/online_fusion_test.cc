@@ -84,7 +84,8 @@ TEST(OnlineFusion, BadPolicyIsAnInputErrorNamingTheField) {
 }
 
 // The on-board API directly: no frame from any head is a result, not an error; before the first
-// solved frame there is no attitude; a frame of the wrong size is an input error. (Two 512x512
+// solved frame there is no attitude; a frame of the wrong size is refused ("bad_frame", no exception:
+// tests/inertial/bad_input_test.cc has the other bad inputs). (Two 512x512
 // heads of 16.6 deg 90 deg apart, as the default mission's.)
 TEST(UnitProcessor, ReportsMissingFramesAndRefusesAWrongSize) {
   OpticalHead h1;
@@ -102,8 +103,8 @@ TEST(UnitProcessor, ReportsMissingFramesAndRefusesAWrongSize) {
   EXPECT_EQ(none.heads_solved, 0);
   EXPECT_FALSE(p.Attitude().valid);
   const Image16 small(64, 64, 100);
-  EXPECT_THROW(p.OnFrames(1.0, {small.view(), ImageView{}}), InputError);
-  EXPECT_THROW(p.OnFrames(1.0, {ImageView{}}), InputError);
+  EXPECT_EQ(p.OnFrames(1.0, {small.view(), ImageView{}}).heads[0].status, SolveStatus::kBadFrame);
+  EXPECT_EQ(p.OnFrames(1.0, {ImageView{}}).status, SolveStatus::kBadFrame);
   EXPECT_THROW(UnitProcessor(std::vector<OpticalHead>(4, h1), {id, id, id, id}, unit, options), InputError);
 }
 
