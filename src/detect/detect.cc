@@ -125,6 +125,7 @@ class PixelMask {
     const size_t i = static_cast<size_t>(y) * w_ + x;
     bits_[i >> 6] |= uint64_t{1} << (i & 63);
   }
+  size_t Bytes() const;
   bool Get(int x, int y) const {
     const size_t i = static_cast<size_t>(y) * w_ + x;
     return ((bits_[i >> 6] >> (i & 63)) & 1) != 0;
@@ -855,6 +856,41 @@ void DetectWorkspace::Reserve(Detections* out) const {
   if (limits_.grow) return;
   out->stars.reserve(static_cast<size_t>(limits_.max_detections));
   out->rejected.reserve(static_cast<size_t>(limits_.max_rejections));
+}
+
+namespace {
+template <class T>
+size_t CapacityBytes(const std::vector<T>& v) {
+  return v.capacity() * sizeof(T);
+}
+template <class T, class... More>
+size_t CapacityBytes(const std::vector<T>& v, const More&... more) {
+  return CapacityBytes(v) + CapacityBytes(more...);
+}
+}  // namespace
+
+size_t PixelMask::Bytes() const { return CapacityBytes(bits_); }
+
+size_t DetectWorkspace::Bytes() const {
+  const Buffers& b = *b_;
+  const BackgroundScratch& bs = b.bg_scratch;
+  const PsfFitScratch& fs = b.fits.scratch;
+  return sizeof(Buffers) + CapacityBytes(bs.samples, bs.box_samples, bs.select, bs.hist, bs.grid) +
+         CapacityBytes(b.bg.level, b.bg.sigma, b.bg.box_sigma, b.repaired) +
+         CapacityBytes(b.threshold.colsum, b.threshold.low_row, b.threshold.thr_centres, b.threshold.above) +
+         CapacityBytes(b.runs, b.dead_pixels, b.blobs.parent, b.blobs.blob_of, b.blobs.blob_runs, b.blobs.blobs) +
+         CapacityBytes(b.peak_search.grid.v, b.peak_search.grid.hs, b.peak_search.local, b.peak_search.kept) +
+         CapacityBytes(b.peaks.peaks, b.peaks.first, b.shape.is_spike, b.shape.dir_ratio, b.shape.peak_above) +
+         b.bad.Bytes() + CapacityBytes(b.fits.order, b.fits.cands, b.bright, b.blob_reported, b.stars) +
+         CapacityBytes(fs.v, fs.w_cur, fs.w_new, fs.use, fs.sm.f, fs.sm.dx, fs.sm.dy, fs.sm.ds) +
+         CapacityBytes(fs.fx.f, fs.fx.dc, fs.fx.ds, fs.fy.f, fs.fy.dc, fs.fy.ds) +
+         CapacityBytes(fs.sm.px.f, fs.sm.px.dc, fs.sm.px.ds, fs.sm.py.f, fs.sm.py.dc, fs.sm.py.ds);
+}
+
+size_t DetectWorkspace::OutputBytes() const {
+  if (limits_.grow) return 0;
+  return static_cast<size_t>(limits_.max_detections) * sizeof(StarDetection) +
+         static_cast<size_t>(limits_.max_rejections) * sizeof(Rejection);
 }
 
 DetectStatus Detect(const ImageView& view, const DetectOptions& opt, const DefectMap* defects, DetectWorkspace* ws,

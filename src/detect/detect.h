@@ -153,6 +153,9 @@ class DetectWorkspace {
   const DetectLimits& limits() const { return limits_; }
   // Gives `out` the capacity a call may fill (stars and rejections), so that no call grows it.
   void Reserve(Detections* out) const;
+  // Heap bytes the workspace holds (its buffers' capacities), and those Reserve gives a Detections.
+  size_t Bytes() const;
+  size_t OutputBytes() const;
 
   struct Buffers;  // detect.cc
 

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -152,6 +153,19 @@ TEST(DetectAlloc, BlackWhiteAndOverfullFramesAllocateNothing) {
   for (size_t i = 0; i < d.stars.size(); ++i) {  // the 20 brightest of the full list
     EXPECT_EQ(d.stars[i].x_px, all.stars[i].x_px);
     EXPECT_EQ(d.stars[i].flux_adu, all.stars[i].flux_adu);
+  }
+}
+
+TEST(DetectAlloc, BytesIsWhatConstructionAllocated) {
+  for (int side : {512, 1024}) {
+    DetectLimits l = FlightLimits();
+    l.max_width = l.max_height = side;
+    testing::AllocationCounter n;
+    const DetectWorkspace ws(l);
+    Detections d;
+    ws.Reserve(&d);
+    EXPECT_EQ(static_cast<size_t>(n.Bytes()), ws.Bytes() + ws.OutputBytes()) << side;
+    std::printf("DetectWorkspace %dx%d: %zu bytes, output %zu bytes\n", side, side, ws.Bytes(), ws.OutputBytes());
   }
 }
 
