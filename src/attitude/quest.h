@@ -49,7 +49,7 @@ Mat3 AttitudeInformation(const std::vector<WahbaObservation>& obs, bool free_sca
 
 // QUEST on the matches of a solved identification (status copied; no_match gives no attitude); when
 // the focal length was fitted (Identification::focal_length_fitted) the covariance includes its
-// uncertainty (AttitudeInformation).
+// uncertainty (AttitudeInformation). Reads the matches in place: allocates nothing.
 AttitudeSolution SolveAttitude(const Identification& id);
 
 // Several optical heads: matches of head i (sensor frame) rotated to the body frame by
@@ -63,6 +63,7 @@ struct MultiHeadOptions {
   double consistency_sigmas = 6.0;       // chi (3 dof) of the pairwise difference
   double mount_tolerance_arcsec = 60.0;  // unmodelled mount error per axis, added to P_i + P_j
   void Check() const;                    // throws InputError naming the field
+  const char* Problem() const;           // Check's message (nullptr: none), without throwing or allocating
 };
 
 // How the fusion treated a head: fused, left out as inconsistent (solved, but disagreeing with the
@@ -79,12 +80,22 @@ struct MultiHeadSolution {
   std::vector<Quat> q_inertial_from_body_per_head;  // each solved head's own body attitude (identity otherwise)
   double false_match_probability = 1.0;             // of the fused heads together: sum of theirs (union bound)
   std::string message;
+  // The caller-storage form only: head and mount counts differ or the options are out of range
+  // (nothing fused; attitude.status no_match).
+  bool input_error = false;
 };
 
 MultiHeadSolution SolveMultiHeadChecked(const std::vector<Identification>& heads,
                                         const std::vector<Quat>& q_body_from_sensor,
                                         const MultiHeadOptions& options = {});
-// The fused attitude of SolveMultiHeadChecked with default options.
+// The same into caller-owned `out` (the one implementation): its vectors are refilled (no allocation
+// once they have room for heads.size(), e.g. after the first call), no exceptions (bad input:
+// out->input_error), and out->message is written only with `diagnostics`. At most 16 solved heads
+// take part in the pairwise test (more: none is fused).
+void SolveMultiHeadChecked(const std::vector<Identification>& heads, const std::vector<Quat>& q_body_from_sensor,
+                           const MultiHeadOptions& options, MultiHeadSolution* out, bool diagnostics);
+// The fused attitude of SolveMultiHeadChecked with default options. Allocates nothing (throws
+// InputError only when the counts differ).
 AttitudeSolution SolveMultiHead(const std::vector<Identification>& heads, const std::vector<Quat>& q_body_from_sensor);
 
 }  // namespace ssiu

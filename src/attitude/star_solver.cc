@@ -84,9 +84,9 @@ StarIdentifier MakeIdentifierFor(const std::string& dir, const Camera& camera, c
   return MakeIdentifierForCamera(dir, camera, o.fov_tolerance_pct, mag_max, source);
 }
 
-std::vector<Centroid> CentroidsFromDetections(const Detections& d, double sigma_scale) {
-  std::vector<Centroid> out;
-  out.reserve(d.stars.size());
+void CentroidsFromDetections(const Detections& d, double sigma_scale, std::vector<Centroid>* out) {
+  out->clear();
+  out->reserve(d.stars.size());
   for (const auto& s : d.stars) {
     Centroid c;
     c.x_px = s.x_px;
@@ -94,8 +94,13 @@ std::vector<Centroid> CentroidsFromDetections(const Detections& d, double sigma_
     c.flux = s.flux_adu;
     const double v = 0.5 * (s.x_sigma_px * s.x_sigma_px + s.y_sigma_px * s.y_sigma_px);
     c.sigma_px = std::isfinite(v) && v > 0 ? sigma_scale * std::sqrt(v) : 0.0;
-    out.push_back(c);
+    out->push_back(c);
   }
+}
+
+std::vector<Centroid> CentroidsFromDetections(const Detections& d, double sigma_scale) {
+  std::vector<Centroid> out;
+  CentroidsFromDetections(d, sigma_scale, &out);
   return out;
 }
 

@@ -82,6 +82,8 @@ StarIdentifier MakeIdentifierFor(const std::string& dir, const Camera& camera, c
 
 // Centroid list from detections (flux, and the fit's 1-sigma as the position noise).
 std::vector<Centroid> CentroidsFromDetections(const Detections& d, double sigma_scale = 1.0);
+// The same into `out`, cleared and refilled (no allocation once its capacity holds d.stars.size()).
+void CentroidsFromDetections(const Detections& d, double sigma_scale, std::vector<Centroid>* out);
 // Reads a centroid CSV: x_px,y_px[,flux][,sigma_px]. InputError naming the file/column/row.
 std::vector<Centroid> ReadCentroidsCsv(const std::string& path);
 

@@ -8,29 +8,32 @@ namespace ssiu {
 namespace {
 
 template <typename T>
-T MedianOf(std::vector<T>& v) {
-  const size_t m = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + m, v.end());
+T MedianOf(T* v, size_t n) {
+  const size_t m = n / 2;
+  std::nth_element(v, v + m, v + n);
   return v[m];
 }
+template <typename T>
+T MedianOf(std::vector<T>& v) {
+  return MedianOf(v.data(), v.size());
+}
 
-// 3x3 median over the tile grid (edges use the available neighbours).
-std::vector<float> MedianFilterGrid(const std::vector<float>& g, int nx, int ny) {
-  std::vector<float> out(g.size()), nb;
-  nb.reserve(9);
+// 3x3 median over the tile grid (edges use the available neighbours), into *out (resized to g's size).
+void MedianFilterGrid(const std::vector<float>& g, int nx, int ny, std::vector<float>* out) {
+  out->resize(g.size());
+  std::array<float, 9> nb;
   for (int j = 0; j < ny; ++j) {
     for (int i = 0; i < nx; ++i) {
-      nb.clear();
+      size_t n = 0;
       for (int dj = -1; dj <= 1; ++dj) {
         for (int di = -1; di <= 1; ++di) {
           const int a = i + di, b = j + dj;
-          if (a >= 0 && b >= 0 && a < nx && b < ny) nb.push_back(g[b * nx + a]);
+          if (a >= 0 && b >= 0 && a < nx && b < ny) nb[n++] = g[b * nx + a];
         }
       }
-      out[j * nx + i] = MedianOf(nb);
+      (*out)[j * nx + i] = MedianOf(nb.data(), n);
     }
   }
-  return out;
 }
 
 // Median and MAD (median absolute deviation from the median) of integer samples, exactly the
@@ -127,8 +130,38 @@ float RobustSigma(const std::vector<int32_t>& s, const MedianMad& mm) {
 
 }  // namespace
 
+namespace {
+// Samples of one tile: about 256 (step = tile / 16), at most 31 per row and column (tiles under 32 px
+// take every pixel), plus the one a tile without samples takes.
+constexpr size_t kMaxTileSamples = 31 * 31 + 1;
+// Histogram bins of MedianAndMad: 2 x its largest half-width + 1.
+constexpr size_t kMaxHistBins = 2 * 8192 + 1;
+}  // namespace
+
+void BackgroundScratch::Reserve(int max_width, int max_height, int min_tile_px, BackgroundGrid* out) {
+  // The tile is min(tile_px, shorter side), so at least min(min_tile_px, 16) on a frame of >= 16 px.
+  const int t = std::max(1, std::min(min_tile_px, 16));
+  const size_t tiles = static_cast<size_t>((max_width + t - 1) / t) * ((max_height + t - 1) / t);
+  samples.reserve(kMaxTileSamples);
+  box_samples.reserve(kMaxTileSamples);
+  select.reserve(kMaxTileSamples);
+  hist.reserve(kMaxHistBins);
+  grid.reserve(tiles);
+  out->level.reserve(tiles);
+  out->sigma.reserve(tiles);
+  out->box_sigma.reserve(tiles);
+}
+
 BackgroundGrid EstimateBackground(const ImageView& img, int tile_px, int box_half) {
+  BackgroundScratch scratch;
   BackgroundGrid g;
+  EstimateBackground(img, tile_px, box_half, &scratch, &g);
+  return g;
+}
+
+void EstimateBackground(const ImageView& img, int tile_px, int box_half, BackgroundScratch* sc,
+                        BackgroundGrid* out) {
+  BackgroundGrid& g = *out;
   g.width = img.width;
   g.height = img.height;
   g.tile = std::min(tile_px, std::min(img.width, img.height));
@@ -142,7 +175,7 @@ BackgroundGrid EstimateBackground(const ImageView& img, int tile_px, int box_hal
   // Subsample about 256 pixels of each tile (median to ~0.08 sigma; the 3x3 grid median then
   // averages neighbouring tiles).
   const int step = std::max(1, static_cast<int>(std::sqrt(double(g.tile) * g.tile / 256.0)));
-  std::vector<int32_t> s, bs, scratch, hist;
+  std::vector<int32_t>&s = sc->samples, &bs = sc->box_samples, &scratch = sc->select, &hist = sc->hist;
   for (int ty = 0; ty < g.ny; ++ty) {
     for (int tx = 0; tx < g.nx; ++tx) {
       const int x0 = tx * g.tile, y0 = ty * g.tile;
@@ -180,14 +213,15 @@ BackgroundGrid EstimateBackground(const ImageView& img, int tile_px, int box_hal
       g.box_sigma[ty * g.nx + tx] = box_sig;
     }
   }
-  g.level = MedianFilterGrid(g.level, g.nx, g.ny);
-  g.sigma = MedianFilterGrid(g.sigma, g.nx, g.ny);
-  g.box_sigma = MedianFilterGrid(g.box_sigma, g.nx, g.ny);
-  std::vector<float> tmp = g.level;
+  std::vector<float>& tmp = sc->grid;
+  for (std::vector<float>* v : {&g.level, &g.sigma, &g.box_sigma}) {
+    MedianFilterGrid(*v, g.nx, g.ny, &tmp);
+    v->swap(tmp);  // both hold a grid's capacity
+  }
+  tmp.assign(g.level.begin(), g.level.end());
   g.median_level = MedianOf(tmp);
-  tmp = g.sigma;
+  tmp.assign(g.sigma.begin(), g.sigma.end());
   g.median_sigma = MedianOf(tmp);
-  return g;
 }
 
 double BackgroundGrid::Interp(const std::vector<float>& v, double x, double y) const {
@@ -230,30 +264,33 @@ void BackgroundGrid::RowCombinationAt(double fy_in, float* o, double a, double b
   const double fy = std::clamp(fy_in, 0.0, ny - 1.0);
   const int j0 = std::min(static_cast<int>(fy), ny - 1), j1 = std::min(j0 + 1, ny - 1);
   const double ay = fy - j0;
-  // Value at each tile column for this row, then linear along the row.
-  std::vector<double> col(nx);
-  for (int i = 0; i < nx; ++i) {
+  // Value at tile column i for this row (computed where needed: no per-row buffer), then linear
+  // along the row.
+  auto col = [&](int i) {
     const double l = level[j0 * nx + i] * (1 - ay) + level[j1 * nx + i] * ay;
     const double s = second[j0 * nx + i] * (1 - ay) + second[j1 * nx + i] * ay;
-    col[i] = a * l + b * s;
-  }
+    return a * l + b * s;
+  };
   // Linear between tile centres, constant beyond the outermost ones: segment by segment so the
   // inner loop is a plain multiply-add.
   for (int x = 0; x < width;) {
     const double fx = (x + 0.5) / tile - 0.5;
     if (fx <= 0 || nx == 1) {
       const int xe = std::max(x + 1, nx == 1 ? width : std::min(width, tile / 2));
-      for (; x < xe; ++x) o[x] = static_cast<float>(col[0]);
+      const float c0 = static_cast<float>(col(0));
+      for (; x < xe; ++x) o[x] = c0;
       continue;
     }
     const int i0 = static_cast<int>(fx);
     if (i0 >= nx - 1) {
-      for (; x < width; ++x) o[x] = static_cast<float>(col[nx - 1]);
+      const float c1 = static_cast<float>(col(nx - 1));
+      for (; x < width; ++x) o[x] = c1;
       break;
     }
     const int xe = std::min(width, (i0 + 1) * tile + tile / 2);  // next centre (exclusive)
-    const float slope = static_cast<float>((col[i0 + 1] - col[i0]) / tile);
-    const float base = static_cast<float>(col[i0] + (x - ((i0 + 0.5) * tile - 0.5)) * slope);
+    const double c0 = col(i0), c1 = col(i0 + 1);
+    const float slope = static_cast<float>((c1 - c0) / tile);
+    const float base = static_cast<float>(c0 + (x - ((i0 + 0.5) * tile - 0.5)) * slope);
     for (int k = 0; x < xe; ++x, ++k) o[x] = base + k * slope;
   }
 }

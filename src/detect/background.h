@@ -1,6 +1,7 @@
 // Internal to detect: tiled robust background and noise with bilinear interpolation.
 #pragma once
 
+#include <cstdint>
 #include <vector>
 
 #include "core/image.h"
@@ -29,16 +30,29 @@ struct BackgroundGrid {
   void CentreRowsOf(int y, int* j0, int* j1, float* ay) const;
 
  private:
-  // out[x] = a * level + b * second, bilinear in the tile grid.
+  // out[x] = a * level + b * second, bilinear in the tile grid (out holds at least width values).
   void RowCombination(int y, std::vector<float>* out, double a, double b, const std::vector<float>& second) const;
   // The same at tile-grid row coordinate fy (0 = centre of the first tile row), into out[0, width).
   void RowCombinationAt(double fy, float* out, double a, double b, const std::vector<float>& second) const;
   double Interp(const std::vector<float>& v, double x, double y) const;
 };
 
+// Scratch of EstimateBackground, reserved once (Reserve) so that repeated estimates allocate nothing.
+struct BackgroundScratch {
+  std::vector<int32_t> samples, box_samples, select, hist;
+  std::vector<float> grid;  // a tile grid's worth
+  // Capacity for images up to max_width x max_height and tiles of at least min_tile_px (or the
+  // image's shorter side, when that is smaller); `out` gets its tile grids reserved too.
+  void Reserve(int max_width, int max_height, int min_tile_px, BackgroundGrid* out);
+};
+
 // Median and MAD-based sigma (1.4826 MAD) of a subsample of each tile, then a 3x3 median over the
 // tile grid so that a tile filled by a bright star or an extended object takes its neighbours' value.
 // Also measures the noise of the (2 box_half + 1)^2 box sum at the same sample points.
 BackgroundGrid EstimateBackground(const ImageView& img, int tile_px, int box_half = 1);
+// The same into `out`, with the scratch given (no allocation when both were reserved for the image
+// and tile size).
+void EstimateBackground(const ImageView& img, int tile_px, int box_half, BackgroundScratch* scratch,
+                        BackgroundGrid* out);
 
 }  // namespace ssiu

@@ -6,11 +6,12 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <iterator>
+#include <limits>
 #include <numeric>
 #include <stdexcept>
 
 #include "core/error.h"
-#include "core/stats.h"
 #include "detect/background.h"
 #include "detect/psf_fit.h"
 #include "detect/row_kernels.h"
@@ -20,6 +21,34 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+// The lists' room (DetectLimits; SIZE_MAX everywhere with grow).
+struct Caps {
+  size_t runs, blobs, peaks, blob_maxima, rejections, dead_pixels;
+};
+
+// Appends x unless `v` already holds `cap` entries; then sets `bit` in *clamped instead: a list never
+// grows past its limit (nor allocates, when reserved for it).
+template <class T>
+bool PushCapped(std::vector<T>* v, size_t cap, const T& x, unsigned bit, unsigned* clamped) {
+  if (v->size() >= cap) {
+    *clamped |= bit;
+    return false;
+  }
+  v->push_back(x);
+  return true;
+}
+
+Rejection MakeRejection(double x, double y, RejectReason reason, RejectDetail detail, double flux, bool diagnostics) {
+  Rejection r;
+  r.x_px = x;
+  r.y_px = y;
+  r.reason = reason;
+  r.detail_code = detail;
+  if (diagnostics && detail != RejectDetail::kNone) r.detail = RejectDetailName(detail);
+  r.flux_adu = flux;
+  return r;
+}
 
 // A horizontal run of above-threshold pixels [x0, x1] in row y, and its blob label.
 struct Run {
@@ -40,14 +69,22 @@ struct Blob {
   int npix = 0;
   int peak_x = 0, peak_y = 0;  // brightest pixel of the filtered image inside the blob
   int64_t peak_score = INT64_MIN;
-  std::vector<int> runs;
+  int run_begin = 0, run_end = 0;  // its runs: blob_runs[run_begin .. run_end), in row order
+};
+
+// The runs and their blobs: the runs of blob b are runs[blob_runs[b.run_begin .. b.run_end)].
+struct BlobSet {
+  const std::vector<Run>& runs;
+  const std::vector<Blob>& blobs;
+  const std::vector<int>& blob_runs;
+  const Run& RunOf(int q) const { return runs[blob_runs[q]]; }
 };
 
 // sqrt of the ratio of the principal second moments of a blob's pixels (1 round, large thin).
-double BlobElongation(const Blob& b, const std::vector<Run>& runs) {
+double BlobElongation(const Blob& b, const BlobSet& bs) {
   double n = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
-  for (int ri : b.runs) {
-    const Run& r = runs[ri];
+  for (int q = b.run_begin; q < b.run_end; ++q) {
+    const Run& r = bs.RunOf(q);
     for (int x = r.x0; x <= r.x1; ++x) {
       n += 1;
       sx += x;
@@ -79,18 +116,23 @@ double DiagonalRatio(double s) {
 // fit leaves out (defect-map pixels, dead pixels, single-pixel spikes).
 class PixelMask {
  public:
-  PixelMask(int w, int h) : w_(w), bits_((static_cast<size_t>(w) * h + 63) / 64, 0) {}
+  void Reserve(int w, int h) { bits_.reserve((static_cast<size_t>(w) * h + 63) / 64); }
+  void Reset(int w, int h) {
+    w_ = w;
+    bits_.assign((static_cast<size_t>(w) * h + 63) / 64, 0);
+  }
   void Set(int x, int y) {
     const size_t i = static_cast<size_t>(y) * w_ + x;
     bits_[i >> 6] |= uint64_t{1} << (i & 63);
   }
+  size_t Bytes() const;
   bool Get(int x, int y) const {
     const size_t i = static_cast<size_t>(y) * w_ + x;
     return ((bits_[i >> 6] >> (i & 63)) & 1) != 0;
   }
 
  private:
-  int w_;
+  int w_ = 0;
   std::vector<uint64_t> bits_;
 };
 
@@ -146,18 +188,27 @@ ImageView RepairDefects(const ImageView& view, const DefectMap& defects, std::ve
 // Step 2: the box sum (2 half + 1 square, the matched filter) thresholded on its own measured local
 // noise, as runs of pixels above it; and the dead pixels (raw pixels far below their background;
 // `view` is the raw frame, `img` the repaired one).
+struct ThresholdBuffers {
+  std::vector<int32_t> colsum;
+  std::vector<float> low_row, thr_centres;
+  std::vector<uint8_t> above;
+};
+
 void ThresholdRuns(const ImageView& img, const ImageView& view, const BackgroundGrid& bg, const DetectOptions& opt,
-                   int half, const DefectMap* defects, std::vector<Run>* runs,
-                   std::vector<std::pair<int, int>>* dead_pixels) {
+                   int half, const DefectMap* defects, const Caps& caps, ThresholdBuffers* tb, std::vector<Run>* runs,
+                   std::vector<std::pair<int, int>>* dead_pixels, unsigned* clamped) {
   const int w = img.width, h = img.height, box = 2 * half + 1;
   // A row whose minimum is above the highest "dead" level of any tile needs no per-pixel test.
   double dead_level_max = -1e300;
   for (size_t k = 0; k < bg.level.size(); ++k) {
     dead_level_max = std::max(dead_level_max, double(bg.level[k]) - opt.dead_sigma * bg.sigma[k]);
   }
-  std::vector<int32_t> colsum(static_cast<size_t>(w), 0);
-  std::vector<float> low_row(static_cast<size_t>(w)), thr_centres;
-  std::vector<uint8_t> above(static_cast<size_t>(w) + 1, 0);
+  std::vector<int32_t>& colsum = tb->colsum;
+  std::vector<float>&low_row = tb->low_row, &thr_centres = tb->thr_centres;
+  std::vector<uint8_t>& above = tb->above;
+  colsum.assign(static_cast<size_t>(w), 0);
+  low_row.resize(static_cast<size_t>(w));
+  above.assign(static_cast<size_t>(w) + 1, 0);
   bg.BoxThresholdAtCentres(opt.threshold_sigma, &thr_centres);
   // Column sums of rows 0 .. box-1: the box rows of the first centre row, HALF.
   for (int y = 0; y < box; ++y) {
@@ -171,7 +222,9 @@ void ThresholdRuns(const ImageView& img, const ImageView& view, const Background
     if (RowMin(raw, w) < dead_level_max) {
       bg.RowLevels(yc, &low_row, -opt.dead_sigma, 1.0);
       for (int x = 0; x < w; ++x) {
-        if (raw[x] < low_row[x] && !(defects && defects->at(x, yc))) dead_pixels->emplace_back(x, yc);
+        if (raw[x] < low_row[x] && !(defects && defects->at(x, yc))) {
+          PushCapped(dead_pixels, caps.dead_pixels, std::make_pair(x, yc), kClampDeadPixels, clamped);
+        }
       }
     }
     if (yc < half || yc >= h - half) continue;
@@ -188,7 +241,7 @@ void ThresholdRuns(const ImageView& img, const ImageView& view, const Background
         x = static_cast<int>(static_cast<const uint8_t*>(hit) - ab);
         const int xs = x;
         while (x < w - half && ab[x]) ++x;
-        runs->push_back({yc, xs, x - 1, -1});
+        PushCapped(runs, caps.runs, Run{yc, xs, x - 1, -1}, kClampRuns, clamped);
       }
     }
     // Slide the column sums down one row.
@@ -196,9 +249,17 @@ void ThresholdRuns(const ImageView& img, const ImageView& view, const Background
   }
 }
 
-// Step 3: connected blobs of runs (8-connectivity), union-find over runs of adjacent rows.
-std::vector<Blob> ConnectBlobs(const std::vector<Run>& runs) {
-  std::vector<int> parent(runs.size());
+// Step 3: connected blobs of runs (8-connectivity), union-find over runs of adjacent rows; each
+// blob's runs listed in blob_runs in run order. Runs beyond caps.blobs blobs join none.
+struct BlobBuffers {
+  std::vector<int> parent, blob_of, blob_runs;
+  std::vector<Blob> blobs;
+};
+
+void ConnectBlobs(const std::vector<Run>& runs, const Caps& caps, BlobBuffers* bb, unsigned* clamped) {
+  std::vector<int>& parent = bb->parent;
+  std::vector<Blob>& blobs = bb->blobs;
+  parent.resize(runs.size());
   std::iota(parent.begin(), parent.end(), 0);
   size_t prev_begin = 0, prev_end = 0, i = 0;
   while (i < runs.size()) {
@@ -219,43 +280,84 @@ std::vector<Blob> ConnectBlobs(const std::vector<Run>& runs) {
     prev_end = j;
     i = j;
   }
-  std::vector<Blob> blobs;
-  std::vector<int> blob_of(runs.size(), -1);
+  blobs.clear();
+  // blob_of[root]: the blob of each root run (-1: none).
+  std::vector<int>& blob_of = bb->blob_of;
+  blob_of.assign(runs.size(), -1);
   for (size_t k = 0; k < runs.size(); ++k) {
     const int root = FindRoot(parent, static_cast<int>(k));
     if (blob_of[root] < 0) {
+      if (blobs.size() >= caps.blobs) {
+        *clamped |= kClampBlobs;
+        continue;
+      }
       blob_of[root] = static_cast<int>(blobs.size());
       blobs.emplace_back();
     }
     Blob& b = blobs[blob_of[root]];
     const Run& r = runs[k];
-    b.runs.push_back(static_cast<int>(k));
+    ++b.run_end;  // a count until the offsets below
     b.x0 = std::min(b.x0, r.x0);
     b.x1 = std::max(b.x1, r.x1);
     b.y0 = std::min(b.y0, r.y);
     b.y1 = std::max(b.y1, r.y);
     b.npix += r.x1 - r.x0 + 1;
   }
-  return blobs;
+  // Counting sort of the runs by blob, keeping run order within a blob.
+  int offset = 0;
+  for (Blob& b : blobs) {
+    const int n = b.run_end;
+    b.run_begin = b.run_end = offset;
+    offset += n;
+  }
+  std::vector<int>& blob_runs = bb->blob_runs;
+  blob_runs.resize(static_cast<size_t>(offset));
+  for (size_t k = 0; k < runs.size(); ++k) {
+    const int bi = blob_of[FindRoot(parent, static_cast<int>(k))];
+    if (bi >= 0) blob_runs[blobs[bi].run_end++] = static_cast<int>(k);
+  }
 }
 
 // 3x3 sums of the image over a blob's bounding box plus a one-pixel margin (edge pixels
 // replicated), computed once per blob from horizontal 3-sums: the peak search reads each sum about
-// ten times.
+// ten times. A blob whose box exceeds the grid's room (kMaxPx) has its sums computed where read
+// (the same integers).
 struct ScoreGrid {
+  static constexpr size_t kMaxPx = 128 * 128;
+  const ImageView* img = nullptr;
+  bool grow = false;  // the buffers grow to any blob (Detect's one-call form)
+  bool direct = false;
   int x0 = 0, y0 = 0, gw = 0, gh = 0;
   std::vector<int32_t> v, hs;
-  int32_t at(int x, int y) const { return v[static_cast<size_t>(y - y0) * gw + (x - x0)]; }
-  void Fill(const ImageView& img, const Blob& b) {
-    const int w = img.width, h = img.height;
+  void Reserve() {
+    v.reserve(kMaxPx);
+    hs.reserve(2 * kMaxPx);  // gw (gh + 2) <= 5/3 gw gh, as gh >= 3
+  }
+  int32_t at(int x, int y) const { return direct ? Direct(x, y) : v[static_cast<size_t>(y - y0) * gw + (x - x0)]; }
+  int32_t Direct(int x, int y) const {
+    const int w = img->width, h = img->height;
+    const int xc = std::clamp(x, 0, w - 1), xl = std::max(xc - 1, 0), xr = std::min(xc + 1, w - 1);
+    int32_t sum = 0;
+    for (int dy = -1; dy <= 1; ++dy) {
+      const uint16_t* row = img->row(std::clamp(y + dy, 0, h - 1));
+      sum += row[xl] + row[xc] + row[xr];
+    }
+    return sum;
+  }
+  void Fill(const ImageView& image, const Blob& b) {
+    img = &image;
+    const int w = image.width, h = image.height;
     x0 = b.x0 - 1;
     y0 = b.y0 - 1;
     gw = b.x1 - b.x0 + 3;
     gh = b.y1 - b.y0 + 3;
-    hs.resize(static_cast<size_t>(gw) * (gh + 2));
-    v.resize(static_cast<size_t>(gw) * gh);
+    const size_t nhs = static_cast<size_t>(gw) * (gh + 2), nv = static_cast<size_t>(gw) * gh;
+    direct = !grow && (nhs > hs.capacity() || nv > v.capacity());
+    if (direct) return;
+    hs.resize(nhs);
+    v.resize(nv);
     for (int r = 0; r < gh + 2; ++r) {
-      const uint16_t* row = img.row(std::clamp(y0 - 1 + r, 0, h - 1));
+      const uint16_t* row = image.row(std::clamp(y0 - 1 + r, 0, h - 1));
       int32_t* o = &hs[static_cast<size_t>(r) * gw];
       for (int c = 0; c < gw; ++c) {
         const int x = std::clamp(x0 + c, 0, w - 1);
@@ -270,12 +372,12 @@ struct ScoreGrid {
   }
 };
 
-// The local maxima of the 3x3 sum over the blob's pixels, brightest first.
-std::vector<Peak> LocalMaxima(const ScoreGrid& grid, const std::vector<Run>& runs, const Blob& b, double level9,
-                              size_t bi) {
-  std::vector<Peak> local;
-  for (int ri : b.runs) {
-    const Run& r = runs[ri];
+// The local maxima of the 3x3 sum over the blob's pixels, brightest first, into *local (at most cap).
+void LocalMaxima(const ScoreGrid& grid, const BlobSet& bs, const Blob& b, double level9, size_t bi, size_t cap,
+                 std::vector<Peak>* local, unsigned* clamped) {
+  local->clear();
+  for (int q = b.run_begin; q < b.run_end; ++q) {
+    const Run& r = bs.RunOf(q);
     for (int x = r.x0; x <= r.x1; ++x) {
       const int32_t c = grid.at(x, r.y);
       bool is_max = true;
@@ -290,30 +392,35 @@ std::vector<Peak> LocalMaxima(const ScoreGrid& grid, const std::vector<Run>& run
           }
         }
       }
-      if (is_max) local.push_back({x, r.y, c - level9, bi});
+      if (is_max) PushCapped(local, cap, Peak{x, r.y, c - level9, bi}, kClampBlobMaxima, clamped);
     }
   }
-  std::sort(local.begin(), local.end(), [](const Peak& p, const Peak& q) { return p.score > q.score; });
-  return local;
+  std::sort(local->begin(), local->end(), [](const Peak& p, const Peak& q) { return p.score > q.score; });
 }
 
 // Step 4: peaks, the local maxima of the 3x3-summed image inside each blob, kept when a real dip
 // separates them from every brighter peak (so a star beside another star or a hot pixel is not
 // lost), each moved to the brightest raw pixel next to it.
-BlobPeaks FindPeaks(const ImageView& img, const BackgroundGrid& bg, std::vector<Blob>& blobs,
-                    const std::vector<Run>& runs) {
-  const int w = img.width, h = img.height;
-  constexpr size_t kMaxPeaksPerBlob = 12;
+struct PeakBuffers {
   ScoreGrid grid;
-  BlobPeaks out;
-  out.first.assign(blobs.size() + 1, 0);
+  std::vector<Peak> local, kept;
+};
+constexpr size_t kMaxPeaksPerBlob = 12;
+
+void FindPeaks(const ImageView& img, const BackgroundGrid& bg, std::vector<Blob>& blobs, const BlobSet& bs,
+               const Caps& caps, PeakBuffers* pb, BlobPeaks* out, unsigned* clamped) {
+  const int w = img.width, h = img.height;
+  ScoreGrid& grid = pb->grid;
+  std::vector<Peak>& kept = pb->kept;
+  out->peaks.clear();
+  out->first.assign(blobs.size() + 1, 0);
   for (size_t bi = 0; bi < blobs.size(); ++bi) {
-    out.first[bi] = out.peaks.size();
+    out->first[bi] = out->peaks.size();
     Blob& b = blobs[bi];
     grid.Fill(img, b);
     // Peak of the raw image inside the blob (3x3-smoothed score to be robust to noise).
-    for (int ri : b.runs) {
-      const Run& r = runs[ri];
+    for (int q = b.run_begin; q < b.run_end; ++q) {
+      const Run& r = bs.RunOf(q);
       for (int x = r.x0; x <= r.x1; ++x) {
         const int64_t sc = int64_t(grid.at(x, r.y)) * 16 + img.at(x, r.y);  // tie-break on the centre pixel
         if (sc > b.peak_score) {
@@ -324,8 +431,9 @@ BlobPeaks FindPeaks(const ImageView& img, const BackgroundGrid& bg, std::vector<
       }
     }
     const double level9 = 9 * bg.LevelAt(b.peak_x, b.peak_y), sigma_s = 3 * bg.SigmaAt(b.peak_x, b.peak_y);
-    std::vector<Peak> kept;
-    for (const Peak& m : LocalMaxima(grid, runs, b, level9, bi)) {
+    kept.clear();
+    LocalMaxima(grid, bs, b, level9, bi, caps.blob_maxima, &pb->local, clamped);
+    for (const Peak& m : pb->local) {
       bool separate = true;
       double nearest = 1e9;
       for (const Peak& a : kept) {
@@ -366,28 +474,28 @@ BlobPeaks FindPeaks(const ImageView& img, const BackgroundGrid& bg, std::vector<
       }
       p.x = mx;
       p.y = my;
-      out.peaks.push_back(p);
+      PushCapped(&out->peaks, caps.peaks, p, kClampPeaks, clamped);
     }
   }
-  out.first[blobs.size()] = out.peaks.size();
-  return out;
+  out->first[blobs.size()] = out->peaks.size();
 }
 
 // Per-peak figures of step 5a.
 struct PeakShape {
-  std::vector<bool> is_spike;
+  std::vector<uint8_t> is_spike;
   std::vector<double> dir_ratio, peak_above;
 };
 
 // Step 5a: single-pixel spikes found first (and masked), so that the fits of stars beside them
 // leave them out. A hot pixel on top of a source is masked and the peak moved off it.
-PeakShape ClassifySpikes(const ImageView& img, const BackgroundGrid& bg, const DetectOptions& opt, BlobPeaks* bp,
-                         PixelMask* bad, std::vector<Rejection>* rejected) {
+void ClassifySpikes(const ImageView& img, const BackgroundGrid& bg, const DetectOptions& opt, const Caps& caps,
+                    bool diagnostics, BlobPeaks* bp, PixelMask* bad, PeakShape* shape, std::vector<Rejection>* rejected,
+                    unsigned* clamped) {
   const int w = img.width, h = img.height;
   const double sat = opt.saturation_adu;
   std::vector<Peak>& peaks = bp->peaks;
-  PeakShape ps;
-  ps.is_spike.assign(peaks.size(), false);
+  PeakShape& ps = *shape;
+  ps.is_spike.assign(peaks.size(), 0);
   ps.dir_ratio.assign(peaks.size(), 1.0);
   ps.peak_above.assign(peaks.size(), 0.0);
   for (size_t pi = 0; pi < peaks.size(); ++pi) {
@@ -416,8 +524,9 @@ PeakShape ClassifySpikes(const ImageView& img, const BackgroundGrid& bg, const D
       if (img.at(pk.x, pk.y) >= sat || !opt.reject_hot_pixels || p <= 3 * nmax + 5 * sigma_n || nmax < 5 * sigma_n)
         break;
       bad->Set(pk.x, pk.y);
-      rejected->push_back(
-          {static_cast<double>(pk.x), static_cast<double>(pk.y), RejectReason::kHotPixel, "on_source", p});
+      PushCapped(rejected, caps.rejections,
+                 MakeRejection(pk.x, pk.y, RejectReason::kHotPixel, RejectDetail::kOnSource, p, diagnostics),
+                 kClampRejections, clamped);
       pk.x = bx;
       pk.y = by;
     }
@@ -438,9 +547,11 @@ PeakShape ClassifySpikes(const ImageView& img, const BackgroundGrid& bg, const D
     ps.peak_above[pi] = p;
     const bool saturated_peak = img.at(mx, my) >= sat;
     if (!saturated_peak && opt.reject_hot_pixels && p > 0 && dmax < 0.2 * p && dmax < p - 3 * sigma_n) {
-      ps.is_spike[pi] = true;
+      ps.is_spike[pi] = 1;
       bad->Set(mx, my);
-      rejected->push_back({static_cast<double>(mx), static_cast<double>(my), RejectReason::kHotPixel, "", p});
+      PushCapped(rejected, caps.rejections,
+                 MakeRejection(mx, my, RejectReason::kHotPixel, RejectDetail::kNone, p, diagnostics), kClampRejections,
+                 clamped);
     }
   }
   // Distances between the remaining peaks of a blob (spikes do not make a star blended).
@@ -454,28 +565,35 @@ PeakShape ClassifySpikes(const ImageView& img, const BackgroundGrid& bg, const D
       }
     }
   }
-  return ps;
 }
 
 // Step 5b: a PSF fit at each remaining peak, brightest first and at most 3 x max_stars of them: on a
 // frame full of faint structure the rest could not enter the output anyway, and each fit costs tens
 // of microseconds. `view` (the raw frame) counts saturated pixels.
-std::vector<Candidate> FitCandidates(const ImageView& img, const ImageView& view, const BackgroundGrid& bg,
-                                     const DetectOptions& opt, double psf_guess, const BlobPeaks& bp,
-                                     const PeakShape& ps, const PixelMask& bad) {
+struct FitBuffers {
+  std::vector<size_t> order;
+  std::vector<Candidate> cands;
+  PsfFitScratch scratch;
+};
+
+// max_fits: 3 x the stars kept; max_half_px: the PSF-fit window's room (0: none).
+void FitCandidates(const ImageView& img, const ImageView& view, const BackgroundGrid& bg, const DetectOptions& opt,
+                   double psf_guess, const BlobPeaks& bp, const PeakShape& ps, const PixelMask& bad, size_t max_fits,
+                   int max_half_px, FitBuffers* fb, unsigned* clamped) {
   const int w = img.width, h = img.height;
   const double sat = opt.saturation_adu;
   const std::vector<Peak>& peaks = bp.peaks;
   const int fit_r =
       std::max(3, static_cast<int>(std::ceil(2.5 * psf_guess)));  // +-2.5 sigma holds the position information
-  std::vector<size_t> order;
+  std::vector<size_t>& order = fb->order;
+  std::vector<Candidate>& cands = fb->cands;
+  order.clear();
+  cands.clear();
   for (size_t pi = 0; pi < peaks.size(); ++pi) {
-    if (!ps.is_spike[pi]) order.push_back(pi);
+    if (!ps.is_spike[pi]) order.push_back(pi);  // order holds as many as peaks
   }
   std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return peaks[a].score > peaks[b].score; });
-  if (order.size() > static_cast<size_t>(3 * opt.max_stars)) order.resize(static_cast<size_t>(3 * opt.max_stars));
-  std::vector<Candidate> cands;
-  cands.reserve(order.size());
+  if (order.size() > max_fits) order.resize(max_fits);
   for (size_t pi : order) {
     const Peak& pk = peaks[pi];
     Candidate c;
@@ -490,6 +608,7 @@ std::vector<Candidate> FitCandidates(const ImageView& img, const ImageView& view
     fo.gain_e_per_adu = opt.gain_e_per_adu;
     fo.saturation_adu = sat;
     fo.fit = opt.fit_gaussian;
+    fo.max_half_px = max_half_px;
     if (opt.smear.active()) {
       const Vec2 d = opt.smear.DisplacementPx(Vec2(pk.x, pk.y));
       if (d.norm() >= opt.smear.min_px) {
@@ -510,18 +629,19 @@ std::vector<Candidate> FitCandidates(const ImageView& img, const ImageView& view
       }
       return false;
     };
-    c.fit = FitPsf(img, pk.x, pk.y, fit_r, bg.LevelAt(pk.x, pk.y), bg.SigmaAt(pk.x, pk.y), fo, excluded);
-    cands.push_back(c);
+    c.fit = FitPsf(img, pk.x, pk.y, fit_r, bg.LevelAt(pk.x, pk.y), bg.SigmaAt(pk.x, pk.y), fo, excluded, &fb->scratch);
+    if (c.fit.window_clamped) *clamped |= kClampFitWindow;
+    cands.push_back(c);  // cands holds max_fits
   }
-  return cands;
 }
 
 // Step 5c: the frame's PSF width, the median fitted sigma of the brightest unsaturated, isolated
 // sources that are not single-pixel sharp (or as given).
 double FramePsfSigma(const std::vector<Candidate>& cands, const std::vector<Peak>& peaks, double given_px,
-                     double psf_guess) {
+                     double psf_guess, std::vector<std::pair<double, double>>* bright_buffer) {
   if (given_px > 0) return given_px;
-  std::vector<std::pair<double, double>> bright;  // (peak above background, sigma)
+  std::vector<std::pair<double, double>>& bright = *bright_buffer;  // (peak above background, sigma)
+  bright.clear();
   for (const Candidate& c : cands) {
     if (c.fit.ok && c.nsat == 0 && c.fit.snr > 15 && c.min_dir_ratio > 0.02 && peaks[c.peak].nearest_px > 8 &&
         c.fit.sigma_px > 0.31) {
@@ -530,15 +650,19 @@ double FramePsfSigma(const std::vector<Candidate>& cands, const std::vector<Peak
   }
   std::sort(bright.begin(), bright.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
   if (bright.size() > 25) bright.resize(25);
-  std::vector<double> s;
-  for (const auto& b : bright) s.push_back(b.second);
-  return s.size() < 3 ? psf_guess : Median(std::move(s));
+  if (bright.size() < 3) return psf_guess;
+  // The upper median of the sigmas (core/stats.h Median), selected in place.
+  std::array<double, 25> s;
+  for (size_t k = 0; k < bright.size(); ++k) s[k] = bright[k].second;
+  const size_t m = bright.size() / 2;
+  std::nth_element(s.begin(), s.begin() + m, s.begin() + bright.size());
+  return s[m];
 }
 
 // Step 5d: is the candidate an interferer? Sets rej and returns true for a cosmic ray, hot pixel,
 // streak or extended object (or a blended pair, which cannot be centroided without bias).
-bool Interferer(const Candidate& c, const Peak& pk, const Blob& b, const std::vector<Run>& runs, double psf,
-                double sharp_ratio, double sigma_n, Rejection* rej) {
+bool Interferer(const Candidate& c, const Peak& pk, const Blob& b, const BlobSet& bs, double psf, double sharp_ratio,
+                double sigma_n, Rejection* rej) {
   const PsfFit& f = c.fit;
   const double ext_x = b.x1 - b.x0 + 1, ext_y = b.y1 - b.y0 + 1;
   const double length = std::hypot(ext_x, ext_y);
@@ -554,23 +678,23 @@ bool Interferer(const Candidate& c, const Peak& pk, const Blob& b, const std::ve
     // Sharper than the PSF across at least one direction: charge deposited in the pixels, not
     // imaged through the optics.
     rej->reason = b.npix <= 2 && length < 3 ? RejectReason::kHotPixel : RejectReason::kCosmicRay;
-  } else if (c.nsat == 0 && length > 10 * psf + 6 + c.smear_px && BlobElongation(b, runs) > 3.0) {
+  } else if (c.nsat == 0 && length > 10 * psf + 6 + c.smear_px && BlobElongation(b, bs) > 3.0) {
     // Long thin blob imaged through the optics: a satellite or aircraft streak.
     rej->reason = RejectReason::kStreak;
   } else if (c.nsat == 0 && b.npix > 400 * psf * psf + 20 * psf * c.smear_px) {
     rej->reason = RejectReason::kExtended;
   } else if (c.nsat > 400) {
     rej->reason = RejectReason::kExtended;
-    rej->detail = "saturated_extended";
+    rej->detail_code = RejectDetail::kSaturatedExtended;
   } else if (c.nsat == 0 && f.ok && f.sigma_px > 2.0 * psf + 0.3 && f.snr > 10) {
     rej->reason = RejectReason::kExtended;
   } else if (pk.nearest_px < 2.9 * psf) {
     // Two peaks too close to centroid apart without bias.
     rej->reason = RejectReason::kExtended;
-    rej->detail = "blended_pair";
+    rej->detail_code = RejectDetail::kBlendedPair;
   } else if (c.nsat == 0 && f.ok && f.elongation > 1.8 && f.snr > 30) {
     rej->reason = RejectReason::kExtended;
-    rej->detail = "elongated";
+    rej->detail_code = RejectDetail::kElongated;
   } else {
     return false;
   }
@@ -580,12 +704,13 @@ bool Interferer(const Candidate& c, const Peak& pk, const Blob& b, const std::ve
 // Step 6: dead pixels and defect-map pixels that would otherwise have looked like sources, up to
 // a cap on the report's length.
 void ReportDefects(const ImageView& view, const BackgroundGrid& bg, const DetectOptions& opt,
-                   const std::vector<std::pair<int, int>>& dead_pixels, const DefectMap* defects,
-                   std::vector<Rejection>* rejected) {
+                   const std::vector<std::pair<int, int>>& dead_pixels, const DefectMap* defects, const Caps& caps,
+                   std::vector<Rejection>* rejected, unsigned* clamped) {
   constexpr size_t kMaxReported = 2000;
   for (const auto& [x, y] : dead_pixels) {
     if (rejected->size() >= kMaxReported) break;
-    rejected->push_back({static_cast<double>(x), static_cast<double>(y), RejectReason::kDeadPixel, "", 0});
+    PushCapped(rejected, caps.rejections, MakeRejection(x, y, RejectReason::kDeadPixel, RejectDetail::kNone, 0, false),
+               kClampRejections, clamped);
   }
   if (!defects) return;
   for (int y = 0; y < view.height && rejected->size() < kMaxReported; ++y) {
@@ -593,7 +718,9 @@ void ReportDefects(const ImageView& view, const BackgroundGrid& bg, const Detect
       if (!defects->at(x, y)) continue;
       const double above = view.at(x, y) - bg.LevelAt(x, y);
       if (above > opt.threshold_sigma * bg.SigmaAt(x, y)) {
-        rejected->push_back({static_cast<double>(x), static_cast<double>(y), RejectReason::kDefectMap, "", above});
+        PushCapped(rejected, caps.rejections,
+                   MakeRejection(x, y, RejectReason::kDefectMap, RejectDetail::kNone, above, false), kClampRejections,
+                   clamped);
       }
     }
   }
@@ -619,68 +746,224 @@ const char* RejectReasonName(RejectReason r) {
   return "unknown";
 }
 
-void DetectOptions::Check() const {
-  auto need = [](bool ok, const char* what) {
-    if (!ok) throw InputError(std::string("DetectOptions: ") + what);
-  };
-  need(std::isfinite(threshold_sigma) && threshold_sigma >= 2 && threshold_sigma <= 100,
-       "threshold_sigma must be in [2, 100]");
-  need(std::isfinite(min_snr) && min_snr >= 0, "min_snr must be >= 0");
-  need(tile_px >= 8 && tile_px <= 1024, "tile_px must be in [8, 1024]");
-  need(std::isfinite(psf_sigma_px) && psf_sigma_px >= 0 && psf_sigma_px < 50, "psf_sigma_px must be in [0, 50)");
-  need(std::isfinite(gain_e_per_adu) && gain_e_per_adu >= 0, "gain_e_per_adu must be >= 0");
-  need(std::isfinite(saturation_adu) && saturation_adu > 0, "saturation_adu must be > 0");
-  need(std::isfinite(dead_sigma) && dead_sigma > 2, "dead_sigma must be > 2");
-  need(max_stars > 0, "max_stars must be > 0");
-  smear.Check();
+const char* RejectDetailName(RejectDetail d) {
+  static constexpr const char* kNames[] = {"", "on_source", "blended_pair", "saturated_extended", "elongated"};
+  const auto i = static_cast<size_t>(d);
+  return i < std::size(kNames) ? kNames[i] : "";
 }
 
-Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectMap* defects) {
-  opt.Check();
-  const auto t_start = Clock::now();
+const char* DetectStatusName(DetectStatus s) {
+  static constexpr const char* kNames[] = {"ok",           "bad_options",     "image_too_small",  "image_too_large",
+                                           "tile_too_small", "defect_map_size", "smear_camera_size"};
+  const auto i = static_cast<size_t>(s);
+  return i < std::size(kNames) ? kNames[i] : "unknown";
+}
+
+const char* DetectOptions::Problem() const {
+  if (!(std::isfinite(threshold_sigma) && threshold_sigma >= 2 && threshold_sigma <= 100))
+    return "threshold_sigma must be in [2, 100]";
+  if (!(std::isfinite(min_snr) && min_snr >= 0)) return "min_snr must be >= 0";
+  if (!(tile_px >= 8 && tile_px <= 1024)) return "tile_px must be in [8, 1024]";
+  if (!(std::isfinite(psf_sigma_px) && psf_sigma_px >= 0 && psf_sigma_px < 50)) return "psf_sigma_px must be in [0, 50)";
+  if (!(std::isfinite(gain_e_per_adu) && gain_e_per_adu >= 0)) return "gain_e_per_adu must be >= 0";
+  if (!(std::isfinite(saturation_adu) && saturation_adu > 0)) return "saturation_adu must be > 0";
+  if (!(std::isfinite(dead_sigma) && dead_sigma > 2)) return "dead_sigma must be > 2";
+  if (!(max_stars > 0)) return "max_stars must be > 0";
+  return smear.Problem();
+}
+
+void DetectOptions::Check() const {
+  if (const char* p = Problem()) throw InputError(std::string("DetectOptions: ") + p);
+  smear.Check();  // the camera
+}
+
+void DetectLimits::Check() const {
+  auto need = [](bool ok, const char* what) {
+    if (!ok) throw InputError(std::string("DetectLimits: ") + what);
+  };
+  need(max_width >= 16 && max_height >= 16, "max_width and max_height must be >= 16");
+  need(max_detections > 0, "max_detections must be > 0");
+  need(min_tile_px >= 8 && min_tile_px <= 1024, "min_tile_px must be in [8, 1024]");
+  need(max_runs > 0 && max_blobs > 0 && max_peaks > 0 && max_blob_maxima > 0 && max_rejections > 0 &&
+           max_dead_pixels > 0,
+       "max_runs, max_blobs, max_peaks, max_blob_maxima, max_rejections and max_dead_pixels must be > 0");
+  need(max_fit_window_px >= 7 && max_fit_window_px <= 1024, "max_fit_window_px must be in [7, 1024]");
+}
+
+struct DetectWorkspace::Buffers {
+  BackgroundScratch bg_scratch;
+  BackgroundGrid bg;
+  std::vector<uint16_t> repaired;
+  ThresholdBuffers threshold;
+  std::vector<Run> runs;
+  std::vector<std::pair<int, int>> dead_pixels;
+  BlobBuffers blobs;
+  PeakBuffers peak_search;
+  BlobPeaks peaks;
+  PixelMask bad;
+  PeakShape shape;
+  FitBuffers fits;
+  std::vector<std::pair<double, double>> bright;
+  std::vector<uint8_t> blob_reported;
+  std::vector<StarDetection> stars;  // before the brightest are kept
+};
+
+DetectWorkspace::DetectWorkspace(const DetectLimits& limits) : limits_(limits), b_(std::make_unique<Buffers>()) {
+  limits_.Check();
+  const DetectLimits& l = limits_;
+  Buffers& b = *b_;
+  const size_t w = static_cast<size_t>(l.max_width), h = static_cast<size_t>(l.max_height);
+  // Per-pixel and per-row buffers, in both modes.
+  b.bg_scratch.Reserve(l.max_width, l.max_height, l.min_tile_px, &b.bg);
+  b.threshold.colsum.reserve(w);
+  b.threshold.low_row.reserve(w);
+  b.threshold.above.reserve(w + 1);
+  const int t = std::min(l.min_tile_px, 16);
+  b.threshold.thr_centres.reserve(((h + t - 1) / t) * w);
+  b.bad.Reserve(l.max_width, l.max_height);
+  b.peak_search.kept.reserve(kMaxPeaksPerBlob);
+  b.peak_search.grid.grow = l.grow;
+  if (l.grow) return;  // lists grow as needed
+  b.repaired.reserve(w * h);
+  const size_t runs = static_cast<size_t>(l.max_runs), blobs = static_cast<size_t>(l.max_blobs);
+  const size_t peaks = static_cast<size_t>(l.max_peaks), fits = 3 * static_cast<size_t>(l.max_detections);
+  b.runs.reserve(runs);
+  b.dead_pixels.reserve(static_cast<size_t>(l.max_dead_pixels));
+  b.blobs.parent.reserve(runs);
+  b.blobs.blob_of.reserve(runs);
+  b.blobs.blob_runs.reserve(runs);
+  b.blobs.blobs.reserve(blobs);
+  b.peak_search.grid.Reserve();
+  b.peak_search.local.reserve(static_cast<size_t>(l.max_blob_maxima));
+  b.peaks.peaks.reserve(peaks);
+  b.peaks.first.reserve(blobs + 1);
+  b.shape.is_spike.reserve(peaks);
+  b.shape.dir_ratio.reserve(peaks);
+  b.shape.peak_above.reserve(peaks);
+  b.fits.order.reserve(peaks);
+  b.fits.cands.reserve(std::min(fits, peaks));
+  b.fits.scratch.Reserve(l.max_fit_window_px);
+  b.bright.reserve(std::min(fits, peaks));
+  b.blob_reported.reserve(blobs);
+  b.stars.reserve(std::min(fits, peaks));
+}
+
+DetectWorkspace::~DetectWorkspace() = default;
+DetectWorkspace::DetectWorkspace(DetectWorkspace&&) noexcept = default;
+DetectWorkspace& DetectWorkspace::operator=(DetectWorkspace&&) noexcept = default;
+
+void DetectWorkspace::Reserve(Detections* out) const {
+  if (limits_.grow) return;
+  out->stars.reserve(static_cast<size_t>(limits_.max_detections));
+  out->rejected.reserve(static_cast<size_t>(limits_.max_rejections));
+}
+
+namespace {
+template <class T>
+size_t CapacityBytes(const std::vector<T>& v) {
+  return v.capacity() * sizeof(T);
+}
+template <class T, class... More>
+size_t CapacityBytes(const std::vector<T>& v, const More&... more) {
+  return CapacityBytes(v) + CapacityBytes(more...);
+}
+}  // namespace
+
+size_t PixelMask::Bytes() const { return CapacityBytes(bits_); }
+
+size_t DetectWorkspace::Bytes() const {
+  const Buffers& b = *b_;
+  const BackgroundScratch& bs = b.bg_scratch;
+  const PsfFitScratch& fs = b.fits.scratch;
+  return sizeof(Buffers) + CapacityBytes(bs.samples, bs.box_samples, bs.select, bs.hist, bs.grid) +
+         CapacityBytes(b.bg.level, b.bg.sigma, b.bg.box_sigma, b.repaired) +
+         CapacityBytes(b.threshold.colsum, b.threshold.low_row, b.threshold.thr_centres, b.threshold.above) +
+         CapacityBytes(b.runs, b.dead_pixels, b.blobs.parent, b.blobs.blob_of, b.blobs.blob_runs, b.blobs.blobs) +
+         CapacityBytes(b.peak_search.grid.v, b.peak_search.grid.hs, b.peak_search.local, b.peak_search.kept) +
+         CapacityBytes(b.peaks.peaks, b.peaks.first, b.shape.is_spike, b.shape.dir_ratio, b.shape.peak_above) +
+         b.bad.Bytes() + CapacityBytes(b.fits.order, b.fits.cands, b.bright, b.blob_reported, b.stars) +
+         CapacityBytes(fs.v, fs.w_cur, fs.w_new, fs.use, fs.sm.f, fs.sm.dx, fs.sm.dy, fs.sm.ds) +
+         CapacityBytes(fs.fx.f, fs.fx.dc, fs.fx.ds, fs.fy.f, fs.fy.dc, fs.fy.ds) +
+         CapacityBytes(fs.sm.px.f, fs.sm.px.dc, fs.sm.px.ds, fs.sm.py.f, fs.sm.py.dc, fs.sm.py.ds);
+}
+
+size_t DetectWorkspace::OutputBytes() const {
+  if (limits_.grow) return 0;
+  return static_cast<size_t>(limits_.max_detections) * sizeof(StarDetection) +
+         static_cast<size_t>(limits_.max_rejections) * sizeof(Rejection);
+}
+
+DetectStatus Detect(const ImageView& view, const DetectOptions& opt, const DefectMap* defects, DetectWorkspace* ws,
+                    Detections* out) {
+  const DetectLimits& lim = ws->limits_;
+  DetectWorkspace::Buffers& bu = *ws->b_;
+  const bool diag = lim.diagnostics;
+  const auto now = [diag] { return diag ? Clock::now() : Clock::time_point{}; };
+  const auto t_start = now();
+  out->width = out->height = 0;
+  out->background_adu = out->noise_adu = out->psf_sigma_px = 0;
+  out->stars.clear();
+  out->rejected.clear();
+  out->timing_ms.clear();
+  out->clamped = 0;
+  if (opt.Problem()) return DetectStatus::kBadOptions;
   const int w = view.width, h = view.height;
-  if (w < 16 || h < 16 || view.data == nullptr) throw InputError("Detect: image smaller than 16x16");
+  if (w < 16 || h < 16 || view.data == nullptr) return DetectStatus::kImageTooSmall;
+  if (w > lim.max_width || h > lim.max_height) return DetectStatus::kImageTooLarge;
   if (defects && !defects->empty() && (defects->width != w || defects->height != h)) {
-    throw InputError("Detect: defect map size differs from the image");
+    return DetectStatus::kDefectMapSize;
   }
   if (opt.smear.active() && (opt.smear.camera.width != w || opt.smear.camera.height != h)) {
-    throw InputError("Detect: smear.camera size differs from the image");
+    return DetectStatus::kSmearCameraSize;
   }
-  Detections out;
-  out.width = w;
-  out.height = h;
+  if (opt.tile_px < lim.min_tile_px) return DetectStatus::kTileTooSmall;
+  constexpr size_t kAny = std::numeric_limits<size_t>::max();
+  const Caps caps = lim.grow ? Caps{kAny, kAny, kAny, kAny, kAny, kAny}
+                             : Caps{static_cast<size_t>(lim.max_runs),       static_cast<size_t>(lim.max_blobs),
+                                    static_cast<size_t>(lim.max_peaks),      static_cast<size_t>(lim.max_blob_maxima),
+                                    static_cast<size_t>(lim.max_rejections), static_cast<size_t>(lim.max_dead_pixels)};
+  const int max_stars = std::min(opt.max_stars, lim.max_detections);
+  unsigned* clamped = &out->clamped;
+  out->width = w;
+  out->height = h;
   const DefectMap* known = defects && !defects->empty() ? defects : nullptr;
-  std::vector<uint16_t> repaired;
-  const ImageView img = known ? RepairDefects(view, *known, &repaired) : view;
+  const ImageView img = known ? RepairDefects(view, *known, &bu.repaired) : view;
 
   // 1. Background and noise per tile (median and MAD: robust to stars and hot pixels).
-  auto t0 = Clock::now();
+  auto t0 = now();
   // Matched filter: a box of about the PSF's size (3x3 is 88% efficient for sigma 1.2 px).
   const double psf_guess = opt.psf_sigma_px > 0 ? opt.psf_sigma_px : 1.2;
   const int half = psf_guess <= 1.6 ? 1 : (psf_guess <= 2.8 ? 2 : 3);
-  const BackgroundGrid bg = EstimateBackground(img, opt.tile_px, half);
-  out.background_adu = bg.median_level;
-  out.noise_adu = bg.median_sigma;
-  out.timing_ms["background"] = MsSince(t0);
+  const BackgroundGrid& bg = bu.bg;
+  EstimateBackground(img, opt.tile_px, half, &bu.bg_scratch, &bu.bg);
+  out->background_adu = bg.median_level;
+  out->noise_adu = bg.median_sigma;
+  if (diag) out->timing_ms["background"] = MsSince(t0);
 
   // 2. Threshold the box sum on its own measured local noise.
-  t0 = Clock::now();
-  std::vector<Run> runs;
-  std::vector<std::pair<int, int>> dead_pixels;
-  ThresholdRuns(img, view, bg, opt, half, known, &runs, &dead_pixels);
-  out.timing_ms["threshold"] = MsSince(t0);
+  t0 = now();
+  std::vector<Run>& runs = bu.runs;
+  std::vector<std::pair<int, int>>& dead_pixels = bu.dead_pixels;
+  runs.clear();
+  dead_pixels.clear();
+  ThresholdRuns(img, view, bg, opt, half, known, caps, &bu.threshold, &runs, &dead_pixels, clamped);
+  if (diag) out->timing_ms["threshold"] = MsSince(t0);
 
   // 3. Connected blobs.
-  t0 = Clock::now();
-  std::vector<Blob> blobs = ConnectBlobs(runs);
-  out.timing_ms["blobs"] = MsSince(t0);
+  t0 = now();
+  ConnectBlobs(runs, caps, &bu.blobs, clamped);
+  std::vector<Blob>& blobs = bu.blobs.blobs;
+  const BlobSet bs{runs, blobs, bu.blobs.blob_runs};
+  if (diag) out->timing_ms["blobs"] = MsSince(t0);
 
   // 4. Peaks inside each blob.
-  t0 = Clock::now();
-  BlobPeaks bp = FindPeaks(img, bg, blobs, runs);
+  t0 = now();
+  BlobPeaks& bp = bu.peaks;
+  FindPeaks(img, bg, blobs, bs, caps, &bu.peak_search, &bp, clamped);
 
   // 5. Classify each peak: spikes, then PSF fits, the frame's PSF, interferers, stars.
-  PixelMask bad(w, h);
+  PixelMask& bad = bu.bad;
+  bad.Reset(w, h);
   for (const auto& [x, y] : dead_pixels) bad.Set(x, y);
   if (known) {
     for (int y = 0; y < h; ++y) {
@@ -689,21 +972,31 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
       }
     }
   }
-  const PeakShape ps = ClassifySpikes(img, bg, opt, &bp, &bad, &out.rejected);
-  const std::vector<Candidate> cands = FitCandidates(img, view, bg, opt, psf_guess, bp, ps, bad);
-  const double psf = FramePsfSigma(cands, bp.peaks, opt.psf_sigma_px, psf_guess);
-  out.psf_sigma_px = psf;
+  const PeakShape& ps = bu.shape;
+  ClassifySpikes(img, bg, opt, caps, diag, &bp, &bad, &bu.shape, &out->rejected, clamped);
+  const size_t max_fits = 3 * static_cast<size_t>(max_stars);
+  const int max_half_px = lim.grow ? 0 : (lim.max_fit_window_px - 1) / 2;
+  FitCandidates(img, view, bg, opt, psf_guess, bp, ps, bad, max_fits, max_half_px, &bu.fits, clamped);
+  const std::vector<Candidate>& cands = bu.fits.cands;
+  const double psf = FramePsfSigma(cands, bp.peaks, opt.psf_sigma_px, psf_guess, &bu.bright);
+  out->psf_sigma_px = psf;
   const double sharp_ratio = std::clamp(0.45 * DiagonalRatio(psf), 0.02, 0.3);
-  std::vector<bool> blob_reported(blobs.size(), false);  // one track/streak rejection per blob
+  std::vector<uint8_t>& blob_reported = bu.blob_reported;  // one track/streak rejection per blob
+  blob_reported.assign(blobs.size(), 0);
+  std::vector<StarDetection>& stars = bu.stars;  // at most one per candidate
+  stars.clear();
   for (const Candidate& c : cands) {
     const Peak& pk = bp.peaks[c.peak];
     const Blob& b = blobs[pk.blob];
     const PsfFit& f = c.fit;
     Rejection rej;
-    if (Interferer(c, pk, b, runs, psf, sharp_ratio, bg.SigmaAt(pk.x, pk.y), &rej)) {
+    if (Interferer(c, pk, b, bs, psf, sharp_ratio, bg.SigmaAt(pk.x, pk.y), &rej)) {
       const bool per_blob = rej.reason == RejectReason::kCosmicRay || rej.reason == RejectReason::kStreak;
-      if (!(per_blob && blob_reported[pk.blob])) out.rejected.push_back(rej);
-      if (per_blob) blob_reported[pk.blob] = true;
+      if (!(per_blob && blob_reported[pk.blob])) {
+        if (diag) rej.detail = RejectDetailName(rej.detail_code);
+        PushCapped(&out->rejected, caps.rejections, rej, kClampRejections, clamped);
+      }
+      if (per_blob) blob_reported[pk.blob] = 1;
       continue;
     }
     if (!f.ok || f.snr < opt.min_snr) continue;
@@ -718,17 +1011,47 @@ Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectM
     s.sigma_px = f.sigma_px;
     s.x_sigma_px = f.x_sigma_px;
     s.y_sigma_px = f.y_sigma_px;
-    out.stars.push_back(s);
+    stars.push_back(s);
   }
-  std::sort(out.stars.begin(), out.stars.end(),
+  std::sort(stars.begin(), stars.end(),
             [](const StarDetection& a, const StarDetection& b) { return a.flux_adu > b.flux_adu; });
-  if (static_cast<int>(out.stars.size()) > opt.max_stars) out.stars.resize(opt.max_stars);
+  const size_t kept = std::min(stars.size(), static_cast<size_t>(max_stars));
+  if (kept < stars.size()) *clamped |= kClampStars;
+  out->stars.assign(stars.begin(), stars.begin() + static_cast<std::ptrdiff_t>(kept));
 
   // 6. Defective pixels in the report.
-  ReportDefects(view, bg, opt, dead_pixels, known, &out.rejected);
-  out.timing_ms["centroid"] = MsSince(t0);
-  out.timing_ms["total"] = MsSince(t_start);
-  return out;
+  ReportDefects(view, bg, opt, dead_pixels, known, caps, &out->rejected, clamped);
+  if (diag) {
+    out->timing_ms["centroid"] = MsSince(t0);
+    out->timing_ms["total"] = MsSince(t_start);
+  }
+  return DetectStatus::kOk;
+}
+
+Detections Detect(const ImageView& view, const DetectOptions& opt, const DefectMap* defects) {
+  opt.Check();
+  // A workspace for this frame whose lists grow as needed: the results depend on no limit.
+  DetectLimits limits;
+  limits.max_width = std::max(view.width, 16);
+  limits.max_height = std::max(view.height, 16);
+  limits.max_detections = opt.max_stars;
+  limits.min_tile_px = opt.tile_px;
+  limits.grow = true;
+  DetectWorkspace ws(limits);
+  Detections out;
+  const DetectStatus st = Detect(view, opt, defects, &ws, &out);
+  switch (st) {
+    case DetectStatus::kOk:
+      return out;
+    case DetectStatus::kImageTooSmall:
+      throw InputError("Detect: image smaller than 16x16");
+    case DetectStatus::kDefectMapSize:
+      throw InputError("Detect: defect map size differs from the image");
+    case DetectStatus::kSmearCameraSize:
+      throw InputError("Detect: smear.camera size differs from the image");
+    default:
+      throw InputError(std::string("Detect: ") + DetectStatusName(st));
+  }
 }
 
 }  // namespace ssiu

@@ -2,6 +2,14 @@
 //
 //   Detections d = Detect(frame.image.view(), DetectOptions{}, &defect_map);
 //
+// Flight use (no heap after initialisation): a DetectWorkspace reserved once for the largest frame
+// and the most detections, and a caller-owned Detections that each call clears and refills:
+//
+//   DetectLimits lim;  lim.max_width = 1024;  lim.max_height = 1024;  lim.diagnostics = false;
+//   DetectWorkspace ws(lim);              // allocates here
+//   Detections d;  ws.Reserve(&d);
+//   DetectStatus st = Detect(view, options, nullptr, &ws, &d);   // no allocation, no exception
+//
 // Pipeline (docs/design.md): robust tiled background/noise (median, MAD; hot pixels and stars do not
 // inflate it) -> defect-map pixels repaired -> matched (PSF-sized box) filter -> threshold on local
 // noise -> connected blobs -> per-blob classification (hot pixel, cosmic ray, streak, extended, star)
@@ -11,6 +19,7 @@
 
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -35,6 +44,10 @@ struct DetectOptions {
   // shape tests allow that smear, not more: cosmic rays and streaks that do not match stay rejected.
   ExpectedSmear smear;
   void Check() const;  // throws InputError naming the field
+  // The first problem Check would report, without the "DetectOptions: " prefix and without checking
+  // smear.camera (Camera::Check, done once where the camera is set up); nullptr when none. Allocates
+  // nothing and does not throw.
+  const char* Problem() const;
 };
 
 struct StarDetection {
@@ -51,11 +64,28 @@ struct StarDetection {
 enum class RejectReason { kHotPixel, kDeadPixel, kDefectMap, kCosmicRay, kStreak, kExtended };
 const char* RejectReasonName(RejectReason r);  // "hot_pixel", "dead_pixel", ...
 
+// The finer reason of some rejections (Rejection::detail as a code).
+enum class RejectDetail { kNone, kOnSource, kBlendedPair, kSaturatedExtended, kElongated };
+const char* RejectDetailName(RejectDetail d);  // "", "on_source", "blended_pair", ...
+
 struct Rejection {
   double x_px = 0, y_px = 0;
   RejectReason reason = RejectReason::kExtended;
-  std::string detail;  // e.g. "blended_pair", "saturated_extended"
+  std::string detail;  // RejectDetailName(detail_code), e.g. "blended_pair"; "" without diagnostics
   double flux_adu = 0;
+  RejectDetail detail_code = RejectDetail::kNone;
+};
+
+// Which limits of the workspace (DetectLimits) a call reached, as bits of Detections::clamped.
+enum DetectClamp : unsigned {
+  kClampStars = 1u << 0,        // more stars passed than max_stars / max_detections: the faintest dropped
+  kClampRuns = 1u << 1,         // max_runs: sources further down the frame not found
+  kClampBlobs = 1u << 7,        // max_blobs: sources further down the frame not found
+  kClampPeaks = 1u << 2,        // max_peaks: later blobs' peaks dropped
+  kClampBlobMaxima = 1u << 3,   // max_blob_maxima: a blob's fainter local maxima not considered
+  kClampRejections = 1u << 4,   // max_rejections: the report of rejections is cut short
+  kClampDeadPixels = 1u << 5,   // max_dead_pixels: further dead pixels neither masked nor reported
+  kClampFitWindow = 1u << 6,    // max_fit_window_px: some PSF fits had a smaller window than asked
 };
 
 struct Detections {
@@ -65,7 +95,8 @@ struct Detections {
   double psf_sigma_px = 0;           // PSF sigma used (estimated or given)
   std::vector<StarDetection> stars;  // brightest first
   std::vector<Rejection> rejected;
-  std::map<std::string, double> timing_ms;
+  std::map<std::string, double> timing_ms;  // filled only with DetectLimits::diagnostics
+  unsigned clamped = 0;                     // DetectClamp bits: the limits this call reached
 };
 
 // A static defect map: nonzero = defective pixel (hot, dead, or otherwise unusable).
@@ -77,6 +108,70 @@ struct DefectMap {
 };
 
 Detections Detect(const ImageView& image, const DetectOptions& options = {}, const DefectMap* defects = nullptr);
+
+// What Detect's sizes a workspace holds. Per-pixel buffers are sized by max_width x max_height; the
+// lists by the counts below, which a call never grows past: it stops adding and sets a
+// Detections::clamped bit instead (defaults: room for a 1024^2 star frame many times over).
+struct DetectLimits {
+  int max_width = 1024, max_height = 1024;
+  int max_detections = 1000;  // stars output (DetectOptions::max_stars above this acts as this)
+  int min_tile_px = 16;       // smallest DetectOptions::tile_px the background grids have room for
+  int max_runs = 32768;         // above-threshold row runs (a star makes a few)
+  int max_blobs = 8192;         // connected blobs of runs (a star, a hot pixel, a track: one each)
+  int max_peaks = 8192;         // peaks kept over all blobs (at most 12 per blob)
+  int max_blob_maxima = 4096;   // local maxima of one blob searched for peaks
+  int max_rejections = 4096;    // rejected sources reported
+  int max_dead_pixels = 4096;   // dead pixels masked and reported
+  int max_fit_window_px = 64;   // side of a PSF-fit window (PSF sigma 1.2 px: 7; a smear adds its length)
+  // Timing (Detections::timing_ms) and text (Rejection::detail) only when set: the flight path clears it.
+  bool diagnostics = true;
+  // Lists grow past their limits instead of clamping (Detect's one-call form only: results then do
+  // not depend on the limits; allocation-free use leaves it false).
+  bool grow = false;
+  void Check() const;  // throws InputError naming the field
+};
+
+// Why a workspace call gave no detections (kOk: it ran; Detections::clamped tells of limits reached).
+enum class DetectStatus {
+  kOk,
+  kBadOptions,        // DetectOptions::Problem() != nullptr
+  kImageTooSmall,     // under 16 x 16, or no pixels
+  kImageTooLarge,     // over DetectLimits::max_width x max_height
+  kTileTooSmall,      // tile_px under DetectLimits::min_tile_px
+  kDefectMapSize,     // defect map not the image's size
+  kSmearCameraSize,   // smear.camera not the image's size
+};
+const char* DetectStatusName(DetectStatus s);  // "ok", "bad_options", ...
+
+// Every buffer Detect needs, reserved at construction for `limits` (allocates only there).
+class DetectWorkspace {
+ public:
+  explicit DetectWorkspace(const DetectLimits& limits);  // limits.Check() (throws InputError)
+  ~DetectWorkspace();
+  DetectWorkspace(DetectWorkspace&&) noexcept;
+  DetectWorkspace& operator=(DetectWorkspace&&) noexcept;
+  const DetectLimits& limits() const { return limits_; }
+  // Gives `out` the capacity a call may fill (stars and rejections), so that no call grows it.
+  void Reserve(Detections* out) const;
+  // Heap bytes the workspace holds (its buffers' capacities), and those Reserve gives a Detections.
+  size_t Bytes() const;
+  size_t OutputBytes() const;
+
+  struct Buffers;  // detect.cc
+
+ private:
+  DetectLimits limits_;
+  std::unique_ptr<Buffers> b_;
+  friend DetectStatus Detect(const ImageView&, const DetectOptions&, const DefectMap*, DetectWorkspace*,
+                             Detections*);
+};
+
+// Detect with a workspace: `out` is cleared (capacity kept) and refilled. No exceptions; with
+// diagnostics off and `out` reserved (DetectWorkspace::Reserve), no heap allocation. Bad input is the
+// status (then `out` is empty). The one implementation: Detect above is this with a local workspace
+// (grow = true) and the statuses thrown as InputError.
+DetectStatus Detect(const ImageView& image, const DetectOptions& options, const DefectMap* defects,
+                    DetectWorkspace* workspace, Detections* out);
 
 // Builds a defect map from dark or median frames: pixels that stand out from their local
 // background by more than `sigma` noise sigmas in most of the frames (hot: above, dead: below).

@@ -55,29 +55,28 @@ struct NormalSums {
 constexpr double kSqrt2 = 1.41421356237309504880;
 constexpr double kInvSqrtPi = 0.56418958354775628695;
 
+}  // namespace
+
 // Pixel-integrated 1-D Gaussian: f(i) = 1/2 [erf((i + 1/2 - c) k) - erf((i - 1/2 - c) k)], k = 1/(sqrt2 s),
 // with derivatives with respect to the centre c and to s.
-struct Profile {
-  std::vector<double> f, dc, ds;
-  void Compute(int i0, int n, double c, double s) {
-    f.resize(n);
-    dc.resize(n);
-    ds.resize(n);
-    const double k = 1.0 / (kSqrt2 * s);
-    double ulo = (i0 - 0.5 - c) * k;
-    double elo = std::erf(ulo), glo = std::exp(-ulo * ulo);
-    for (int a = 0; a < n; ++a) {
-      const double uhi = (i0 + a + 0.5 - c) * k;
-      const double ehi = std::erf(uhi), ghi = std::exp(-uhi * uhi);
-      f[a] = 0.5 * (ehi - elo);
-      dc[a] = -k * kInvSqrtPi * (ghi - glo);
-      ds[a] = -kInvSqrtPi / s * (ghi * uhi - glo * ulo);
-      ulo = uhi;
-      elo = ehi;
-      glo = ghi;
-    }
+void PsfProfile::Compute(int i0, int n, double c, double s) {
+  f.resize(n);
+  dc.resize(n);
+  ds.resize(n);
+  const double k = 1.0 / (kSqrt2 * s);
+  double ulo = (i0 - 0.5 - c) * k;
+  double elo = std::erf(ulo), glo = std::exp(-ulo * ulo);
+  for (int a = 0; a < n; ++a) {
+    const double uhi = (i0 + a + 0.5 - c) * k;
+    const double ehi = std::erf(uhi), ghi = std::exp(-uhi * uhi);
+    f[a] = 0.5 * (ehi - elo);
+    dc[a] = -k * kInvSqrtPi * (ghi - glo);
+    ds[a] = -kInvSqrtPi / s * (ghi * uhi - glo * ulo);
+    ulo = uhi;
+    elo = ehi;
+    glo = ghi;
   }
-};
+}
 
 // The Gaussian averaged along a straight segment (motion smear) for every window pixel: unit-flux model
 // f and its derivatives with respect to the centre (dx, dy) and sigma (ds), as the mean over n
@@ -85,36 +84,45 @@ struct Profile {
 // taken as a Gaussian of variance sigma^2 + h^2 / 12 (the box's variance), so that the model's second
 // moments are exact; by Poisson summation the sampling adds ripples of relative size
 // ~exp(-2 pi^2 sigma^2 / h^2) < 3e-9.
-struct SmearModel {
-  std::vector<double> f, dx, dy, ds;
-  Profile px, py;
-  void Compute(int x0, int nx, int y0, int ny, double cx, double cy, double s, double sdx, double sdy) {
-    const size_t npix = static_cast<size_t>(nx) * ny;
-    f.assign(npix, 0.0);
-    dx.assign(npix, 0.0);
-    dy.assign(npix, 0.0);
-    ds.assign(npix, 0.0);
-    const double len = std::hypot(sdx, sdy);
-    const int n = std::max(2, static_cast<int>(std::ceil(len / std::max(s, 0.5))));
-    const double h = len / n, sub = std::sqrt(s * s + h * h / 12);
-    const double wk = 1.0 / n, dsub = s / sub;  // d sub / d s
-    for (int k = 0; k < n; ++k) {
-      const double t = (k + 0.5) / n - 0.5;
-      px.Compute(x0, nx, cx + t * sdx, sub);
-      py.Compute(y0, ny, cy + t * sdy, sub);
-      for (int b = 0; b < ny; ++b) {
-        const double fyb = wk * py.f[b], dyb = wk * py.dc[b], syb = wk * dsub * py.ds[b];
-        const size_t row = static_cast<size_t>(b) * nx;
-        for (int a = 0; a < nx; ++a) {
-          f[row + a] += px.f[a] * fyb;
-          dx[row + a] += px.dc[a] * fyb;
-          dy[row + a] += px.f[a] * dyb;
-          ds[row + a] += dsub * px.ds[a] * fyb + px.f[a] * syb;
-        }
+void PsfSmearModel::Compute(int x0, int nx, int y0, int ny, double cx, double cy, double s, double sdx, double sdy) {
+  const size_t npix = static_cast<size_t>(nx) * ny;
+  f.assign(npix, 0.0);
+  dx.assign(npix, 0.0);
+  dy.assign(npix, 0.0);
+  ds.assign(npix, 0.0);
+  const double len = std::hypot(sdx, sdy);
+  const int n = std::max(2, static_cast<int>(std::ceil(len / std::max(s, 0.5))));
+  const double h = len / n, sub = std::sqrt(s * s + h * h / 12);
+  const double wk = 1.0 / n, dsub = s / sub;  // d sub / d s
+  for (int k = 0; k < n; ++k) {
+    const double t = (k + 0.5) / n - 0.5;
+    px.Compute(x0, nx, cx + t * sdx, sub);
+    py.Compute(y0, ny, cy + t * sdy, sub);
+    for (int b = 0; b < ny; ++b) {
+      const double fyb = wk * py.f[b], dyb = wk * py.dc[b], syb = wk * dsub * py.ds[b];
+      const size_t row = static_cast<size_t>(b) * nx;
+      for (int a = 0; a < nx; ++a) {
+        f[row + a] += px.f[a] * fyb;
+        dx[row + a] += px.dc[a] * fyb;
+        dy[row + a] += px.f[a] * dyb;
+        ds[row + a] += dsub * px.ds[a] * fyb + px.f[a] * syb;
       }
     }
   }
-};
+}
+
+void PsfFitScratch::Reserve(int side_px) {
+  const size_t n = static_cast<size_t>(side_px), npix = n * n;
+  for (std::vector<double>* b : {&v, &w_cur, &w_new, &sm.f, &sm.dx, &sm.dy, &sm.ds}) b->reserve(npix);
+  use.reserve(npix);
+  for (PsfProfile* p : {&fx, &fy, &sm.px, &sm.py}) {
+    p->f.reserve(n);
+    p->dc.reserve(n);
+    p->ds.reserve(n);
+  }
+}
+
+namespace {
 
 using Mat5 = Eigen::Matrix<double, 5, 5>;
 using Vec5 = Eigen::Matrix<double, 5, 1>;
@@ -133,13 +141,31 @@ void ShapeFromSecondMoments(double mxx, double myy, double mxy, PsfFit* out) {
 class PsfFitter {
  public:
   PsfFitter(const ImageView& img, int px, int py, int r, double level, double sigma_n, const PsfFitOptions& o,
-            const std::function<bool(int, int)>& is_bad)
-      : o_(o), px_(px), py_(py), r_(r), level_(level), sigma_n_(sigma_n), var_n_(sigma_n * sigma_n) {
+            PixelTest is_bad, PsfFitScratch* sc)
+      : o_(o),
+        px_(px),
+        py_(py),
+        r_(r),
+        level_(level),
+        sigma_n_(sigma_n),
+        var_n_(sigma_n * sigma_n),
+        v_(sc->v),
+        use_(sc->use),
+        w_cur_(sc->w_cur),
+        w_new_(sc->w_new),
+        fx_(sc->fx),
+        fy_(sc->fy),
+        sm_(sc->sm) {
     // A smeared star's window grows by its smear on both sides: the brightest pixel may sit at either end.
     smeared_ = o.smear_dx_px != 0 || o.smear_dy_px != 0;
     smear_len_ = std::hypot(o.smear_dx_px, o.smear_dy_px);
     rx_ = r + (smeared_ ? static_cast<int>(std::ceil(std::abs(o.smear_dx_px))) : 0);
     ry_ = r + (smeared_ ? static_cast<int>(std::ceil(std::abs(o.smear_dy_px))) : 0);
+    if (o.max_half_px > 0 && (rx_ > o.max_half_px || ry_ > o.max_half_px)) {
+      rx_ = std::min(rx_, o.max_half_px);
+      ry_ = std::min(ry_, o.max_half_px);
+      out_.window_clamped = true;
+    }
     x0_ = std::max(0, px - rx_), x1_ = std::min(img.width - 1, px + rx_);
     y0_ = std::max(0, py - ry_), y1_ = std::min(img.height - 1, py + ry_);
     nx_ = x1_ - x0_ + 1, ny_ = y1_ - y0_ + 1;
@@ -505,12 +531,13 @@ class PsfFitter {
   bool smeared_ = false;
   double smear_len_ = 0;
   int rx_ = 0, ry_ = 0, x0_ = 0, x1_ = 0, y0_ = 0, y1_ = 0, nx_ = 0, ny_ = 0;
-  std::vector<double> v_;
-  std::vector<uint8_t> use_;
+  // Window pixels, their use and weights, and the model: the scratch's buffers.
+  std::vector<double>& v_;
+  std::vector<uint8_t>& use_;
+  std::vector<double>&w_cur_, &w_new_;  // pixel weights at the current iterate and the trial
+  PsfProfile &fx_, &fy_;
+  PsfSmearModel& sm_;
   double inv_gain_ = 0;
-  std::vector<double> w_cur_, w_new_;  // pixel weights at the current iterate and the trial
-  Profile fx_, fy_;
-  SmearModel sm_;
   double sw_ = 0;                     // moment sum of the start
   double start_x_ = 0, start_y_ = 0;  // the moments' centre (the fallback of a failed fit)
   double cx_ = 0, cy_ = 0, s_ = 0, amp_ = 0, bkg_ = 0;
@@ -522,8 +549,14 @@ class PsfFitter {
 }  // namespace
 
 PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double sigma_n, const PsfFitOptions& o,
+              PixelTest is_bad, PsfFitScratch* scratch) {
+  return PsfFitter(img, px, py, r, level, sigma_n, o, is_bad, scratch).Run();
+}
+
+PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double sigma_n, const PsfFitOptions& o,
               const std::function<bool(int, int)>& is_bad) {
-  return PsfFitter(img, px, py, r, level, sigma_n, o, is_bad).Run();
+  PsfFitScratch scratch;
+  return FitPsf(img, px, py, r, level, sigma_n, o, PixelTest(is_bad), &scratch);
 }
 
 }  // namespace ssiu

@@ -2,7 +2,9 @@
 // pixel-integrated circular Gaussian plus a local constant background.
 #pragma once
 
+#include <cstdint>
 #include <functional>
+#include <vector>
 
 #include "core/image.h"
 
@@ -18,6 +20,9 @@ struct PsfFitOptions {
   // model is the Gaussian averaged along that segment centred on (x, y), the window grows by the
   // smear, and elongation is measured against the smeared model's own shape (1 = as predicted).
   double smear_dx_px = 0, smear_dy_px = 0;
+  // Largest half-size of the window (r plus the smear) in each axis; 0 = no limit. A larger window is
+  // cut to it (PsfFit::window_clamped): the scratch's room.
+  int max_half_px = 0;
 };
 
 struct PsfFit {
@@ -29,6 +34,44 @@ struct PsfFit {
   double elongation = 1;  // sqrt of the ratio of the second-moment eigenvalues
   double major_sigma_px = 0;
   int iterations = 0;
+  bool window_clamped = false;  // the window was cut to PsfFitOptions::max_half_px
+};
+
+// A non-owning reference to a pixel test bool(int x, int y) (std::function may allocate; this never
+// does). The callable must outlive the call it is passed to.
+class PixelTest {
+ public:
+  template <class F>
+  PixelTest(const F& f)  // NOLINT: implicit, as for std::function
+      : obj_(&f), fn_([](const void* o, int x, int y) { return static_cast<bool>((*static_cast<const F*>(o))(x, y)); }) {}
+  bool operator()(int x, int y) const { return fn_(obj_, x, y); }
+
+ private:
+  const void* obj_;
+  bool (*fn_)(const void*, int, int);
+};
+
+// Pixel-integrated 1-D Gaussian of one axis and its derivatives (psf_fit.cc).
+struct PsfProfile {
+  std::vector<double> f, dc, ds;
+  void Compute(int i0, int n, double c, double s);
+};
+
+// The Gaussian averaged along the smear segment, every window pixel (psf_fit.cc).
+struct PsfSmearModel {
+  std::vector<double> f, dx, dy, ds;
+  PsfProfile px, py;
+  void Compute(int x0, int nx, int y0, int ny, double cx, double cy, double s, double sdx, double sdy);
+};
+
+// The buffers of one fit, reused from fit to fit: reserved for windows up to side x side pixels, a
+// fit with PsfFitOptions::max_half_px <= (side - 1) / 2 allocates nothing.
+struct PsfFitScratch {
+  std::vector<double> v, w_cur, w_new;
+  std::vector<uint8_t> use;
+  PsfProfile fx, fy;
+  PsfSmearModel sm;
+  void Reserve(int side_px);
 };
 
 // Fits the window of half-size r around (px, py). level / sigma_n: local background and noise
@@ -36,5 +79,8 @@ struct PsfFit {
 // out too.
 PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double sigma_n, const PsfFitOptions& options,
               const std::function<bool(int, int)>& is_bad);
+// The same with the buffers given (the one implementation; the form above makes a local scratch).
+PsfFit FitPsf(const ImageView& img, int px, int py, int r, double level, double sigma_n, const PsfFitOptions& options,
+              PixelTest is_bad, PsfFitScratch* scratch);
 
 }  // namespace ssiu

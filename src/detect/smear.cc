@@ -8,12 +8,15 @@
 
 namespace ssiu {
 
+const char* ExpectedSmear::Problem() const {
+  if (!rate_rad_s.allFinite()) return "smear.rate_rad_s must be finite";
+  if (!(std::isfinite(exposure_s) && exposure_s >= 0 && exposure_s < 100)) return "smear.exposure_s must be in [0, 100)";
+  if (!(std::isfinite(min_px) && min_px >= 0)) return "smear.min_px must be >= 0";
+  return nullptr;
+}
+
 void ExpectedSmear::Check() const {
-  if (!rate_rad_s.allFinite()) throw InputError("DetectOptions: smear.rate_rad_s must be finite");
-  if (!(std::isfinite(exposure_s) && exposure_s >= 0 && exposure_s < 100)) {
-    throw InputError("DetectOptions: smear.exposure_s must be in [0, 100)");
-  }
-  if (!(std::isfinite(min_px) && min_px >= 0)) throw InputError("DetectOptions: smear.min_px must be >= 0");
+  if (const char* p = Problem()) throw InputError(std::string("DetectOptions: ") + p);
   if (!active()) return;
   camera.Check("DetectOptions: smear.camera");
 }

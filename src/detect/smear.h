@@ -27,6 +27,9 @@ struct ExpectedSmear {
   bool active() const { return exposure_s > 0 && rate_rad_s.squaredNorm() > 0; }
   // Throws InputError naming the field (a non-finite rate, exposure < 0, a bad camera).
   void Check() const;
+  // Check's first problem apart from the camera, as "smear.<field> must be ..." (nullptr: none).
+  // Allocates nothing and does not throw.
+  const char* Problem() const;
   // Pixel of the direction seen at `pixel` at mid-exposure, `t_s` later (nullopt when behind the camera).
   std::optional<Vec2> PathAt(const Vec2& pixel, double t_s) const;
   // The smear of a star seen (mid-exposure) at `pixel`: its image's end minus its start, in pixels.

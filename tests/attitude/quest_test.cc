@@ -7,6 +7,7 @@
 
 #include "core/attitude.h"
 #include "core/catalog.h"
+#include "core/error.h"
 #include "core/rng.h"
 #include "identify/synthetic.h"
 #include "identify/wahba_svd.h"
@@ -112,6 +113,61 @@ TEST(MultiHead, TwoOrthogonalHeadsRemoveTheRollWeakness) {
   EXPECT_GT(one.sigma_roll_rad, 5 * one.sigma_cross_rad);
   EXPECT_LT(both.sigma_roll_rad, 2 * both.sigma_cross_rad);
   EXPECT_LT(both.sigma_roll_rad, one.sigma_roll_rad / 4);
+}
+
+// The pairwise consistency test enumerates subsets of at most 16 solved heads; with more, none is
+// fused and every solved head is reported inconsistent (the unsolved ones keep their own status).
+TEST(MultiHead, MoreThanSixteenSolvedHeadsFuseNone) {
+  Rng rng(11);
+  const Quat q_body = QuatFromRaDecRoll(1.1, -0.4, 2.0);
+  for (int n : {16, 18}) {
+    std::vector<Identification> heads(static_cast<size_t>(n) + 1);
+    std::vector<Quat> mounts;
+    for (int h = 0; h <= n; ++h) {
+      const Quat mount(Eigen::AngleAxisd(0.3 * h, Vec3::UnitX()));
+      mounts.push_back(mount);
+      if (h == 2) continue;  // one head without a solution: n solved of n + 1
+      for (const auto& o : MakeObs(q_body * mount, 6, 5e-5, 0.14, &rng)) {
+        StarMatch m;
+        m.b_sensor = o.b_sensor, m.r_inertial = o.r_inertial, m.sigma_rad = o.sigma_rad;
+        heads[h].matches.push_back(m);
+      }
+      heads[h].status = SolveStatus::kSolved;
+    }
+    heads[2].status = SolveStatus::kNoMatch;
+    const MultiHeadSolution mh = SolveMultiHeadChecked(heads, mounts);
+    EXPECT_EQ(mh.head_use[2], HeadUse::kOwnStatus);
+    int used = 0, inconsistent = 0;
+    for (HeadUse u : mh.head_use) used += u == HeadUse::kUsed, inconsistent += u == HeadUse::kInconsistent;
+    if (n == 16) {
+      EXPECT_EQ(mh.attitude.status, SolveStatus::kSolved);
+      EXPECT_EQ(used, 16);
+      EXPECT_THAT(mh.attitude.q_inertial_from_sensor, QuaternionNear(q_body, 10.0));
+    } else {
+      EXPECT_EQ(mh.attitude.status, SolveStatus::kNoMatch);
+      EXPECT_EQ(inconsistent, n);
+      EXPECT_EQ(mh.message, "no head solved");
+    }
+    // Every solved head's own body attitude is reported either way.
+    EXPECT_THAT(mh.q_inertial_from_body_per_head[0], QuaternionNear(q_body, 300.0));
+  }
+}
+
+// The caller-storage form reports bad input as a status where the by-value form throws.
+TEST(MultiHead, CallerStorageFormReportsBadInputAsAStatus) {
+  std::vector<Identification> heads(2);
+  MultiHeadSolution out;
+  SolveMultiHeadChecked(heads, {Quat::Identity()}, MultiHeadOptions{}, &out, true);
+  EXPECT_TRUE(out.input_error);
+  EXPECT_EQ(out.attitude.status, SolveStatus::kNoMatch);
+  EXPECT_EQ(out.message, "2 heads but 1 mounts");
+  EXPECT_THROW(SolveMultiHeadChecked(heads, {Quat::Identity()}), InputError);
+  MultiHeadOptions bad;
+  bad.mount_tolerance_arcsec = -1;
+  SolveMultiHeadChecked(heads, {Quat::Identity(), Quat::Identity()}, bad, &out, true);
+  EXPECT_TRUE(out.input_error);
+  EXPECT_NE(out.message.find("mount_tolerance_arcsec"), std::string::npos);
+  EXPECT_THROW(SolveMultiHeadChecked(heads, {Quat::Identity(), Quat::Identity()}, bad), InputError);
 }
 
 // AttitudeInformation with a free scale against a numerical Jacobian of the pinhole model: directions
