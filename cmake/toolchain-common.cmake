@@ -1,0 +1,27 @@
+# The part of cmake/toolchain-<arch>.cmake that is the same for every Debian cross target; the file
+# that includes this one sets SSIU_CROSS_TRIPLET and CMAKE_SYSTEM_PROCESSOR.
+set(CMAKE_SYSTEM_NAME Linux)
+set(CMAKE_C_COMPILER ${SSIU_CROSS_TRIPLET}-gcc)
+set(CMAKE_CXX_COMPILER ${SSIU_CROSS_TRIPLET}-g++)
+set(CMAKE_LIBRARY_ARCHITECTURE ${SSIU_CROSS_TRIPLET})
+
+# The cross toolchain's own libc/libstdc++ live in /usr/<triplet>; the multiarch -dev packages in
+# /usr/include and /usr/lib/<triplet>, found under the root "/" through CMAKE_LIBRARY_ARCHITECTURE.
+# Programs (python3, qemu) come from the host; libraries and packages only from the target's paths.
+set(CMAKE_FIND_ROOT_PATH /usr/${SSIU_CROSS_TRIPLET} /)
+set(CMAKE_FIND_ROOT_PATH_MODE_PROGRAM NEVER)
+set(CMAKE_FIND_ROOT_PATH_MODE_LIBRARY ONLY)
+set(CMAKE_FIND_ROOT_PATH_MODE_INCLUDE ONLY)
+set(CMAKE_FIND_ROOT_PATH_MODE_PACKAGE ONLY)
+
+# pkg-config answers for the target: only its .pc files (and the architecture-independent ones).
+set(ENV{PKG_CONFIG_LIBDIR} /usr/lib/${SSIU_CROSS_TRIPLET}/pkgconfig:/usr/share/pkgconfig)
+set(ENV{PKG_CONFIG_PATH} "")
+
+# Test programs (gtest_discover_tests and ctest) run under qemu-user with the target's multiarch runtime
+# (libc6:<arch>, libstdc++6:<arch> in /lib/<triplet>, found by qemu at their host paths). Not with
+# -L /usr/<triplet>: that loader (libc6-<arch>-cross, 2.36-8cross1 in Debian 12) would load the multiarch
+# libc.so.6 of another glibc build (2.36-9+deb12u*) through /etc/ld.so.cache, and then a program hangs in
+# its first pthread_create.
+find_program(SSIU_CROSS_QEMU NAMES qemu-${SSIU_CROSS_QEMU_ARCH} qemu-${SSIU_CROSS_QEMU_ARCH}-static REQUIRED)
+set(CMAKE_CROSSCOMPILING_EMULATOR ${SSIU_CROSS_QEMU})
