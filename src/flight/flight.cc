@@ -48,8 +48,60 @@ int32_t SolveCode(ssiu::SolveStatus s) {
       return SSIU_SOLVE_TOO_FEW_STARS;
     case ssiu::SolveStatus::kNoFrame:
       return SSIU_SOLVE_NO_FRAME;
+    case ssiu::SolveStatus::kBadFrame:
+      return SSIU_SOLVE_BAD_FRAME;
   }
   return SSIU_SOLVE_NO_MATCH;
+}
+
+ssiu_gyro_status GyroCode(ssiu::GyroSampleStatus s) {
+  using G = ssiu::GyroSampleStatus;
+  switch (s) {
+    case G::kAccepted:
+      return SSIU_GYRO_ACCEPTED;
+    case G::kAcceptedPartial:
+      return SSIU_GYRO_PARTIAL;
+    case G::kAcceptedAfterGap:
+      return SSIU_GYRO_ACCEPTED_AFTER_GAP;
+    case G::kRejectedNonFinite:
+      return SSIU_GYRO_REJECTED_NON_FINITE;
+    case G::kRejectedOutOfRange:
+      return SSIU_GYRO_REJECTED_OUT_OF_RANGE;
+    case G::kRejectedOutOfOrder:
+      return SSIU_GYRO_REJECTED_OUT_OF_ORDER;
+    case G::kRejectedRepeated:
+      return SSIU_GYRO_REJECTED_REPEATED;
+    case G::kRejectedBadTime:
+      return SSIU_GYRO_REJECTED_BAD_TIME;
+    case G::kRejectedWrongSize:
+      return SSIU_GYRO_REJECTED_WRONG_SIZE;
+    case G::kRejectedTimeJump:
+      return SSIU_GYRO_REJECTED_TIME_JUMP;
+    case G::kAcceptedTimeReset:
+      return SSIU_GYRO_ACCEPTED_TIME_RESET;
+  }
+  return SSIU_GYRO_REJECTED_BAD_TIME;
+}
+
+int32_t UpdateCode(ssiu::UpdateStatus s) {
+  using U = ssiu::UpdateStatus;
+  switch (s) {
+    case U::kAccepted:
+      return SSIU_UPDATE_ACCEPTED;
+    case U::kInitialised:
+      return SSIU_UPDATE_INITIALISED;
+    case U::kRejectedGate:
+      return SSIU_UPDATE_REJECTED_NIS;
+    case U::kRejectedLate:
+      return SSIU_UPDATE_REJECTED_LATE;
+    case U::kRejectedRepeated:
+      return SSIU_UPDATE_REJECTED_REPEATED;
+    case U::kRejectedBadInput:
+      return SSIU_UPDATE_REJECTED_BAD_INPUT;
+    case U::kRejectedTimeJump:
+      return SSIU_UPDATE_REJECTED_TIME_JUMP;
+  }
+  return SSIU_UPDATE_REJECTED_BAD_INPUT;
 }
 
 }  // namespace
@@ -59,10 +111,11 @@ struct ssiu_flight {
   ssiu_flight_config config{};
   std::shared_ptr<const ssiu::StarIdentifier> identifier;
   std::optional<ssiu::UnitProcessor> processor;
-  std::vector<ssiu::ImageView> views;  // one per head, reserved at init
-  int64_t gyro_samples = 0, gyro_rejected = 0, frame_sets = 0, frame_sets_solved = 0;
-  double t_last_gyro_s = -HUGE_VAL;
-  bool have_gyro = false;
+  // Made at init and reused, so that the calls allocate nothing.
+  std::vector<ssiu::ImageView> views;  // one per head
+  ssiu::FrameReport report;
+  mutable ssiu::UnitAttitude attitude;
+  int64_t gyro_samples = 0, frame_sets = 0, frame_sets_solved = 0;
   char error[256] = {0};
 
   bool Fail(const char* what) {
@@ -163,6 +216,10 @@ ssiu_result ssiu_flight_init(const ssiu_flight_config* config, const void* catal
     std::vector<std::shared_ptr<const ssiu::StarIdentifier>> ids(setup.heads.size(), id);
     f->processor.emplace(setup.heads, ids, setup.unit, setup.options);
     f->views.resize(setup.heads.size());
+    // One call of each kind on nothing, so that the reused report and state have their shape (the
+    // heads, the fault list) before the first real call.
+    f->report.heads.reserve(setup.heads.size());
+    f->processor->Attitude(&f->attitude);
   } catch (const std::exception& e) {
     if (f != nullptr) f->~ssiu_flight();
     CopyText((std::string("init: ") + e.what()).c_str(), why, memory_bytes);
@@ -188,38 +245,16 @@ ssiu_result ssiu_flight_gyro(ssiu_flight* f, double t_s, const double* g_dph, in
     f->Fail("gyro: n differs from config.n_gyros");
     return SSIU_ERR_ARGUMENT;
   }
-  ssiu_gyro_status st = SSIU_GYRO_ACCEPTED;
-  ssiu::GyroVec g(n);
-  bool finite = std::isfinite(t_s);
-  bool in_range = true;
-  for (int i = 0; i < n; ++i) {
-    g[i] = g_dph[i];
-    finite = finite && std::isfinite(g_dph[i]);
-    if (f->config.gyro_max_abs_dph > 0 && std::abs(g_dph[i]) > f->config.gyro_max_abs_dph) in_range = false;
-  }
-  if (!finite) {
-    st = SSIU_GYRO_REJECTED_NON_FINITE;
-  } else if (!in_range) {
-    st = SSIU_GYRO_REJECTED_OUT_OF_RANGE;
-  } else if (f->have_gyro && t_s < f->t_last_gyro_s) {
-    st = SSIU_GYRO_REJECTED_OUT_OF_ORDER;
-  } else if (f->have_gyro && t_s == f->t_last_gyro_s) {
-    st = SSIU_GYRO_REJECTED_REPEATED;
-  }
-  ++f->gyro_samples;
-  if (st != SSIU_GYRO_ACCEPTED) {
-    ++f->gyro_rejected;
-    if (status) *status = st;
-    return SSIU_OK;
-  }
-  try {
-    f->processor->OnGyroSample(t_s, g);
-  } catch (const std::exception& e) {
-    f->Fail(e.what());
+  ssiu::GyroVec g(n);  // fixed maximum size: no heap
+  for (int i = 0; i < n; ++i) g[i] = g_dph[i];
+  ssiu_gyro_status st;
+  try {  // nothing on this path throws; should anything, it stops here (the handle stays usable)
+    st = GyroCode(f->processor->OnGyroSample(t_s, g));
+  } catch (...) {
+    f->Fail("gyro: internal failure");
     return SSIU_ERR_INTERNAL;
   }
-  f->have_gyro = true;
-  f->t_last_gyro_s = t_s;
+  ++f->gyro_samples;
   if (status) *status = st;
   return SSIU_OK;
 }
@@ -232,62 +267,49 @@ ssiu_result ssiu_flight_frames(ssiu_flight* f, double t_s, const ssiu_frame* fra
     f->Fail("frames: n differs from config.n_heads");
     return SSIU_ERR_ARGUMENT;
   }
+  // The processor checks each view against its camera (a wrong size or stride is that head's
+  // bad_frame) and the time tag.
+  for (int h = 0; h < n; ++h) {
+    const ssiu_frame& in = frames[h];
+    ssiu::ImageView& v = f->views[static_cast<size_t>(h)];
+    v = ssiu::ImageView{};
+    if (in.pixels == nullptr) continue;
+    v.width = in.width_px, v.height = in.height_px, v.data = in.pixels;
+    v.stride = in.stride_px == 0 ? in.width_px : in.stride_px;
+  }
+  ++f->frame_sets;
+  ssiu::FrameReport& fr = f->report;
+  try {
+    f->processor->OnFrames(t_s, f->views, &fr);
+  } catch (...) {
+    f->Fail("frames: internal failure");
+    return SSIU_ERR_INTERNAL;
+  }
   ssiu_frame_report r;
   std::memset(&r, 0, sizeof r);
   r.t_s = t_s;
-  r.status = SSIU_SOLVE_NO_FRAME;
-  // Frames the processor cannot take are reported here and left out (a frame of the wrong size, a
-  // stride shorter than a row, a time that is not a number).
-  bool any = false;
-  for (int h = 0; h < n; ++h) {
-    const ssiu_frame& in = frames[h];
-    const ssiu_head_config& hc = f->config.heads[h];
-    ssiu::ImageView& v = f->views[static_cast<size_t>(h)];
-    v = ssiu::ImageView{};
-    r.heads[h].status = SSIU_SOLVE_NO_FRAME;
-    if (in.pixels == nullptr) continue;
-    const int32_t stride = in.stride_px == 0 ? in.width_px : in.stride_px;
-    if (in.width_px != hc.width_px || in.height_px != hc.height_px || stride < in.width_px || !std::isfinite(t_s)) {
-      r.heads[h].status = SSIU_SOLVE_BAD_FRAME;
-      continue;
-    }
-    v.width = in.width_px, v.height = in.height_px, v.stride = stride, v.data = in.pixels;
-    any = true;
+  for (int h = 0; h < n && h < static_cast<int>(fr.heads.size()); ++h) {
+    const ssiu::HeadResult& hr = fr.heads[static_cast<size_t>(h)];
+    ssiu_head_report& o = r.heads[h];
+    o.status = SolveCode(hr.status);
+    o.lost_in_space = hr.mode == ssiu::SolveMode::kLostInSpace;
+    o.detections = hr.detections;
+    o.matches = hr.matches;
+    o.sigma_cross_arcsec = hr.sigma_cross_arcsec;
+    o.sigma_roll_arcsec = hr.sigma_roll_arcsec;
+    if (hr.status == ssiu::SolveStatus::kSolved) Store(hr.q_inertial_from_sensor, o.q_inertial_from_sensor);
   }
-  ++f->frame_sets;
-  if (!any) {
-    for (int h = 0; h < n; ++h)
-      if (r.heads[h].status == SSIU_SOLVE_BAD_FRAME) r.status = SSIU_SOLVE_BAD_FRAME;
-    if (report) *report = r;
-    return SSIU_OK;
+  r.status = SolveCode(fr.status);
+  r.heads_solved = fr.heads_solved;
+  r.update_status = SSIU_UPDATE_NONE;
+  if (fr.status == ssiu::SolveStatus::kSolved) {
+    ++f->frame_sets_solved;
+    Store(fr.q_inertial_from_body, r.q_inertial_from_body);
+    r.update_status = UpdateCode(fr.update.status);
   }
-  try {
-    const ssiu::FrameReport fr = f->processor->OnFrames(t_s, f->views);
-    for (int h = 0; h < n; ++h) {
-      const ssiu::HeadResult& hr = fr.heads[static_cast<size_t>(h)];
-      ssiu_head_report& o = r.heads[h];
-      if (!hr.has_frame) continue;  // keeps bad_frame / no_frame from above
-      o.status = SolveCode(hr.status);
-      o.lost_in_space = hr.mode == ssiu::SolveMode::kLostInSpace;
-      o.detections = hr.detections;
-      o.matches = hr.matches;
-      o.sigma_cross_arcsec = hr.sigma_cross_arcsec;
-      o.sigma_roll_arcsec = hr.sigma_roll_arcsec;
-      if (hr.status == ssiu::SolveStatus::kSolved) Store(hr.q_inertial_from_sensor, o.q_inertial_from_sensor);
-    }
-    r.status = SolveCode(fr.status);
-    r.heads_solved = fr.heads_solved;
-    if (fr.status == ssiu::SolveStatus::kSolved) {
-      ++f->frame_sets_solved;
-      Store(fr.q_inertial_from_body, r.q_inertial_from_body);
-    }
-    r.initialised_filter = fr.initialised_filter;
-    r.update_accepted = fr.update.accepted;
-    r.nis = fr.update.nis;
-  } catch (const std::exception& e) {
-    f->Fail(e.what());
-    return SSIU_ERR_INTERNAL;
-  }
+  r.initialised_filter = fr.initialised_filter;
+  r.update_accepted = fr.update.accepted;
+  r.nis = fr.update.nis;
   if (report) *report = r;
   return SSIU_OK;
 }
@@ -296,30 +318,35 @@ ssiu_result ssiu_flight_state(const ssiu_flight* f, ssiu_state* s) {
   if (f == nullptr || s == nullptr) return SSIU_ERR_NULL;
   if (!Live(f)) return SSIU_ERR_NOT_INITIALISED;
   std::memset(s, 0, sizeof *s);
+  ssiu::UnitAttitude& a = f->attitude;
   try {
-    const ssiu::UnitAttitude a = f->processor->Attitude();
-    s->valid = a.valid;
-    s->status = static_cast<int32_t>(a.status);
-    s->t_s = a.t_s;
-    Store(a.q_inertial_from_body, s->q_inertial_from_body);
-    for (int i = 0; i < 3; ++i) {
-      for (int j = 0; j < 3; ++j) s->covariance_rad2[3 * i + j] = a.covariance_rad2(i, j);
-      s->bias_dph[i] = a.bias_dph[i];
-      s->bias_sigma_dph[i] = a.bias_sigma_dph[i];
-    }
-    for (int g : a.gyros_in_use) s->gyros_in_use |= 1u << (g - 1);
-    s->n_faults = static_cast<int32_t>(a.faults.size());
-    for (size_t k = 0; k < a.faults.size() && k < SSIU_FLIGHT_MAX_FAULTS; ++k) {
-      const ssiu::FaultEvent& e = a.faults[k];
-      s->faults[k] = ssiu_fault{e.gyro, e.t_onset_s, e.t_detect_s, e.t_isolate_s, e.fault_dph};
-    }
-  } catch (const std::exception&) {
+    f->processor->Attitude(&a);
+  } catch (...) {
     return SSIU_ERR_INTERNAL;
   }
+  s->valid = a.valid;
+  s->status = static_cast<int32_t>(a.status);
+  s->t_s = a.t_s;
+  Store(a.q_inertial_from_body, s->q_inertial_from_body);
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) s->covariance_rad2[3 * i + j] = a.covariance_rad2(i, j);
+    s->bias_dph[i] = a.bias_dph[i];
+    s->bias_sigma_dph[i] = a.bias_sigma_dph[i];
+  }
+  for (int g : a.gyros_in_use) s->gyros_in_use |= 1u << (g - 1);
+  s->n_faults = static_cast<int32_t>(a.faults.size());
+  for (size_t k = 0; k < a.faults.size() && k < SSIU_FLIGHT_MAX_FAULTS; ++k) {
+    const ssiu::FaultEvent& e = a.faults[k];
+    s->faults[k] = ssiu_fault{e.gyro, e.t_onset_s, e.t_detect_s, e.t_isolate_s, e.fault_dph};
+  }
+  s->restart_pending = a.restart_pending;
+  s->restarts = static_cast<int32_t>(a.restarts);
   s->gyro_samples = f->gyro_samples;
-  s->gyro_rejected = f->gyro_rejected;
+  s->gyro_rejected = a.gyro_samples_refused;
+  s->gyro_partial = a.gyro_samples_partial;
   s->frame_sets = f->frame_sets;
   s->frame_sets_solved = f->frame_sets_solved;
+  s->frame_sets_refused = a.frames_refused;
   return SSIU_OK;
 }
 

@@ -74,7 +74,7 @@ ssiu_flight_config FlightConfigFor(const std::vector<OpticalHead>& heads, const 
                                    const UnitProcessorOptions& o, const std::string& epoch_utc,
                                    const Vec3& velocity_kms) {
   ssiu_flight_config c;
-  std::memset(&c, 0, sizeof c);  // every field set below (gyro_max_abs_dph 0: no range limit)
+  std::memset(&c, 0, sizeof c);  // every field set below
   if (heads.empty() || heads.size() > SSIU_FLIGHT_MAX_HEADS)
     throw InputError("flight config", "1 to " + std::to_string(SSIU_FLIGHT_MAX_HEADS) + " heads");
   if (unit.size() < 3 || unit.size() > SSIU_FLIGHT_MAX_GYROS)
@@ -104,6 +104,7 @@ ssiu_flight_config FlightConfigFor(const std::vector<OpticalHead>& heads, const 
     x.rrw_dph_per_sqrt_h = unit.gyros[g].rrw_dph_per_sqrt_h;
   }
   c.gyro_rate_hz = unit.rate_hz;
+  c.gyro_max_abs_dph = o.fuse.policy.max_gyro_output_dph;
   c.max_centroids = o.solve.detect.max_stars;
   c.max_hypotheses = o.solve.identify.max_hypotheses;
   c.max_false_match_prob = o.solve.identify.max_false_match_prob;
@@ -153,6 +154,8 @@ FlightSetup FlightSetupFrom(const ssiu_flight_config& c) {
   if (!(c.gyro_max_abs_dph >= 0) || !std::isfinite(c.gyro_max_abs_dph))
     throw InputError(src, "gyro_max_abs_dph must be >= 0 (0 = no limit)");
   UnitProcessorOptions& o = s.options;
+  o.diagnostics = false;  // no text or maps on the flight path
+  if (c.gyro_max_abs_dph > 0) o.fuse.policy.max_gyro_output_dph = c.gyro_max_abs_dph;
   if (c.max_centroids < 4 || c.max_centroids > 100000) throw InputError(src, "max_centroids must be 4 to 100000");
   o.solve.detect.max_stars = c.max_centroids;
   o.solve.identify.max_hypotheses = c.max_hypotheses;

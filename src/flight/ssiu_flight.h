@@ -48,14 +48,19 @@ typedef enum {
   SSIU_ERR_INTERNAL = 7         /* a failure inside the processor; the call had no effect */
 } ssiu_result;
 
-/* What became of one gyro sample. */
+/* What became of one gyro sample (the processor's GyroSampleStatus, docs/inertial.md "Bad inputs"). */
 typedef enum {
   SSIU_GYRO_ACCEPTED = 0,
-  SSIU_GYRO_REJECTED_NON_FINITE = 1,   /* a NaN or infinite output (or time tag) */
-  SSIU_GYRO_REJECTED_OUT_OF_RANGE = 2, /* an output beyond the configured range */
-  SSIU_GYRO_REJECTED_OUT_OF_ORDER = 3, /* a time tag before the last one */
-  SSIU_GYRO_REJECTED_REPEATED = 4,     /* the same time tag as the last one */
-  SSIU_GYRO_PARTIAL = 5                /* used without the gyros whose outputs were bad */
+  SSIU_GYRO_REJECTED_NON_FINITE = 1,   /* NaN/inf outputs and the rest give no rate: the last rate held */
+  SSIU_GYRO_REJECTED_OUT_OF_RANGE = 2, /* the same for outputs beyond gyro_max_abs_dph */
+  SSIU_GYRO_REJECTED_OUT_OF_ORDER = 3, /* a time tag before the last one (state unchanged) */
+  SSIU_GYRO_REJECTED_REPEATED = 4,     /* the last sample's time again (state unchanged) */
+  SSIU_GYRO_PARTIAL = 5,               /* an output unusable: the rate from the other gyros in use */
+  SSIU_GYRO_ACCEPTED_AFTER_GAP = 6,    /* confirms a time jump; the attitude restarts from the next star fix */
+  SSIU_GYRO_REJECTED_BAD_TIME = 7,     /* a NaN/inf time tag (state unchanged) */
+  SSIU_GYRO_REJECTED_WRONG_SIZE = 8,   /* not one output per gyro (state unchanged) */
+  SSIU_GYRO_REJECTED_TIME_JUMP = 9,    /* far beyond the last sample: taken if the next one follows it */
+  SSIU_GYRO_ACCEPTED_TIME_RESET = 10   /* the clock went back: its time taken, restart from the next fix */
 } ssiu_gyro_status;
 
 /* A head's or a frame set's result (the values of conventions.md's solve statuses, and more). */
@@ -64,9 +69,20 @@ typedef enum {
   SSIU_SOLVE_NO_MATCH = 1,      /* "no_match" */
   SSIU_SOLVE_TOO_FEW_STARS = 2, /* "too_few_stars" */
   SSIU_SOLVE_NO_FRAME = 3,      /* "no_frame": no frame from this head this time */
-  SSIU_SOLVE_BAD_FRAME = 4,     /* "bad_frame": wrong size, or not usable */
-  SSIU_SOLVE_OUT_OF_ORDER = 5   /* "out_of_order": the frame's time is before the filter's */
+  SSIU_SOLVE_BAD_FRAME = 4      /* "bad_frame": wrong size or stride, or a bad time tag */
 } ssiu_solve_status;
+
+/* What the filter made of a frame set's solution (the processor's UpdateStatus). */
+typedef enum {
+  SSIU_UPDATE_ACCEPTED = 0,
+  SSIU_UPDATE_INITIALISED = 1,        /* it started (or restarted) the filter */
+  SSIU_UPDATE_REJECTED_NIS = 2,       /* beyond the innovation gate */
+  SSIU_UPDATE_REJECTED_LATE = 3,      /* before the filter's time */
+  SSIU_UPDATE_REJECTED_REPEATED = 4,  /* the same time as the last one */
+  SSIU_UPDATE_REJECTED_BAD_INPUT = 5, /* a non-finite time, attitude or covariance */
+  SSIU_UPDATE_REJECTED_TIME_JUMP = 6, /* too far beyond the filter's time, not (yet) confirmed */
+  SSIU_UPDATE_NONE = 7                /* no solution to offer (nothing solved) */
+} ssiu_update_status;
 
 /* The fused attitude's trust (conventions: 0 ok, 1 degraded, 2 failed). */
 typedef enum { SSIU_STATUS_OK = 0, SSIU_STATUS_DEGRADED = 1, SSIU_STATUS_FAILED = 2 } ssiu_status;
@@ -94,7 +110,7 @@ typedef struct {
   int32_t n_gyros; /* 3..SSIU_FLIGHT_MAX_GYROS */
   ssiu_gyro_config gyros[SSIU_FLIGHT_MAX_GYROS];
   double gyro_rate_hz;       /* nominal sample rate */
-  double gyro_max_abs_dph;   /* an output beyond this is not a rate (rejected); 0 = no limit */
+  double gyro_max_abs_dph;   /* an output beyond this is unusable, like a NaN; 0 = 3.6e6 (1000 deg/s) */
   /* Sizes every buffer is made for at init. */
   int32_t max_centroids;       /* brightest detections kept per frame */
   /* Identification. */
@@ -135,6 +151,7 @@ typedef struct {
   double q_inertial_from_body[4]; /* the star-only body attitude, when solved */
   int32_t initialised_filter;     /* this set started (or restarted) the filter */
   int32_t update_accepted;        /* the filter took it */
+  int32_t update_status;          /* ssiu_update_status */
   double nis;                     /* its normalised innovation squared */
 } ssiu_frame_report;
 
@@ -154,8 +171,10 @@ typedef struct {
   uint32_t gyros_in_use; /* bit i: gyro i + 1 */
   int32_t n_faults;      /* events so far (those beyond SSIU_FLIGHT_MAX_FAULTS not listed) */
   ssiu_fault faults[SSIU_FLIGHT_MAX_FAULTS];
+  int32_t restart_pending; /* the filter restarts from the next solved frame set (state not valid meanwhile) */
+  int32_t restarts;        /* restarts so far (a non-finite state, a gyro gap, a clock reset) */
   /* Counts of inputs since init. */
-  int64_t gyro_samples, gyro_rejected, frame_sets, frame_sets_solved;
+  int64_t gyro_samples, gyro_rejected, gyro_partial, frame_sets, frame_sets_solved, frame_sets_refused;
 } ssiu_state;
 
 typedef struct ssiu_flight ssiu_flight;

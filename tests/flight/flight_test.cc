@@ -181,31 +181,36 @@ TEST(FlightInterface, SameAnswersAsTheProcessorAndNearTheTruth) {
   EXPECT_LT(FinalErrorArcsec(d, s), 5.0);
 }
 
-// A NaN or infinite output, a sample back in time or at the same time: refused with the reason, the
-// filter goes on and ends as near the truth as without them.
-TEST(FlightInterface, BadGyroSamplesAreRefusedAndTheFilterGoesOn) {
+// A NaN or infinite output on one gyro (the other three give the rate), NaN on all of them (the last
+// rate held), a sample back in time, at the same time again, a NaN time: each says what became of
+// it, and the filter goes on to end as near the truth as without them.
+TEST(FlightInterface, BadGyroSamplesAreStatusesAndTheFilterGoesOn) {
   const Data& d = TheData();
   Handle h(ConfigFor(d), d.blob);
   ASSERT_EQ(h.rc, SSIU_OK) << h.why();
   std::vector<ssiu_gyro_status> st;
-  // Between frames, after the filter started: a NaN on gyro 2, +inf on gyro 4, a time 0.5 s back,
-  // the last accepted sample's time again.
   const auto spoil = [&d](size_t k, double* t, std::vector<double>* g) {
     if (k == 350) (*g)[1] = std::nan("");
     if (k == 351) (*g)[3] = HUGE_VAL;
     if (k == 352) *t -= 0.5;
-    if (k == 353) *t = d.data.gyro.t_s[349];
+    if (k == 353) *t = d.data.gyro.t_s[351];
+    if (k == 354) *t = std::nan("");
+    if (k == 355) g->assign(g->size(), std::nan(""));
   };
   Replay(d, h.f, spoil, &st);
   EXPECT_EQ(st[349], SSIU_GYRO_ACCEPTED);
-  EXPECT_EQ(st[350], SSIU_GYRO_REJECTED_NON_FINITE);
-  EXPECT_EQ(st[351], SSIU_GYRO_REJECTED_NON_FINITE);
+  EXPECT_EQ(st[350], SSIU_GYRO_PARTIAL);
+  EXPECT_EQ(st[351], SSIU_GYRO_PARTIAL);
   EXPECT_EQ(st[352], SSIU_GYRO_REJECTED_OUT_OF_ORDER);
   EXPECT_EQ(st[353], SSIU_GYRO_REJECTED_REPEATED);
-  EXPECT_EQ(st[354], SSIU_GYRO_ACCEPTED);
+  EXPECT_EQ(st[354], SSIU_GYRO_REJECTED_BAD_TIME);
+  EXPECT_EQ(st[355], SSIU_GYRO_REJECTED_NON_FINITE);
+  EXPECT_EQ(st[356], SSIU_GYRO_ACCEPTED);
   ssiu_state s;
   ASSERT_EQ(ssiu_flight_state(h.f, &s), SSIU_OK);
+  EXPECT_EQ(s.gyro_partial, 2);
   EXPECT_EQ(s.gyro_rejected, 4);
+  EXPECT_EQ(s.restarts, 0);
   ASSERT_TRUE(s.valid);
   for (double q : s.q_inertial_from_body) EXPECT_TRUE(std::isfinite(q));
   EXPECT_LT(FinalErrorArcsec(d, s), 5.0);
@@ -224,6 +229,7 @@ TEST(FlightInterface, WrongFramesAreStatusesNotCrashes) {
   EXPECT_EQ(r.heads[0].status, SSIU_SOLVE_BAD_FRAME);
   EXPECT_EQ(r.heads[1].status, SSIU_SOLVE_SOLVED);
   EXPECT_EQ(r.status, SSIU_SOLVE_SOLVED);
+  EXPECT_EQ(r.update_status, SSIU_UPDATE_INITIALISED);
   EXPECT_EQ(ssiu_flight_frames(h.f, 1.0, fr, 1, &r), SSIU_ERR_ARGUMENT);
   EXPECT_THAT(ssiu_flight_last_error(h.f), HasSubstr("n_heads"));
   fr[0] = FrameOf(d.frames[1][0]);
@@ -231,8 +237,13 @@ TEST(FlightInterface, WrongFramesAreStatusesNotCrashes) {
   ASSERT_EQ(ssiu_flight_frames(h.f, 1.0, fr, 2, &r), SSIU_OK);
   EXPECT_EQ(r.heads[1].status, SSIU_SOLVE_NO_FRAME);
   EXPECT_EQ(r.heads[0].status, SSIU_SOLVE_SOLVED);
+  // A frame set before the filter's time: solved, and refused by the filter as late.
+  ASSERT_EQ(ssiu_flight_frames(h.f, 0.5, fr, 2, &r), SSIU_OK);
+  EXPECT_EQ(r.status, SSIU_SOLVE_SOLVED);
+  EXPECT_EQ(r.update_status, SSIU_UPDATE_REJECTED_LATE);
   const double nan_t = std::nan("");
   ASSERT_EQ(ssiu_flight_frames(h.f, nan_t, fr, 2, &r), SSIU_OK);
+  EXPECT_EQ(r.status, SSIU_SOLVE_BAD_FRAME);
   EXPECT_EQ(r.heads[0].status, SSIU_SOLVE_BAD_FRAME);
 }
 
