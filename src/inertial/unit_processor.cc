@@ -25,6 +25,23 @@ Mat3 FloorCovariance(const Mat3& p, const Mat3& floor) {
   return out;
 }
 
+// One detector workspace for every head (they are solved in turn): room for the largest frame and
+// the most stars detection keeps (DetectOptions::max_stars). Lists clamp at their limits rather than
+// grow (Detections::clamped), so a frame set never allocates.
+DetectLimits ProcessorDetectLimits(const std::vector<OpticalHead>& heads, const UnitProcessorOptions& o) {
+  DetectLimits l;
+  l.max_width = l.max_height = 16;
+  for (const auto& h : heads) {
+    l.max_width = std::max(l.max_width, h.camera.width);
+    l.max_height = std::max(l.max_height, h.camera.height);
+  }
+  l.max_detections = std::max(1, o.solve.detect.max_stars);
+  l.min_tile_px = std::clamp(std::min(l.min_tile_px, o.solve.detect.tile_px), 8, 1024);
+  l.diagnostics = o.diagnostics;
+  l.grow = false;
+  return l;
+}
+
 using Clock = std::chrono::steady_clock;
 double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
@@ -47,7 +64,11 @@ void UnitProcessorOptions::Check() const {
 UnitProcessor::UnitProcessor(std::vector<OpticalHead> heads,
                              std::vector<std::shared_ptr<const StarIdentifier>> identifiers, const GyroUnit& unit,
                              const UnitProcessorOptions& options)
-    : heads_(std::move(heads)), ids_(std::move(identifiers)), options_(options), fusion_(unit, options.fuse) {
+    : heads_(std::move(heads)),
+      ids_(std::move(identifiers)),
+      detect_ws_(ProcessorDetectLimits(heads_, options)),
+      options_(options),
+      fusion_(unit, options.fuse) {
   options_.Check();
   if (heads_.empty() || heads_.size() > static_cast<size_t>(kMaxHeads)) {
     throw InputError("heads", "the unit has 1 to 3 optical heads, not " + std::to_string(heads_.size()));
@@ -60,6 +81,8 @@ UnitProcessor::UnitProcessor(std::vector<OpticalHead> heads,
     mounts_.push_back(heads_[h].q_body_from_sensor);
   }
   ids_scratch_.resize(heads_.size());
+  detect_ws_.Reserve(&detections_);
+  centroids_.reserve(static_cast<size_t>(detect_ws_.limits().max_detections));
 }
 
 GyroSampleStatus UnitProcessor::OnGyroSample(double t_s, const GyroVec& g_dph) {
@@ -90,10 +113,16 @@ void UnitProcessor::SolveHead(int h, double t_s, const ImageView& image, Identif
     dopt.smear.rate_rad_s = head.q_body_from_sensor.conjugate() * w_body;
     dopt.smear.camera = head.camera;
   }
-  const Detections det = Detect(image, dopt);
+  if (Detect(image, dopt, nullptr, &detect_ws_, &detections_) != DetectStatus::kOk) {
+    // Options were checked at construction and the size above: what is left is a frame the detector
+    // cannot take (e.g. smaller than its smallest tile).
+    r.status = SolveStatus::kBadFrame;
+    return;
+  }
   r.detect_ms = MsSince(t0);
-  r.detections = static_cast<int>(det.stars.size());
-  const std::vector<Centroid> c = CentroidsFromDetections(det, so.detector_sigma_scale);
+  r.detections = static_cast<int>(detections_.stars.size());
+  CentroidsFromDetections(detections_, so.detector_sigma_scale, &centroids_);
+  const std::vector<Centroid>& c = centroids_;
 
   // Tracking around the attitude the gyros carried forward; lost in space before the first fix or
   // when tracking fails (the same fallback as attitude/star_solver.h's Tracker). While the fused

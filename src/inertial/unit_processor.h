@@ -25,6 +25,7 @@
 #include "core/image.h"
 #include "core/json.h"
 #include "core/types.h"
+#include "detect/detect.h"
 #include "identify/identify.h"
 #include "inertial/fuse.h"
 #include "inertial/gyro_unit.h"
@@ -131,6 +132,11 @@ class UnitProcessor {
   // SolveOptions::detect.smear: active when its exposure_s > 0) is the fusion's last rate.
   bool have_gyro_ = false;
   std::vector<Identification> ids_scratch_;  // per head, reused frame to frame
+  // The heads are solved one after the other: one detector workspace (for the largest head), one
+  // detection list and one centroid list serve them all, sized at construction.
+  DetectWorkspace detect_ws_;
+  Detections detections_;
+  std::vector<Centroid> centroids_;
   std::vector<Quat> mounts_;
   long frames_refused_ = 0;
   UnitProcessorOptions options_;
