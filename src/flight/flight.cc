@@ -219,7 +219,7 @@ ssiu_result ssiu_flight_init(const ssiu_flight_config* config, const void* catal
     // One call of each kind on nothing, so that the reused report and state have their shape (the
     // heads, the fault list) before the first real call.
     f->report.heads.reserve(setup.heads.size());
-    f->processor->Attitude(&f->attitude);
+    f->processor->Attitude(&f->attitude, false);
   } catch (const std::exception& e) {
     if (f != nullptr) f->~ssiu_flight();
     CopyText((std::string("init: ") + e.what()).c_str(), why, memory_bytes);
@@ -320,7 +320,7 @@ ssiu_result ssiu_flight_state(const ssiu_flight* f, ssiu_state* s) {
   std::memset(s, 0, sizeof *s);
   ssiu::UnitAttitude& a = f->attitude;
   try {
-    f->processor->Attitude(&a);
+    f->processor->Attitude(&a, false);
   } catch (...) {
     return SSIU_ERR_INTERNAL;
   }
@@ -334,9 +334,10 @@ ssiu_result ssiu_flight_state(const ssiu_flight* f, ssiu_state* s) {
     s->bias_sigma_dph[i] = a.bias_sigma_dph[i];
   }
   for (int g : a.gyros_in_use) s->gyros_in_use |= 1u << (g - 1);
-  s->n_faults = static_cast<int32_t>(a.faults.size());
-  for (size_t k = 0; k < a.faults.size() && k < SSIU_FLIGHT_MAX_FAULTS; ++k) {
-    const ssiu::FaultEvent& e = a.faults[k];
+  const std::vector<ssiu::FaultEvent>& faults = f->processor->fusion().faults();  // in place: no copy
+  s->n_faults = static_cast<int32_t>(faults.size());
+  for (size_t k = 0; k < faults.size() && k < SSIU_FLIGHT_MAX_FAULTS; ++k) {
+    const ssiu::FaultEvent& e = faults[k];
     s->faults[k] = ssiu_fault{e.gyro, e.t_onset_s, e.t_detect_s, e.t_isolate_s, e.fault_dph};
   }
   s->restart_pending = a.restart_pending;

@@ -243,7 +243,7 @@ UnitAttitude UnitProcessor::Attitude() const {
   return a;
 }
 
-void UnitProcessor::Attitude(UnitAttitude* out) const {
+void UnitProcessor::Attitude(UnitAttitude* out, bool with_faults) const {
   UnitAttitude& a = *out;
   a.valid = fusion_.initialised() && !fusion_.restart_pending();
   a.t_s = fusion_.t_s();
@@ -252,7 +252,11 @@ void UnitProcessor::Attitude(UnitAttitude* out) const {
                                       options_.correlated_fraction * last_fix_covariance_);
   a.bias_dph = fusion_.bias_rad_s() * kRadSToDph;
   a.bias_sigma_dph = fusion_.bias_sigma_dph();
-  a.faults = fusion_.faults();
+  if (with_faults) {
+    a.faults = fusion_.faults();
+  } else {
+    a.faults.clear();
+  }
   a.gyros_in_use.clear();
   const std::vector<bool>& use = fusion_.gyros_in_use_mask();
   for (size_t i = 0; i < use.size(); ++i) {

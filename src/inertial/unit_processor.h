@@ -119,7 +119,10 @@ class UnitProcessor {
   void OnFrames(double t_s, const std::vector<ImageView>& images, FrameReport* out);
 
   UnitAttitude Attitude() const;
-  void Attitude(UnitAttitude* out) const;  // into a caller-owned one (its vectors keep their capacity)
+  // Into a caller-owned one (its vectors keep their capacity). Without `with_faults` out->faults is
+  // left empty: copying an event copies its residual list, which allocates; fusion().faults() is the
+  // same list, read in place.
+  void Attitude(UnitAttitude* out, bool with_faults = true) const;
   const std::vector<OpticalHead>& heads() const { return heads_; }
   const OnlineFusion& fusion() const { return fusion_; }
 
