@@ -42,8 +42,18 @@ DetectLimits ProcessorDetectLimits(const std::vector<OpticalHead>& heads, const 
   return l;
 }
 
-using Clock = std::chrono::steady_clock;
-double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+// Times for the report, read only with options.diagnostics: the flight path reads no clock (nothing
+// it computes depends on time, and the rate group's own timer is the integrator's).
+class Stopwatch {
+ public:
+  using Clock = std::chrono::steady_clock;
+  explicit Stopwatch(bool on) : on_(on), t0_(on ? Clock::now() : Clock::time_point()) {}
+  double Ms() const { return on_ ? std::chrono::duration<double, std::milli>(Clock::now() - t0_).count() : 0.0; }
+
+ private:
+  bool on_;
+  Clock::time_point t0_;
+};
 
 }  // namespace
 
@@ -92,7 +102,7 @@ GyroSampleStatus UnitProcessor::OnGyroSample(double t_s, const GyroVec& g_dph) {
 }
 
 void UnitProcessor::SolveHead(int h, double t_s, const ImageView& image, Identification* id, HeadResult* out) {
-  const auto t0 = Clock::now();
+  const Stopwatch t0(options_.diagnostics);
   HeadResult& r = *out;
   r = HeadResult();
   r.has_frame = true;
@@ -119,7 +129,7 @@ void UnitProcessor::SolveHead(int h, double t_s, const ImageView& image, Identif
     r.status = SolveStatus::kBadFrame;
     return;
   }
-  r.detect_ms = MsSince(t0);
+  r.detect_ms = t0.Ms();
   r.detections = static_cast<int>(detections_.stars.size());
   CentroidsFromDetections(detections_, so.detector_sigma_scale, &centroids_);
   const std::vector<Centroid>& c = centroids_;
@@ -129,7 +139,7 @@ void UnitProcessor::SolveHead(int h, double t_s, const ImageView& image, Identif
   // attitude is suspect (a gyro fault not yet resolved, a restart pending) its prediction may be far
   // off and would pull tracking onto wrong stars: lost in space first, then tracking with a search
   // radius four times wider.
-  const auto t1 = Clock::now();
+  const Stopwatch t1(options_.diagnostics);
   const bool suspect = fusion_.initialised() && (fusion_.Status() != FusionStatus::kOk || fusion_.restart_pending());
   if (fusion_.initialised() && !suspect) {
     const Quat q_pred = fusion_.q() * head.q_body_from_sensor;
@@ -145,21 +155,21 @@ void UnitProcessor::SolveHead(int h, double t_s, const ImageView& image, Identif
     *id = sid.MatchWithAttitude(c, head.camera, q_pred, 4 * so.track_search_radius_px, so.identify);
     r.mode = SolveMode::kTracking;
   }
-  r.identify_ms = MsSince(t1);
+  r.identify_ms = t1.Ms();
   r.status = id->status;
   if (id->status == SolveStatus::kSolved) {
     SkyCorrections sky = so.sky;  // the frame's time: the unit's clock t_s from sky.time
     if (sky.active()) sky.time = AddSeconds(sky.time, t_s);
     ApplySkyCorrections(sid, sky, id);
-    const auto t2 = Clock::now();
+    const Stopwatch t2(options_.diagnostics);
     const AttitudeSolution a = SolveAttitude(*id);
-    r.attitude_ms = MsSince(t2);
+    r.attitude_ms = t2.Ms();
     r.matches = static_cast<int>(id->matches.size());
     r.q_inertial_from_sensor = a.q_inertial_from_sensor;
     r.sigma_cross_arcsec = a.sigma_cross_rad * kRadToArcsec;
     r.sigma_roll_arcsec = a.sigma_roll_rad * kRadToArcsec;
   }
-  r.total_ms = MsSince(t0);
+  r.total_ms = t0.Ms();
   if (options_.diagnostics) {
     r.timing_ms["detect"] = r.detect_ms;
     r.timing_ms["identify"] = r.identify_ms;
@@ -175,7 +185,7 @@ FrameReport UnitProcessor::OnFrames(double t_s, const std::vector<ImageView>& im
 }
 
 void UnitProcessor::OnFrames(double t_s, const std::vector<ImageView>& images, FrameReport* out) {
-  const auto t0 = Clock::now();
+  const Stopwatch t0(options_.diagnostics);
   FrameReport& f = *out;
   f.heads.resize(heads_.size());
   f.t_s = t_s;
@@ -194,7 +204,7 @@ void UnitProcessor::OnFrames(double t_s, const std::vector<ImageView>& images, F
     }
     f.status = SolveStatus::kBadFrame;
     ++frames_refused_;
-    f.total_ms = MsSince(t0);
+    f.total_ms = t0.Ms();
     return;
   }
   bool bad = false;
@@ -215,14 +225,14 @@ void UnitProcessor::OnFrames(double t_s, const std::vector<ImageView>& images, F
     for (const auto& h : f.heads) {
       if (h.has_frame) f.status = h.status;  // the last head's reason
     }
-    f.total_ms = MsSince(t0);
+    f.total_ms = t0.Ms();
     return;
   }
   // One QUEST over the matches of every solved head, in body axes (attitude/quest.h SolveMultiHead).
   const AttitudeSolution body = SolveMultiHead(ids_scratch_, mounts_);
   if (body.status != SolveStatus::kSolved) {
     f.status = body.status;
-    f.total_ms = MsSince(t0);
+    f.total_ms = t0.Ms();
     return;
   }
   f.status = SolveStatus::kSolved;
@@ -234,7 +244,7 @@ void UnitProcessor::OnFrames(double t_s, const std::vector<ImageView>& images, F
   f.update = fusion_.AddAttitude(t_s, f.q_inertial_from_body, f.covariance_rad2);
   f.initialised_filter = f.initialised_filter && f.update.status == UpdateStatus::kInitialised;
   if (f.update.accepted) last_fix_covariance_ = f.covariance_rad2;
-  f.total_ms = MsSince(t0);
+  f.total_ms = t0.Ms();
 }
 
 UnitAttitude UnitProcessor::Attitude() const {

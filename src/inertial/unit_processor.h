@@ -51,8 +51,8 @@ struct UnitProcessorOptions {
   // 0.6: mean NEES 3.7 for one head, 2.0 / 1.7 for two / three (whose QUEST covariance is already
   // conservative) on the default 120 s mission; 1 gives 2.2 / 1.2 / 1.0, 0 gives 19 / 4.0 / 3.1.
   double correlated_fraction = 0.6;
-  // HeadResult::timing_ms (a std::map) filled: false on the flight path (the plain *_ms fields are
-  // always filled).
+  // Times measured (HeadResult's *_ms and timing_ms map, FrameReport::total_ms) and the detector's
+  // and identifier's text: false on the flight path, which then reads no clock and allocates nothing.
   bool diagnostics = true;
   void Check() const;  // InputError naming the field
 };
@@ -66,7 +66,7 @@ struct HeadResult {
   double sigma_cross_arcsec = 0, sigma_roll_arcsec = 0;  // this head's own solution
   Quat q_inertial_from_sensor = Quat::Identity();        // when solved
   std::map<std::string, double> timing_ms;               // detect, identify, attitude, total (options.diagnostics)
-  double detect_ms = 0, identify_ms = 0, attitude_ms = 0, total_ms = 0;  // the same, always
+  double detect_ms = 0, identify_ms = 0, attitude_ms = 0, total_ms = 0;  // the same (0 without diagnostics)
 };
 
 // What one set of simultaneous frames gave.
