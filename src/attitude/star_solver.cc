@@ -15,6 +15,19 @@
 namespace ssiu {
 namespace {
 
+const char* SearchStopName(SearchStop s) {
+  switch (s) {
+    case SearchStop::kNone: return "none";
+    case SearchStop::kAccepted: return "accepted";
+    case SearchStop::kExhausted: return "exhausted";
+    case SearchStop::kHypothesisBudget: return "hypothesis_budget";
+    case SearchStop::kPatternBudget: return "pattern_budget";
+    case SearchStop::kTimeout: return "timeout";
+  }
+  return "none";
+}
+
+
 using Clock = std::chrono::steady_clock;
 double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
@@ -197,6 +210,9 @@ Json SolveResultToJson(const SolveResult& r) {
   j["matches"] = m;
   j["num_centroids"] = r.centroids.size();
   j["hypotheses"] = r.identification.hypotheses;
+  // The work budget (docs/identify.md, "Work budget"): triangles looked up and why the search ended.
+  j["patterns"] = r.identification.patterns;
+  j["search_stop"] = SearchStopName(r.identification.stop);
   Json t = Json::object();
   for (const auto& [k, v] : r.timing_ms) t[k] = v;
   j["timing_ms"] = t;

@@ -31,6 +31,10 @@ TEST(WorkBudgetCli, SolveHonoursMaxHypotheses) {
   const Json less = ReadJsonFile(dir + "/less.json");
   EXPECT_EQ(less["status"], "no_match");
   EXPECT_EQ(less["hypotheses"], h - 1);
+  EXPECT_EQ(less["search_stop"], "hypothesis_budget");
+  EXPECT_EQ(d["search_stop"], "accepted");
+  EXPECT_GE(d["patterns"].get<int>(), 1);
+  EXPECT_LE(less["patterns"].get<int>(), d["patterns"].get<int>());
   ssiu(base + dir + "/just.json --max-hypotheses " + std::to_string(h) + " --timeout-ms 0");
   const Json just = ReadJsonFile(dir + "/just.json");
   ASSERT_EQ(just["status"], "solved") << just["message"];
