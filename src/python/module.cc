@@ -143,6 +143,8 @@ Setters SolverSetters(SolverConfig* c) {
            }},
           {"max_false_prob", Set(&id.max_false_match_prob)},
           {"timeout_ms", Set(&id.timeout_ms)},
+          {"max_hypotheses", Set(&id.max_hypotheses)},
+          {"max_patterns", Set(&id.max_patterns)},
           {"centroid_sigma_px", Set(&id.centroid_sigma_px)},
           {"systematic_px", Set(&id.systematic_px)},
           {"threshold_sigma", Set(&c->solve.detect.threshold_sigma)},
@@ -480,7 +482,7 @@ PYBIND11_MODULE(_ssiu, m) {
   py::class_<Solver>(m, "Solver",
                      "A camera with its star catalog loaded once. Keyword options are the flags of `ssiu solve`: "
                      "catalog, fov_tolerance_pct, fov_range_deg=(MIN, MAX) (unknown field of view: the camera may "
-                     "lack a focal length), max_false_prob, timeout_ms, centroid_sigma_px, systematic_px, "
+                     "lack a focal length), max_false_prob, max_hypotheses, max_patterns (the work budget), timeout_ms, centroid_sigma_px, systematic_px, "
                      "threshold_sigma, mag_max, source, saturation_adu, psf_sigma_px")
       .def(py::init<const py::object&, const py::kwargs&>(), py::arg("camera"))
       .def("solve", &Solver::Solve, py::arg("image_or_centroids"),

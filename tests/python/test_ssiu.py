@@ -93,6 +93,14 @@ def test_centroid_list_solves_and_detect_matches_the_cli(sky):
     r2 = ssiu.solve(xy[:, :2], cam, catalog=str(sky / "cat"))
     assert r2["status"] == "solved"
     assert quat_angle_arcsec(r2["q"], truth_q(sky, 1)) < 60
+    # The work budget: the search that solved with h hypotheses gives up with h - 1, as `--max-hypotheses`.
+    h = r["hypotheses"]
+    assert r["search_stop"] == "accepted"
+    short = ssiu.solve(xy, cam, catalog=str(sky / "cat"), max_hypotheses=h - 1) if h > 1 else None
+    if short is not None:
+        assert short["status"] == "no_match"
+        assert short["search_stop"] == "hypothesis_budget"
+    assert ssiu.solve(xy, cam, catalog=str(sky / "cat"), max_hypotheses=h)["q"] == r["q"]
 
 
 def test_tracker_locks_then_tracks(sky):
