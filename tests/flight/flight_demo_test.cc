@@ -1,7 +1,9 @@
 // The integrator's path end to end (issue 26 item 4): `ssiu run --out DIR --write-frames` writes a
 // mission's frames, logs, flight.cfg and catalog blob; examples/flight's C program replays them
 // through the C interface only and ends where `ssiu run` ended, against the same truth.
+#include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 
@@ -61,6 +63,50 @@ TEST(FlightDemo, ReplaysTheWrittenMissionAsSsiuRunDid) {
   // A directory without flight.cfg: one line naming the file, exit 1.
   EXPECT_EQ(testing::Run(DemoProgram() + " " + dir, &out), 1);
   EXPECT_THAT(out, HasSubstr("flight.cfg"));
+}
+
+// From outside the process (issue 26's acceptance): valgrind's count of the demo's heap allocations
+// is the same for 20 and for 60 frame sets of one mission, so nothing in the loop allocates per frame
+// (the demo's own I/O included).
+long HeapAllocations(const std::string& command) {
+  std::string out;
+  EXPECT_EQ(testing::Run("valgrind --error-exitcode=3 " + command, &out), 0) << out;
+  const auto at = out.find("total heap usage: ");
+  if (at == std::string::npos) {
+    ADD_FAILURE() << out;
+    return -1;
+  }
+  std::string n;
+  for (size_t i = at + 18; i < out.size() && (std::isdigit(static_cast<unsigned char>(out[i])) || out[i] == ','); ++i)
+    if (out[i] != ',') n += out[i];
+  return std::stol(n);
+}
+
+TEST(FlightDemo, HeapAllocationsDoNotGrowWithTheFrames) {
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "under AddressSanitizer valgrind cannot run the demo (the normal build checks it)";
+#else
+  std::string out;
+  if (testing::Run("valgrind --version", &out) != 0) GTEST_SKIP() << "valgrind not installed (scripts/setup.sh installs it)";
+  const std::string dir = testing::TempDir("flight_demo_heap");
+  std::ofstream(dir + "/ssiu.json") << R"({"seed": 9, "duration_s": 30, "frame_rate_hz": 2, "score_after_s": 4,
+    "heads": [{"camera": {"width": 512, "height": 512, "focal_length_px": 1754.8162132636639}, "q_body_sensor": [1, 0, 0, 0]},
+              {"camera": {"width": 512, "height": 512, "focal_length_px": 1754.8162132636639},
+               "q_body_sensor": [0.7071067811865476, 0.7071067811865476, 0, 0]}]})";
+  const auto run = testing::RunSsiu("run --config " + dir + "/ssiu.json --out " + dir + "/out --write-frames");
+  ASSERT_EQ(run.status, 0) << run.output;
+  const std::string demo = DemoProgram() + " " + dir + "/out --json " + dir + "/demo.json --frames ";
+  const long n20 = HeapAllocations(demo + "20");
+  const Json d20 = ReadJsonFile(dir + "/demo.json");
+  const long n60 = HeapAllocations(demo + "60");
+  const Json d60 = ReadJsonFile(dir + "/demo.json");
+  EXPECT_EQ(d20["frames_processed"], 20);
+  EXPECT_EQ(d60["frames_processed"], 60);
+  EXPECT_EQ(d60["frames_solved"], 60);
+  std::printf("demo heap allocations: %ld with 20 frame sets, %ld with 60\n", n20, n60);
+  EXPECT_GT(n20, 0);
+  EXPECT_EQ(n20, n60);
+#endif
 }
 
 }  // namespace
