@@ -4,8 +4,14 @@
 // rendered before timing.
 #include <benchmark/benchmark.h>
 
+#include <cstdio>
+#include <fstream>
 #include <memory>
+#include <sstream>
 
+#include "core/output.h"
+#include "flight/flight_config.h"
+#include "flight/ssiu_flight.h"
 #include "sim/mission.h"
 
 namespace ssiu {
@@ -103,6 +109,89 @@ void BM_GyroSample(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_GyroSample)->Unit(benchmark::kMicrosecond);
+
+// The same frame sets through the C interface (flight/ssiu_flight.h), as the flight core runs them:
+// no diagnostics (no clock read, no text), nothing allocated after init.
+struct FlightHandle {
+  std::string blob;
+  ssiu_flight_config config;
+  std::vector<std::max_align_t> memory;
+  ssiu_flight* f = nullptr;
+  explicit FlightHandle(const Setup& s) {
+    const std::string dir = "/tmp/ssiu_mission_bench_catalog";
+    SaveSolverCatalog(s.ids[0]->catalog(), dir);
+    std::ifstream in(dir + "/catalog.bin", std::ios::binary);
+    std::ostringstream b;
+    b << in.rdbuf();
+    blob = b.str();
+    config = FlightConfigFor(s.config.heads, s.config.unit, s.config.processor, s.config.start_utc,
+                             s.config.velocity_kms);
+    config.catalog_crc32 = Crc32(blob.data(), blob.size());
+    memory.resize(ssiu_flight_memory_bytes(&config) / sizeof(std::max_align_t) + 1);
+  }
+  bool Start() {
+    if (f) ssiu_flight_shutdown(f);
+    return ssiu_flight_init(&config, blob.data(), blob.size(), memory.data(), memory.size() * sizeof(std::max_align_t),
+                            &f) == SSIU_OK;
+  }
+  ~FlightHandle() {
+    if (f) ssiu_flight_shutdown(f);
+  }
+  bool Frames(const Setup& s, int i) {
+    ssiu_frame fr[SSIU_FLIGHT_MAX_HEADS] = {};
+    for (size_t h = 0; h < s.frames[i].size(); ++h) {
+      const Image16& im = s.frames[i][h].image;
+      fr[h] = ssiu_frame{im.pixels.data(), im.width, im.height, 0};
+    }
+    ssiu_frame_report r;
+    return ssiu_flight_frames(f, s.data.frame_t_s[i], fr, config.n_heads, &r) == SSIU_OK &&
+           r.status == SSIU_SOLVE_SOLVED;
+  }
+  void Gyros(const Setup& s, double t_from, double t_to) {
+    const auto& g = s.data.gyro;
+    for (size_t k = 0; k < g.t_s.size(); ++k) {
+      if (g.t_s[k] > t_from + 1e-9 && g.t_s[k] <= t_to + 1e-9) {
+        double out[SSIU_FLIGHT_MAX_GYROS];
+        for (int j = 0; j < config.n_gyros; ++j) out[j] = g.gyro_dph[k][j];
+        ssiu_flight_gyro(f, g.t_s[k], out, config.n_gyros, nullptr);
+      }
+    }
+  }
+};
+
+void BM_FlightFrameSetTracking(benchmark::State& state) {
+  const Setup& s = S();
+  FlightHandle h(s);
+  int i = Setup::kFrames;
+  for (auto _ : state) {
+    if (i >= Setup::kFrames) {  // start again: first frame lost in space, untimed
+      state.PauseTiming();
+      if (!h.Start() || !h.Frames(s, 0)) state.SkipWithError("init or first frame set failed");
+      i = 1;
+      state.ResumeTiming();
+    }
+    state.PauseTiming();
+    h.Gyros(s, s.data.frame_t_s[i - 1], s.data.frame_t_s[i]);
+    state.ResumeTiming();
+    if (!h.Frames(s, i)) state.SkipWithError("frame set not solved");
+    ++i;
+  }
+}
+BENCHMARK(BM_FlightFrameSetTracking)->Unit(benchmark::kMillisecond);
+
+void BM_FlightFrameSetLostInSpace(benchmark::State& state) {
+  const Setup& s = S();
+  FlightHandle h(s);
+  int i = 0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    if (!h.Start()) state.SkipWithError("init failed");
+    state.ResumeTiming();
+    if (!h.Frames(s, i)) state.SkipWithError("frame set not solved");
+    i = (i + 1) % Setup::kFrames;
+  }
+}
+BENCHMARK(BM_FlightFrameSetLostInSpace)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace ssiu
