@@ -119,7 +119,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         for (int i = 0; i < s.config.n_gyros; ++i) g[i] = r.Value(10.0);
         ssiu_gyro_status st;
         const ssiu_result rc = ssiu_flight_gyro(f, t, g, s.config.n_gyros, &st);
-        Check(rc == SSIU_OK && st >= SSIU_GYRO_ACCEPTED && st <= SSIU_GYRO_PARTIAL);
+        Check(rc == SSIU_OK && st >= SSIU_GYRO_ACCEPTED && st <= SSIU_GYRO_ACCEPTED_TIME_RESET);
         if (std::isnan(t)) t = 0;
         break;
       }
@@ -152,6 +152,12 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         const int32_t n = op % 32 == 2 ? s.config.n_heads + 1 : s.config.n_heads;
         const ssiu_result rc = ssiu_flight_frames(f, t, fr, n, &rep);
         Check(rc == SSIU_OK || (n != s.config.n_heads && rc == SSIU_ERR_ARGUMENT));
+        if (rc == SSIU_OK) {
+          Check(rep.status >= SSIU_SOLVE_SOLVED && rep.status <= SSIU_SOLVE_BAD_FRAME);
+          Check(rep.update_status >= SSIU_UPDATE_ACCEPTED && rep.update_status <= SSIU_UPDATE_NONE);
+          for (int h = 0; h < s.config.n_heads; ++h)
+            Check(rep.heads[h].status >= SSIU_SOLVE_SOLVED && rep.heads[h].status <= SSIU_SOLVE_BAD_FRAME);
+        }
         break;
       }
       default: {
