@@ -1,5 +1,6 @@
 #include "identify/catalog_index.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <cstring>
 #include <flann/flann.hpp>
@@ -18,6 +19,41 @@ namespace {
 // Layout version of Write's bytes: a change of the key (the constants above) or of the layout must
 // change it, so that an index stored by another version is refused rather than misread.
 constexpr int64_t kIndexVersion = 1;
+
+// Sky cells of 2 x 2 deg (fewer right-ascension cells towards the poles): a field's cap of ~10 deg
+// visits ~50 cells.
+constexpr int kBands = 90;
+constexpr double kBandRad = kPi / kBands;
+
+double DecOf(const Vec3& u) { return std::atan2(u[2], std::hypot(u[0], u[1])); }
+double RaFraction(const Vec3& u) { return (std::atan2(u[1], u[0]) + kPi) / (2 * kPi); }  // [0, 1]
+int BandOf(double dec) {
+  return static_cast<int>(std::clamp(std::floor((dec + kPi / 2) / kBandRad), 0.0, kBands - 1.0));
+}
+int CellsInBand(int b) {
+  const double lo = -kPi / 2 + b * kBandRad, hi = lo + kBandRad;
+  const double dec = lo <= 0 && hi >= 0 ? 0.0 : std::min(std::abs(lo), std::abs(hi));
+  return std::max(1, static_cast<int>(std::ceil(2 * kPi * std::cos(dec) / kBandRad)));
+}
+int CellInBand(double ra_fraction, int cells) {
+  return static_cast<int>(std::clamp(std::floor(ra_fraction * cells), 0.0, cells - 1.0));
+}
+
+// The kd-tree's radius test: FLANN takes the squared chord as a float and keeps a point whose
+// squared distance (L2<double>, summed in this order) is below it.
+double SquaredChordRadius(double radius_rad) {
+  const double chord = 2 * std::sin(std::min(radius_rad, kPi) / 2);
+  return static_cast<float>(chord * chord);
+}
+double SquaredDistance(const Vec3& q, const double* p) {
+  double r = 0, d = q[0] - p[0];
+  r += d * d;
+  d = q[1] - p[1];
+  r += d * d;
+  d = q[2] - p[2];
+  r += d * d;
+  return r;
+}
 
 flann::Matrix<double> Points(std::vector<double>* units, const SolverCatalog& cat) {
   units->reserve(cat.stars.size() * 3);
@@ -47,6 +83,88 @@ CatalogIndex::CatalogIndex(const SolverCatalog& cat) : stars_(cat.stars.size()) 
     tree_ = std::make_unique<StarTree>(Points(&units_, cat));
     tree_->tree.buildIndex();
   }
+  IndexSky();
+}
+
+void CatalogIndex::IndexSky() {
+  band_cell0_.assign(kBands + 1, 0);
+  for (int b = 0; b < kBands; ++b) band_cell0_[b + 1] = band_cell0_[b] + CellsInBand(b);
+  std::vector<std::pair<int32_t, int32_t>> cell_of(stars_);  // (cell, star)
+  for (size_t i = 0; i < stars_; ++i) {
+    const Vec3 u(units_[3 * i], units_[3 * i + 1], units_[3 * i + 2]);
+    const int b = BandOf(DecOf(u));
+    cell_of[i] = {band_cell0_[b] + CellInBand(RaFraction(u), band_cell0_[b + 1] - band_cell0_[b]),
+                  static_cast<int32_t>(i)};
+  }
+  std::sort(cell_of.begin(), cell_of.end());
+  cell_begin_.assign(static_cast<size_t>(band_cell0_[kBands]) + 1, 0);
+  cell_star_.resize(stars_);
+  cell_unit_.resize(3 * stars_);
+  for (size_t k = 0; k < stars_; ++k) {
+    ++cell_begin_[cell_of[k].first + 1];
+    cell_star_[k] = cell_of[k].second;
+    std::copy_n(&units_[3 * static_cast<size_t>(cell_of[k].second)], 3, &cell_unit_[3 * k]);
+  }
+  for (size_t c = 1; c < cell_begin_.size(); ++c) cell_begin_[c] += cell_begin_[c - 1];
+}
+
+template <typename Fn>
+void CatalogIndex::ForEachStarNear(const Vec3& u, double radius_rad, Fn&& fn) const {
+  if (stars_ == 0 || !u.allFinite() || !(radius_rad >= 0) || u.squaredNorm() == 0) return;
+  // A margin far above rounding; the caller's exact test decides.
+  const double rho = std::min(radius_rad, kPi) * (1 + 1e-9) + 1e-9;
+  const double dec0 = DecOf(u), ra0 = RaFraction(u);
+  // Without a pole in the cap, its right ascensions lie within asin(sin rho / cos dec0) of the centre's.
+  bool all_ra = dec0 + rho >= kPi / 2 || dec0 - rho <= -kPi / 2;
+  double half = 0.5;
+  if (!all_ra) {
+    const double s = std::sin(rho) / std::cos(dec0);
+    if (s < 1) half = std::asin(s) / (2 * kPi) + 1e-9;
+    else all_ra = true;
+  }
+  auto visit = [&](int cell0, int cell1) {  // the cells [cell0, cell1]
+    for (uint32_t k = cell_begin_[cell0]; k < cell_begin_[cell1 + 1]; ++k)
+      if (!fn(cell_star_[k], &cell_unit_[3 * static_cast<size_t>(k)])) return false;
+    return true;
+  };
+  for (int b = BandOf(dec0 - rho); b <= BandOf(dec0 + rho); ++b) {
+    const int c0 = band_cell0_[b], n = band_cell0_[b + 1] - c0;
+    const int lo = static_cast<int>(std::floor((ra0 - half) * n)), hi = static_cast<int>(std::floor((ra0 + half) * n));
+    bool go = true;
+    if (all_ra || hi - lo + 1 >= n) go = visit(c0, c0 + n - 1);
+    else if (lo < 0) go = visit(c0 + lo + n, c0 + n - 1) && visit(c0, c0 + hi);
+    else if (hi >= n) go = visit(c0 + lo, c0 + n - 1) && visit(c0, c0 + hi - n);
+    else go = visit(c0 + lo, c0 + hi);
+    if (!go) return;
+  }
+}
+
+size_t CatalogIndex::StarsWithin(const Vec3& u, double radius_rad, int* out, size_t capacity) const {
+  const double r2 = SquaredChordRadius(radius_rad);
+  size_t found = 0;
+  ForEachStarNear(u, radius_rad, [&](int32_t s, const double* p) {
+    if (!(SquaredDistance(u, p) < r2)) return true;
+    // Past capacity, out is a max-heap of the brightest (lowest indices) so far.
+    if (found < capacity) {
+      out[found] = s;
+      if (found + 1 == capacity) std::make_heap(out, out + capacity);
+    } else if (capacity > 0 && s < out[0]) {
+      std::pop_heap(out, out + capacity);
+      out[capacity - 1] = s;
+      std::push_heap(out, out + capacity);
+    }
+    ++found;
+    return true;
+  });
+  std::sort(out, out + std::min(found, capacity));
+  return found;
+}
+
+bool CatalogIndex::AnyStarWithin(const Vec3& u, double radius_rad) const {
+  const double r2 = SquaredChordRadius(radius_rad);
+  bool any = false;
+  ForEachStarNear(u, radius_rad, [&](int32_t, const double* p) { return !(any = SquaredDistance(u, p) < r2); });
+  return any;
 }
 
 void CatalogIndex::IndexCells() {
@@ -109,7 +227,10 @@ CatalogIndex::CatalogIndex(const SolverCatalog& cat, const char* data, size_t by
   get(tail, sizeof tail);
   if (tail[0] != static_cast<int64_t>(stars_) || tail[1] < 0 || static_cast<size_t>(tail[1]) != bytes - pos)
     throw InputError(path, "catalog index does not fit its stars");
-  if (stars_ == 0) return;
+  if (stars_ == 0) {
+    IndexSky();
+    return;
+  }
   tree_ = std::make_unique<StarTree>(Points(&units_, cat));
   // FLANN reads from a stream; fmemopen gives one over the bytes already in memory.
   FILE* f = fmemopen(const_cast<char*>(data + pos), static_cast<size_t>(tail[1]), "rb");
@@ -123,6 +244,7 @@ CatalogIndex::CatalogIndex(const SolverCatalog& cat, const char* data, size_t by
   std::fclose(f);
   if (tree_->tree.size() != stars_ || tree_->tree.veclen() != 3)
     throw InputError(path, "catalog star tree does not fit its stars");
+  IndexSky();
 }
 
 std::vector<int> CatalogIndex::StarsWithin(const Vec3& u, double radius_rad) const {
@@ -132,10 +254,9 @@ std::vector<int> CatalogIndex::StarsWithin(const Vec3& u, double radius_rad) con
   flann::Matrix<double> qm(q, 1, 3);
   std::vector<std::vector<int>> idx;
   std::vector<std::vector<double>> dist;
-  const double chord = 2 * std::sin(std::min(radius_rad, kPi) / 2);
   flann::SearchParams sp;
   sp.sorted = false;
-  tree_->tree.radiusSearch(qm, idx, dist, static_cast<float>(chord * chord), sp);
+  tree_->tree.radiusSearch(qm, idx, dist, static_cast<float>(SquaredChordRadius(radius_rad)), sp);
   out = std::move(idx[0]);
   std::sort(out.begin(), out.end());  // brightest first (catalog order)
   return out;

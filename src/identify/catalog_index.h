@@ -1,7 +1,8 @@
 // The search structures of a SolverCatalog: its triangles sorted by a key of their features, and its
 // stars in a FLANN kd-tree. Built once with the catalog and stored in catalog.bin (Write / Read), so
 // that a process that loads a catalog does not sort 10^5 triangles and rebuild the tree each time
-// (issue 17: the load went from ~13 to ~2 ms, docs/results.md "Fast start, step 3").
+// (issue 17: the load went from ~13 to ~2 ms, docs/results.md "Fast start, step 3"). The stars are also
+// binned by sky cell (made on construction, not stored) for the lookups that allocate nothing.
 #pragma once
 
 #include <algorithm>
@@ -9,6 +10,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "core/types.h"
@@ -57,7 +59,8 @@ class CatalogIndex {
   bool Empty() const { return keys_.empty(); }
 
   // Calls fn(triangle index) for every triangle with |ratio_a - qa| <= tol_r, |ratio_b - qb| <= tol_r
-  // and |ln longest - ql| <= tol_l (the cells overlapping the box; the caller checks the sides).
+  // and |ln longest - ql| <= tol_l (the cells overlapping the box; the caller checks the sides). An fn
+  // that returns bool ends the walk by returning false.
   template <typename Fn>
   void ForEachInBox(double qa, double qb, double ql, double tol_r, double tol_l, const SolverCatalog& cat,
                     Fn&& fn) const {
@@ -71,17 +74,44 @@ class CatalogIndex {
              it != end && *it <= hi; ++it) {
           const int32_t ti = triangle_[it - keys_.begin()];
           const CatalogTriangle& t = cat.triangles[ti];
-          if (std::abs(t.ratio_a - qa) <= tol_r && std::abs(t.ratio_b - qb) <= tol_r) fn(ti);
+          if (!(std::abs(t.ratio_a - qa) <= tol_r && std::abs(t.ratio_b - qb) <= tol_r)) continue;
+          if constexpr (std::is_same_v<decltype(fn(ti)), bool>) {
+            if (!fn(ti)) return;
+          } else {
+            fn(ti);
+          }
         }
       }
     }
   }
 
-  // Indices of catalog stars within radius_rad of the unit vector u, brightest first (catalog order).
+  // Indices of catalog stars within radius_rad of the unit vector u, brightest first (catalog order):
+  // a radius search of the kd-tree (allocates its answer and, inside FLANN, its search state).
   std::vector<int> StarsWithin(const Vec3& u, double radius_rad) const;
+  // The same stars (the kd-tree's test, to the bit) from the sky cells, into out[0..capacity),
+  // allocating nothing: the brightest `capacity` when there are more. Returns how many there are in
+  // all (more than capacity: the faintest were left out).
+  size_t StarsWithin(const Vec3& u, double radius_rad, int* out, size_t capacity) const;
+  // Whether any catalog star is within radius_rad of u (as StarsWithin; allocates nothing).
+  bool AnyStarWithin(const Vec3& u, double radius_rad) const;
+  // Heap bytes of the sky cells.
+  size_t SkyCellBytes() const {
+    return band_cell0_.capacity() * sizeof(int32_t) + cell_begin_.capacity() * sizeof(uint32_t) +
+           cell_star_.capacity() * sizeof(int32_t) + cell_unit_.capacity() * sizeof(double);
+  }
 
  private:
   void IndexCells();
+  void IndexSky();
+  // Calls fn(star, unit vector) for every star in a sky cell that a cap of radius_rad about u may touch
+  // (a superset of the stars within it), until fn returns false.
+  template <typename Fn>
+  void ForEachStarNear(const Vec3& u, double radius_rad, Fn&& fn) const;
+  // Sky cells: declination bands of kBandRad, each cut into right-ascension cells about as wide.
+  std::vector<int32_t> band_cell0_;   // first cell of each band; the cell count last
+  std::vector<uint32_t> cell_begin_;  // first entry of each cell in cell_star_; one past the end last
+  std::vector<int32_t> cell_star_;    // star indices by cell, ascending within a cell
+  std::vector<double> cell_unit_;     // their unit vectors (3 each), in the same order
   std::vector<uint64_t> keys_;        // sorted
   std::vector<int32_t> triangle_;     // triangle index per key
   std::vector<uint32_t> cell_start_;  // first key of each (ratio_a, ratio_b) cell; one past the end last

@@ -6,10 +6,11 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <numeric>
+#include <string>
 
 #include "core/error.h"
-#include "core/stats.h"
 #include "identify/catalog_index.h"
 #include "identify/wahba_svd.h"
 
@@ -37,75 +38,178 @@ Mat3 ExpSo3(const Vec3& w) {
   return Eigen::AngleAxisd(t, w / t).toRotationMatrix();
 }
 
+// A catalog star predicted in the image (pixel; squared test radius where the test uses one).
+struct Pred {
+  Vec2 px;
+  int star;
+  double r2;
+};
+// A centroid-prediction pair within reach; key: squared distance, or over the squared radius.
+struct Cand {
+  double key;
+  int c, p;
+};
+
+// Pixel residuals (centroid - prediction) of the matches under (cam, r) and their Jacobians over
+// x = (small rotation in the sensor frame, r -> r Exp(x[0..2]); common scale of fx and fy, 1 + x[3]),
+// numerical, with the weights 1 / sigma_px^2 and the normal equations H = sum w J^T J, g = sum w J^T e.
+struct PixelFit {
+  std::vector<Eigen::Matrix<double, 2, 4>> j;
+  std::vector<Vec2> e;
+  std::vector<double> w;
+  std::vector<char> ok;  // projected (a star behind the camera has no residual)
+  Eigen::Matrix4d h = Eigen::Matrix4d::Zero();
+  Vec4 g = Vec4::Zero();
+};
+
+}  // namespace
+
+// Every buffer of a call, sized on construction (K centroids, S stars in a field, P pattern centroids):
+// a call only clears and refills them. `grow` (the by-value forms): no sizes, the buffers grow as needed.
+struct IdentifyWorkspace::Scratch {
+  bool grow = false;
+  size_t max_centroids = 0, max_stars = 0, max_pattern = 0;
+  std::vector<Centroid> centroids;  // the usable centroids, in input order
+  std::vector<int> input_index;     // their indices in the input
+  std::vector<int> order;           // brightest first
+  std::vector<double> sigma_px, median;
+  std::vector<Vec3> unit;   // pattern centroids' directions
+  std::vector<double> ang;  // and their angles (P x P)
+  std::vector<int> near;    // catalog stars about the field
+  std::vector<Pred> pred;
+  std::vector<Cand> cands;  // K x S
+  std::vector<char> used_c, used_p, excluded;
+  std::vector<StarMatch> test, cur, next, kept;  // matches: a test's, the refined ones, scratch
+  std::vector<int> test_extras;
+  std::vector<VectorPair> pairs;
+  PixelFit fit;
+  std::vector<Vec2> resid;
+  std::vector<double> flux, mag, other, zp, z;  // photometry
+  std::vector<char> used;
+
+  Scratch(size_t k, size_t s, size_t p, bool grow_as_needed)
+      : grow(grow_as_needed), max_centroids(k), max_stars(s), max_pattern(p) {
+    if (grow) return;
+    for (auto* v : {&input_index, &order, &test_extras}) v->reserve(k);
+    for (auto* v : {&sigma_px, &median, &flux, &mag, &other, &zp, &z, &fit.w}) v->reserve(k);
+    for (auto* v : {&used_c, &excluded, &used, &fit.ok}) v->reserve(k);
+    for (auto* v : {&test, &cur, &next, &kept}) v->reserve(k);
+    centroids.reserve(k);
+    pairs.reserve(k);
+    fit.j.reserve(k);
+    fit.e.reserve(k);
+    resid.reserve(k);
+    unit.reserve(p);
+    ang.reserve(p * p);
+    near.reserve(s);
+    pred.reserve(s);
+    used_p.reserve(s);
+    cands.reserve(k * s);
+  }
+
+  template <typename T>
+  static size_t Held(const std::vector<T>& v) {
+    return v.capacity() * sizeof(T);
+  }
+  size_t Bytes() const {
+    size_t b = sizeof(*this) + Held(centroids) + Held(unit) + Held(ang) + Held(pred) + Held(cands) + Held(pairs) +
+               Held(fit.j) + Held(fit.e) + Held(resid);
+    for (const auto* v : {&input_index, &order, &near, &test_extras}) b += Held(*v);
+    for (const auto* v : {&sigma_px, &median, &flux, &mag, &other, &zp, &z, &fit.w}) b += Held(*v);
+    for (const auto* v : {&used_c, &used_p, &excluded, &used, &fit.ok}) b += Held(*v);
+    for (const auto* v : {&test, &cur, &next, &kept}) b += Held(*v);
+    return b;
+  }
+};
+
+namespace {
+
+using Scratch = IdentifyWorkspace::Scratch;
+
 struct Context {
-  const StarIdentifier* id;
-  const std::vector<Centroid>* c;
-  std::vector<int> order;        // centroid indices, brightest first
-  std::vector<double> sigma_px;  // effective 1-sigma per centroid (with the systematic part)
-  int m = 0;                     // verification centroids
-  double median_sigma_px = 0;    // typical centroid sigma (with the systematic part)
+  const SolverCatalog* cat;
+  const CatalogIndex* index;
+  const Centroid* c;  // the usable centroids (the workspace's copy)
+  int n = 0;          // how many
+  Scratch* s;
+  Identification* report;  // for stars_clamped
+  const int* order;        // centroid indices, brightest first
+  const double* sigma_px;  // effective 1-sigma per centroid (with the systematic part)
+  int m = 0;               // verification centroids
+  double median_sigma_px = 0;  // typical centroid sigma (with the systematic part)
   double match_radius_px = 0;
   bool photometry = false;  // fluxes usable as photometric evidence (all > 0, not all equal)
 };
 
-struct Verification {
-  std::vector<StarMatch> matches;
-  int n_cat = 0;
-};
+// Catalog stars within radius_rad of u into ctx.s->near, brightest first; more than the workspace
+// holds: the brightest, flagged in the report.
+void StarsNear(const Context& ctx, const Vec3& u, double radius_rad) {
+  std::vector<int>& near = ctx.s->near;
+  const size_t cap = ctx.s->grow ? std::max<size_t>(near.capacity(), 64) : ctx.s->max_stars;
+  near.resize(cap);
+  size_t n = ctx.index->StarsWithin(u, radius_rad, near.data(), cap);
+  if (n > cap && ctx.s->grow) {
+    near.resize(n);
+    n = ctx.index->StarsWithin(u, radius_rad, near.data(), n);
+  } else if (n > cap) {
+    n = cap;
+    ctx.report->stars_clamped = true;
+  }
+  near.resize(n);
+}
+
+StarMatch MakeMatch(const Context& ctx, const Camera& cam, int ci, int star) {
+  const CatalogStar& cs = ctx.cat->stars[star];
+  StarMatch m;
+  m.centroid = ci;
+  m.star = star;
+  m.star_id = cs.id;
+  m.mag = cs.mag;
+  m.x_px = ctx.c[ci].x_px;
+  m.y_px = ctx.c[ci].y_px;
+  m.b_sensor = cam.Unproject(Vec2(m.x_px, m.y_px));
+  m.r_inertial = cs.unit;
+  m.sigma_rad = ctx.sigma_px[ci] / cam.FocalMeanPx();
+  return m;
+}
 
 // Predicts all catalog stars in the field with R (sensor -> inertial) and the camera, and matches
-// the first ctx.m centroids to them one-to-one, nearest pairs first, within radius_px.
-// Centroids flagged in `excluded` (rejected as outliers of this hypothesis) are left out.
-Verification Verify(const Context& ctx, const Camera& cam, const Mat3& r, double radius_px,
-                    const std::vector<char>* excluded = nullptr) {
-  Verification v;
-  const SolverCatalog& cat = ctx.id->catalog();
-  const std::vector<int> near = ctx.id->StarsWithin(r.col(2), cam.FovDiagRad() / 2 * 1.05 + 0.002);
-  struct Proj {
-    Vec2 px;
-    int star;
-  };
-  std::vector<Proj> proj;
-  proj.reserve(near.size());
+// the first ctx.m centroids to them one-to-one, nearest pairs first, within radius_px, into *out.
+// Centroids flagged in `excluded` (rejected as outliers of this hypothesis) are left out. Returns
+// the number of catalog stars predicted in the image.
+int Verify(const Context& ctx, const Camera& cam, const Mat3& r, double radius_px, const std::vector<char>* excluded,
+           std::vector<StarMatch>* out) {
+  Scratch& s = *ctx.s;
+  StarsNear(ctx, r.col(2), cam.FovDiagRad() / 2 * 1.05 + 0.002);
+  std::vector<Pred>& proj = s.pred;
+  proj.clear();
   const Mat3 rt = r.transpose();
-  for (int s : near) {
-    const auto p = cam.Project(rt * cat.stars[s].unit);
-    if (p && cam.InImage(*p)) proj.push_back({*p, s});
+  for (int st : s.near) {
+    const auto p = cam.Project(rt * ctx.cat->stars[st].unit);
+    if (p && cam.InImage(*p)) proj.push_back({*p, st, 0.0});
   }
-  v.n_cat = static_cast<int>(proj.size());
-  struct Cand {
-    double d2;
-    int c, p;
-  };
-  std::vector<Cand> cands;
+  std::vector<Cand>& cands = s.cands;
+  cands.clear();
   const double r2 = radius_px * radius_px;
   for (int i = 0; i < ctx.m; ++i) {
     const int ci = ctx.order[i];
     if (excluded && (*excluded)[ci]) continue;
-    const Vec2 xy((*ctx.c)[ci].x_px, (*ctx.c)[ci].y_px);
+    const Vec2 xy(ctx.c[ci].x_px, ctx.c[ci].y_px);
     for (size_t p = 0; p < proj.size(); ++p) {
       const double d2 = (proj[p].px - xy).squaredNorm();
       if (d2 <= r2) cands.push_back({d2, ci, static_cast<int>(p)});
     }
   }
-  std::sort(cands.begin(), cands.end(), [](const Cand& a, const Cand& b) { return a.d2 < b.d2; });
-  std::vector<char> used_c(ctx.c->size(), 0), used_p(proj.size(), 0);
+  std::sort(cands.begin(), cands.end(), [](const Cand& a, const Cand& b) { return a.key < b.key; });
+  s.used_c.assign(ctx.n, 0);
+  s.used_p.assign(proj.size(), 0);
+  out->clear();
   for (const auto& k : cands) {
-    if (used_c[k.c] || used_p[k.p]) continue;
-    used_c[k.c] = used_p[k.p] = 1;
-    StarMatch m;
-    m.centroid = k.c;
-    m.star = proj[k.p].star;
-    m.star_id = cat.stars[m.star].id;
-    m.mag = cat.stars[m.star].mag;
-    m.x_px = (*ctx.c)[k.c].x_px;
-    m.y_px = (*ctx.c)[k.c].y_px;
-    m.b_sensor = cam.Unproject(Vec2(m.x_px, m.y_px));
-    m.r_inertial = cat.stars[m.star].unit;
-    m.sigma_rad = ctx.sigma_px[k.c] / cam.FocalMeanPx();
-    v.matches.push_back(m);
+    if (s.used_c[k.c] || s.used_p[k.p]) continue;
+    s.used_c[k.c] = s.used_p[k.p] = 1;
+    out->push_back(MakeMatch(ctx, cam, k.c, proj[k.p].star));
   }
-  return v;
+  return static_cast<int>(proj.size());
 }
 
 // Radius (px, squared) of the hypothesis test at pixel p for a triangle of centroids tri_c (as in
@@ -116,7 +220,7 @@ struct TriangleSpread {
 };
 TriangleSpread SpreadOf(const Context& ctx, const int tri_c[3]) {
   TriangleSpread t;
-  const auto& c = *ctx.c;
+  const Centroid* c = ctx.c;
   for (int i = 0; i < 3; ++i) {
     t.centre += Vec2(c[tri_c[i]].x_px, c[tri_c[i]].y_px) / 3.0;
     t.sig_tri = std::max(t.sig_tri, ctx.sigma_px[tri_c[i]]);
@@ -142,32 +246,28 @@ double TestRadius2(const Context& ctx, const IdentifyOptions& o, const TriangleS
 // triangle's own noise puts into the prediction there (rotation about the triangle's centre and,
 // when the focal length is searched, scale: both grow with the distance d from that centre as
 // sigma_tri * d / sqrt(sum rho_i^2), rho_i the vertices' distances from the centre).
+// The matches (the triangle's three pairs plus the extra matches) are in ctx.s->test.
 struct HypothesisTest {
   int extra = 0;     // matched centroids besides the triangle's three
   double p_hit = 0;  // chance that one random centroid falls within a predicted star's radius
   double worst = 0;  // largest (distance / radius)^2 among the extra matches
   int n_cat = 0;     // catalog stars predicted in the image
-  Verification v;    // the triangle's three pairs plus the extra matches
 };
 
 HypothesisTest TestHypothesis(const Context& ctx, const IdentifyOptions& o, const Camera& cam, const Mat3& r,
                               const int tri_c[3], const int tri_s[3], bool scale_searched) {
   HypothesisTest h;
-  const SolverCatalog& cat = ctx.id->catalog();
-  const auto& c = *ctx.c;
+  Scratch& sc = *ctx.s;
+  const Centroid* c = ctx.c;
   const TriangleSpread spread = SpreadOf(ctx, tri_c);
-  const std::vector<int> near = ctx.id->StarsWithin(r.col(2), cam.FovDiagRad() / 2 * 1.05 + 0.002);
-  struct Pred {
-    Vec2 px;
-    int star;
-    double r2;
-  };
-  std::vector<Pred> pred;
+  StarsNear(ctx, r.col(2), cam.FovDiagRad() / 2 * 1.05 + 0.002);
+  std::vector<Pred>& pred = sc.pred;
+  pred.clear();
   const Mat3 rt = r.transpose();
   double area_hit = 0;
-  for (int s : near) {
+  for (int s : sc.near) {
     if (s == tri_s[0] || s == tri_s[1] || s == tri_s[2]) continue;
-    const auto p = cam.Project(rt * cat.stars[s].unit);
+    const auto p = cam.Project(rt * ctx.cat->stars[s].unit);
     if (!p || !cam.InImage(*p)) continue;
     // In tolerance mode the camera model is known to be off (focal length, and often the pixel
     // aspect or distortion that the caller is about to calibrate): at least twice the refinement
@@ -178,11 +278,8 @@ HypothesisTest TestHypothesis(const Context& ctx, const IdentifyOptions& o, cons
   }
   h.n_cat = static_cast<int>(pred.size()) + 3;
   h.p_hit = std::min(1.0, area_hit / (static_cast<double>(cam.width) * cam.height));
-  struct Cand {
-    double score;  // squared distance over squared radius
-    int c, p;
-  };
-  std::vector<Cand> cands;
+  std::vector<Cand>& cands = sc.cands;  // key: squared distance over squared radius
+  cands.clear();
   for (int i = 0; i < ctx.m; ++i) {
     const int ci = ctx.order[i];
     if (ci == tri_c[0] || ci == tri_c[1] || ci == tri_c[2]) continue;
@@ -192,30 +289,18 @@ HypothesisTest TestHypothesis(const Context& ctx, const IdentifyOptions& o, cons
       if (d2 <= pred[p].r2) cands.push_back({d2 / pred[p].r2, ci, static_cast<int>(p)});
     }
   }
-  std::sort(cands.begin(), cands.end(), [](const Cand& a, const Cand& b) { return a.score < b.score; });
-  std::vector<char> used_c(c.size(), 0), used_p(pred.size(), 0);
-  auto add = [&](int ci, int s) {
-    StarMatch m;
-    m.centroid = ci;
-    m.star = s;
-    m.star_id = cat.stars[s].id;
-    m.mag = cat.stars[s].mag;
-    m.x_px = c[ci].x_px;
-    m.y_px = c[ci].y_px;
-    m.b_sensor = cam.Unproject(Vec2(m.x_px, m.y_px));
-    m.r_inertial = cat.stars[s].unit;
-    m.sigma_rad = ctx.sigma_px[ci] / cam.FocalMeanPx();
-    h.v.matches.push_back(m);
-  };
-  for (int i = 0; i < 3; ++i) add(tri_c[i], tri_s[i]);
+  std::sort(cands.begin(), cands.end(), [](const Cand& a, const Cand& b) { return a.key < b.key; });
+  sc.used_c.assign(ctx.n, 0);
+  sc.used_p.assign(pred.size(), 0);
+  sc.test.clear();
+  for (int i = 0; i < 3; ++i) sc.test.push_back(MakeMatch(ctx, cam, tri_c[i], tri_s[i]));
   for (const auto& k : cands) {
-    if (used_c[k.c] || used_p[k.p]) continue;
-    used_c[k.c] = used_p[k.p] = 1;
-    add(k.c, pred[k.p].star);
+    if (sc.used_c[k.c] || sc.used_p[k.p]) continue;
+    sc.used_c[k.c] = sc.used_p[k.p] = 1;
+    sc.test.push_back(MakeMatch(ctx, cam, k.c, pred[k.p].star));
     ++h.extra;
-    h.worst = std::max(h.worst, k.score);
+    h.worst = std::max(h.worst, k.key);
   }
-  h.v.n_cat = h.n_cat;
   return h;
 }
 
@@ -226,7 +311,7 @@ bool AnyBrightCentroidNearAStar(const Context& ctx, const IdentifyOptions& o, co
                                 const int tri_c[3]) {
   constexpr int kQuickCentroids = 12;
   const TriangleSpread t = SpreadOf(ctx, tri_c);
-  const auto& c = *ctx.c;
+  const Centroid* c = ctx.c;
   const double f = cam.FocalMinPx();
   for (int i = 0, seen = 0; i < ctx.m && seen < kQuickCentroids; ++i) {
     const int ci = ctx.order[i];
@@ -234,32 +319,27 @@ bool AnyBrightCentroidNearAStar(const Context& ctx, const IdentifyOptions& o, co
     ++seen;
     const Vec2 p(c[ci].x_px, c[ci].y_px);
     const double radius_rad = std::sqrt(TestRadius2(ctx, o, t, p, true)) / f;
-    if (!ctx.id->StarsWithin(r * cam.Unproject(p), radius_rad).empty()) return true;
+    if (ctx.index->AnyStarWithin(r * cam.Unproject(p), radius_rad)) return true;
   }
   return false;
 }
 
-Mat3 SvdFromMatches(const std::vector<StarMatch>& ms) {
-  std::vector<VectorPair> pairs;
-  pairs.reserve(ms.size());
+Mat3 SvdFromMatches(const Context& ctx, const std::vector<StarMatch>& ms) {
+  std::vector<VectorPair>& pairs = ctx.s->pairs;
+  pairs.clear();
   for (const auto& m : ms) pairs.push_back({m.b_sensor, m.r_inertial, 1.0 / (m.sigma_rad * m.sigma_rad)});
-  return SolveWahbaSvd(pairs).toRotationMatrix();
+  return SolveWahbaSvd(pairs.data(), pairs.size()).toRotationMatrix();
 }
 
-// Pixel residuals (centroid - prediction) of the matches under (cam, r) and their Jacobians over
-// x = (small rotation in the sensor frame, r -> r Exp(x[0..2]); common scale of fx and fy, 1 + x[3]),
-// numerical, with the weights 1 / sigma_px^2 and the normal equations H = sum w J^T J, g = sum w J^T e.
-struct PixelFit {
-  std::vector<Eigen::Matrix<double, 2, 4>> j;
-  std::vector<Vec2> e;
-  std::vector<double> w;
-  std::vector<char> ok;  // projected (a star behind the camera has no residual)
-  Eigen::Matrix4d h = Eigen::Matrix4d::Zero();
-  Vec4 g = Vec4::Zero();
-};
-
-PixelFit Linearize(const Context& ctx, const std::vector<StarMatch>& ms, const Camera& cam, const Mat3& r) {
-  PixelFit f;
+// The pixel fit (PixelFit) of the matches, in ctx.s->fit.
+const PixelFit& Linearize(const Context& ctx, const std::vector<StarMatch>& ms, const Camera& cam, const Mat3& r) {
+  PixelFit& f = ctx.s->fit;
+  f.j.clear();
+  f.e.clear();
+  f.w.clear();
+  f.ok.clear();
+  f.h.setZero();
+  f.g.setZero();
   auto residual = [&](const StarMatch& m, const Vec4& x, Vec2* out) {
     Camera c2 = cam;
     c2.ScaleFocal(1 + x[3]);
@@ -297,13 +377,49 @@ PixelFit Linearize(const Context& ctx, const std::vector<StarMatch>& ms, const C
 void RefineFocal(const Context& ctx, const std::vector<StarMatch>& ms, Camera* cam, Mat3* r) {
   if (ms.size() < 4) return;
   for (int iter = 0; iter < 4; ++iter) {
-    const PixelFit f = Linearize(ctx, ms, *cam, *r);
+    const PixelFit& f = Linearize(ctx, ms, *cam, *r);
     const Vec4 dx = f.h.ldlt().solve(f.g);
     if (!dx.allFinite()) return;
     cam->ScaleFocal(1 + dx[3]);
     *r = *r * ExpSo3(dx.head<3>());
     if (dx.head<3>().norm() < 1e-10 && std::abs(dx[3]) < 1e-10) break;
   }
+}
+
+// PhotometricEvidence over n pairs and n_other other fluxes, with scratch vectors for the zero points.
+double PhotometricEvidenceOf(const double* pair_flux, const double* pair_mag, size_t n, const double* other_flux,
+                             size_t n_other, std::vector<double>* zp, std::vector<double>* z) {
+  int disc = 0;
+  for (int i = 0; i < 3; ++i)
+    for (int j = i + 1; j < 3; ++j) disc += !((pair_flux[i] - pair_flux[j]) * (pair_mag[i] - pair_mag[j]) < 0);
+  static constexpr double kTriP[4] = {1.0 / 6, 3.0 / 6, 5.0 / 6, 1.0};
+  static constexpr double kTriC = 1.0 + 2.0 / 3 + 2.0 / 5 + 1.0 / 6;  // sum over the atoms of P(p = t) / t
+  double e = 1.0 / (kTriP[disc] * kTriC);
+  const double k_mag = 0.4 * std::log(10.0);
+  zp->clear();  // ln f + 0.4 ln(10) V of the pairs so far: the zero point
+  for (int i = 0; i < 3; ++i) zp->push_back(std::log(pair_flux[i]) + k_mag * pair_mag[i]);
+  for (size_t i = 3; i < n; ++i) {
+    z->assign(zp->begin(), zp->end());
+    std::sort(z->begin(), z->end());
+    const size_t h = z->size() / 2;
+    const double ln_k = z->size() % 2 ? (*z)[h] : 0.5 * ((*z)[h - 1] + (*z)[h]);
+    const double pred = ln_k - k_mag * pair_mag[i];
+    const double d = std::abs(std::log(pair_flux[i]) - pred);
+    // The pool: this match and the later ones, and the centroids in no pair (K counts ties in).
+    int pool = 0, within = 0;
+    auto count = [&](double f) { ++pool, within += std::abs(std::log(f) - pred) <= d; };
+    for (size_t q = i; q < n; ++q) count(pair_flux[q]);
+    for (size_t q = 0; q < n_other; ++q) count(other_flux[q]);
+    double h_n = 0, s_n = 0;
+    for (int k = 1; k <= pool; ++k) h_n += 1.0 / k, s_n += 1.0 / (static_cast<double>(k) * k);
+    const double kk = std::max(1, within);
+    // The mean of two calibrators, each of mean 1 for K uniform on {1..N}: 1 / (p H_N) and the steeper
+    // N / (K^2 S_N), S_N = sum 1/k^2 (~N / 1.64 for K = 1 instead of N / H_N, ~N / 4.3 at N = 40; it
+    // falls faster with K, so the mean keeps most of the harmonic one's value for noisy fluxes).
+    e *= 0.5 * (pool / (kk * h_n) + pool / (kk * kk * s_n));
+    zp->push_back(std::log(pair_flux[i]) + k_mag * pair_mag[i]);
+  }
+  return e;
 }
 
 // Photometric evidence (docs/identify.md, step 5). Under the null hypothesis (a chance match) the
@@ -324,13 +440,17 @@ void RefineFocal(const Context& ctx, const std::vector<StarMatch>& ms, Camera* c
 // `ms`: the triangle's three pairs first, then the extra matches in the order they were tested.
 double PhotometricFactor(const Context& ctx, const std::vector<StarMatch>& ms) {
   if (!ctx.photometry || ms.size() < 3) return 1.0;
-  const auto& c = *ctx.c;
-  std::vector<double> flux, mag, other;
-  std::vector<char> used(c.size(), 0);
-  for (const auto& m : ms) flux.push_back(c[m.centroid].flux), mag.push_back(m.mag), used[m.centroid] = 1;
+  Scratch& s = *ctx.s;
+  const Centroid* c = ctx.c;
+  s.flux.clear();
+  s.mag.clear();
+  s.other.clear();
+  s.used.assign(ctx.n, 0);
+  for (const auto& m : ms) s.flux.push_back(c[m.centroid].flux), s.mag.push_back(m.mag), s.used[m.centroid] = 1;
   for (int q = 0; q < ctx.m; ++q)
-    if (!used[ctx.order[q]]) other.push_back(c[ctx.order[q]].flux);
-  return 2.0 / (1.0 + PhotometricEvidence(flux, mag, other));
+    if (!s.used[ctx.order[q]]) s.other.push_back(c[ctx.order[q]].flux);
+  return 2.0 / (1.0 + PhotometricEvidenceOf(s.flux.data(), s.mag.data(), s.flux.size(), s.other.data(),
+                                            s.other.size(), &s.zp, &s.z));
 }
 
 // The match least consistent with the others, if it is an outlier. For each match i, d_i = the drop
@@ -351,12 +471,16 @@ int WorstOutlier(const Context& ctx, const IdentifyOptions& o, const std::vector
   const int np = fit_scale ? 4 : 3;
   const int dof_without = 2 * (static_cast<int>(ms.size()) - 1) - np;
   if (dof_without < 2) return -1;
-  const PixelFit f = Linearize(ctx, ms, cam, r);
-  const Eigen::MatrixXd h = f.h.topLeftCorner(np, np);
-  const Eigen::LDLT<Eigen::MatrixXd> ldlt(h);
-  const Eigen::VectorXd dx = ldlt.solve(f.g.head(np));  // to the linearised optimum (r may be an SVD fit)
+  const PixelFit& f = Linearize(ctx, ms, cam, r);
+  // Dynamic sizes (3 or 4 parameters) held in fixed storage: no heap.
+  using MatP = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 4, 4>;
+  using VecP = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 4, 1>;
+  const MatP h = f.h.topLeftCorner(np, np);
+  const Eigen::LDLT<MatP> ldlt(h);
+  const VecP dx = ldlt.solve(f.g.head(np));  // to the linearised optimum (r may be an SVD fit)
   if (!dx.allFinite()) return -1;
-  std::vector<Vec2> e(ms.size(), Vec2::Zero());
+  std::vector<Vec2>& e = ctx.s->resid;
+  e.assign(ms.size(), Vec2::Zero());
   double chi2 = 0;
   for (size_t i = 0; i < ms.size(); ++i) {
     if (!f.ok[i]) continue;
@@ -370,13 +494,13 @@ int WorstOutlier(const Context& ctx, const IdentifyOptions& o, const std::vector
     // From the others alone (H without i): the prediction error of match i, e_(i) = (I + w J H_(i)^-1 J^T) e_i,
     // and its covariance sigma^2 I + J H_(i)^-1 J^T. This form stays exact when i has a leverage near
     // 1 (its own residual near 0): then it is the only match that fixes a direction of the fit.
-    const Eigen::Matrix<double, 2, Eigen::Dynamic> j = f.j[i].leftCols(np);
-    const Eigen::MatrixXd h_i = h - f.w[i] * j.transpose() * j;
-    const Eigen::LDLT<Eigen::MatrixXd> ldlt_i(h_i);
+    const Eigen::Matrix<double, 2, Eigen::Dynamic, 0, 2, 4> j = f.j[i].leftCols(np);
+    const MatP h_i = h - f.w[i] * j.transpose() * j;
+    const Eigen::LDLT<MatP> ldlt_i(h_i);
     // The others must fix every direction (else match i cannot be tested).
     if (ldlt_i.info() != Eigen::Success || !(ldlt_i.vectorD().minCoeff() > 1e-9 * ldlt_i.vectorD().maxCoeff()))
       continue;
-    const Eigen::Matrix<double, Eigen::Dynamic, 2> hj = ldlt_i.solve(j.transpose());
+    const Eigen::Matrix<double, Eigen::Dynamic, 2, 0, 4, 2> hj = ldlt_i.solve(j.transpose());
     const Mat2 jhj = j * hj;
     const Vec2 e_del = e[i] + f.w[i] * jhj * e[i];
     const Mat2 cov = Mat2::Identity() / f.w[i] + jhj;
@@ -395,48 +519,106 @@ int WorstOutlier(const Context& ctx, const IdentifyOptions& o, const std::vector
 double CountFactor(int j) { return j <= 1 ? 4.0 / 3.0 : 4.0 * (j - 1.0) * j; }
 
 struct Refined {
-  Verification v;
   Mat3 r;
   Camera cam;
+  int n_cat = 0;
 };
 
-// Fit the attitude (and the focal length when it is uncertain) to the matches and re-match, twice.
-Refined Refine(const Context& ctx, const IdentifyOptions& o, Camera cam, Mat3 r, Verification v,
+// Fit the attitude (and the focal length when it is uncertain) to the matches in ctx.s->cur (n_cat
+// catalog stars predicted) and re-match, twice; the matches are refined in place.
+Refined Refine(const Context& ctx, const IdentifyOptions& o, Camera cam, Mat3 r, int n_cat,
                const std::vector<char>* excluded = nullptr) {
+  Scratch& s = *ctx.s;
   for (int pass = 0; pass < 3; ++pass) {
     if (o.FocalSearched()) {
-      RefineFocal(ctx, v.matches, &cam, &r);
-      for (auto& m : v.matches) m.b_sensor = cam.Unproject(Vec2(m.x_px, m.y_px));
+      RefineFocal(ctx, s.cur, &cam, &r);
+      for (auto& m : s.cur) m.b_sensor = cam.Unproject(Vec2(m.x_px, m.y_px));
     } else {
-      r = SvdFromMatches(v.matches);
+      r = SvdFromMatches(ctx, s.cur);
     }
-    Verification v2 = Verify(ctx, cam, r, ctx.match_radius_px, excluded);
-    if (v2.matches.size() < 3) break;
-    v = std::move(v2);
+    const int n_cat2 = Verify(ctx, cam, r, ctx.match_radius_px, excluded, &s.next);
+    if (s.next.size() < 3) break;
+    std::swap(s.cur, s.next);
+    n_cat = n_cat2;
   }
-  if (!o.FocalSearched()) r = SvdFromMatches(v.matches);
-  for (auto& m : v.matches) {
+  if (!o.FocalSearched()) r = SvdFromMatches(ctx, s.cur);
+  for (auto& m : s.cur) {
     m.sigma_rad = ctx.sigma_px[m.centroid] / cam.FocalMeanPx();
     m.residual_rad = Angle(r * m.b_sensor, m.r_inertial);
   }
-  return {std::move(v), r, cam};
+  return {r, cam, n_cat};
 }
 
-Context MakeContext(const StarIdentifier* id, const std::vector<Centroid>& c, const IdentifyOptions& o) {
-  Context ctx;
-  ctx.id = id;
-  ctx.c = &c;
-  ctx.order.resize(c.size());
-  std::iota(ctx.order.begin(), ctx.order.end(), 0);
-  std::stable_sort(ctx.order.begin(), ctx.order.end(), [&](int a, int b) { return c[a].flux > c[b].flux; });
-  ctx.sigma_px.resize(c.size());
-  for (size_t i = 0; i < c.size(); ++i) {
-    const double s = c[i].sigma_px > 0 ? c[i].sigma_px : o.centroid_sigma_px;
-    ctx.sigma_px[i] = std::sqrt(s * s + o.systematic_px * o.systematic_px);
+bool Usable(const Centroid& c) {
+  return std::isfinite(c.x_px) && std::isfinite(c.y_px) && std::isfinite(c.flux) && c.sigma_px >= 0;
+}
+
+// The usable centroids (finite position and flux, sigma >= 0) into the workspace in input order, at
+// most max_centroids: then the brightest (ties: the first). Counts and flags go to *out.
+void TakeCentroids(const Centroid* c, size_t n, Scratch* s, Identification* out) {
+  std::vector<int>& kept = s->input_index;
+  kept.clear();
+  // Brighter first, then earlier: the order MakeContext sorts by.
+  auto before = [c](int a, int b) { return c[a].flux > c[b].flux || (c[a].flux == c[b].flux && a < b); };
+  bool heap = false;  // when full, kept is a heap whose top is the faintest kept
+  for (size_t i = 0; i < n; ++i) {
+    if (!Usable(c[i])) {
+      ++out->centroids_skipped;
+      continue;
+    }
+    const int k = static_cast<int>(i);
+    if (s->grow || kept.size() < s->max_centroids) {
+      kept.push_back(k);
+      continue;
+    }
+    out->centroids_clamped = true;
+    if (!heap) std::make_heap(kept.begin(), kept.end(), before), heap = true;
+    if (kept.empty() || !before(k, kept.front())) continue;
+    std::pop_heap(kept.begin(), kept.end(), before);
+    kept.back() = k;
+    std::push_heap(kept.begin(), kept.end(), before);
   }
-  ctx.m = std::min<int>(o.verify_centroids, static_cast<int>(c.size()));
-  // Radius from the typical (median) centroid noise, at least 2 px.
-  ctx.median_sigma_px = ctx.sigma_px.empty() ? o.centroid_sigma_px : Median(ctx.sigma_px);
+  if (heap) std::sort(kept.begin(), kept.end());
+  s->centroids.clear();
+  for (int k : kept) s->centroids.push_back(c[k]);
+}
+
+// Matches' centroid indices from the workspace's to the input's.
+void ToInputIndices(const Scratch& s, Identification* out) {
+  for (auto& m : out->matches) m.centroid = s.input_index[m.centroid];
+}
+
+Context MakeContext(const StarIdentifier* id, const CatalogIndex* index, Scratch* s, Identification* report,
+                    const IdentifyOptions& o) {
+  Context ctx;
+  ctx.cat = &id->catalog();
+  ctx.index = index;
+  ctx.s = s;
+  ctx.report = report;
+  const std::vector<Centroid>& c = s->centroids;
+  ctx.c = c.data();
+  ctx.n = static_cast<int>(c.size());
+  // Brightest first, ties in input order (a stable sort, without its buffer).
+  s->order.resize(c.size());
+  std::iota(s->order.begin(), s->order.end(), 0);
+  std::sort(s->order.begin(), s->order.end(),
+            [&](int a, int b) { return c[a].flux > c[b].flux || (c[a].flux == c[b].flux && a < b); });
+  s->sigma_px.resize(c.size());
+  for (size_t i = 0; i < c.size(); ++i) {
+    const double sg = c[i].sigma_px > 0 ? c[i].sigma_px : o.centroid_sigma_px;
+    s->sigma_px[i] = std::sqrt(sg * sg + o.systematic_px * o.systematic_px);
+  }
+  ctx.order = s->order.data();
+  ctx.sigma_px = s->sigma_px.data();
+  ctx.m = std::min<int>(o.verify_centroids, ctx.n);
+  // Radius from the typical (median) centroid noise, at least 2 px (Median, in the workspace).
+  if (c.empty()) {
+    ctx.median_sigma_px = o.centroid_sigma_px;
+  } else {
+    s->median.assign(s->sigma_px.begin(), s->sigma_px.end());
+    std::nth_element(s->median.begin(), s->median.begin() + s->median.size() / 2, s->median.end());
+    ctx.median_sigma_px = s->median[s->median.size() / 2];
+  }
   // Photometry needs a flux on every centroid; equal fluxes (e.g. all 1) carry no evidence.
   ctx.photometry = o.use_photometry && !c.empty();
   for (const auto& x : c) ctx.photometry = ctx.photometry && x.flux > 0 && std::isfinite(std::log(x.flux));
@@ -448,9 +630,23 @@ Context MakeContext(const StarIdentifier* id, const std::vector<Centroid>& c, co
 
 void CheckCentroids(const std::vector<Centroid>& c) {
   for (size_t i = 0; i < c.size(); ++i) {
-    if (!std::isfinite(c[i].x_px) || !std::isfinite(c[i].y_px) || !std::isfinite(c[i].flux) || !(c[i].sigma_px >= 0))
+    if (!Usable(c[i]))
       throw InputError("centroids", "row " + std::to_string(i + 1) + ": non-finite position, flux or sigma");
   }
+}
+
+// *out emptied for a new call, keeping the room of its matches and message.
+void Reset(Identification* out) {
+  std::vector<StarMatch> matches = std::move(out->matches);
+  std::string message = std::move(out->message);
+  std::map<std::string, double> timing = std::move(out->timing_ms);
+  matches.clear();
+  message.clear();
+  timing.clear();
+  *out = Identification{};
+  out->matches = std::move(matches);
+  out->message = std::move(message);
+  out->timing_ms = std::move(timing);
 }
 
 // Chance that k or more of n random centroids fall within radius_px of one of n_cat predicted stars.
@@ -493,37 +689,9 @@ double PhotometricEvidence(const std::vector<double>& pair_flux, const std::vect
                            const std::vector<double>& other_flux) {
   if (pair_flux.size() < 3 || pair_flux.size() != pair_mag.size())
     throw InputError("photometry", "need >= 3 pairs with a magnitude each");
-  int disc = 0;
-  for (int i = 0; i < 3; ++i)
-    for (int j = i + 1; j < 3; ++j) disc += !((pair_flux[i] - pair_flux[j]) * (pair_mag[i] - pair_mag[j]) < 0);
-  static constexpr double kTriP[4] = {1.0 / 6, 3.0 / 6, 5.0 / 6, 1.0};
-  static constexpr double kTriC = 1.0 + 2.0 / 3 + 2.0 / 5 + 1.0 / 6;  // sum over the atoms of P(p = t) / t
-  double e = 1.0 / (kTriP[disc] * kTriC);
-  const double k_mag = 0.4 * std::log(10.0);
-  std::vector<double> zp;  // ln f + 0.4 ln(10) V of the pairs so far: the zero point
-  for (int i = 0; i < 3; ++i) zp.push_back(std::log(pair_flux[i]) + k_mag * pair_mag[i]);
-  for (size_t i = 3; i < pair_flux.size(); ++i) {
-    std::vector<double> z = zp;
-    std::sort(z.begin(), z.end());
-    const size_t h = z.size() / 2;
-    const double ln_k = z.size() % 2 ? z[h] : 0.5 * (z[h - 1] + z[h]);
-    const double pred = ln_k - k_mag * pair_mag[i];
-    const double d = std::abs(std::log(pair_flux[i]) - pred);
-    // The pool: this match and the later ones, and the centroids in no pair (K counts ties in).
-    int pool = 0, within = 0;
-    auto count = [&](double f) { ++pool, within += std::abs(std::log(f) - pred) <= d; };
-    for (size_t q = i; q < pair_flux.size(); ++q) count(pair_flux[q]);
-    for (double f : other_flux) count(f);
-    double h_n = 0, s_n = 0;
-    for (int k = 1; k <= pool; ++k) h_n += 1.0 / k, s_n += 1.0 / (static_cast<double>(k) * k);
-    const double kk = std::max(1, within);
-    // The mean of two calibrators, each of mean 1 for K uniform on {1..N}: 1 / (p H_N) and the steeper
-    // N / (K^2 S_N), S_N = sum 1/k^2 (~N / 1.64 for K = 1 instead of N / H_N, ~N / 4.3 at N = 40; it
-    // falls faster with K, so the mean keeps most of the harmonic one's value for noisy fluxes).
-    e *= 0.5 * (pool / (kk * h_n) + pool / (kk * kk * s_n));
-    zp.push_back(std::log(pair_flux[i]) + k_mag * pair_mag[i]);
-  }
-  return e;
+  std::vector<double> zp, z;
+  return PhotometricEvidenceOf(pair_flux.data(), pair_mag.data(), pair_flux.size(), other_flux.data(),
+                               other_flux.size(), &zp, &z);
 }
 
 double BinomialTail(int n, double p, int k) {
@@ -562,39 +730,44 @@ namespace {
 
 // Step 1 of docs/identify.md: the focal-length scale searched, as the range [lo, hi] of f_true /
 // f_nominal: +/- the tolerance, or with an unknown FOV the range's focal lengths around their
-// geometric mean (the camera returned then has that mean focal length).
-Camera SearchedCamera(const Camera& camera_in, const IdentifyOptions& o, const SolverCatalog& catalog, double* scale_lo,
-                      double* scale_hi) {
-  Camera camera = camera_in;
+// geometric mean (the camera returned then has that mean focal length). False when the catalog does
+// not serve that range (*why, when given, says so).
+bool SearchedCamera(const Camera& camera_in, const IdentifyOptions& o, const SolverCatalog& catalog, Camera* camera,
+                    double* scale_lo, double* scale_hi, std::string* why) {
+  *camera = camera_in;
   *scale_lo = 1 - o.fov_tolerance_pct / 100.0, *scale_hi = 1 + o.fov_tolerance_pct / 100.0;
-  if (!o.FovRange()) return camera;
+  if (!o.FovRange()) return true;
   const double cat_min = catalog.fov_min_deg > 0 ? catalog.fov_min_deg : catalog.fov_deg;
   if (o.fov_max_deg > catalog.fov_deg * (1 + kCatalogFovTolerance) ||
       o.fov_min_deg < cat_min * (1 - kCatalogFovTolerance)) {
-    char msg[200];
-    std::snprintf(msg, sizeof msg, "built for fields of view %.2f-%.2f deg, the search needs %.2f-%.2f deg", cat_min,
-                  catalog.fov_deg, o.fov_min_deg, o.fov_max_deg);
-    throw InputError(catalog.source, msg);
+    if (why) {
+      char msg[200];
+      std::snprintf(msg, sizeof msg, "built for fields of view %.2f-%.2f deg, the search needs %.2f-%.2f deg", cat_min,
+                    catalog.fov_deg, o.fov_min_deg, o.fov_max_deg);
+      *why = msg;
+    }
+    return false;
   }
-  const double f_hi = 0.5 * camera.width / std::tan(0.5 * o.fov_min_deg * kDegToRad);
-  const double f_lo = 0.5 * camera.width / std::tan(0.5 * o.fov_max_deg * kDegToRad);
+  const double f_hi = 0.5 * camera->width / std::tan(0.5 * o.fov_min_deg * kDegToRad);
+  const double f_lo = 0.5 * camera->width / std::tan(0.5 * o.fov_max_deg * kDegToRad);
   const double f0 = std::sqrt(f_lo * f_hi);
-  camera.ScaleFocal(f0 / camera.focal_length_px);
+  camera->ScaleFocal(f0 / camera->focal_length_px);
   *scale_lo = f_lo / f0;
   *scale_hi = f_hi / f0;
-  return camera;
+  return true;
 }
 
-// Angles between the k_pat brightest centroids (row-major k_pat x k_pat), once: a deep search forms
-// each pair's side in many triangles.
-std::vector<double> PatternAngles(const std::vector<Centroid>& centroids, const Context& ctx, const Camera& camera,
-                                  int k_pat) {
-  std::vector<Vec3> u(k_pat);
+// Angles between the k_pat brightest centroids (row-major k_pat x k_pat, in ctx.s->ang), once: a deep
+// search forms each pair's side in many triangles.
+const std::vector<double>& PatternAngles(const Context& ctx, const Camera& camera, int k_pat) {
+  std::vector<Vec3>& u = ctx.s->unit;
+  u.resize(k_pat);
   for (int i = 0; i < k_pat; ++i) {
-    const auto& c = centroids[ctx.order[i]];
+    const Centroid& c = ctx.c[ctx.order[i]];
     u[i] = camera.Unproject(Vec2(c.x_px, c.y_px));
   }
-  std::vector<double> ang(static_cast<size_t>(k_pat) * k_pat, 0.0);
+  std::vector<double>& ang = ctx.s->ang;
+  ang.assign(static_cast<size_t>(k_pat) * k_pat, 0.0);
   for (int i = 0; i < k_pat; ++i)
     for (int j = i + 1; j < k_pat; ++j) ang[i * k_pat + j] = ang[j * k_pat + i] = Angle(u[i], u[j]);
   return ang;
@@ -617,8 +790,7 @@ struct TriangleMatch {
 // opposite sides agree, each within side_sigmas of its own error, and the handedness is the same (a
 // rotation cannot mirror a triangle); then *cam (its focal length scaled by the sides when searched),
 // *rot (Wahba on the three pairs) and the centroids and catalog stars of the triangle.
-bool TriangleHypothesis(const Context& ctx, const IdentifyOptions& o, const std::vector<Centroid>& centroids,
-                        const CatalogTriangle& t, const TriangleMatch& m, bool focal_searched, Camera* cam, Mat3* rot,
+bool TriangleHypothesis(const Context& ctx, const IdentifyOptions& o, const CatalogTriangle& t, const TriangleMatch& m, bool focal_searched, Camera* cam, Mat3* rot,
                         int tri_c[3], int tri_s[3]) {
   const int* pm = m.pm;
   // A side's error (two centroids' errors along it) has a sigma <= sqrt(2) sig_tri / f. With the
@@ -641,15 +813,14 @@ bool TriangleHypothesis(const Context& ctx, const IdentifyOptions& o, const std:
   for (int i = 0; i < 3; ++i) {
     tri_c[i] = ctx.order[m.vtx[i]];
     tri_s[i] = t.v[pm[i]];
-    const auto& cc = centroids[tri_c[i]];
+    const Centroid& cc = ctx.c[tri_c[i]];
     bv[i] = cam->Unproject(Vec2(cc.x_px, cc.y_px));
   }
   const double db = bv[0].dot(bv[1].cross(bv[2]));
   const double dr = m.r[pm[0]]->dot(m.r[pm[1]]->cross(*m.r[pm[2]]));
   if (db * dr <= 0) return false;
-  std::vector<VectorPair> pairs;
-  for (int i = 0; i < 3; ++i) pairs.push_back({bv[i], *m.r[pm[i]], 1.0});
-  *rot = SolveWahbaSvd(pairs).toRotationMatrix();
+  const VectorPair pairs[3] = {{bv[0], *m.r[pm[0]], 1.0}, {bv[1], *m.r[pm[1]], 1.0}, {bv[2], *m.r[pm[2]], 1.0}};
+  *rot = SolveWahbaSvd(pairs, 3).toRotationMatrix();
   return true;
 }
 
@@ -666,32 +837,35 @@ struct ChanceTerms {
 // roll of a small clump of stars, by far more than the reported sigma. A rejected extra match is no
 // evidence: the chance is recomputed without it. False: the hypothesis is not kept after all.
 bool FinishHypothesis(const Context& ctx, const IdentifyOptions& o, const Camera& cam, const Mat3& rot,
-                      HypothesisTest ht, const ChanceTerms& ct, bool focal_searched, size_t n_centroids,
+                      const HypothesisTest& ht, const ChanceTerms& ct, bool focal_searched, bool diagnostics,
                       Identification* out) {
-  std::vector<int> test_extras;  // centroids of the test's extra matches (its evidence)
-  for (size_t i = 3; i < ht.v.matches.size(); ++i) test_extras.push_back(ht.v.matches[i].centroid);
-  const std::vector<StarMatch> ht_matches = ht.v.matches;
-  Refined rf = Refine(ctx, o, cam, rot, std::move(ht.v));
-  std::vector<char> excluded(n_centroids, 0);
+  Scratch& s = *ctx.s;
+  const std::vector<StarMatch>& ht_matches = s.test;  // the test's: the triangle's three, then the extras
+  s.test_extras.clear();  // centroids of the test's extra matches (its evidence)
+  for (size_t i = 3; i < ht_matches.size(); ++i) s.test_extras.push_back(ht_matches[i].centroid);
+  s.cur.assign(ht_matches.begin(), ht_matches.end());
+  Refined rf = Refine(ctx, o, cam, rot, ht.n_cat);
+  std::vector<char>& excluded = s.excluded;
+  excluded.assign(ctx.n, 0);
   int rejected = 0, lost_evidence = 0;
-  for (int worst; (worst = WorstOutlier(ctx, o, rf.v.matches, rf.cam, rf.r, focal_searched)) >= 0;) {
-    if (++rejected > kMaxOutliers || rf.v.matches.size() <= 3) break;
-    const int ci = rf.v.matches[worst].centroid;
+  for (int worst; (worst = WorstOutlier(ctx, o, s.cur, rf.cam, rf.r, focal_searched)) >= 0;) {
+    if (++rejected > kMaxOutliers || s.cur.size() <= 3) break;
+    const int ci = s.cur[worst].centroid;
     excluded[ci] = 1;
-    lost_evidence += static_cast<int>(std::count(test_extras.begin(), test_extras.end(), ci));
-    rf.v.matches.erase(rf.v.matches.begin() + worst);
-    rf = Refine(ctx, o, rf.cam, rf.r, std::move(rf.v), &excluded);
+    lost_evidence += static_cast<int>(std::count(s.test_extras.begin(), s.test_extras.end(), ci));
+    s.cur.erase(s.cur.begin() + worst);
+    rf = Refine(ctx, o, rf.cam, rf.r, rf.n_cat, &excluded);
   }
-  if (rejected > kMaxOutliers || static_cast<int>(rf.v.matches.size()) < o.min_matches) return false;
+  if (rejected > kMaxOutliers || static_cast<int>(s.cur.size()) < o.min_matches) return false;
   double prob_final = ct.prob, phot_final = ct.phot;
   if (lost_evidence > 0) {
     // The test again without the rejected evidence (u kept: an upper bound).
     const int j = ht.extra - lost_evidence;
     if (j + 3 < o.min_matches) return false;
-    std::vector<StarMatch> kept(ht_matches.begin(), ht_matches.begin() + 3);
+    s.kept.assign(ht_matches.begin(), ht_matches.begin() + 3);
     for (size_t i = 3; i < ht_matches.size(); ++i)
-      if (!excluded[ht_matches[i].centroid]) kept.push_back(ht_matches[i]);
-    phot_final = PhotometricFactor(ctx, kept);
+      if (!excluded[ht_matches[i].centroid]) s.kept.push_back(ht_matches[i]);
+    phot_final = PhotometricFactor(ctx, s.kept);
     prob_final = std::min(1.0, BinomialTail(ctx.m - 3, ct.u, j) * CountFactor(j) * phot_final * ct.hyp * ct.seq_factor);
     if (prob_final >= o.max_false_match_prob) return false;
   }
@@ -705,46 +879,117 @@ bool FinishHypothesis(const Context& ctx, const IdentifyOptions& o, const Camera
   out->focal_length_fitted = focal_searched;
   if (focal_searched) {
     // The scale's 1-sigma from the pixel fit's normal equations (rotation and scale jointly).
-    const Eigen::Matrix4d h = Linearize(ctx, rf.v.matches, rf.cam, rf.r).h;
+    const Eigen::Matrix4d h = Linearize(ctx, s.cur, rf.cam, rf.r).h;
     const double var = h.ldlt().solve(Vec4::UnitW())[3];
     out->focal_length_sigma_px = var > 0 ? std::sqrt(var) * rf.cam.focal_length_px : std::nan("");
   }
   out->outliers_rejected = rejected;
-  out->matches = std::move(rf.v.matches);
+  out->matches.assign(s.cur.begin(), s.cur.end());
+  ToInputIndices(s, out);
   out->hypotheses = ct.hyp;
-  out->catalog_stars_in_field = rf.v.n_cat;
-  out->message = std::to_string(out->matches.size()) + " stars matched (" + std::to_string(ct.k) + " in the test";
-  if (rejected > 0) out->message += ", " + std::to_string(rejected) + " left out as inconsistent";
-  out->message += ")";
+  out->catalog_stars_in_field = rf.n_cat;
+  if (diagnostics) {
+    out->message = std::to_string(out->matches.size()) + " stars matched (" + std::to_string(ct.k) + " in the test";
+    if (rejected > 0) out->message += ", " + std::to_string(rejected) + " left out as inconsistent";
+    out->message += ")";
+  }
   return true;
 }
 
 }  // namespace
 
-Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, const Camera& camera_in,
+IdentifyWorkspace::IdentifyWorkspace(int max_centroids, int max_stars_in_field, int max_pattern_centroids) {
+  auto bad = [](const std::string& f, const std::string& w) { throw InputError("identify workspace", f + " " + w); };
+  if (max_centroids < 1 || max_centroids > 100000) bad("max_centroids", "must be in [1, 100000]");
+  if (max_stars_in_field < 1 || max_stars_in_field > 1000000) bad("max_stars_in_field", "must be in [1, 1000000]");
+  if (max_pattern_centroids < 3 || max_pattern_centroids > 1000) bad("max_pattern_centroids", "must be in [3, 1000]");
+  if (static_cast<double>(max_centroids) * max_stars_in_field * sizeof(Cand) > 1e9)
+    bad("max_centroids x max_stars_in_field", "needs more than 1 GB of match candidates");
+  s_ = std::make_unique<Scratch>(max_centroids, max_stars_in_field, max_pattern_centroids, false);
+}
+
+IdentifyWorkspace::IdentifyWorkspace() : s_(std::make_unique<Scratch>(0, 0, 0, true)) {}
+IdentifyWorkspace::~IdentifyWorkspace() = default;
+IdentifyWorkspace::IdentifyWorkspace(IdentifyWorkspace&&) noexcept = default;
+IdentifyWorkspace& IdentifyWorkspace::operator=(IdentifyWorkspace&&) noexcept = default;
+
+int IdentifyWorkspace::max_centroids() const { return static_cast<int>(s_->max_centroids); }
+int IdentifyWorkspace::max_stars_in_field() const { return static_cast<int>(s_->max_stars); }
+int IdentifyWorkspace::max_pattern_centroids() const { return static_cast<int>(s_->max_pattern); }
+void IdentifyWorkspace::Reserve(Identification* out) const { out->matches.reserve(s_->max_centroids); }
+size_t IdentifyWorkspace::Bytes() const { return sizeof(*this) + s_->Bytes(); }
+
+Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, const Camera& camera,
                                         const IdentifyOptions& o) const {
-  const auto t0 = Clock::now();
+  // What the workspace form reports as data, refused here as before (it does not throw).
   o.Check();
-  camera_in.Check();
+  camera.Check();
   CheckCentroids(centroids);
-  double scale_lo = 1, scale_hi = 1;
-  const Camera camera = SearchedCamera(camera_in, o, catalog_, &scale_lo, &scale_hi);
-  const bool focal_searched = o.FocalSearched();
+  Camera searched;
+  double lo = 1, hi = 1;
+  std::string why;
+  if (!SearchedCamera(camera, o, catalog_, &searched, &lo, &hi, &why)) throw InputError(catalog_.source, why);
+  if (static_cast<int>(centroids.size()) >= o.min_matches && index_->Empty())
+    throw InputError(catalog_.source, "catalog has no pattern index");
+  IdentifyWorkspace ws;
+  ws.diagnostics = true;
   Identification out;
-  // Unknown FOV: no focal length until one is found (null in the JSON).
-  out.focal_length_px = o.FovRange() ? std::nan("") : camera.focal_length_px;
-  out.focal_length_y_px = o.FovRange() ? std::nan("") : camera.FocalYPx();
-  const int n = static_cast<int>(centroids.size());
-  if (n < o.min_matches) {
-    out.status = SolveStatus::kTooFewStars;
-    out.message = std::to_string(n) + " centroids, need at least " + std::to_string(o.min_matches);
-    out.timing_ms["identify"] = MsSince(t0);
-    return out;
+  Identify(centroids.data(), centroids.size(), camera, o, &ws, &out);
+  return out;
+}
+
+Identification StarIdentifier::MatchWithAttitude(const std::vector<Centroid>& centroids, const Camera& camera,
+                                                 const Quat& q_predicted, double search_radius_px,
+                                                 const IdentifyOptions& o) const {
+  o.Check();
+  CheckCentroids(centroids);
+  IdentifyWorkspace ws;
+  ws.diagnostics = true;
+  Identification out;
+  MatchWithAttitude(centroids.data(), centroids.size(), camera, q_predicted, search_radius_px, o, &ws, &out);
+  return out;
+}
+
+SolveStatus StarIdentifier::Identify(const Centroid* centroids, size_t n_centroids, const Camera& camera_in,
+                                     const IdentifyOptions& o, IdentifyWorkspace* ws, Identification* out) const {
+  const bool diag = ws->diagnostics;
+  const auto t0 = diag ? Clock::now() : Clock::time_point();
+  Scratch& sc = *ws->s_;
+  Reset(out);
+  double scale_lo = 1, scale_hi = 1;
+  Camera camera;
+  if (!SearchedCamera(camera_in, o, catalog_, &camera, &scale_lo, &scale_hi, diag ? &out->message : nullptr)) {
+    out->status = SolveStatus::kNoMatch;
+    out->input_error = true;
+    return out->status;
   }
-  if (index_->Empty()) throw InputError(catalog_.source, "catalog has no pattern index");
-  const Context ctx = MakeContext(this, centroids, o);
-  const int k_pat = std::min(o.pattern_centroids, n);
-  const std::vector<double> ang = PatternAngles(centroids, ctx, camera, k_pat);
+  const bool focal_searched = o.FocalSearched();
+  // Unknown FOV: no focal length until one is found (null in the JSON).
+  out->focal_length_px = o.FovRange() ? std::nan("") : camera.focal_length_px;
+  out->focal_length_y_px = o.FovRange() ? std::nan("") : camera.FocalYPx();
+  TakeCentroids(centroids, n_centroids, &sc, out);
+  const int n = static_cast<int>(sc.centroids.size());
+  if (n < o.min_matches) {
+    out->status = SolveStatus::kTooFewStars;
+    if (diag) {
+      out->message = std::to_string(n) + " centroids, need at least " + std::to_string(o.min_matches);
+      out->timing_ms["identify"] = MsSince(t0);
+    }
+    return out->status;
+  }
+  if (index_->Empty()) {
+    out->status = SolveStatus::kNoMatch;
+    out->input_error = true;
+    if (diag) out->message = "catalog has no pattern index";
+    return out->status;
+  }
+  const Context ctx = MakeContext(this, index_.get(), &sc, out, o);
+  int k_pat = std::min(o.pattern_centroids, n);
+  if (!sc.grow && k_pat > static_cast<int>(sc.max_pattern)) {
+    k_pat = static_cast<int>(sc.max_pattern);
+    out->centroids_clamped = true;
+  }
+  const std::vector<double>& ang = PatternAngles(ctx, camera, k_pat);
   // Side tolerances hold along both axes; angles are at the nominal focal length (the side checks
   // against the catalog, in true angles, are then looser by the scale at most).
   const double f = camera.FocalMinPx();
@@ -762,27 +1007,32 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
   const double seq_factor = 1.0 + std::log(static_cast<double>(o.max_hypotheses));
   const double deadline_cpu_ms = o.timeout_ms > 0 ? ThreadCpuMs() + o.timeout_ms : 0.0;
 
-  std::vector<std::vector<int>> idx(1);
   int hyp = 0, patterns = 0;
   double best_prob = 1.0;
   int best_k = 0;
-  auto give_up = [&](SearchStop stop, const std::string& why) {
-    out.status = SolveStatus::kNoMatch;
-    out.stop = stop;
-    out.message =
-        why + " (best " + std::to_string(best_k) + " matches, chance probability " + std::to_string(best_prob) + ")";
-    out.hypotheses = hyp;
-    out.patterns = patterns;
-    out.false_match_probability = best_prob;
-    out.timing_ms["identify"] = MsSince(t0);
-    return out;
+  auto give_up = [&](SearchStop stop) {
+    out->status = SolveStatus::kNoMatch;
+    out->stop = stop;
+    out->hypotheses = hyp;
+    out->patterns = patterns;
+    out->false_match_probability = best_prob;
+    if (diag) {
+      std::string why;
+      if (stop == SearchStop::kTimeout) why = "timed out after " + std::to_string(hyp) + " hypotheses";
+      if (stop == SearchStop::kPatternBudget) why = "gave up after " + std::to_string(patterns) + " patterns";
+      if (stop == SearchStop::kHypothesisBudget) why = "gave up after " + std::to_string(hyp) + " hypotheses";
+      if (stop == SearchStop::kExhausted) why = "no hypothesis verified (" + std::to_string(hyp) + " tried)";
+      out->message =
+          why + " (best " + std::to_string(best_k) + " matches, chance probability " + std::to_string(best_prob) + ")";
+      out->timing_ms["identify"] = MsSince(t0);
+    }
+    return out->status;
   };
   static const int kPerm[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
   // Triangles brightest first: all triangles whose faintest vertex is c come before c + 1.
   for (int c = 2; c < k_pat; ++c) {
     for (int b = 1; b < c; ++b) {
-      if (o.timeout_ms > 0 && ThreadCpuMs() > deadline_cpu_ms)
-        return give_up(SearchStop::kTimeout, "timed out after " + std::to_string(hyp) + " hypotheses");
+      if (o.timeout_ms > 0 && ThreadCpuMs() > deadline_cpu_ms) return give_up(SearchStop::kTimeout);
       for (int a = 0; a < b; ++a) {
         const int vtx[3] = {a, b, c};
         // Side-length tolerance (rad) from this triangle's own centroid noise (a poorly measured
@@ -799,35 +1049,34 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
         // longest side: the focal-length range plus tol / c (relative, at the smallest scale).
         const double tol_r = tol_side * std::sqrt(2.0) / s[2] + 1e-4;
         const double tol_l = ln_half + 1.1 * tol_side / (s[2] * scale_lo) + 1e-4;
-        std::vector<int>& cand = idx[0];
-        cand.clear();
-        if (patterns == o.max_patterns)
-          return give_up(SearchStop::kPatternBudget, "gave up after " + std::to_string(patterns) + " patterns");
+        if (patterns == o.max_patterns) return give_up(SearchStop::kPatternBudget);
         ++patterns;
-        index_->ForEachInBox(s[0] / s[2], s[1] / s[2], std::log(s[2]) - ln_mid, tol_r, tol_l, catalog_,
-                             [&](int ti) { cand.push_back(ti); });
-        for (int ti : idx[0]) {
+        bool ended = false;  // a budget reached or a hypothesis accepted: *out is the answer
+        index_->ForEachInBox(s[0] / s[2], s[1] / s[2], std::log(s[2]) - ln_mid, tol_r, tol_l, catalog_, [&](int ti) {
           const CatalogTriangle& t = catalog_.triangles[ti];
           const Vec3* r[3] = {&catalog_.stars[t.v[0]].unit, &catalog_.stars[t.v[1]].unit, &catalog_.stars[t.v[2]].unit};
           // Catalog sides from the stored features (vertex i is opposite side i, shortest first).
           const double cside[3] = {t.ratio_a * static_cast<double>(t.longest_rad),
                                    t.ratio_b * static_cast<double>(t.longest_rad), static_cast<double>(t.longest_rad)};
           const double scale0 = s[2] / t.longest_rad;  // observed / catalog angle ~ f_true / f_nominal
-          if (scale0 < scale_lo - tol_side / s[2] || scale0 > scale_hi + tol_side / s[2]) continue;
+          if (scale0 < scale_lo - tol_side / s[2] || scale0 > scale_hi + tol_side / s[2]) return true;
           for (const auto& pm : kPerm) {
             TriangleMatch tm{vtx, pm, side, cside, r, side_sigma, s[2], scale0};
             Camera cam = camera;
             Mat3 rot;
             int tri_c[3], tri_s[3];
-            if (!TriangleHypothesis(ctx, o, centroids, t, tm, focal_searched, &cam, &rot, tri_c, tri_s)) continue;
-            if (hyp == o.max_hypotheses)
-              return give_up(SearchStop::kHypothesisBudget, "gave up after " + std::to_string(hyp) + " hypotheses");
+            if (!TriangleHypothesis(ctx, o, t, tm, focal_searched, &cam, &rot, tri_c, tri_s)) continue;
+            if (hyp == o.max_hypotheses) {
+              give_up(SearchStop::kHypothesisBudget);
+              ended = true;
+              return false;
+            }
             ++hyp;
             // Unknown FOV: hundreds of catalog triangles fit each query; skip the full test (which
             // predicts every catalog star in the field) unless one of the brightest other centroids
             // has a catalog star within its test radius. A skipped hypothesis still counts in h.
             if (o.FovRange() && !AnyBrightCentroidNearAStar(ctx, o, cam, rot, tri_c)) continue;
-            HypothesisTest ht = TestHypothesis(ctx, o, cam, rot, tri_c, tri_s, focal_searched);
+            const HypothesisTest ht = TestHypothesis(ctx, o, cam, rot, tri_c, tri_s, focal_searched);
             const int k = ht.extra + 3;
             if (k < o.min_matches) continue;
             // Three matches are the hypothesis itself; the others are the evidence: j = extra
@@ -843,86 +1092,94 @@ Identification StarIdentifier::Identify(const std::vector<Centroid>& centroids, 
             const double u = ht.p_hit * ht.worst;
             const double j_factor = CountFactor(ht.extra);
             // Photometry (PhotometricFactor): an independent test of the same null, <= 2.
-            const double phot = PhotometricFactor(ctx, ht.v.matches);
+            const double phot = PhotometricFactor(ctx, sc.test);
             const double prob =
                 std::min(1.0, BinomialTail(ctx.m - 3, u, ht.extra) * j_factor * phot * hyp * seq_factor);
             if (prob < best_prob) best_prob = prob, best_k = k;
             if (prob >= o.max_false_match_prob) continue;
             // Accepted: refined, outliers left out (FinishHypothesis).
-            if (!FinishHypothesis(ctx, o, cam, rot, std::move(ht), {u, prob, phot, seq_factor, hyp, k}, focal_searched,
-                                  centroids.size(), &out))
+            if (!FinishHypothesis(ctx, o, cam, rot, ht, {u, prob, phot, seq_factor, hyp, k}, focal_searched, diag, out))
               continue;
-            out.patterns = patterns;
-            out.stop = SearchStop::kAccepted;
-            out.timing_ms["identify"] = MsSince(t0);
-            return out;
+            out->patterns = patterns;
+            out->stop = SearchStop::kAccepted;
+            if (diag) out->timing_ms["identify"] = MsSince(t0);
+            ended = true;
+            return false;
           }
-        }
+          return true;
+        });
+        if (ended) return out->status;
       }
     }
   }
-  return give_up(SearchStop::kExhausted, "no hypothesis verified (" + std::to_string(hyp) + " tried)");
+  return give_up(SearchStop::kExhausted);
 }
 
-Identification StarIdentifier::MatchWithAttitude(const std::vector<Centroid>& centroids, const Camera& camera,
-                                                 const Quat& q_predicted, double search_radius_px,
-                                                 const IdentifyOptions& o) const {
-  const auto t0 = Clock::now();
-  o.Check();
+SolveStatus StarIdentifier::MatchWithAttitude(const Centroid* centroids, size_t n_centroids, const Camera& camera,
+                                              const Quat& q_predicted, double search_radius_px,
+                                              const IdentifyOptions& o, IdentifyWorkspace* ws,
+                                              Identification* out) const {
+  const bool diag = ws->diagnostics;
+  const auto t0 = diag ? Clock::now() : Clock::time_point();
+  Scratch& sc = *ws->s_;
+  Reset(out);
   const int min_k = std::max(o.min_matches, kMinTrackedMatches);
-  CheckCentroids(centroids);
-  Identification out;
-  out.focal_length_px = camera.focal_length_px;
-  out.focal_length_y_px = camera.FocalYPx();
-  const int n = static_cast<int>(centroids.size());
+  out->focal_length_px = camera.focal_length_px;
+  out->focal_length_y_px = camera.FocalYPx();
+  TakeCentroids(centroids, n_centroids, &sc, out);
+  const int n = static_cast<int>(sc.centroids.size());
   if (n < min_k) {
-    out.status = SolveStatus::kTooFewStars;
-    out.message = std::to_string(n) + " centroids, need at least " + std::to_string(min_k);
-    return out;
+    out->status = SolveStatus::kTooFewStars;
+    if (diag) out->message = std::to_string(n) + " centroids, need at least " + std::to_string(min_k);
+    return out->status;
   }
-  const Context ctx = MakeContext(this, centroids, o);
+  const Context ctx = MakeContext(this, index_.get(), &sc, out, o);
   const Mat3 r_pred = q_predicted.normalized().toRotationMatrix();
-  Verification v = Verify(ctx, camera, r_pred, std::max(search_radius_px, ctx.match_radius_px));
-  const size_t initial_pairs = v.matches.size();
-  if (static_cast<int>(v.matches.size()) < min_k) {
-    out.status = SolveStatus::kNoMatch;
-    out.message = "lost lock: " + std::to_string(v.matches.size()) + " stars near their predicted positions";
-    out.timing_ms["identify"] = MsSince(t0);
-    return out;
+  const int n_cat0 = Verify(ctx, camera, r_pred, std::max(search_radius_px, ctx.match_radius_px), nullptr, &sc.cur);
+  const size_t initial_pairs = sc.cur.size();
+  if (static_cast<int>(sc.cur.size()) < min_k) {
+    out->status = SolveStatus::kNoMatch;
+    if (diag) {
+      out->message = "lost lock: " + std::to_string(sc.cur.size()) + " stars near their predicted positions";
+      out->timing_ms["identify"] = MsSince(t0);
+    }
+    return out->status;
   }
   IdentifyOptions fixed = o;
   fixed.fov_tolerance_pct = 0;  // tracking keeps the focal length found when the lock was acquired
-  Refined rf = Refine(ctx, fixed, camera, r_pred, std::move(v));
-  const int k = static_cast<int>(rf.v.matches.size());
+  const Refined rf = Refine(ctx, fixed, camera, r_pred, n_cat0);
+  const int k = static_cast<int>(sc.cur.size());
   // The refit attitude has three free parameters that can line up a few wrong pairs (a 5-degree
   // jump found 5 such matches in a test): count them out as in lost in space, take a Bonferroni
   // factor for the candidate pairs of the wide first search, and require that a fair share of the
   // stars that should be visible are matched.
   const double n_pairs = std::max(1.0, static_cast<double>(initial_pairs));
   const double prob =
-      std::min(1.0, ChanceProbability(ctx.m - 3, rf.v.n_cat, ctx.match_radius_px, camera, k - 3) * n_pairs);
-  const double expected = std::min(rf.v.n_cat, ctx.m);
-  out.false_match_probability = prob;
+      std::min(1.0, ChanceProbability(ctx.m - 3, rf.n_cat, ctx.match_radius_px, camera, k - 3) * n_pairs);
+  const double expected = std::min(rf.n_cat, ctx.m);
+  out->false_match_probability = prob;
   if (k < kMinTrackedFraction * expected) {
-    out.status = SolveStatus::kNoMatch;
-    out.message = "lost lock: " + std::to_string(k) + " of " + std::to_string(static_cast<int>(expected)) +
-                  " predicted stars matched";
-    return out;
+    out->status = SolveStatus::kNoMatch;
+    if (diag)
+      out->message = "lost lock: " + std::to_string(k) + " of " + std::to_string(static_cast<int>(expected)) +
+                     " predicted stars matched";
+    return out->status;
   }
-  out.hypotheses = 1;
-  out.catalog_stars_in_field = rf.v.n_cat;
-  out.timing_ms["identify"] = MsSince(t0);
+  out->hypotheses = 1;
+  out->catalog_stars_in_field = rf.n_cat;
+  if (diag) out->timing_ms["identify"] = MsSince(t0);
   if (k >= min_k && prob < o.max_false_match_prob) {
-    out.status = SolveStatus::kSolved;
-    out.q_inertial_from_sensor = Quat(rf.r).normalized();
-    if (out.q_inertial_from_sensor.w() < 0) out.q_inertial_from_sensor.coeffs() *= -1;
-    out.matches = std::move(rf.v.matches);
-    out.message = std::to_string(k) + " stars matched";
+    out->status = SolveStatus::kSolved;
+    out->q_inertial_from_sensor = Quat(rf.r).normalized();
+    if (out->q_inertial_from_sensor.w() < 0) out->q_inertial_from_sensor.coeffs() *= -1;
+    out->matches.assign(sc.cur.begin(), sc.cur.end());
+    ToInputIndices(sc, out);
+    if (diag) out->message = std::to_string(k) + " stars matched";
   } else {
-    out.status = SolveStatus::kNoMatch;
-    out.message = "lost lock: " + std::to_string(k) + " matches, chance probability " + std::to_string(prob);
+    out->status = SolveStatus::kNoMatch;
+    if (diag) out->message = "lost lock: " + std::to_string(k) + " matches, chance probability " + std::to_string(prob);
   }
-  return out;
+  return out->status;
 }
 
 }  // namespace ssiu

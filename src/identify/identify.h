@@ -5,6 +5,14 @@
 //   Identification r = id.Identify(centroids, camera, IdentifyOptions{});
 //   if (r.status == SolveStatus::kSolved) ... r.matches ...
 //
+// Without heap allocation after init (the flight core, issue 26): the same calls into a workspace
+// and a reused result (docs/identify.md, "Memory"):
+//
+//   IdentifyWorkspace ws(200, 800);  // allocates
+//   Identification r;
+//   ws.Reserve(&r);
+//   id.Identify(centroids, camera, options, &ws, &r);  // per frame: no allocation, no exception
+//
 // Method (docs/identify.md): triangles of the centroids in brightness order, deep into the list; the
 // side-length ratios (which do
 // not depend on the focal length) and the log of the longest side are looked up in a FLANN kd-tree
@@ -16,6 +24,7 @@
 // Accepted only below max_false_match_prob.
 #pragma once
 
+#include <cstddef>
 #include <map>
 #include <memory>
 #include <string>
@@ -130,6 +139,47 @@ struct Identification {
   SearchStop stop = SearchStop::kNone;
   int catalog_stars_in_field = 0;
   std::map<std::string, double> timing_ms;
+  // The workspace forms (IdentifyWorkspace): what was left out and why (the by-value forms throw
+  // InputError for a non-finite centroid or a catalog that does not serve the call instead).
+  int centroids_skipped = 0;       // centroids with a non-finite position or flux, or a sigma < 0 or NaN: not used
+  bool centroids_clamped = false;  // more usable centroids than max_centroids (the brightest were used), or
+                                   // pattern_centroids above max_pattern_centroids (that many used)
+  bool stars_clamped = false;      // more catalog stars about the field than max_stars_in_field (the brightest used)
+  bool input_error = false;        // the catalog has no pattern index or does not span the FOV range (no_match)
+};
+
+// The scratch storage of the workspace forms of StarIdentifier::Identify and MatchWithAttitude: made
+// once (it allocates all it needs, Bytes()), then a call allocates nothing, throws nothing and reads
+// no clock (but for IdentifyOptions::timeout_ms when set) when `diagnostics` is off and the result
+// was prepared with Reserve. Sizes: max_centroids usable centroids (more: the brightest, flagged
+// centroids_clamped), max_stars_in_field catalog stars in the circle about a field that identify
+// predicts from (half the diagonal + 5%; more: the brightest, flagged stars_clamped), and
+// max_pattern_centroids for IdentifyOptions::pattern_centroids. The match candidates take
+// max_centroids x max_stars_in_field x 16 bytes, most of the total. One call at a time per workspace.
+struct IdentifyWorkspace {
+  // InputError when a size is out of range (max_centroids in [1, 100000], max_stars_in_field in
+  // [1, 1000000], max_pattern_centroids in [3, 1000]).
+  IdentifyWorkspace(int max_centroids, int max_stars_in_field, int max_pattern_centroids = 100);
+  ~IdentifyWorkspace();
+  IdentifyWorkspace(IdentifyWorkspace&&) noexcept;
+  IdentifyWorkspace& operator=(IdentifyWorkspace&&) noexcept;
+
+  // On: a result's message and timing_ms are filled (allocating, reading the clock). Off: neither.
+  bool diagnostics = false;
+  // Room in out->matches for max_centroids matches, so that refilling *out never allocates.
+  void Reserve(Identification* out) const;
+  // Heap bytes held (construction's allocation).
+  size_t Bytes() const;
+  int max_centroids() const;
+  int max_stars_in_field() const;
+  int max_pattern_centroids() const;
+
+  struct Scratch;  // identify.cc
+
+ private:
+  friend class StarIdentifier;
+  IdentifyWorkspace();  // the by-value forms': no sizes, buffers that grow as needed
+  std::unique_ptr<Scratch> s_;
 };
 
 // `camera` with the focal lengths that `id` used (fitted when the focal length is searched); the aspect is kept.
@@ -142,7 +192,8 @@ class StarIdentifier {
   StarIdentifier(StarIdentifier&&) noexcept;
   StarIdentifier& operator=(StarIdentifier&&) noexcept;
 
-  // Lost in space.
+  // Lost in space. InputError for bad options, camera or centroids (any non-finite), or a catalog
+  // without the pattern index or the FOV range asked for.
   Identification Identify(const std::vector<Centroid>& centroids, const Camera& camera,
                           const IdentifyOptions& options) const;
   // Tracking: match directly against the stars predicted by q_predicted (search radius in pixels),
@@ -151,8 +202,29 @@ class StarIdentifier {
                                    const Quat& q_predicted, double search_radius_px,
                                    const IdentifyOptions& options) const;
 
+  // The same into *out (cleared and refilled) with the scratch storage of *ws: the one
+  // implementation, which the forms above wrap. Options and camera must have passed Check()
+  // (not checked here); a non-finite centroid is skipped (Identification::centroids_skipped), a catalog
+  // that cannot serve the call is input_error with status no_match. Allocates nothing and throws
+  // nothing (IdentifyWorkspace). Returns out->status.
+  SolveStatus Identify(const Centroid* centroids, size_t n_centroids, const Camera& camera,
+                       const IdentifyOptions& options, IdentifyWorkspace* ws, Identification* out) const;
+  SolveStatus Identify(const std::vector<Centroid>& centroids, const Camera& camera, const IdentifyOptions& options,
+                       IdentifyWorkspace* ws, Identification* out) const {
+    return Identify(centroids.data(), centroids.size(), camera, options, ws, out);
+  }
+  SolveStatus MatchWithAttitude(const Centroid* centroids, size_t n_centroids, const Camera& camera,
+                                const Quat& q_predicted, double search_radius_px, const IdentifyOptions& options,
+                                IdentifyWorkspace* ws, Identification* out) const;
+  SolveStatus MatchWithAttitude(const std::vector<Centroid>& centroids, const Camera& camera, const Quat& q_predicted,
+                                double search_radius_px, const IdentifyOptions& options, IdentifyWorkspace* ws,
+                                Identification* out) const {
+    return MatchWithAttitude(centroids.data(), centroids.size(), camera, q_predicted, search_radius_px, options, ws,
+                             out);
+  }
+
   const SolverCatalog& catalog() const { return catalog_; }
-  // Indices of catalog stars within radius_rad of the unit vector u.
+  // Indices of catalog stars within radius_rad of the unit vector u, brightest first (allocates).
   std::vector<int> StarsWithin(const Vec3& u, double radius_rad) const;
 
  private:

@@ -4,6 +4,7 @@
 // identification; the reported attitude and its covariance come from QUEST (attitude/quest.h).
 #pragma once
 
+#include <cstddef>
 #include <vector>
 
 #include "core/types.h"
@@ -18,5 +19,7 @@ struct VectorPair {
 
 // q_inertial_from_sensor minimising sum w |r - R b|^2. Needs >= 2 non-parallel pairs.
 Quat SolveWahbaSvd(const std::vector<VectorPair>& pairs);
+// The same over the n pairs at `pairs` (allocates nothing).
+Quat SolveWahbaSvd(const VectorPair* pairs, size_t n);
 
 }  // namespace ssiu

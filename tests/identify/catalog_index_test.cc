@@ -5,6 +5,8 @@
 // fit its catalog is refused.
 #include "identify/catalog_index.h"
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <sstream>
@@ -104,6 +106,50 @@ TEST(CatalogIndex, LoadedCatalogIsTheBuiltOneAndItsStoredIndexAnswersAsANewOne) 
     EXPECT_EQ(tg, tw) << "query " << i;
     EXPECT_FALSE(tw.empty());  // the triangle itself at least
   }
+}
+
+// The sky-cell lookup (no allocation) answers as the kd-tree's radius search, to the star: random
+// cones, cones at the poles and across right ascension 0/360, radii at a star's own distance (the
+// boundary), the whole sky; more stars than the room: the brightest; NaN: none.
+TEST(CatalogIndex, SkyCellLookupIsTheKdTreeSearch) {
+  const SolverCatalog& cat = Built20();
+  const CatalogIndex& index = *cat.index;
+  std::vector<int> buf(cat.stars.size());
+  auto cells = [&](const Vec3& u, double r) {
+    const size_t n = index.StarsWithin(u, r, buf.data(), buf.size());
+    return std::vector<int>(buf.begin(), buf.begin() + n);
+  };
+  Rng rng(23);
+  std::vector<std::pair<Vec3, double>> queries;
+  for (int i = 0; i < 3000; ++i) {
+    const Vec3 u = QuatFromUniform(rng.Uniform(), rng.Uniform(), rng.Uniform()).toRotationMatrix().col(2);
+    queries.push_back({u, rng.Uniform(0.0, 0.4)});
+    queries.push_back({u, rng.Uniform(0.0, 0.002)});
+    // A star at the edge: the radius of its own angle (either side of FLANN's float radius).
+    const Vec3& v = cat.stars[static_cast<size_t>(rng.Uniform(0, cat.stars.size() - 1))].unit;
+    const Vec3 w = (v + 0.05 * u).normalized();
+    queries.push_back({w, std::acos(std::clamp(w.dot(v), -1.0, 1.0))});
+  }
+  for (const Vec3& u : {Vec3(0, 0, 1), Vec3(0, 0, -1), Vec3(1, 0, 0), Vec3(-1, 1e-12, 0), Vec3(-1, -1e-12, 0),
+                        Vec3(0.3, 0, 0.95).normalized(), Vec3(-0.99, 0.01, 0.1).normalized()}) {
+    for (double r : {0.0, 0.05, 0.2, 1.0, 1.6, 3.2, 4.0}) queries.push_back({u, r});
+  }
+  for (const auto& [u, r] : queries) {
+    const std::vector<int> want = index.StarsWithin(u, r);
+    ASSERT_EQ(cells(u, r), want) << u.transpose() << " r " << r;
+    EXPECT_EQ(index.AnyStarWithin(u, r), !want.empty());
+  }
+  // Room for 5: the 5 brightest (lowest indices), and the count of all.
+  const Vec3 u = cat.stars[0].unit;
+  const std::vector<int> all = index.StarsWithin(u, 0.3);
+  ASSERT_GT(all.size(), 5u);
+  int five[5];
+  EXPECT_EQ(index.StarsWithin(u, 0.3, five, 5), all.size());
+  EXPECT_EQ(std::vector<int>(five, five + 5), std::vector<int>(all.begin(), all.begin() + 5));
+  EXPECT_EQ(index.StarsWithin(u, 0.3, nullptr, 0), all.size());
+  EXPECT_EQ(index.StarsWithin(Vec3(std::nan(""), 0, 1), 0.3, five, 5), 0u);
+  EXPECT_EQ(index.StarsWithin(u, std::nan(""), five, 5), 0u);
+  EXPECT_GT(index.SkyCellBytes(), cat.stars.size() * 28);
 }
 
 TEST(CatalogIndex, FormatThreeCatalogStillLoadsAndSolvesTheSame) {
