@@ -79,6 +79,8 @@ void BM_StarsWithin(benchmark::State& state) {
   }
   a.Report(state, calls);
   state.counters["stars_per_call"] = static_cast<double>(stars) / calls;
+  state.counters["sky_cell_bytes"] = static_cast<double>(index.SkyCellBytes());
+  state.counters["catalog_stars"] = static_cast<double>(testing::Bsc166().catalog().stars.size());
 }
 BENCHMARK(BM_StarsWithin)->Arg(0)->Arg(1);
 

@@ -8,6 +8,8 @@
 
 #include "attitude/quest.h"
 #include "attitude/star_solver.h"
+#include "core/astrometry.h"
+#include "core/catalog.h"
 #include "testing/alloc_count.h"
 
 namespace ssiu {
@@ -138,6 +140,40 @@ TEST(QuestAlloc, CentroidsIntoAReservedVectorAllocateNothing) {
   // sigma_px = scale * rms of the two axes' sigmas.
   EXPECT_DOUBLE_EQ(c[3].sigma_px, 1.5 * std::sqrt(0.5 * (0.04 * 0.04 + 0.08 * 0.08)));
   EXPECT_EQ(c[7].x_px, 73.5);
+}
+
+// What the unit's processor calls after identification: the sky corrections of the matches (proper
+// motion to the frame's date, aberration) allocate nothing, inactive (no time) or active.
+TEST(QuestAlloc, SkyCorrectionsAllocateNothing) {
+  CatalogBuildOptions co;
+  co.fov_deg = 20;
+  const StarIdentifier id(BuildSolverCatalog(LoadXplanetBsc(DefaultBscPath(), 5.0), co));
+  Identification ident;
+  ident.status = SolveStatus::kSolved;
+  for (int s = 0; s < 40; ++s) {
+    StarMatch m;
+    m.star = s;
+    m.r_inertial = id.catalog().stars[s].unit;
+    ident.matches.push_back(m);
+  }
+  SkyCorrections sky;
+  {
+    testing::AllocationCounter n;
+    ApplySkyCorrections(id, sky, &ident);
+    EXPECT_EQ(n.Count(), 0);
+  }
+  EXPECT_EQ(ident.matches[3].r_inertial, id.catalog().stars[3].unit);
+  sky.time = ParseUtcIso8601("2026-03-20T09:01:00Z", "t");
+  sky.have_velocity = true;
+  sky.velocity_m_s = Vec3(2e3, -7e3, 1.5e3);
+  testing::AllocationCounter n;
+  ApplySkyCorrections(id, sky, &ident);
+  EXPECT_EQ(n.Count(), 0);
+  EXPECT_EQ(n.Exceptions(), 0);
+  // Moved by the aberration (~20 arcsec), not by more than a few arcmin.
+  const double moved = ident.matches[3].r_inertial.cross(id.catalog().stars[3].unit).norm();
+  EXPECT_GT(moved, 1e-5);
+  EXPECT_LT(moved, 1e-3);
 }
 
 }  // namespace
