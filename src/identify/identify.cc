@@ -68,7 +68,7 @@ struct PixelFit {
 // a call only clears and refills them. `grow` (the by-value forms): no sizes, the buffers grow as needed.
 struct IdentifyWorkspace::Scratch {
   bool grow = false;
-  size_t max_centroids = 0, max_stars = 0, max_pattern = 0;
+  size_t max_centroids = 0, max_stars = 0, max_pattern = 0, max_verify = 0;
   std::vector<Centroid> centroids;  // the usable centroids, in input order
   std::vector<int> input_index;     // their indices in the input
   std::vector<int> order;           // brightest first
@@ -87,8 +87,8 @@ struct IdentifyWorkspace::Scratch {
   std::vector<double> flux, mag, other, zp, z;  // photometry
   std::vector<char> used;
 
-  Scratch(size_t k, size_t s, size_t p, bool grow_as_needed)
-      : grow(grow_as_needed), max_centroids(k), max_stars(s), max_pattern(p) {
+  Scratch(size_t k, size_t s, size_t p, size_t v, bool grow_as_needed)
+      : grow(grow_as_needed), max_centroids(k), max_stars(s), max_pattern(p), max_verify(std::min(k, v)) {
     if (grow) return;
     for (auto* v : {&input_index, &order, &test_extras}) v->reserve(k);
     for (auto* v : {&sigma_px, &median, &flux, &mag, &other, &zp, &z, &fit.w}) v->reserve(k);
@@ -104,7 +104,7 @@ struct IdentifyWorkspace::Scratch {
     near.reserve(s);
     pred.reserve(s);
     used_p.reserve(s);
-    cands.reserve(k * s);
+    cands.reserve(max_verify * s);  // only the verification centroids are paired with stars
   }
 
   template <typename T>
@@ -611,6 +611,10 @@ Context MakeContext(const StarIdentifier* id, const CatalogIndex* index, Scratch
   ctx.order = s->order.data();
   ctx.sigma_px = s->sigma_px.data();
   ctx.m = std::min<int>(o.verify_centroids, ctx.n);
+  if (!s->grow && ctx.m > static_cast<int>(s->max_verify)) {  // the workspace's room for candidate pairs
+    ctx.m = static_cast<int>(s->max_verify);
+    report->centroids_clamped = true;
+  }
   // Radius from the typical (median) centroid noise, at least 2 px (Median, in the workspace).
   if (c.empty()) {
     ctx.median_sigma_px = o.centroid_sigma_px;
@@ -898,17 +902,19 @@ bool FinishHypothesis(const Context& ctx, const IdentifyOptions& o, const Camera
 
 }  // namespace
 
-IdentifyWorkspace::IdentifyWorkspace(int max_centroids, int max_stars_in_field, int max_pattern_centroids) {
+IdentifyWorkspace::IdentifyWorkspace(int max_centroids, int max_stars_in_field, int max_pattern_centroids,
+                                     int max_verify_centroids) {
   auto bad = [](const std::string& f, const std::string& w) { throw InputError("identify workspace", f + " " + w); };
   if (max_centroids < 1 || max_centroids > 100000) bad("max_centroids", "must be in [1, 100000]");
   if (max_stars_in_field < 1 || max_stars_in_field > 1000000) bad("max_stars_in_field", "must be in [1, 1000000]");
   if (max_pattern_centroids < 3 || max_pattern_centroids > 1000) bad("max_pattern_centroids", "must be in [3, 1000]");
-  if (static_cast<double>(max_centroids) * max_stars_in_field * sizeof(Cand) > 1e9)
-    bad("max_centroids x max_stars_in_field", "needs more than 1 GB of match candidates");
-  s_ = std::make_unique<Scratch>(max_centroids, max_stars_in_field, max_pattern_centroids, false);
+  if (max_verify_centroids < 3 || max_verify_centroids > 100000) bad("max_verify_centroids", "must be in [3, 100000]");
+  if (static_cast<double>(std::min(max_centroids, max_verify_centroids)) * max_stars_in_field * sizeof(Cand) > 1e9)
+    bad("max_verify_centroids x max_stars_in_field", "needs more than 1 GB of match candidates");
+  s_ = std::make_unique<Scratch>(max_centroids, max_stars_in_field, max_pattern_centroids, max_verify_centroids, false);
 }
 
-IdentifyWorkspace::IdentifyWorkspace() : s_(std::make_unique<Scratch>(0, 0, 0, true)) {}
+IdentifyWorkspace::IdentifyWorkspace() : s_(std::make_unique<Scratch>(0, 0, 0, 0, true)) {}
 IdentifyWorkspace::~IdentifyWorkspace() = default;
 IdentifyWorkspace::IdentifyWorkspace(IdentifyWorkspace&&) noexcept = default;
 IdentifyWorkspace& IdentifyWorkspace::operator=(IdentifyWorkspace&&) noexcept = default;
@@ -916,6 +922,7 @@ IdentifyWorkspace& IdentifyWorkspace::operator=(IdentifyWorkspace&&) noexcept = 
 int IdentifyWorkspace::max_centroids() const { return static_cast<int>(s_->max_centroids); }
 int IdentifyWorkspace::max_stars_in_field() const { return static_cast<int>(s_->max_stars); }
 int IdentifyWorkspace::max_pattern_centroids() const { return static_cast<int>(s_->max_pattern); }
+int IdentifyWorkspace::max_verify_centroids() const { return static_cast<int>(s_->max_verify); }
 void IdentifyWorkspace::Reserve(Identification* out) const { out->matches.reserve(s_->max_centroids); }
 size_t IdentifyWorkspace::Bytes() const { return sizeof(*this) + s_->Bytes(); }
 

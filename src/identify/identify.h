@@ -155,11 +155,14 @@ struct Identification {
 // centroids_clamped), max_stars_in_field catalog stars in the circle about a field that identify
 // predicts from (half the diagonal + 5%; more: the brightest, flagged stars_clamped), and
 // max_pattern_centroids for IdentifyOptions::pattern_centroids. The match candidates take
-// max_centroids x max_stars_in_field x 16 bytes, most of the total. One call at a time per workspace.
+// min(max_centroids, max_verify_centroids) x max_stars_in_field x 16 bytes, most of the total. One call at a time per workspace.
 struct IdentifyWorkspace {
   // InputError when a size is out of range (max_centroids in [1, 100000], max_stars_in_field in
   // [1, 1000000], max_pattern_centroids in [3, 1000]).
-  IdentifyWorkspace(int max_centroids, int max_stars_in_field, int max_pattern_centroids = 100);
+  // max_verify_centroids: room for IdentifyOptions::verify_centroids (more: that many used, flagged
+  // centroids_clamped); the match candidates take min(max_centroids, it) x max_stars_in_field x 16 bytes.
+  IdentifyWorkspace(int max_centroids, int max_stars_in_field, int max_pattern_centroids = 100,
+                    int max_verify_centroids = 150);
   ~IdentifyWorkspace();
   IdentifyWorkspace(IdentifyWorkspace&&) noexcept;
   IdentifyWorkspace& operator=(IdentifyWorkspace&&) noexcept;
@@ -173,6 +176,7 @@ struct IdentifyWorkspace {
   int max_centroids() const;
   int max_stars_in_field() const;
   int max_pattern_centroids() const;
+  int max_verify_centroids() const;
 
   struct Scratch;  // identify.cc
 

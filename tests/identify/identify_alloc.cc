@@ -194,6 +194,25 @@ TEST(IdentifyAlloc, TooManyCentroidsUsesTheBrightest) {
   }
 }
 
+// Room for 20 verification centroids where the options ask for 150: the 20 brightest verify, flagged;
+// the frame still solves to its truth without allocating.
+TEST(IdentifyAlloc, FewerVerificationCentroidsThanAskedAreFlagged) {
+  const StarIdentifier& id = Bsc166();
+  IdentifyWorkspace ws(200, 800, 100, 20);
+  Identification out;
+  ws.Reserve(&out);
+  Quat q;
+  const SyntheticFrame f = Frame(4100, &q);
+  ASSERT_GT(f.centroids.size(), 20u);
+  IdentifyOptions o;
+  o.pattern_centroids = 15;
+  ASSERT_EQ(Counted([&] { return id.Identify(f.centroids, Cam(), o, &ws, &out); }), SolveStatus::kSolved);
+  EXPECT_TRUE(out.centroids_clamped);
+  EXPECT_LE(out.matches.size(), 20u);
+  EXPECT_LT(AttitudeErrorRad(out.q_inertial_from_sensor, q) * kRadToArcsec, 60);
+  ExpectTrueMatches(out, f);
+}
+
 // Room for 30 catalog stars about the field (a 16.6-deg field has ~100): the brightest, flagged.
 TEST(IdentifyAlloc, TooManyStarsInTheFieldUsesTheBrightest) {
   const StarIdentifier& id = Bsc166();
@@ -268,12 +287,15 @@ TEST(IdentifyAlloc, BytesAreWhatConstructionAllocates) {
   const long allocated = n.Bytes();
   EXPECT_GE(static_cast<long>(ws.Bytes()), allocated - 64);
   EXPECT_LE(static_cast<long>(ws.Bytes()), allocated + 1024);
-  EXPECT_GT(ws.Bytes(), 200u * 800 * 16);
-  EXPECT_LT(ws.Bytes(), 200u * 800 * 16 + 400000);
+  // The match candidates: the 150 verification centroids (max_verify_centroids) against 800 stars.
+  EXPECT_GT(ws.Bytes(), 150u * 800 * 16);
+  EXPECT_LT(ws.Bytes(), 150u * 800 * 16 + 400000);
+  EXPECT_EQ(ws.max_verify_centroids(), 150);
   std::printf("IdentifyWorkspace(200, 800): %zu bytes; (100, 400): %zu; (1000, 2000): %zu\n", ws.Bytes(),
               IdentifyWorkspace(100, 400).Bytes(), IdentifyWorkspace(1000, 2000).Bytes());
   EXPECT_THROW(IdentifyWorkspace(0, 800), InputError);
   EXPECT_THROW(IdentifyWorkspace(200, 800, 2), InputError);
+  EXPECT_THROW(IdentifyWorkspace(200, 800, 100, 2), InputError);
 }
 
 }  // namespace
