@@ -25,7 +25,7 @@
 namespace {
 
 constexpr uint64_t kMagic = 0x53534955464c5431ULL;  // "SSIUFLT1"
-constexpr int32_t kInterfaceVersion = 1;
+constexpr int32_t kInterfaceVersion = 2;
 
 void CopyText(const char* text, char* out, size_t bytes) {
   if (bytes == 0) return;

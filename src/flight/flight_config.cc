@@ -30,6 +30,7 @@ std::vector<Field> Fields(ssiu_flight_config* c) {
                           {"gyro_rate_hz", Kind::kDouble, &c->gyro_rate_hz, 1},
                           {"gyro_max_abs_dph", Kind::kDouble, &c->gyro_max_abs_dph, 1},
                           {"max_centroids", Kind::kInt, &c->max_centroids, 1},
+                          {"max_stars_in_field", Kind::kInt, &c->max_stars_in_field, 1},
                           {"max_hypotheses", Kind::kInt, &c->max_hypotheses, 1},
                           {"max_false_match_prob", Kind::kDouble, &c->max_false_match_prob, 1},
                           {"threshold_sigma", Kind::kDouble, &c->threshold_sigma, 1},
@@ -106,6 +107,7 @@ ssiu_flight_config FlightConfigFor(const std::vector<OpticalHead>& heads, const 
   c.gyro_rate_hz = unit.rate_hz;
   c.gyro_max_abs_dph = o.fuse.policy.max_gyro_output_dph;
   c.max_centroids = o.solve.detect.max_stars;
+  c.max_stars_in_field = o.max_stars_in_field;
   c.max_hypotheses = o.solve.identify.max_hypotheses;
   c.max_false_match_prob = o.solve.identify.max_false_match_prob;
   c.threshold_sigma = o.solve.detect.threshold_sigma;
@@ -158,6 +160,9 @@ FlightSetup FlightSetupFrom(const ssiu_flight_config& c) {
   if (c.gyro_max_abs_dph > 0) o.fuse.policy.max_gyro_output_dph = c.gyro_max_abs_dph;
   if (c.max_centroids < 4 || c.max_centroids > 100000) throw InputError(src, "max_centroids must be 4 to 100000");
   o.solve.detect.max_stars = c.max_centroids;
+  if (c.max_stars_in_field < 1 || c.max_stars_in_field > 100000)
+    throw InputError(src, "max_stars_in_field must be 1 to 100000");
+  o.max_stars_in_field = c.max_stars_in_field;
   o.solve.identify.max_hypotheses = c.max_hypotheses;
   o.solve.identify.max_false_match_prob = c.max_false_match_prob;
   o.solve.detect.threshold_sigma = c.threshold_sigma;

@@ -113,6 +113,7 @@ typedef struct {
   double gyro_max_abs_dph;   /* an output beyond this is unusable, like a NaN; 0 = 3.6e6 (1000 deg/s) */
   /* Sizes every buffer is made for at init. */
   int32_t max_centroids;       /* brightest detections kept per frame */
+  int32_t max_stars_in_field;  /* catalog stars about a head's field that identification predicts from */
   /* Identification. */
   int32_t max_hypotheses;      /* lost-in-space work budget: hypotheses checked (deterministic) */
   double max_false_match_prob; /* accept a hypothesis only below this chance probability */

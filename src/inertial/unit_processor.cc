@@ -69,6 +69,9 @@ void UnitProcessorOptions::Check() const {
   if (!(correlated_fraction >= 0 && correlated_fraction <= 1)) {
     throw InputError("processor options", "correlated_fraction must be in [0, 1]");
   }
+  if (!(max_stars_in_field >= 1 && max_stars_in_field <= 100000)) {
+    throw InputError("processor options", "max_stars_in_field must be in [1, 100000]");
+  }
 }
 
 UnitProcessor::UnitProcessor(std::vector<OpticalHead> heads,
@@ -77,6 +80,9 @@ UnitProcessor::UnitProcessor(std::vector<OpticalHead> heads,
     : heads_(std::move(heads)),
       ids_(std::move(identifiers)),
       detect_ws_(ProcessorDetectLimits(heads_, options)),
+      identify_ws_(std::max(1, options.solve.detect.max_stars), std::max(1, options.max_stars_in_field),
+                   std::clamp(options.solve.identify.pattern_centroids, 3, 1000),
+                   std::clamp(options.solve.identify.verify_centroids, 3, 100000)),
       options_(options),
       fusion_(unit, options.fuse) {
   options_.Check();
@@ -92,6 +98,8 @@ UnitProcessor::UnitProcessor(std::vector<OpticalHead> heads,
   }
   ids_scratch_.resize(heads_.size());
   detect_ws_.Reserve(&detections_);
+  identify_ws_.diagnostics = options_.diagnostics;
+  for (auto& id : ids_scratch_) identify_ws_.Reserve(&id);
   centroids_.reserve(static_cast<size_t>(detect_ws_.limits().max_detections));
 }
 
@@ -143,16 +151,16 @@ void UnitProcessor::SolveHead(int h, double t_s, const ImageView& image, Identif
   const bool suspect = fusion_.initialised() && (fusion_.Status() != FusionStatus::kOk || fusion_.restart_pending());
   if (fusion_.initialised() && !suspect) {
     const Quat q_pred = fusion_.q() * head.q_body_from_sensor;
-    *id = sid.MatchWithAttitude(c, head.camera, q_pred, so.track_search_radius_px, so.identify);
+    sid.MatchWithAttitude(c, head.camera, q_pred, so.track_search_radius_px, so.identify, &identify_ws_, id);
     r.mode = SolveMode::kTracking;
   }
   if (!fusion_.initialised() || suspect || id->status != SolveStatus::kSolved) {
-    *id = sid.Identify(c, head.camera, so.identify);
+    sid.Identify(c, head.camera, so.identify, &identify_ws_, id);
     r.mode = SolveMode::kLostInSpace;
   }
   if (suspect && id->status != SolveStatus::kSolved) {
     const Quat q_pred = fusion_.q() * head.q_body_from_sensor;
-    *id = sid.MatchWithAttitude(c, head.camera, q_pred, 4 * so.track_search_radius_px, so.identify);
+    sid.MatchWithAttitude(c, head.camera, q_pred, 4 * so.track_search_radius_px, so.identify, &identify_ws_, id);
     r.mode = SolveMode::kTracking;
   }
   r.identify_ms = t1.Ms();

@@ -54,6 +54,10 @@ struct UnitProcessorOptions {
   // Times measured (HeadResult's *_ms and timing_ms map, FrameReport::total_ms) and the detector's
   // and identifier's text: false on the flight path, which then reads no clock and allocates nothing.
   bool diagnostics = true;
+  // Catalog stars about a field that identification predicts from (the brightest when more, flagged
+  // in the head's result): sizes the identification workspace with solve.detect.max_stars centroids.
+  // 16.6 deg heads with the default catalog see about 90 on average and under 300 anywhere.
+  int max_stars_in_field = 600;
   void Check() const;  // InputError naming the field
 };
 
@@ -140,6 +144,7 @@ class UnitProcessor {
   DetectWorkspace detect_ws_;
   Detections detections_;
   std::vector<Centroid> centroids_;
+  IdentifyWorkspace identify_ws_;
   std::vector<Quat> mounts_;
   long frames_refused_ = 0;
   UnitProcessorOptions options_;

@@ -288,6 +288,13 @@ TEST(FlightInterface, BadConfigAndMemoryAreRefusedWithTheField) {
   c.n_gyros = 2;
   EXPECT_EQ(ssiu_flight_check_config(&c), SSIU_ERR_CONFIG);
   c = ConfigFor(d);
+  c.max_stars_in_field = 0;
+  {
+    Handle h(c, d.blob);
+    EXPECT_EQ(h.rc, SSIU_ERR_CONFIG);
+    EXPECT_THAT(h.why(), HasSubstr("max_stars_in_field"));
+  }
+  c = ConfigFor(d);
   std::vector<std::max_align_t> small(2);
   ssiu_flight* f = reinterpret_cast<ssiu_flight*>(1);
   EXPECT_EQ(ssiu_flight_init(&c, d.blob.data(), d.blob.size(), small.data(), sizeof(std::max_align_t) * 2, &f),

@@ -1,0 +1,167 @@
+// The flight core's rule (issue 26, docs/flight.md): after ssiu_flight_init, no call allocates on the
+// heap or throws. Counted (operator new, and glibc malloc outside the sanitizer builds) around every
+// call of the C interface over a 120 s two-head mission that has the lost-in-space start, a head
+// outage (head 2 silent from 30 to 60 s, then lost in space again), a gyro fault (gyro 2 steps by
+// 80 deg/h at 30 s: detected and isolated), and bad inputs among them (a NaN sample, a repeated time
+// tag, a frame of the wrong size). The answers are checked against the simulator's truth, so the
+// calls counted are ones that did their work.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <vector>
+
+#include "core/attitude.h"
+#include "core/output.h"
+#include "flight/flight_config.h"
+#include "flight/ssiu_flight.h"
+#include "identify/star_catalog.h"
+#include "sim/mission.h"
+#include "testing/alloc_count.h"
+#include "testing/testing.h"
+
+namespace ssiu {
+namespace {
+
+constexpr double kOutageStartS = 30, kOutageEndS = 60;
+
+MissionConfig FaultMission() {
+  MissionConfig c = DefaultMissionConfig();
+  c.duration_s = 120;
+  c.frame_rate_hz = 0.5;
+  c.seed = 11;
+  GyroFault f;
+  f.gyro = 2;
+  f.t_s = 30;
+  f.step_dph = 80;
+  c.motion.faults.push_back(f);
+  return WithUnitKnowledge(c);
+}
+
+struct Counts {
+  long calls = 0, allocations = 0, bytes = 0, exceptions = 0;
+  void Add(const testing::AllocationCounter& n) {
+    ++calls;
+    allocations += n.Count();
+    bytes += n.Bytes();
+    exceptions += n.Exceptions();
+  }
+};
+
+TEST(FlightAllocation, NoHeapAndNoExceptionAfterInitOverAMissionWithOutageAndFault) {
+  const MissionConfig config = FaultMission();
+  const MissionData data = SimulateMission(config);
+  const std::string dir = testing::TempDir("flight_alloc_catalog");
+  SaveSolverCatalog(MakeIdentifierForCamera("", config.heads[0].camera, 0.0).catalog(), dir);
+  std::ifstream in(dir + "/catalog.bin", std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  const std::string blob = s.str();
+
+  ssiu_flight_config c =
+      FlightConfigFor(config.heads, config.unit, config.processor, config.start_utc, config.velocity_kms);
+  c.catalog_crc32 = Crc32(blob.data(), blob.size());
+  std::vector<std::max_align_t> memory(ssiu_flight_memory_bytes(&c) / sizeof(std::max_align_t) + 1);
+  ssiu_flight* f = nullptr;
+  ASSERT_EQ(ssiu_flight_init(&c, blob.data(), blob.size(), memory.data(), memory.size() * sizeof(std::max_align_t), &f),
+            SSIU_OK)
+      << reinterpret_cast<const char*>(memory.data());
+
+  Counts gyro, frames, state;
+  long lis_sets = 0, solved_sets = 0, head2_lis_after_outage = 0, partial = 0, refused = 0;
+  std::vector<Image16> images(config.heads.size());
+  std::vector<ssiu_frame> views(config.heads.size());
+  const Image16 wrong_size(100, 100);
+  ssiu_frame_report report;
+  ssiu_state st;
+  const GyroSimulation& g = data.gyro;
+  size_t fi = 0;
+  auto frames_before = [&](double t) {
+    for (; fi < data.frame_t_s.size() && data.frame_t_s[fi] < t - 1e-9; ++fi) {
+      const double tf = data.frame_t_s[fi];
+      for (size_t h = 0; h < config.heads.size(); ++h) {
+        const bool silent = h == 1 && tf >= kOutageStartS && tf < kOutageEndS;
+        if (silent) {
+          views[h] = ssiu_frame{};
+          continue;
+        }
+        images[h] = SimulateMissionFrame(config, data, testing::Bsc(), static_cast<int>(fi), static_cast<int>(h)).image;
+        views[h] = ssiu_frame{images[h].pixels.data(), images[h].width, images[h].height, 0};
+      }
+      // One frame of the wrong size at 90 s: that head's bad_frame, the other head carries on.
+      if (std::abs(tf - 90) < 1e-9) views[0] = ssiu_frame{wrong_size.pixels.data(), wrong_size.width, wrong_size.height, 0};
+      testing::AllocationCounter n;
+      ASSERT_EQ(ssiu_flight_frames(f, tf, views.data(), static_cast<int32_t>(views.size()), &report), SSIU_OK);
+      frames.Add(n);
+      if (report.status == SSIU_SOLVE_SOLVED) ++solved_sets;
+      for (int h = 0; h < c.n_heads; ++h) {
+        if (report.heads[h].status == SSIU_SOLVE_SOLVED && report.heads[h].lost_in_space) {
+          ++lis_sets;
+          if (h == 1 && tf >= kOutageEndS) ++head2_lis_after_outage;
+        }
+      }
+      if (std::abs(tf - 90) < 1e-9) {
+        EXPECT_EQ(report.heads[0].status, SSIU_SOLVE_BAD_FRAME);
+      }
+    }
+  };
+  for (size_t k = 0; k < g.t_s.size(); ++k) {
+    frames_before(g.t_s[k]);
+    double sample[SSIU_FLIGHT_MAX_GYROS];
+    for (int i = 0; i < c.n_gyros; ++i) sample[i] = g.gyro_dph[k][i];
+    if (k == 2000) sample[3] = std::nan("");  // one output unusable: repaired from the others
+    ssiu_gyro_status gs;
+    testing::AllocationCounter n;
+    ASSERT_EQ(ssiu_flight_gyro(f, g.t_s[k], sample, c.n_gyros, &gs), SSIU_OK);
+    if (k == 7000) {  // the same time tag again
+      ASSERT_EQ(ssiu_flight_gyro(f, g.t_s[k], sample, c.n_gyros, &gs), SSIU_OK);
+    }
+    gyro.Add(n);
+    partial += gs == SSIU_GYRO_PARTIAL;
+    refused += k == 7000 && gs != SSIU_GYRO_ACCEPTED;
+    if (k % 100 == 0) {
+      testing::AllocationCounter m;
+      ASSERT_EQ(ssiu_flight_state(f, &st), SSIU_OK);
+      state.Add(m);
+    }
+  }
+  frames_before(1e9);
+  testing::AllocationCounter m;
+  ASSERT_EQ(ssiu_flight_state(f, &st), SSIU_OK);
+  state.Add(m);
+
+  // The mission did what it was meant to: the calls counted are the real work.
+  EXPECT_EQ(frames.calls, static_cast<long>(data.frame_t_s.size()));
+  EXPECT_GE(solved_sets, frames.calls - 1);
+  EXPECT_GE(lis_sets, 3);  // both heads at the start, head 2 after its outage
+  EXPECT_GE(head2_lis_after_outage, 1);
+  EXPECT_EQ(partial, 1);
+  EXPECT_EQ(refused, 1);
+  ASSERT_GE(st.n_faults, 1);
+  EXPECT_EQ(st.faults[0].gyro, 2);
+  EXPECT_EQ(st.gyros_in_use & 2u, 0u);
+  EXPECT_EQ(st.valid, 1);
+  size_t best = 0;
+  for (size_t k = 0; k < g.t_s.size(); ++k)
+    if (std::abs(g.t_s[k] - st.t_s) < std::abs(g.t_s[best] - st.t_s)) best = k;
+  const double err_arcsec =
+      AttitudeErrorRad(Quat(st.q_inertial_from_body[0], st.q_inertial_from_body[1], st.q_inertial_from_body[2],
+                            st.q_inertial_from_body[3]),
+                       g.q_true[best]) *
+      kRadToArcsec;
+  EXPECT_LT(err_arcsec, 10.0);
+
+  std::printf("flight calls after init: %ld frame sets (%ld allocations, %ld bytes), %ld gyro samples (%ld, %ld), "
+              "%ld state reads (%ld, %ld); exceptions %ld; final error %.2f arcsec\n",
+              frames.calls, frames.allocations, frames.bytes, gyro.calls, gyro.allocations, gyro.bytes, state.calls,
+              state.allocations, state.bytes, frames.exceptions + gyro.exceptions + state.exceptions, err_arcsec);
+  EXPECT_EQ(frames.allocations, 0);
+  EXPECT_EQ(gyro.allocations, 0);
+  EXPECT_EQ(state.allocations, 0);
+  EXPECT_EQ(frames.exceptions + gyro.exceptions + state.exceptions, 0);
+  ssiu_flight_shutdown(f);
+}
+
+}  // namespace
+}  // namespace ssiu
