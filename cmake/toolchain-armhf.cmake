@@ -1,6 +1,6 @@
 # Cross build for 32-bit ARM, hard float (Cortex-A7/A9 class; Debian armhf: ARMv7-A, VFPv3-D16, Thumb-2)
 # with Debian's cross compiler and multiarch packages: scripts/cross-test.sh armhf (see
-# docs/flight-arm.md). Tests run under qemu-user.
+# docs/flight.md, "ARM"). Tests run under qemu-user.
 set(SSIU_CROSS_TRIPLET arm-linux-gnueabihf)
 set(CMAKE_SYSTEM_PROCESSOR armv7l)
 set(SSIU_CROSS_QEMU_ARCH arm)
