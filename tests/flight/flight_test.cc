@@ -68,13 +68,19 @@ ssiu_flight_config ConfigFor(const Data& d) {
 }
 
 // A handle in memory of its own, shut down at the end.
+// The handle's memory: 16-byte aligned as ssiu_flight_init asks (std::max_align_t is only 8 on 32-bit
+// ARM, where the handle's Eigen members want 16).
+struct alignas(16) Block {
+  unsigned char bytes[16];
+};
+
 struct Handle {
-  std::vector<std::max_align_t> memory;
+  std::vector<Block> memory;
   ssiu_flight* f = nullptr;
   ssiu_result rc = SSIU_ERR_INTERNAL;
   Handle(const ssiu_flight_config& c, const std::string& blob) {
-    memory.resize(std::max<size_t>(ssiu_flight_memory_bytes(&c), 4096) / sizeof(std::max_align_t) + 1);
-    rc = ssiu_flight_init(&c, blob.data(), blob.size(), memory.data(), memory.size() * sizeof(std::max_align_t), &f);
+    memory.resize(std::max<size_t>(ssiu_flight_memory_bytes(&c), 4096) / sizeof(Block) + 1);
+    rc = ssiu_flight_init(&c, blob.data(), blob.size(), memory.data(), memory.size() * sizeof(Block), &f);
   }
   ~Handle() { ssiu_flight_shutdown(f); }
   const char* why() const { return reinterpret_cast<const char*>(memory.data()); }
@@ -293,9 +299,9 @@ TEST(FlightInterface, BadConfigAndMemoryAreRefusedWithTheField) {
   c.n_gyros = 2;
   EXPECT_EQ(ssiu_flight_check_config(&c), SSIU_ERR_CONFIG);
   c = ConfigFor(d);
-  std::vector<std::max_align_t> small(2);
+  std::vector<Block> small(2);
   ssiu_flight* f = reinterpret_cast<ssiu_flight*>(1);
-  EXPECT_EQ(ssiu_flight_init(&c, d.blob.data(), d.blob.size(), small.data(), sizeof(std::max_align_t) * 2, &f),
+  EXPECT_EQ(ssiu_flight_init(&c, d.blob.data(), d.blob.size(), small.data(), sizeof(Block) * 2, &f),
             SSIU_ERR_MEMORY);
   EXPECT_EQ(f, nullptr);
   EXPECT_EQ(ssiu_flight_init(nullptr, d.blob.data(), d.blob.size(), small.data(), 32, &f), SSIU_ERR_NULL);
