@@ -20,6 +20,11 @@
 namespace ssiu {
 namespace {
 
+// The handle's memory, 16-byte aligned as ssiu_flight_init asks (std::max_align_t is 8 on 32-bit ARM).
+struct alignas(16) Block16 {
+  unsigned char bytes[16];
+};
+
 struct Blob {
   std::string bytes;
   uint32_t crc = 0;
@@ -57,14 +62,14 @@ void BM_FlightMemory(benchmark::State& state) {
   const SolverCatalog cat = ParseSolverCatalog(blob.bytes.data(), blob.bytes.size(), "blob");
   const long catalog_heap = n.Bytes();
   const size_t handle = ssiu_flight_memory_bytes(&c);
-  std::vector<std::max_align_t> memory(handle / sizeof(std::max_align_t) + 1);
+  std::vector<Block16> memory(handle / sizeof(Block16) + 1);
   long init_heap = 0, frame_heap = 0, frame_allocs = 0;
   std::vector<uint16_t> dark(static_cast<size_t>(size) * size, 100);
   for (auto _ : state) {
     ssiu_flight* f = nullptr;
     n.Reset();
     if (ssiu_flight_init(&c, blob.bytes.data(), blob.bytes.size(), memory.data(),
-                         memory.size() * sizeof(std::max_align_t), &f) != SSIU_OK) {
+                         memory.size() * sizeof(Block16), &f) != SSIU_OK) {
       state.SkipWithError("init failed");
       break;
     }

@@ -17,6 +17,11 @@
 namespace ssiu {
 namespace {
 
+// The handle's memory, 16-byte aligned as ssiu_flight_init asks (std::max_align_t is 8 on 32-bit ARM).
+struct alignas(16) Block16 {
+  unsigned char bytes[16];
+};
+
 struct Setup {
   MissionConfig config = DefaultMissionConfig();
   MissionData data;
@@ -115,7 +120,7 @@ BENCHMARK(BM_GyroSample)->Unit(benchmark::kMicrosecond);
 struct FlightHandle {
   std::string blob;
   ssiu_flight_config config;
-  std::vector<std::max_align_t> memory;
+  std::vector<Block16> memory;
   ssiu_flight* f = nullptr;
   explicit FlightHandle(const Setup& s) {
     const std::string dir = "/tmp/ssiu_mission_bench_catalog";
@@ -127,11 +132,11 @@ struct FlightHandle {
     config = FlightConfigFor(s.config.heads, s.config.unit, s.config.processor, s.config.start_utc,
                              s.config.velocity_kms);
     config.catalog_crc32 = Crc32(blob.data(), blob.size());
-    memory.resize(ssiu_flight_memory_bytes(&config) / sizeof(std::max_align_t) + 1);
+    memory.resize(ssiu_flight_memory_bytes(&config) / sizeof(Block16) + 1);
   }
   bool Start() {
     if (f) ssiu_flight_shutdown(f);
-    return ssiu_flight_init(&config, blob.data(), blob.size(), memory.data(), memory.size() * sizeof(std::max_align_t),
+    return ssiu_flight_init(&config, blob.data(), blob.size(), memory.data(), memory.size() * sizeof(Block16),
                             &f) == SSIU_OK;
   }
   ~FlightHandle() {

@@ -20,6 +20,11 @@
 
 namespace {
 
+// The handle's memory, 16-byte aligned as ssiu_flight_init asks (std::max_align_t is 8 on 32-bit ARM).
+struct alignas(16) Block16 {
+  unsigned char bytes[16];
+};
+
 constexpr int kSize = 96;  // small heads (16.6 deg) keep each frame call short
 
 struct Setup {
@@ -91,20 +96,20 @@ void Check(bool ok) {
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const Setup& s = TheSetup();
   Reader r{data, size};
-  static std::vector<std::max_align_t> memory(ssiu_flight_memory_bytes(&s.config) / sizeof(std::max_align_t) + 64);
+  static std::vector<Block16> memory(ssiu_flight_memory_bytes(&s.config) / sizeof(Block16) + 64);
   ssiu_flight* f = nullptr;
   // One input in 16 starts from a corrupt blob, which init must refuse.
   const uint8_t first = r.Byte();
   if (first % 16 == 0) {
     std::string bad = s.blob;
     bad[(static_cast<size_t>(r.Byte()) * 7919) % bad.size()] ^= static_cast<char>(1 + r.Byte() % 255);
-    Check(ssiu_flight_init(&s.config, bad.data(), bad.size(), memory.data(), memory.size() * sizeof(std::max_align_t),
+    Check(ssiu_flight_init(&s.config, bad.data(), bad.size(), memory.data(), memory.size() * sizeof(Block16),
                            &f) == SSIU_ERR_CATALOG);
     Check(f == nullptr);
     return 0;
   }
   Check(ssiu_flight_init(&s.config, s.blob.data(), s.blob.size(), memory.data(),
-                         memory.size() * sizeof(std::max_align_t), &f) == SSIU_OK);
+                         memory.size() * sizeof(Block16), &f) == SSIU_OK);
   static std::vector<uint16_t> frame[SSIU_FLIGHT_MAX_HEADS];
   double t = 0;
   for (int ops = 0; ops < 400 && !r.Done(); ++ops) {

@@ -32,6 +32,6 @@ if [ "${SSIU_SKIP_FUZZ:-0}" != "1" ]; then
 fi
 if [ "${SSIU_SKIP_CROSS:-0}" != "1" ]; then
   # The flight core built for aarch64 and its CI subset of tests run under qemu-user, plus the flight
-  # demo's frame-by-frame comparison with x86-64 (scripts/cross-test.sh, docs/flight-arm.md).
+  # demo's frame-by-frame comparison with x86-64 (scripts/cross-test.sh, docs/flight.md, "ARM").
   bash scripts/cross-test.sh aarch64 --ci
 fi

@@ -1,7 +1,6 @@
 #include "identify/catalog_index.h"
 
 #include <algorithm>
-#include <cstdio>
 #include <cstring>
 #include <flann/flann.hpp>
 
@@ -17,8 +16,13 @@ struct CatalogIndex::StarTree {
 namespace {
 
 // Layout version of Write's bytes: a change of the key (the constants above) or of the layout must
-// change it, so that an index stored by another version is refused rather than misread.
-constexpr int64_t kIndexVersion = 1;
+// change it, so that an index stored by another version is refused rather than misread. Version 1 also
+// stored the star kd-tree in FLANN's own format, which holds size_t and pointers' worth of fields: a
+// 32-bit build could not read a tree a 64-bit build wrote. Version 2 stores only fixed-width
+// little-endian fields and the tree is built from the stars at load (deterministic: the same tree as
+// at build); a version-1 index still loads, its stored tree skipped.
+constexpr int64_t kIndexVersion = 2;
+constexpr int64_t kIndexVersionWithFlannTree = 1;
 
 // Sky cells of 2 x 2 deg (fewer right-ascension cells towards the poles): a field's cap of ~10 deg
 // visits ~50 cells.
@@ -177,28 +181,16 @@ void CatalogIndex::IndexCells() {
 
 CatalogIndex::~CatalogIndex() = default;
 
-// Layout: version, triangle count, keys (uint64), triangle per key (int32), star count, the kd-tree's
-// byte count and FLANN's serialisation of it (saveIndex; the points are the catalog's unit vectors).
+// Layout (every field fixed-width, little-endian): version, triangle count (int64), keys (uint64),
+// triangle per key (int32), star count (int64). The same bytes on every processor.
 void CatalogIndex::Write(std::string* out) const {
   auto put = [&](const void* p, size_t n) { out->append(static_cast<const char*>(p), n); };
   const int64_t head[2] = {kIndexVersion, static_cast<int64_t>(keys_.size())};
   put(head, sizeof head);
   put(keys_.data(), keys_.size() * sizeof(uint64_t));
   put(triangle_.data(), triangle_.size() * sizeof(int32_t));
-  std::string tree;
-  if (tree_) {
-    char* buf = nullptr;
-    size_t size = 0;
-    FILE* f = open_memstream(&buf, &size);
-    if (!f) throw std::runtime_error("catalog index: open_memstream failed");
-    tree_->tree.saveIndex(f);
-    std::fclose(f);
-    tree.assign(buf, size);
-    std::free(buf);
-  }
-  const int64_t tail[2] = {static_cast<int64_t>(stars_), static_cast<int64_t>(tree.size())};
-  put(tail, sizeof tail);
-  put(tree.data(), tree.size());
+  const int64_t stars = static_cast<int64_t>(stars_);
+  put(&stars, sizeof stars);
 }
 
 CatalogIndex::CatalogIndex(const SolverCatalog& cat, const char* data, size_t bytes, const std::string& path)
@@ -211,7 +203,8 @@ CatalogIndex::CatalogIndex(const SolverCatalog& cat, const char* data, size_t by
   };
   int64_t head[2];
   get(head, sizeof head);
-  if (head[0] != kIndexVersion) throw InputError(path, "catalog index of another version (rebuild the catalog)");
+  if (head[0] != kIndexVersion && head[0] != kIndexVersionWithFlannTree)
+    throw InputError(path, "catalog index of another version (rebuild the catalog)");
   if (head[1] != static_cast<int64_t>(cat.triangles.size()))
     throw InputError(path, "catalog index does not fit its triangles");
   keys_.resize(cat.triangles.size());
@@ -223,27 +216,22 @@ CatalogIndex::CatalogIndex(const SolverCatalog& cat, const char* data, size_t by
       throw InputError(path, "corrupt catalog index (keys unsorted or triangle out of range)");
   }
   IndexCells();
-  int64_t tail[2];
-  get(tail, sizeof tail);
-  if (tail[0] != static_cast<int64_t>(stars_) || tail[1] < 0 || static_cast<size_t>(tail[1]) != bytes - pos)
-    throw InputError(path, "catalog index does not fit its stars");
-  if (stars_ == 0) {
-    IndexSky();
-    return;
+  int64_t stars = 0;
+  get(&stars, sizeof stars);
+  if (stars != static_cast<int64_t>(stars_)) throw InputError(path, "catalog index does not fit its stars");
+  if (head[0] == kIndexVersionWithFlannTree) {
+    // The byte count of FLANN's tree, and the tree (not read: its layout depends on the writer's size_t).
+    int64_t tree_bytes = 0;
+    get(&tree_bytes, sizeof tree_bytes);
+    if (tree_bytes < 0 || static_cast<uint64_t>(tree_bytes) != bytes - pos)
+      throw InputError(path, "catalog index does not fit its stars");
+    pos = bytes;
   }
-  tree_ = std::make_unique<StarTree>(Points(&units_, cat));
-  // FLANN reads from a stream; fmemopen gives one over the bytes already in memory.
-  FILE* f = fmemopen(const_cast<char*>(data + pos), static_cast<size_t>(tail[1]), "rb");
-  if (!f) throw std::runtime_error("catalog index: fmemopen failed");
-  try {
-    tree_->tree.loadIndex(f);
-  } catch (const flann::FLANNException& e) {
-    std::fclose(f);
-    throw InputError(path, std::string("corrupt catalog star tree: ") + e.what());
+  if (pos != bytes) throw InputError(path, "catalog index does not fit its stars (bytes after its end)");
+  if (stars_ > 0) {
+    tree_ = std::make_unique<StarTree>(Points(&units_, cat));
+    tree_->tree.buildIndex();
   }
-  std::fclose(f);
-  if (tree_->tree.size() != stars_ || tree_->tree.veclen() != 3)
-    throw InputError(path, "catalog star tree does not fit its stars");
   IndexSky();
 }
 

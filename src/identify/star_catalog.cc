@@ -630,7 +630,7 @@ SolverCatalog LoadOrBuildCatalog(const std::string& source_path, const CatalogBu
   for (char& c : base)
     if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
   char key[256];
-  std::snprintf(key, sizeof key, "%s_fov%.2f_mag%.2f_ep%.1f_dbl%.1f_p%d_s%.0f_k%d_v4", base.c_str(), o.fov_deg,
+  std::snprintf(key, sizeof key, "%s_fov%.2f_mag%.2f_ep%.1f_dbl%.1f_p%d_s%.0f_k%d_v5", base.c_str(), o.fov_deg,
                 o.mag_max, o.epoch_year, o.double_star_arcsec, o.pattern_stars_per_fov, o.stars_per_fov,
                 o.pattern_neighbours);
   std::string dir_key = key;

@@ -24,6 +24,11 @@
 namespace ssiu {
 namespace {
 
+// The handle's memory, 16-byte aligned as ssiu_flight_init asks (std::max_align_t is 8 on 32-bit ARM).
+struct alignas(16) Block16 {
+  unsigned char bytes[16];
+};
+
 constexpr double kOutageStartS = 30, kOutageEndS = 60;
 
 MissionConfig FaultMission() {
@@ -62,9 +67,9 @@ TEST(FlightAllocation, NoHeapAndNoExceptionAfterInitOverAMissionWithOutageAndFau
   ssiu_flight_config c =
       FlightConfigFor(config.heads, config.unit, config.processor, config.start_utc, config.velocity_kms);
   c.catalog_crc32 = Crc32(blob.data(), blob.size());
-  std::vector<std::max_align_t> memory(ssiu_flight_memory_bytes(&c) / sizeof(std::max_align_t) + 1);
+  std::vector<Block16> memory(ssiu_flight_memory_bytes(&c) / sizeof(Block16) + 1);
   ssiu_flight* f = nullptr;
-  ASSERT_EQ(ssiu_flight_init(&c, blob.data(), blob.size(), memory.data(), memory.size() * sizeof(std::max_align_t), &f),
+  ASSERT_EQ(ssiu_flight_init(&c, blob.data(), blob.size(), memory.data(), memory.size() * sizeof(Block16), &f),
             SSIU_OK)
       << reinterpret_cast<const char*>(memory.data());
 

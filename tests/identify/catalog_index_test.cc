@@ -2,7 +2,7 @@
 // the triangles' features and the search index, and a loaded catalog is the built one bit for bit, its
 // index answering every query as one built anew; a catalog.bin of the format before (3: vertices only,
 // features and index rebuilt at load) still loads and solves the same; a stored index that does not
-// fit its catalog is refused.
+// fit its catalog is refused; an index of version 1 (with FLANN's tree, skipped) still loads.
 #include "identify/catalog_index.h"
 
 #include <algorithm>
@@ -42,6 +42,18 @@ void WriteCatalogDir(const std::string& dir, const std::string& bin, double fov_
   WriteJsonFile(dir + "/meta.json", Json{{"fov_deg", fov_deg},
                                          {"catalog_bin_bytes", bin.size()},
                                          {"catalog_bin_crc32", Crc32(bin.data(), bin.size())}});
+}
+
+std::string ReadCatalogBin(const std::string& dir) {
+  std::ifstream in(dir + "/catalog.bin", std::ios::binary);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// Where the index starts in catalog.bin: after the header, the stars and the triangles.
+size_t IndexOffset(const SolverCatalog& c) {
+  return 8 + 5 * 8 + 5 * 8 + c.source.size() + c.stars.size() * 68 + c.triangles.size() * 24;
 }
 
 // catalog.bin of format 3 (before issue 17): header, per star id + ra, dec, mag, pm_ra, pm_dec,
@@ -179,12 +191,9 @@ TEST(CatalogIndex, StoredIndexThatDoesNotFitIsRefused) {
   const SolverCatalog& built = Built20();
   const std::string dir = testing::TempDir("catalog_index_bad");
   SaveSolverCatalog(built, dir);
-  std::ifstream in(dir + "/catalog.bin", std::ios::binary);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  const std::string good = ss.str();
-  // The index follows the triangles; its first field is its version, then the triangle count.
-  const size_t at = 8 + 5 * 8 + 5 * 8 + built.source.size() + built.stars.size() * 68 + built.triangles.size() * 24;
+  const std::string good = ReadCatalogBin(dir);
+  // The index's first field is its version, then the triangle count.
+  const size_t at = IndexOffset(built);
   int64_t head[2];
   std::memcpy(head, good.data() + at, sizeof head);
   ASSERT_EQ(head[1], static_cast<int64_t>(built.triangles.size()));
@@ -193,7 +202,15 @@ TEST(CatalogIndex, StoredIndexThatDoesNotFitIsRefused) {
   std::memcpy(bad.data() + at, &other_version, 8);
   WriteCatalogDir(dir, bad, built.fov_deg);
   EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("catalog index of another version"));
-  bad = good.substr(0, good.size() - 100);  // the star tree cut short (size and CRC made to agree)
+  bad = good.substr(0, good.size() - 4);  // the star count cut short (size and CRC made to agree)
+  WriteCatalogDir(dir, bad, built.fov_deg);
+  EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("truncated catalog index"));
+  bad = good + std::string(8, '\0');  // bytes after the index's end
+  WriteCatalogDir(dir, bad, built.fov_deg);
+  EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("does not fit its stars"));
+  bad = good;  // another star count
+  const int64_t stars = static_cast<int64_t>(built.stars.size()) + 1;
+  std::memcpy(bad.data() + good.size() - 8, &stars, 8);
   WriteCatalogDir(dir, bad, built.fov_deg);
   EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("does not fit its stars"));
   // Two keys swapped: no longer sorted.
@@ -204,6 +221,36 @@ TEST(CatalogIndex, StoredIndexThatDoesNotFitIsRefused) {
     WriteCatalogDir(dir, bad, built.fov_deg);
     EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("keys unsorted"));
   }
+}
+
+// Index version 1 stored the star kd-tree in FLANN's own format, whose fields are the writer's size_t:
+// a 32-bit processor cannot read what a 64-bit one wrote. Such a catalog.bin still loads anywhere: the
+// stored tree (here bytes no FLANN could read) is skipped and the tree built from the stars, so that
+// the catalog answers as the built one. Version 2 (fixed-width fields only) is the same bytes on every
+// processor: the size of each part is checked here, so that nothing sized by the processor creeps in.
+TEST(CatalogIndex, VersionOneIndexLoadsWithItsStoredTreeSkipped) {
+  const SolverCatalog& built = Built20();
+  const std::string dir = testing::TempDir("catalog_index_v1");
+  SaveSolverCatalog(built, dir);
+  const std::string good = ReadCatalogBin(dir);
+  const size_t at = IndexOffset(built);
+  ASSERT_EQ(good.size(), at + 16 + built.triangles.size() * 12 + 8);
+  std::string v1 = good;
+  const int64_t version = 1, tree_bytes = 1000;
+  std::memcpy(v1.data() + at, &version, 8);
+  v1.append(reinterpret_cast<const char*>(&tree_bytes), 8);
+  v1.append(static_cast<size_t>(tree_bytes), '\xff');
+  WriteCatalogDir(dir, v1, built.fov_deg);
+  const SolverCatalog back = LoadSolverCatalog(dir);
+  ExpectSameCatalog(built, back);
+  ASSERT_TRUE(back.index && back.index->Fits(back));
+  const Vec3 u = back.stars[0].unit;
+  EXPECT_EQ(back.index->StarsWithin(u, 0.1), built.index->StarsWithin(u, 0.1));
+  EXPECT_FALSE(back.index->StarsWithin(u, 0.1).empty());
+  // A version-1 tree's byte count that does not reach the end is refused, never read.
+  std::memcpy(v1.data() + good.size(), &version, 8);
+  WriteCatalogDir(dir, v1, built.fov_deg);
+  EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("does not fit its stars"));
 }
 
 }  // namespace
