@@ -17,7 +17,8 @@ count() {
   local fn=$1 n=$2
   valgrind --tool=callgrind --callgrind-out-file="$dir/cg" --toggle-collect="$fn" \
     "$build/ssiu-flight-demo" "$dir/m" --frames "$n" >"$dir/out" 2>/dev/null
-  callgrind_annotate "$dir/cg" 2>/dev/null | awk '/PROGRAM TOTALS/ {gsub(",", "", $1); print $1; exit}'
+  # awk reads to the end: stopping early would end callgrind_annotate with SIGPIPE (pipefail).
+  callgrind_annotate "$dir/cg" 2>/dev/null | awk '/PROGRAM TOTALS/ && !n {gsub(",", "", $1); n = $1} END {print n}'
 }
 lis=$(count ssiu_flight_frames 1)
 all=$(count ssiu_flight_frames "$frames")

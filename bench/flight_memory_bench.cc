@@ -1,8 +1,10 @@
 // Memory of the flight interface (flight/ssiu_flight.h) for 1, 2 and 3 heads of 512^2 and 1024^2
 // (16.6 deg): the handle's own bytes (ssiu_flight_memory_bytes), the heap taken at init (counted by
 // tests/testing/alloc_count.h's replaced allocation functions), split into the catalog as loaded
-// (stars, triangles, search index) and the rest (per-head buffers, filter); and the heap taken by a
-// frame set after init (0 when the flight path keeps its rule). Reported as counters:
+// (stars, triangles, search index), the detector's and identification's buffers (the processor's
+// DetectBytes / IdentifyBytes), the filter, and anything else; and the heap
+// taken by a lost-in-space frame set of star frames after init (0 when the flight path keeps its
+// rule). Reported as counters:
 //   ./build/bench/flight_memory_bench --benchmark_counters_tabular=true
 #include <benchmark/benchmark.h>
 
@@ -13,7 +15,9 @@
 #include "core/output.h"
 #include "flight/flight_config.h"
 #include "flight/ssiu_flight.h"
+#include "core/catalog.h"
 #include "identify/star_catalog.h"
+#include "sim/frame_sim.h"
 #include "sim/mission.h"
 #include "testing/alloc_count.h"
 
@@ -64,7 +68,16 @@ void BM_FlightMemory(benchmark::State& state) {
   const size_t handle = ssiu_flight_memory_bytes(&c);
   std::vector<Block16> memory(handle / sizeof(Block16) + 1);
   long init_heap = 0, frame_heap = 0, frame_allocs = 0;
-  std::vector<uint16_t> dark(static_cast<size_t>(size) * size, 100);
+  // The processor's per-frame buffers, as the handle makes them.
+  const FlightSetup setup = FlightSetupFrom(c);
+  const auto id = std::make_shared<const StarIdentifier>(cat);
+  n.Reset();
+  const UnitProcessor p(setup.heads, std::vector<std::shared_ptr<const StarIdentifier>>(heads, id), setup.unit,
+                        setup.options);
+  const long processor_heap = n.Bytes();
+  // A star frame (the same for every head: lost in space on each).
+  static const StarCatalog bsc = LoadXplanetBsc(DefaultBscPath());
+  const Image16 stars = SimulateFrame(cam, bsc, Quat::Identity(), FrameSimOptions{}, 5).image;
   for (auto _ : state) {
     ssiu_flight* f = nullptr;
     n.Reset();
@@ -75,7 +88,7 @@ void BM_FlightMemory(benchmark::State& state) {
     }
     init_heap = n.Bytes();
     ssiu_frame fr[SSIU_FLIGHT_MAX_HEADS] = {};
-    for (int h = 0; h < heads; ++h) fr[h] = ssiu_frame{dark.data(), size, size, 0};
+    for (int h = 0; h < heads; ++h) fr[h] = ssiu_frame{stars.pixels.data(), size, size, 0};
     ssiu_frame_report r;
     n.Reset();
     ssiu_flight_frames(f, 0.0, fr, heads, &r);
@@ -87,7 +100,13 @@ void BM_FlightMemory(benchmark::State& state) {
   state.counters["handle_bytes"] = static_cast<double>(handle);
   state.counters["init_heap_bytes"] = static_cast<double>(init_heap);
   state.counters["catalog_heap_bytes"] = static_cast<double>(catalog_heap);
-  state.counters["other_init_heap_bytes"] = static_cast<double>(init_heap - catalog_heap);
+  state.counters["detect_heap_bytes"] = static_cast<double>(p.DetectBytes());
+  state.counters["identify_heap_bytes"] = static_cast<double>(p.IdentifyBytes());
+  // The rest of the processor: the filter (MEKF, parity monitor, star-rate samples, bias history).
+  state.counters["filter_heap_bytes"] =
+      static_cast<double>(processor_heap - static_cast<long>(p.DetectBytes() + p.IdentifyBytes()));
+  // What init takes beyond the catalog and the processor (0 when the handle copies nothing).
+  state.counters["other_init_heap_bytes"] = static_cast<double>(init_heap - catalog_heap - processor_heap);
   state.counters["frame_heap_bytes"] = static_cast<double>(frame_heap);
   state.counters["frame_allocs"] = static_cast<double>(frame_allocs);
 }

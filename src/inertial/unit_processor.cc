@@ -103,6 +103,16 @@ UnitProcessor::UnitProcessor(std::vector<OpticalHead> heads,
   centroids_.reserve(static_cast<size_t>(detect_ws_.limits().max_detections));
 }
 
+size_t UnitProcessor::DetectBytes() const {
+  return detect_ws_.Bytes() + detect_ws_.OutputBytes() + centroids_.capacity() * sizeof(Centroid);
+}
+
+size_t UnitProcessor::IdentifyBytes() const {
+  size_t b = identify_ws_.Bytes();
+  for (const auto& id : ids_scratch_) b += id.matches.capacity() * sizeof(StarMatch);
+  return b;
+}
+
 GyroSampleStatus UnitProcessor::OnGyroSample(double t_s, const GyroVec& g_dph) {
   const GyroSampleStatus s = fusion_.AddGyro(t_s, g_dph);
   have_gyro_ |= GyroSampleUsed(s);

@@ -129,6 +129,11 @@ class UnitProcessor {
   void Attitude(UnitAttitude* out, bool with_faults = true) const;
   const std::vector<OpticalHead>& heads() const { return heads_; }
   const OnlineFusion& fusion() const { return fusion_; }
+  // Heap bytes of the per-frame buffers, all taken at construction (docs/flight.md, "Memory"): the
+  // detector's workspace with its detection and centroid lists; the identification workspace with
+  // each head's reserved result.
+  size_t DetectBytes() const;
+  size_t IdentifyBytes() const;
 
  private:
   void SolveHead(int h, double t_s, const ImageView& image, Identification* id, HeadResult* r);
