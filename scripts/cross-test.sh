@@ -88,10 +88,12 @@ if [ "$INSTALL" = 1 ]; then
     # A mirror in the middle of a sync fails one index now and then: try again, then go on with the
     # lists there are (the install below says clearly if something is really missing).
     apt-get update -qq || { sleep 10; apt-get update -qq; } || echo "cross-test: apt-get update failed; going on" >&2
+    # --no-remove: a target package whose version differs from the host's must never make apt remove a
+    # host package (with -y it would, to resolve the conflict); it fails instead and the sysroot serves.
     if [ -n "$missing" ]; then
-      apt-get install -y -qq --no-install-recommends $missing >/dev/null
+      apt-get install -y -qq --no-remove --no-install-recommends $missing >/dev/null
     fi
-    if [ -n "$target_missing" ] && ! apt-get install -y -qq --no-install-recommends $target_missing >/dev/null 2>&1; then
+    if [ -n "$target_missing" ] && ! apt-get install -y -qq --no-remove --no-install-recommends $target_missing >/dev/null 2>&1; then
       echo "cross-test: the $DEB_ARCH packages cannot be installed beside the host's (versions differ between" \
         "the architectures' indexes): a sysroot instead"
       make_sysroot
