@@ -21,7 +21,10 @@ namespace {
 // 32-bit build could not read a tree a 64-bit build wrote. Version 2 stores only fixed-width
 // little-endian fields and the tree is built from the stars at load (deterministic: the same tree as
 // at build); a version-1 index still loads, its stored tree skipped.
-constexpr int64_t kIndexVersion = 2;
+// Version 3 adds the sky cells (the star lookup of the flight path), so that a load builds nothing it
+// searches; a version-2 index gets them made at load.
+constexpr int64_t kIndexVersion = 3;
+constexpr int64_t kIndexVersionWithoutSkyCells = 2;
 constexpr int64_t kIndexVersionWithFlannTree = 1;
 
 // Sky cells of 2 x 2 deg (fewer right-ascension cells towards the poles): a field's cap of ~10 deg
@@ -87,15 +90,19 @@ CatalogIndex::CatalogIndex(const SolverCatalog& cat) : stars_(cat.stars.size()) 
     tree_ = std::make_unique<StarTree>(Points(&units_, cat));
     tree_->tree.buildIndex();
   }
-  IndexSky();
+  IndexSky(cat);
 }
 
-void CatalogIndex::IndexSky() {
+void CatalogIndex::BandCells() {
   band_cell0_.assign(kBands + 1, 0);
   for (int b = 0; b < kBands; ++b) band_cell0_[b + 1] = band_cell0_[b] + CellsInBand(b);
+}
+
+void CatalogIndex::IndexSky(const SolverCatalog& cat) {
+  BandCells();
   std::vector<std::pair<int32_t, int32_t>> cell_of(stars_);  // (cell, star)
   for (size_t i = 0; i < stars_; ++i) {
-    const Vec3 u(units_[3 * i], units_[3 * i + 1], units_[3 * i + 2]);
+    const Vec3& u = cat.stars[i].unit;
     const int b = BandOf(DecOf(u));
     cell_of[i] = {band_cell0_[b] + CellInBand(RaFraction(u), band_cell0_[b + 1] - band_cell0_[b]),
                   static_cast<int32_t>(i)};
@@ -107,9 +114,18 @@ void CatalogIndex::IndexSky() {
   for (size_t k = 0; k < stars_; ++k) {
     ++cell_begin_[cell_of[k].first + 1];
     cell_star_[k] = cell_of[k].second;
-    std::copy_n(&units_[3 * static_cast<size_t>(cell_of[k].second)], 3, &cell_unit_[3 * k]);
   }
+  CellUnits(cat);
   for (size_t c = 1; c < cell_begin_.size(); ++c) cell_begin_[c] += cell_begin_[c - 1];
+}
+
+// The cells' unit vectors in cell order (a copy for locality: a lookup reads one run of memory).
+void CatalogIndex::CellUnits(const SolverCatalog& cat) {
+  cell_unit_.resize(3 * stars_);
+  for (size_t k = 0; k < stars_; ++k) {
+    const Vec3& u = cat.stars[static_cast<size_t>(cell_star_[k])].unit;
+    std::copy_n(u.data(), 3, &cell_unit_[3 * k]);
+  }
 }
 
 template <typename Fn>
@@ -182,7 +198,8 @@ void CatalogIndex::IndexCells() {
 CatalogIndex::~CatalogIndex() = default;
 
 // Layout (every field fixed-width, little-endian): version, triangle count (int64), keys (uint64),
-// triangle per key (int32), star count (int64). The same bytes on every processor.
+// triangle per key (int32), star count (int64), sky cell count (int64), each cell's first entry and
+// one past the last (uint32), the stars by cell (int32). The same bytes on every processor.
 void CatalogIndex::Write(std::string* out) const {
   auto put = [&](const void* p, size_t n) { out->append(static_cast<const char*>(p), n); };
   const int64_t head[2] = {kIndexVersion, static_cast<int64_t>(keys_.size())};
@@ -191,9 +208,14 @@ void CatalogIndex::Write(std::string* out) const {
   put(triangle_.data(), triangle_.size() * sizeof(int32_t));
   const int64_t stars = static_cast<int64_t>(stars_);
   put(&stars, sizeof stars);
+  const int64_t cells = band_cell0_.back();
+  put(&cells, sizeof cells);
+  put(cell_begin_.data(), cell_begin_.size() * sizeof(uint32_t));
+  put(cell_star_.data(), cell_star_.size() * sizeof(int32_t));
 }
 
-CatalogIndex::CatalogIndex(const SolverCatalog& cat, const char* data, size_t bytes, const std::string& path)
+CatalogIndex::CatalogIndex(const SolverCatalog& cat, const char* data, size_t bytes, const std::string& path,
+                           bool star_tree)
     : stars_(cat.stars.size()) {
   size_t pos = 0;
   auto get = [&](void* p, size_t n) {
@@ -203,7 +225,7 @@ CatalogIndex::CatalogIndex(const SolverCatalog& cat, const char* data, size_t by
   };
   int64_t head[2];
   get(head, sizeof head);
-  if (head[0] != kIndexVersion && head[0] != kIndexVersionWithFlannTree)
+  if (head[0] != kIndexVersion && head[0] != kIndexVersionWithoutSkyCells && head[0] != kIndexVersionWithFlannTree)
     throw InputError(path, "catalog index of another version (rebuild the catalog)");
   if (head[1] != static_cast<int64_t>(cat.triangles.size()))
     throw InputError(path, "catalog index does not fit its triangles");
@@ -227,17 +249,38 @@ CatalogIndex::CatalogIndex(const SolverCatalog& cat, const char* data, size_t by
       throw InputError(path, "catalog index does not fit its stars");
     pos = bytes;
   }
+  if (head[0] == kIndexVersion) {
+    // The sky cells as stored: checked so that no lookup can read outside them (the blob's CRC, which
+    // meta.json and the flight interface check, vouches for the rest).
+    BandCells();
+    int64_t cells = 0;
+    get(&cells, sizeof cells);
+    if (cells != band_cell0_.back()) throw InputError(path, "catalog index: sky cells of another layout");
+    cell_begin_.resize(static_cast<size_t>(cells) + 1);
+    cell_star_.resize(stars_);
+    get(cell_begin_.data(), cell_begin_.size() * sizeof(uint32_t));
+    get(cell_star_.data(), cell_star_.size() * sizeof(int32_t));
+    bool ok = cell_begin_.front() == 0 && cell_begin_.back() == stars_;
+    for (size_t c = 1; ok && c < cell_begin_.size(); ++c) ok = cell_begin_[c] >= cell_begin_[c - 1];
+    for (size_t k = 0; ok && k < stars_; ++k) ok = cell_star_[k] >= 0 && static_cast<size_t>(cell_star_[k]) < stars_;
+    if (!ok) throw InputError(path, "corrupt catalog index (sky cells)");
+    CellUnits(cat);
+  }
   if (pos != bytes) throw InputError(path, "catalog index does not fit its stars (bytes after its end)");
-  if (stars_ > 0) {
+  if (head[0] != kIndexVersion) IndexSky(cat);
+  if (star_tree && stars_ > 0) {
     tree_ = std::make_unique<StarTree>(Points(&units_, cat));
     tree_->tree.buildIndex();
   }
-  IndexSky();
 }
 
 std::vector<int> CatalogIndex::StarsWithin(const Vec3& u, double radius_rad) const {
   std::vector<int> out;
-  if (!tree_) return out;
+  if (!tree_) {  // loaded without the kd-tree: the same stars from the sky cells
+    out.resize(stars_);
+    out.resize(std::min(StarsWithin(u, radius_rad, out.data(), out.size()), out.size()));
+    return out;
+  }
   double q[3] = {u[0], u[1], u[2]};
   flann::Matrix<double> qm(q, 1, 3);
   std::vector<std::vector<int>> idx;

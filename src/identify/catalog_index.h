@@ -46,8 +46,10 @@ class CatalogIndex {
   // Built from the catalog's stars and triangles.
   explicit CatalogIndex(const SolverCatalog& cat);
   // Restored from Write's bytes for `cat` (the same stars and triangles); InputError naming `path`
-  // when they do not fit it.
-  CatalogIndex(const SolverCatalog& cat, const char* data, size_t bytes, const std::string& path);
+  // when they do not fit it. Without `star_tree` the kd-tree is not built (the flight path searches
+  // the sky cells; the vector StarsWithin then does too).
+  CatalogIndex(const SolverCatalog& cat, const char* data, size_t bytes, const std::string& path,
+               bool star_tree = true);
   ~CatalogIndex();
   CatalogIndex(const CatalogIndex&) = delete;
   CatalogIndex& operator=(const CatalogIndex&) = delete;
@@ -104,7 +106,9 @@ class CatalogIndex {
 
  private:
   void IndexCells();
-  void IndexSky();
+  void BandCells();
+  void IndexSky(const SolverCatalog& cat);
+  void CellUnits(const SolverCatalog& cat);
   // Calls fn(star, unit vector) for every star in a sky cell that a cap of radius_rad about u may touch
   // (a superset of the stars within it), until fn returns false.
   template <typename Fn>

@@ -509,7 +509,7 @@ CatalogDirState CheckCatalogDirKeep(const std::string& dir, std::string* why, st
 
 // Parses catalog.bin's bytes (format 4, or 3 whose features and index are recomputed) as a fixed-FOV
 // catalog (the smallest FOV of a range catalog is in meta.json).
-SolverCatalog ParseCatalogBytes(const char* data, size_t size, const std::string& path) {
+SolverCatalog ParseCatalogBytes(const char* data, size_t size, const std::string& path, bool star_tree = true) {
   size_t pos = 0;
   auto get = [&](void* p, size_t n) {
     if (n > size - pos) throw InputError(path, "truncated catalog file");
@@ -566,7 +566,7 @@ SolverCatalog ParseCatalogBytes(const char* data, size_t size, const std::string
     t.ratio_b = static_cast<float>(s1 / s2);
   }
   cat.index = v3 ? std::make_shared<const CatalogIndex>(cat)
-                 : std::make_shared<const CatalogIndex>(cat, data + pos, size - pos, path);
+                 : std::make_shared<const CatalogIndex>(cat, data + pos, size - pos, path, star_tree);
   return cat;
 }
 
@@ -596,9 +596,9 @@ CatalogDirState CheckCatalogDir(const std::string& dir, std::string* why) {
   return CheckCatalogDirKeep(dir, why, &bin, &meta);
 }
 
-SolverCatalog ParseSolverCatalog(const void* data, size_t bytes, const std::string& name) {
+SolverCatalog ParseSolverCatalog(const void* data, size_t bytes, const std::string& name, bool star_tree) {
   if (data == nullptr) throw InputError(name, "no catalog data");
-  return ParseCatalogBytes(static_cast<const char*>(data), bytes, name);
+  return ParseCatalogBytes(static_cast<const char*>(data), bytes, name, star_tree);
 }
 
 SolverCatalog LoadSolverCatalog(const std::string& dir) {

@@ -120,7 +120,9 @@ SolverCatalog LoadSolverCatalog(const std::string& dir);
 // catalog.bin's bytes (in memory or ROM, e.g. a flight image) as one fixed-FOV catalog: the stars,
 // triangles and stored index are read without rebuilding anything. InputError naming `name` when the
 // bytes are not a whole catalog (the CRC is meta.json's; flight/ssiu_flight.h checks it).
-SolverCatalog ParseSolverCatalog(const void* data, size_t bytes, const std::string& name);
+// Without `star_tree` the stars' kd-tree is not built (the flight path's lookups use the stored sky
+// cells): nothing is built that a search needs, the parts are read as stored.
+SolverCatalog ParseSolverCatalog(const void* data, size_t bytes, const std::string& name, bool star_tree = true);
 
 enum class CatalogDirState { kAbsent, kIncomplete, kDamaged, kOk };
 // Checks a catalog directory against its meta.json without parsing it; `why` says what is wrong.

@@ -209,10 +209,16 @@ TEST(CatalogIndex, StoredIndexThatDoesNotFitIsRefused) {
   WriteCatalogDir(dir, bad, built.fov_deg);
   EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("does not fit its stars"));
   bad = good;  // another star count
+  const size_t stars_at = at + 16 + built.triangles.size() * 12;
   const int64_t stars = static_cast<int64_t>(built.stars.size()) + 1;
-  std::memcpy(bad.data() + good.size() - 8, &stars, 8);
+  std::memcpy(bad.data() + stars_at, &stars, 8);
   WriteCatalogDir(dir, bad, built.fov_deg);
   EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("does not fit its stars"));
+  bad = good;  // a star of the sky cells out of range (the last entry)
+  const int32_t no_star = static_cast<int32_t>(built.stars.size());
+  std::memcpy(bad.data() + good.size() - 4, &no_star, 4);
+  WriteCatalogDir(dir, bad, built.fov_deg);
+  EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("sky cells"));
   // Two keys swapped: no longer sorted.
   bad = good;
   std::memcpy(bad.data() + at + 16, good.data() + at + 24, 8);
@@ -226,16 +232,44 @@ TEST(CatalogIndex, StoredIndexThatDoesNotFitIsRefused) {
 // Index version 1 stored the star kd-tree in FLANN's own format, whose fields are the writer's size_t:
 // a 32-bit processor cannot read what a 64-bit one wrote. Such a catalog.bin still loads anywhere: the
 // stored tree (here bytes no FLANN could read) is skipped and the tree built from the stars, so that
-// the catalog answers as the built one. Version 2 (fixed-width fields only) is the same bytes on every
-// processor: the size of each part is checked here, so that nothing sized by the processor creeps in.
+// the catalog answers as the built one. Versions 2 and 3 (fixed-width fields only; 3 adds the sky
+// cells) are the same bytes on every processor: the size of each part is checked here, so that
+// nothing sized by the processor creeps in. A version-2 index gets its sky cells made at load.
 TEST(CatalogIndex, VersionOneIndexLoadsWithItsStoredTreeSkipped) {
   const SolverCatalog& built = Built20();
   const std::string dir = testing::TempDir("catalog_index_v1");
   SaveSolverCatalog(built, dir);
   const std::string good = ReadCatalogBin(dir);
   const size_t at = IndexOffset(built);
-  ASSERT_EQ(good.size(), at + 16 + built.triangles.size() * 12 + 8);
-  std::string v1 = good;
+  const size_t v2_end = at + 16 + built.triangles.size() * 12 + 8;
+  ASSERT_GT(good.size(), v2_end + 8);
+  int64_t cells = 0;
+  std::memcpy(&cells, good.data() + v2_end, 8);
+  EXPECT_GT(cells, 10000);  // 2 x 2 deg over the sphere
+  ASSERT_EQ(good.size(), v2_end + 8 + (static_cast<size_t>(cells) + 1) * 4 + built.stars.size() * 4);
+  {
+    std::string v2 = good.substr(0, v2_end);
+    const int64_t version = 2;
+    std::memcpy(v2.data() + at, &version, 8);
+    WriteCatalogDir(dir, v2, built.fov_deg);
+    const SolverCatalog back = LoadSolverCatalog(dir);
+    const Vec3 u = back.stars[3].unit;
+    std::vector<int> a(200), b(200);
+    const size_t na = back.index->StarsWithin(u, 0.1, a.data(), a.size());
+    const size_t nb = built.index->StarsWithin(u, 0.1, b.data(), b.size());
+    ASSERT_EQ(na, nb);
+    ASSERT_GT(na, 0u);
+    a.resize(std::min(na, a.size()));
+    b.resize(std::min(nb, b.size()));
+    EXPECT_EQ(a, b);
+  }
+  // Parsed without the kd-tree (the flight path): the vector lookup answers from the sky cells, the same.
+  const SolverCatalog lean = ParseSolverCatalog(good.data(), good.size(), "lean", /*star_tree=*/false);
+  for (int k = 0; k < 20; ++k) {
+    const Vec3 u = built.stars[static_cast<size_t>(k * 37) % built.stars.size()].unit;
+    EXPECT_EQ(lean.index->StarsWithin(u, 0.12), built.index->StarsWithin(u, 0.12));
+  }
+  std::string v1 = good.substr(0, v2_end);
   const int64_t version = 1, tree_bytes = 1000;
   std::memcpy(v1.data() + at, &version, 8);
   v1.append(reinterpret_cast<const char*>(&tree_bytes), 8);
@@ -248,7 +282,7 @@ TEST(CatalogIndex, VersionOneIndexLoadsWithItsStoredTreeSkipped) {
   EXPECT_EQ(back.index->StarsWithin(u, 0.1), built.index->StarsWithin(u, 0.1));
   EXPECT_FALSE(back.index->StarsWithin(u, 0.1).empty());
   // A version-1 tree's byte count that does not reach the end is refused, never read.
-  std::memcpy(v1.data() + good.size(), &version, 8);
+  std::memcpy(v1.data() + v2_end, &version, 8);
   WriteCatalogDir(dir, v1, built.fov_deg);
   EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("does not fit its stars"));
 }
