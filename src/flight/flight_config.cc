@@ -32,6 +32,7 @@ std::vector<Field> Fields(ssiu_flight_config* c) {
                           {"max_centroids", Kind::kInt, &c->max_centroids, 1},
                           {"max_stars_in_field", Kind::kInt, &c->max_stars_in_field, 1},
                           {"max_hypotheses", Kind::kInt, &c->max_hypotheses, 1},
+                          {"max_patterns", Kind::kInt, &c->max_patterns, 1},
                           {"max_false_match_prob", Kind::kDouble, &c->max_false_match_prob, 1},
                           {"threshold_sigma", Kind::kDouble, &c->threshold_sigma, 1},
                           {"exposure_s", Kind::kDouble, &c->exposure_s, 1},
@@ -109,6 +110,7 @@ ssiu_flight_config FlightConfigFor(const std::vector<OpticalHead>& heads, const 
   c.max_centroids = o.solve.detect.max_stars;
   c.max_stars_in_field = o.max_stars_in_field;
   c.max_hypotheses = o.solve.identify.max_hypotheses;
+  c.max_patterns = o.solve.identify.max_patterns;
   c.max_false_match_prob = o.solve.identify.max_false_match_prob;
   c.threshold_sigma = o.solve.detect.threshold_sigma;
   c.exposure_s = o.solve.detect.smear.exposure_s;
@@ -164,6 +166,7 @@ FlightSetup FlightSetupFrom(const ssiu_flight_config& c) {
     throw InputError(src, "max_stars_in_field must be 1 to 100000");
   o.max_stars_in_field = c.max_stars_in_field;
   o.solve.identify.max_hypotheses = c.max_hypotheses;
+  o.solve.identify.max_patterns = c.max_patterns;
   o.solve.identify.max_false_match_prob = c.max_false_match_prob;
   o.solve.detect.threshold_sigma = c.threshold_sigma;
   o.solve.detect.smear.exposure_s = c.exposure_s;

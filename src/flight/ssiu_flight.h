@@ -116,6 +116,7 @@ typedef struct {
   int32_t max_stars_in_field;  /* catalog stars about a head's field that identification predicts from */
   /* Identification. */
   int32_t max_hypotheses;      /* lost-in-space work budget: hypotheses checked (deterministic) */
+  int32_t max_patterns;        /* and centroid triangles looked up: whichever comes first ends the search */
   double max_false_match_prob; /* accept a hypothesis only below this chance probability */
   double threshold_sigma;      /* detection threshold (noise sigmas) */
   double exposure_s;           /* frame exposure: the detector expects the smear of the gyro rate; 0 = off */
