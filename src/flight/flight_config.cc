@@ -31,6 +31,8 @@ std::vector<Field> Fields(ssiu_flight_config* c) {
                           {"gyro_max_abs_dph", Kind::kDouble, &c->gyro_max_abs_dph, 1},
                           {"max_centroids", Kind::kInt, &c->max_centroids, 1},
                           {"max_stars_in_field", Kind::kInt, &c->max_stars_in_field, 1},
+                          {"max_star_samples", Kind::kInt, &c->max_star_samples, 1},
+                          {"max_bias_history", Kind::kInt, &c->max_bias_history, 1},
                           {"max_hypotheses", Kind::kInt, &c->max_hypotheses, 1},
                           {"max_patterns", Kind::kInt, &c->max_patterns, 1},
                           {"max_false_match_prob", Kind::kDouble, &c->max_false_match_prob, 1},
@@ -109,6 +111,8 @@ ssiu_flight_config FlightConfigFor(const std::vector<OpticalHead>& heads, const 
   c.gyro_max_abs_dph = o.fuse.policy.max_gyro_output_dph;
   c.max_centroids = o.solve.detect.max_stars;
   c.max_stars_in_field = o.max_stars_in_field;
+  c.max_star_samples = o.fuse.policy.max_star_samples_kept;
+  c.max_bias_history = o.fuse.policy.bias_history_max;
   c.max_hypotheses = o.solve.identify.max_hypotheses;
   c.max_patterns = o.solve.identify.max_patterns;
   c.max_false_match_prob = o.solve.identify.max_false_match_prob;
@@ -165,6 +169,12 @@ FlightSetup FlightSetupFrom(const ssiu_flight_config& c) {
   if (c.max_stars_in_field < 1 || c.max_stars_in_field > 100000)
     throw InputError(src, "max_stars_in_field must be 1 to 100000");
   o.max_stars_in_field = c.max_stars_in_field;
+  if (c.max_star_samples < 1 || c.max_star_samples > (1 << 20))
+    throw InputError(src, "max_star_samples must be 1 to 1048576");
+  if (c.max_bias_history < 1 || c.max_bias_history > (1 << 20))
+    throw InputError(src, "max_bias_history must be 1 to 1048576");
+  o.fuse.policy.max_star_samples_kept = c.max_star_samples;
+  o.fuse.policy.bias_history_max = c.max_bias_history;
   o.solve.identify.max_hypotheses = c.max_hypotheses;
   o.solve.identify.max_patterns = c.max_patterns;
   o.solve.identify.max_false_match_prob = c.max_false_match_prob;

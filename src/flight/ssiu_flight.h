@@ -114,6 +114,8 @@ typedef struct {
   /* Sizes every buffer is made for at init. */
   int32_t max_centroids;       /* brightest detections kept per frame */
   int32_t max_stars_in_field;  /* catalog stars about a head's field that identification predicts from */
+  int32_t max_star_samples;    /* star solutions a suspected gyro fault's isolator keeps (the oldest go first) */
+  int32_t max_bias_history;    /* bias estimates kept for the fault fits (the oldest go first) */
   /* Identification. */
   int32_t max_hypotheses;      /* lost-in-space work budget: hypotheses checked (deterministic) */
   int32_t max_patterns;        /* and centroid triangles looked up: whichever comes first ends the search */

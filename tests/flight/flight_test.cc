@@ -299,6 +299,13 @@ TEST(FlightInterface, BadConfigAndMemoryAreRefusedWithTheField) {
   c.n_gyros = 2;
   EXPECT_EQ(ssiu_flight_check_config(&c), SSIU_ERR_CONFIG);
   c = ConfigFor(d);
+  c.max_star_samples = 0;
+  {
+    Handle h(c, d.blob);
+    EXPECT_EQ(h.rc, SSIU_ERR_CONFIG);
+    EXPECT_THAT(h.why(), HasSubstr("max_star_samples"));
+  }
+  c = ConfigFor(d);
   c.max_patterns = 0;
   {
     Handle h(c, d.blob);
