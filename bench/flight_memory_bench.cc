@@ -8,8 +8,6 @@
 //   ./build/bench/flight_memory_bench --benchmark_counters_tabular=true
 #include <benchmark/benchmark.h>
 
-#include <fstream>
-#include <sstream>
 #include <vector>
 
 #include "core/output.h"
@@ -36,12 +34,7 @@ struct Blob {
 const Blob& TheBlob() {
   static const Blob b = [] {
     Blob x;
-    const std::string dir = "/tmp/ssiu_flight_memory_bench_catalog";
-    SaveSolverCatalog(MakeIdentifierForCamera("", MakeCamera(512, 512, 16.6), 0.0).catalog(), dir);
-    std::ifstream in(dir + "/catalog.bin", std::ios::binary);
-    std::ostringstream s;
-    s << in.rdbuf();
-    x.bytes = s.str();
+    x.bytes = SolverCatalogBytes(MakeIdentifierForCamera("", MakeCamera(512, 512, 16.6), 0.0).catalog());
     x.crc = Crc32(x.bytes.data(), x.bytes.size());
     return x;
   }();

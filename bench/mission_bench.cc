@@ -5,9 +5,7 @@
 #include <benchmark/benchmark.h>
 
 #include <cstdio>
-#include <fstream>
 #include <memory>
-#include <sstream>
 
 #include "core/output.h"
 #include "flight/flight_config.h"
@@ -123,12 +121,7 @@ struct FlightHandle {
   std::vector<Block16> memory;
   ssiu_flight* f = nullptr;
   explicit FlightHandle(const Setup& s) {
-    const std::string dir = "/tmp/ssiu_mission_bench_catalog";
-    SaveSolverCatalog(s.ids[0]->catalog(), dir);
-    std::ifstream in(dir + "/catalog.bin", std::ios::binary);
-    std::ostringstream b;
-    b << in.rdbuf();
-    blob = b.str();
+    blob = SolverCatalogBytes(s.ids[0]->catalog());
     config = FlightConfigFor(s.config.heads, s.config.unit, s.config.processor, s.config.start_utc,
                              s.config.velocity_kms);
     config.catalog_crc32 = Crc32(blob.data(), blob.size());

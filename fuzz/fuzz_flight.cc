@@ -6,8 +6,6 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <fstream>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -48,13 +46,7 @@ const Setup& TheSetup() {
     // handling of inputs, not the depth of the search (an instrumented build takes ~1000x longer).
     x.config.max_hypotheses = 200;
     x.config.max_patterns = 5000;
-    const char* tmp = std::getenv("TMPDIR");
-    const std::string dir = std::string(tmp && *tmp ? tmp : "/tmp") + "/ssiu_fuzz_flight_catalog";
-    ssiu::SaveSolverCatalog(ssiu::MakeIdentifierForCamera("", cam, 0.0).catalog(), dir);
-    std::ifstream in(dir + "/catalog.bin", std::ios::binary);
-    std::ostringstream b;
-    b << in.rdbuf();
-    x.blob = b.str();
+    x.blob = ssiu::SolverCatalogBytes(ssiu::MakeIdentifierForCamera("", cam, 0.0).catalog());
     x.config.catalog_crc32 = ssiu::Crc32(x.blob.data(), x.blob.size());
     x.stars.assign(kSize * kSize, 100);
     for (int k = 0; k < 12; ++k) {

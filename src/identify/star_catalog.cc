@@ -390,11 +390,7 @@ SolverCatalog BuildSolverCatalog(const StarCatalog& stars, const CatalogBuildOpt
   return BuildFromStars(stars.stars, stars.source, stars.epoch_year, o);
 }
 
-void SaveSolverCatalog(const SolverCatalog& cat, const std::string& dir) {
-  MakeDirs(dir);
-  // meta.json goes first and comes back last: a directory without it is a build in progress (or
-  // killed), never a catalog, and its checksum ties it to this very catalog.bin.
-  std::remove((dir + "/meta.json").c_str());
+std::string SolverCatalogBytes(const SolverCatalog& cat) {
   std::ostringstream out(std::ios::binary);
   auto put = [&](const void* p, size_t n) { out.write(static_cast<const char*>(p), static_cast<std::streamsize>(n)); };
   put(kMagic, 8);
@@ -421,7 +417,15 @@ void SaveSolverCatalog(const SolverCatalog& cat, const std::string& dir) {
   const auto ix = cat.index && cat.index->Fits(cat) ? cat.index : std::make_shared<const CatalogIndex>(cat);
   ix->Write(&index);
   put(index.data(), index.size());
-  const std::string bin = out.str();
+  return out.str();
+}
+
+void SaveSolverCatalog(const SolverCatalog& cat, const std::string& dir) {
+  MakeDirs(dir);
+  // meta.json goes first and comes back last: a directory without it is a build in progress (or
+  // killed), never a catalog, and its checksum ties it to this very catalog.bin.
+  std::remove((dir + "/meta.json").c_str());
+  const std::string bin = SolverCatalogBytes(cat);
   WriteFileAtomic(dir + "/catalog.bin", bin);
   WriteFileAtomic(dir + "/stars.csv", [&](std::ostream& csv) {
     csv << "star_id,ra_deg,dec_deg,mag,pm_ra_mas_per_yr,pm_dec_mas_per_yr\n" << std::setprecision(10);

@@ -117,6 +117,9 @@ void SaveSolverCatalog(const SolverCatalog& catalog, const std::string& dir);
 // loads, its index rebuilt in memory (slower: `ssiu catalog build` anew to store it).
 SolverCatalog LoadSolverCatalog(const std::string& dir);
 
+// catalog.bin's bytes for `catalog` (what SaveSolverCatalog writes there): a flight image's blob.
+std::string SolverCatalogBytes(const SolverCatalog& catalog);
+
 // catalog.bin's bytes (in memory or ROM, e.g. a flight image) as one fixed-FOV catalog: the stars,
 // triangles and stored index are read without rebuilding anything. InputError naming `name` when the
 // bytes are not a whole catalog (the CRC is meta.json's; flight/ssiu_flight.h checks it).

@@ -8,8 +8,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <fstream>
-#include <sstream>
 #include <vector>
 
 #include "core/attitude.h"
@@ -57,12 +55,7 @@ struct Counts {
 TEST(FlightAllocation, NoHeapAndNoExceptionAfterInitOverAMissionWithOutageAndFault) {
   const MissionConfig config = FaultMission();
   const MissionData data = SimulateMission(config);
-  const std::string dir = testing::TempDir("flight_alloc_catalog");
-  SaveSolverCatalog(MakeIdentifierForCamera("", config.heads[0].camera, 0.0).catalog(), dir);
-  std::ifstream in(dir + "/catalog.bin", std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  const std::string blob = s.str();
+  const std::string blob = SolverCatalogBytes(MakeIdentifierForCamera("", config.heads[0].camera, 0.0).catalog());
 
   ssiu_flight_config c =
       FlightConfigFor(config.heads, config.unit, config.processor, config.start_utc, config.velocity_kms);
