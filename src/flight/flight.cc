@@ -216,8 +216,8 @@ ssiu_result ssiu_flight_init(const ssiu_flight_config* config, const void* catal
     std::vector<std::shared_ptr<const ssiu::StarIdentifier>> ids(setup.heads.size(), id);
     f->processor.emplace(setup.heads, ids, setup.unit, setup.options);
     f->views.resize(setup.heads.size());
-    // One call of each kind on nothing, so that the reused report and state have their shape (the
-    // heads, the fault list) before the first real call.
+    // The reused report and state get their room here (a result per head, the gyros in use), so that
+    // the first real calls allocate nothing either.
     f->report.heads.reserve(setup.heads.size());
     f->processor->Attitude(&f->attitude, false);
   } catch (const std::exception& e) {
