@@ -169,7 +169,10 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
     // The summary is printed after every output is written: an unwritable path is then the only line.
     std::ostringstream summary;
     summary << "discover frames: " << d.frames_solved << "/" << d.frames << " solved, " << d.stars << " stars; cause "
-            << d.cause;
+            << (d.cause == "unexplained" || d.causes.empty() ? d.cause : "");
+    std::string chain;  // the causes in the order they entered the model
+    for (size_t k = 0; k < d.causes.size(); ++k) chain += (k ? " + " : "") + d.causes[k].cause;
+    summary << (d.cause == "unexplained" ? (chain.empty() ? "" : " (after " + chain + ")") : chain);
     for (const auto& [k, v] : d.parameters) summary << " " << k << "=" << v << "+-" << d.sigmas.at(k);
     summary << "; residual rms " << d.residual_rms_before_arcsec << " -> " << d.residual_rms_after_arcsec
             << " arcsec (gain " << d.gain << ")\n";

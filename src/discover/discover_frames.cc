@@ -21,10 +21,20 @@ using Eigen::VectorXd;
 
 // Camera parameter blocks: 0 focal_length (df), 1-2 principal_point (dcx, dcy), 3 lens_distortion (dk1),
 // 4 pixel_aspect (relative change of fy alone, da: fy -> fy (1 + da)), 5-7 aberration (b = v/c, ICRS:
-// an observer velocity the catalog directions were not corrected for).
-constexpr int kCam = 8;
+// an observer velocity the catalog directions were not corrected for), 8 lens_distortion's second term
+// (dk2, tried once k1 is in the model).
+constexpr int kCam = 9;
 using CamMask = std::array<bool, kCam>;
-constexpr CamMask kNoCam = {false, false, false, false, false, false, false, false};
+constexpr CamMask kNoCam = {};
+CamMask MaskOf(std::initializer_list<int> blocks) {
+  CamMask m = kNoCam;
+  for (int k : blocks) m[k] = true;
+  return m;
+}
+// The cause each camera parameter belongs to.
+constexpr const char* kCamCause[kCam] = {"focal_length", "principal_point", "principal_point",
+                                         "lens_distortion", "pixel_aspect", "aberration",
+                                         "aberration", "aberration", "lens_distortion"};
 
 // The camera of a frame whose boresight (inertial) is `bore`. Uncorrected aberration moves every star
 // towards the apex by (v/c) sin(theta) (core/astrometry.h); across a field, to first order, that is a
@@ -39,6 +49,7 @@ Camera Apply(const Camera& c0, const double* cam, const Vec3& bore = Vec3::Zero(
   c.cx_px += cam[1];
   c.cy_px += cam[2];
   c.distortion.k1 += cam[3];
+  c.distortion.k2 += cam[8];
   if (cam[4] != 0) c.focal_length_y_px = c.FocalYPx() * (1 + cam[4]);
   return c;
 }
@@ -52,7 +63,7 @@ Quat Perturbed(const Quat& q, const double* d) {
 
 struct GeoFit {
   std::vector<double> rot;  // 3 per frame
-  double cam[kCam] = {0, 0, 0, 0, 0, 0, 0, 0};
+  double cam[kCam] = {};
   double rss = 0;    // weighted
   MatrixXd cov_cam;  // unscaled covariance of the active camera parameters
   VectorXd res;      // 2 per star, measured - model over the centroid sigma
@@ -108,7 +119,7 @@ GeoFit FitGeometry(const SolvedFrameSet& set, const Camera& cam0, const std::vec
     residuals(g, &r);
     MatrixXd j = MatrixXd::Zero(nr, np);
     const double h_rot = 1e-7;
-    const double h_cam[kCam] = {1e-3, 1e-3, 1e-3, 1e-7, 1e-7, 1e-7, 1e-7, 1e-7};
+    const double h_cam[kCam] = {1e-3, 1e-3, 1e-3, 1e-7, 1e-7, 1e-7, 1e-7, 1e-7, 1e-6};
     for (int f = 0; f < nf; ++f) {
       if (frame_col[f] < 0) continue;
       for (int a = 0; a < 3; ++a) {
@@ -177,8 +188,17 @@ double HeldOutZ(double e_dot_p, double p_dot_p, double s2) {
 
 void Fail(const std::string& what) { throw InputError("options", what); }
 
-// The steps of DiscoverFrames (docs/discrepancy.md): the candidates' tests, the measured figures,
-// the gates (bounds, held-out gain) in BIC order, the named cause's parameters and the residual test.
+// The steps of DiscoverFrames (docs/discrepancy.md): stepwise extension of the model. At each step every
+// cause not yet in the model is tested against the model (geometric causes: fitted jointly with the
+// causes already in it), the significant ones are gated (bounds, held-out gain over the model) in BIC
+// order and the first that passes enters; the loop ends when none passes. Then the residual of the
+// final joint model is tested for structure (`unexplained`).
+//
+// False alarms across steps: step k tests the m_k causes left, each at alpha / m_k (Bonferroni within
+// the step). On clean data only the first step can name anything, so P(a cause named) <= alpha. Once
+// every present cause is in the model, the next step is again a test of clean data at alpha, and the
+// search stops at its first step without a pass: P(a cause beyond the present ones) <= alpha as well,
+// plus what a wrong cause absorbs of a present one, which the held-out gate and the joint refit bound.
 class FrameCauseSearch {
  public:
   FrameCauseSearch(const SolvedFrameSet& set, const Camera& camera, const FrameDiscoverOptions& o)
@@ -195,32 +215,37 @@ class FrameCauseSearch {
     if (!psf_.tested) d_.not_tested.push_back("psf_shape");
     aberration_testable_ = AberrationTestable();
     if (!aberration_testable_) d_.not_tested.push_back("aberration");
-    // Bonferroni over the candidates actually tested (5 geometric/photometric + these).
-    alpha_each_ = o_.alpha / (5 + aberration_testable_ + hot_.tested + psf_.tested);
+    d_.gain_z_min = boost::math::quantile(boost::math::complement(boost::math::normal(), o_.gain_alpha));
     if (nf_ == 0 || d_.stars < 10) {
-      d_.cause = "none";
-      if (hot_.tested && hot_.candidate.p_value < alpha_each_) NameOther(hot_);
+      // Bonferroni over the candidates of the vocabulary (5 geometric/photometric + these).
+      const double alpha_each = o_.alpha / (5 + aberration_testable_ + hot_.tested + psf_.tested);
+      if (hot_.tested && hot_.candidate.p_value < alpha_each) {
+        FrameCandidate c = hot_.candidate;
+        c.significant = c.evaluated = true;
+        c.gain = hot_.gain, c.verdict = "named";
+        d_.candidates.push_back(c);
+        HeldOut h;
+        h.before = hot_.before, h.after = hot_.after, h.gain = hot_.gain;
+        Enter(c, h);
+        Conclude();
+      }
       return d_;
     }
-    GeometricCandidates();
-    VignettingCandidate();
+    GeometricModels();
     MeasuredFigures();
-    for (const auto* c : {&hot_, &psf_}) {
-      if (!c->tested) continue;
-      d_.candidates.push_back(c->candidate);
-      d_.candidates.back().significant = c->candidate.p_value < alpha_each_;
+    for (int step = 1;; ++step) {
+      std::vector<FrameCandidate> cands = StepCandidates();
+      if (cands.empty()) break;
+      for (auto& c : cands) c.significant = c.p_value < o_.alpha / cands.size();
+      HeldOut ho;
+      const int chosen = ChooseCause(&cands, &ho);
+      d_.steps.push_back(cands);
+      if (step == 1) d_.candidates = cands;
+      if (chosen < 0) break;
+      Enter(cands[chosen], ho);
     }
-    HeldOut chosen_ho;
-    const FrameCandidate* chosen = ChooseCause(&chosen_ho);
-    PlotResiduals(chosen);
-    // `unexplained`: the residual of the fullest model of the vocabulary (every geometric cause, the
-    // vignetting law), whatever was named: structure that no cause explains.
-    d_.residual = discover_internal::TestFrameResidual(set_, camera_, fullest_.jac, fullest_.res, o_);
-    if (chosen) NameCause(*chosen, chosen_ho);
-    if (d_.residual.structured) {
-      d_.partial_cause = d_.cause == "none" ? "" : d_.cause;
-      d_.cause = "unexplained";
-    }
+    Prune();
+    Conclude();
     return d_;
   }
 
@@ -228,6 +253,9 @@ class FrameCauseSearch {
   struct Spec {
     std::string cause;
     CamMask mask;
+    // A further term: "k2" added to lens_distortion in the model, "k1+k2" lens_distortion entering with
+    // both (a k2-dominated lens looks like neither k1 nor a focal length alone); else empty.
+    std::string term;
   };
 
   // aberration needs frames pointing in several directions (else it is a focal length): the
@@ -240,54 +268,92 @@ class FrameCauseSearch {
     return Eigen::SelfAdjointEigenSolver<Mat3>(scatter).eigenvalues().minCoeff() > 0.02;
   }
 
-  // Names a cause found without the geometric fits (hot_pixels, psf_shape).
-  void NameOther(const discover_internal::CauseResult& c) {
-    d_.cause = c.candidate.cause;
-    d_.parameters = c.parameters;
-    d_.sigmas = c.sigmas;
-    d_.gain = c.gain;
-    if (d_.cause == "hot_pixels") {
-      d_.spikes_before = c.before, d_.spikes_after = c.after;
-    } else {
-      d_.stamp_rms_before = c.before, d_.stamp_rms_after = c.after;
-    }
+  static CamMask Union(const CamMask& a, const CamMask& b) {
+    CamMask m;
+    for (int k = 0; k < kCam; ++k) m[k] = a[k] || b[k];
+    return m;
   }
 
-  // The camera causes: each block of camera parameters fitted with every frame's rotation, its
-  // chi-square against the base (camera as given) scaled by the fullest model's residual variance.
-  void GeometricCandidates() {
-    specs_ = {{"focal_length", {true, false, false, false, false, false, false, false}},
-              {"principal_point", {false, true, true, false, false, false, false, false}},
-              {"lens_distortion", {false, false, false, true, false, false, false, false}},
-              {"pixel_aspect", {false, false, false, false, true, false, false, false}}};
+  bool InModel(const std::string& cause) const {
+    for (const auto& e : d_.causes) {
+      if (e.cause == cause) return true;
+    }
+    return false;
+  }
+
+  // The camera causes, the base (camera as given, one rotation per frame) and the fullest model (every
+  // camera cause), whose residual variance scales every chi-square: it holds whatever is present.
+  void GeometricModels() {
+    specs_ = {{"focal_length", MaskOf({0}), ""},
+              {"principal_point", MaskOf({1, 2}), ""},
+              {"lens_distortion", MaskOf({3}), ""},
+              {"pixel_aspect", MaskOf({4}), ""},
+              {"lens_distortion", MaskOf({8}), "k2"},
+              {"lens_distortion", MaskOf({3, 8}), "k1+k2"}};
     const bool ab = aberration_testable_;
-    if (ab) specs_.push_back({"aberration", {false, false, false, false, false, true, true, true}});
+    if (ab) specs_.push_back({"aberration", MaskOf({5, 6, 7}), ""});
     const std::vector<bool> all(nf_, true);
     base_ = FitGeometry(set_, camera_, all, kNoCam, nullptr, o_);
-    fullest_ = FitGeometry(set_, camera_, all, {true, true, true, true, true, ab, ab, ab}, nullptr, o_);
-    const int nobs = 2 * d_.stars;
-    const int npar = 3 * nf_ + kCam;
-    s2_ = fullest_.rss / std::max(1, nobs - npar);
-    for (const auto& sp : specs_) {
-      FrameCandidate c;
-      c.cause = sp.cause;
-      c.dof = static_cast<int>(std::count(sp.mask.begin(), sp.mask.end(), true));
-      const GeoFit g = FitGeometry(set_, camera_, all, sp.mask, nullptr, o_);
-      c.statistic = std::max(0.0, (base_.rss - g.rss) / s2_);
-      c.p_value = ChiSq1or2Survival(c.statistic, c.dof);
-      c.delta_bic = c.statistic - c.dof * std::log(static_cast<double>(nobs));
-      c.significant = c.p_value < alpha_each_;
-      fits_[sp.cause] = g;
-      d_.candidates.push_back(c);
+    const GeoFit fullest =
+        FitGeometry(set_, camera_, all, ab ? MaskOf({0, 1, 2, 3, 4, 5, 6, 7, 8}) : MaskOf({0, 1, 2, 3, 4, 8}),
+                    nullptr, o_);
+    s2_ = fullest.rss / std::max(1, 2 * d_.stars - (3 * nf_ + kCam));
+    model_ = base_;
+    model_mask_ = kNoCam;
+    double ss = 0;
+    for (int i = 0; i < d_.stars; ++i) {
+      const double w = std::max(set_.stars[i].sigma_px, o_.min_sigma_px);
+      ss += (std::pow(base_.res(2 * i), 2) + std::pow(base_.res(2 * i + 1), 2)) * w * w;
     }
+    base_rms_px_ = model_rms_px_ = std::sqrt(ss / (2 * d_.stars));
   }
 
-  // Vignetting: y = ln(flux) + 0.4 ln(10) V against u = (r / r_corner)^2.
-  void VignettingCandidate() {
+  // The candidates of one step: every cause not in the model, tested against it.
+  std::vector<FrameCandidate> StepCandidates() {
+    std::vector<FrameCandidate> out;
+    const std::vector<bool> all(nf_, true);
+    const double nobs = 2.0 * d_.stars;
+    fits_.clear();
+    for (const auto& sp : specs_) {
+      // A cause enters once (alone or with its further term); a further term only after its cause, once.
+      const bool added_term = sp.term == "k2";
+      if (!added_term ? InModel(sp.cause) : !InModel(sp.cause) || Union(model_mask_, sp.mask) == model_mask_)
+        continue;
+      FrameCandidate c;
+      c.cause = sp.cause;
+      c.term = sp.term;
+      c.dof = static_cast<int>(std::count(sp.mask.begin(), sp.mask.end(), true));
+      const GeoFit g = FitGeometry(set_, camera_, all, Union(model_mask_, sp.mask), model_.cam, o_);
+      c.statistic = std::max(0.0, (model_.rss - g.rss) / s2_);
+      c.p_value = ChiSq1or2Survival(c.statistic, c.dof);
+      c.delta_bic = c.statistic - c.dof * std::log(nobs);
+      fits_[Key(c)] = g;
+      out.push_back(c);
+    }
+    if (!InModel("vignetting")) out.push_back(VignettingCandidate());
+    for (const auto* r : {&hot_, &psf_}) {
+      if (r->tested && !InModel(r->candidate.cause)) out.push_back(r->candidate);
+    }
+    return out;
+  }
+
+  // The model's camera (the named geometric causes; aberration is not a camera property).
+  Camera ModelCamera() const {
+    double cam[kCam];
+    for (int k = 0; k < kCam; ++k) cam[k] = k >= 5 && k <= 7 ? 0.0 : model_.cam[k];
+    return Apply(camera_, cam);
+  }
+
+  // Vignetting: y = ln(flux) + 0.4 ln(10) V against u = (r / r_corner)^2, r about the model's
+  // principal point.
+  FrameCandidate VignettingCandidate() {
+    const Camera cam = ModelCamera();
+    vu_.clear(), vy_.clear(), vframe_.clear();
     for (const auto& s : set_.stars) {
       if (!(s.flux > 0)) continue;
-      vu_.push_back(discover_internal::FieldRadius2(camera_, s.x_px, s.y_px));
+      vu_.push_back(discover_internal::FieldRadius2(cam, s.x_px, s.y_px));
       vy_.push_back(std::log(s.flux) + 0.4 * std::log(10.0) * s.mag);
+      vframe_.push_back(s.frame);
     }
     FrameCandidate c;
     c.cause = "vignetting";
@@ -306,20 +372,23 @@ class FrameCauseSearch {
       c.statistic = std::pow(slope / se, 2);
       c.p_value = ChiSq1or2Survival(c.statistic, 1);
       c.delta_bic = c.statistic - std::log(static_cast<double>(n));
-      c.significant = c.p_value < alpha_each_;
     }
-    d_.candidates.push_back(c);
-    vig_v_ = vu_.size() >= 10 ? discover_internal::FitVignettingLaw(vu_, vy_, &vig_sigma_) : 0.0;
+    vig_v_ = n >= 10 ? discover_internal::FitVignettingLaw(vu_, vy_, &vig_sigma_) : 0.0;
+    return c;
   }
 
   // Measured figures for the comparison with the simulator.
   void MeasuredFigures() {
-    if (!vy_.empty()) {
+    std::vector<double> y;
+    for (const auto& s : set_.stars) {
+      if (s.flux > 0) y.push_back(std::log(s.flux) + 0.4 * std::log(10.0) * s.mag);
+    }
+    if (!y.empty()) {
       double m = 0, ss = 0;
-      for (double v : vy_) m += v / vy_.size();
-      for (double v : vy_) ss += (v - m) * (v - m);
+      for (double v : y) m += v / y.size();
+      for (double v : y) ss += (v - m) * (v - m);
       d_.zero_point_adu = std::exp(m);
-      d_.photometric_scatter_mag = std::sqrt(ss / vy_.size()) * 2.5 / std::log(10.0);
+      d_.photometric_scatter_mag = std::sqrt(ss / y.size()) * 2.5 / std::log(10.0);
     }
     std::vector<double> ps;
     for (const auto& s : set_.stars) {
@@ -330,51 +399,63 @@ class FrameCauseSearch {
     d_.noise_median_adu = Median(set_.noise_adu);
   }
 
-  const Spec* SpecOf(const std::string& cause) const {
+  const Spec* SpecOf(const std::string& cause, const std::string& term = "") const {
     for (const auto& sp : specs_) {
-      if (sp.cause == cause) return &sp;
+      if (sp.cause == cause && sp.term == term) return &sp;
     }
     return nullptr;
   }
+  static std::string Key(const FrameCandidate& c) { return c.term.empty() ? c.cause : c.cause + ":" + c.term; }
 
-  // Geometric: the camera fitted on the even frames scored on the odd ones and vice versa (rotations
-  // refitted there with the camera held); RMS in px, z over both folds.
-  HeldOut GeometricHeldOut(const Spec& sp) {
+  // Geometric: the model with and without the cause fitted on the even frames, scored on the odd ones
+  // and vice versa (rotations refitted there with the camera held); RMS in px, z over both folds.
+  HeldOut GeometricHeldOut(const Spec& sp, const GeoFit& fit) {
     HeldOut h;
+    const CamMask with = Union(model_mask_, sp.mask);
     if (nf_ < 2) {  // one frame: the fitted figures stand (no held-out frames)
-      double sb = 0, sa = 0;
+      double sa = 0;
       for (int i = 0; i < d_.stars; ++i) {
         const double w = std::max(set_.stars[i].sigma_px, o_.min_sigma_px);
-        sb += (std::pow(base_.res(2 * i), 2) + std::pow(base_.res(2 * i + 1), 2)) * w * w;
-        sa += (std::pow(fits_[sp.cause].res(2 * i), 2) + std::pow(fits_[sp.cause].res(2 * i + 1), 2)) * w * w;
+        sa += (std::pow(fit.res(2 * i), 2) + std::pow(fit.res(2 * i + 1), 2)) * w * w;
       }
-      h.before = std::sqrt(sb / (2 * d_.stars)), h.after = std::sqrt(sa / (2 * d_.stars));
+      h.before = model_rms_px_, h.after = std::sqrt(sa / (2 * d_.stars));
       h.gain = h.after > 0 ? h.before / h.after : 1.0;
       return h;
     }
-    double ssb = 0, ssa = 0, ep = 0, pp = 0;
-    int cnt = 0;
-    const double zero[kCam] = {0, 0, 0, 0, 0, 0, 0, 0};
+    VectorXd w2;
+    const VectorXd e = HeldOutFolds(model_mask_, &w2), r = HeldOutFolds(with);
+    if (e.size() == 0) return h;
+    h.before = RmsPx(e, w2), h.after = RmsPx(r, w2);
+    h.gain = h.after > 0 ? h.before / h.after : 1.0;
+    h.z = HeldOutZ(e.dot(e - r), (e - r).squaredNorm(), s2_), h.z_defined = true;
+    return h;
+  }
+
+  // Both folds' held-out residuals (whitened; the stars of the odd frames, then of the even ones) under
+  // the camera blocks `mask` fitted on the other frames (started from the model's values), and the
+  // squared centroid sigma of each residual.
+  VectorXd HeldOutFolds(const CamMask& mask, VectorXd* w2 = nullptr) const {
+    double start[kCam];
+    for (int k = 0; k < kCam; ++k) start[k] = mask[k] ? model_.cam[k] : 0.0;
+    std::vector<VectorXd> parts;
+    std::vector<double> weights;
     for (int fold = 0; fold < 2; ++fold) {
       std::vector<bool> train(nf_), test(nf_);
       for (int f = 0; f < nf_; ++f) train[f] = f % 2 == fold, test[f] = !train[f];
-      const GeoFit gt = FitGeometry(set_, camera_, train, sp.mask, nullptr, o_);
-      const VectorXd e = HeldOutResiduals(set_, camera_, test, zero, o_),
-                     r = HeldOutResiduals(set_, camera_, test, gt.cam, o_);
-      int k = 0;
+      const GeoFit g = FitGeometry(set_, camera_, train, mask, start, o_);
+      parts.push_back(HeldOutResiduals(set_, camera_, test, g.cam, o_));
       for (const auto& st : set_.stars) {
-        if (!test[st.frame]) continue;
-        const double w2 = std::pow(std::max(st.sigma_px, o_.min_sigma_px), 2);
-        for (int c = 0; c < 2; ++c, ++k) ssb += e(k) * e(k) * w2, ssa += r(k) * r(k) * w2;
-        cnt += 2;
+        if (test[st.frame]) weights.insert(weights.end(), 2, std::pow(std::max(st.sigma_px, o_.min_sigma_px), 2));
       }
-      ep += e.dot(e - r), pp += (e - r).squaredNorm();
     }
-    if (cnt == 0) return h;
-    h.before = std::sqrt(ssb / cnt), h.after = std::sqrt(ssa / cnt);
-    h.gain = h.after > 0 ? h.before / h.after : 1.0;
-    h.z = HeldOutZ(ep, pp, s2_), h.z_defined = true;
-    return h;
+    VectorXd out(parts[0].size() + parts[1].size());
+    out << parts[0], parts[1];
+    if (w2) *w2 = Eigen::Map<const VectorXd>(weights.data(), static_cast<Eigen::Index>(weights.size()));
+    return out;
+  }
+
+  static double RmsPx(const VectorXd& r_whitened, const VectorXd& w2) {
+    return r_whitened.size() ? std::sqrt(r_whitened.cwiseAbs2().dot(w2) / r_whitened.size()) : 0.0;
   }
 
   // Vignetting: the slope fitted on the even frames scored on the odd ones and vice versa (mag).
@@ -383,29 +464,25 @@ class FrameCauseSearch {
     HeldOut h;
     double ssb = 0, ssa = 0, ep = 0, pp = 0;
     int n = 0;
-    std::vector<int> frame_of;
-    for (const auto& st : set_.stars) {
-      if (st.flux > 0) frame_of.push_back(st.frame);
-    }
     for (int fold = 0; fold < 2; ++fold) {
       double mu = 0, my = 0, cnt = 0;
       for (size_t i = 0; i < vu_.size(); ++i) {
-        if (frame_of[i] % 2 == fold) mu += vu_[i], my += vy_[i], cnt += 1;
+        if (vframe_[i] % 2 == fold) mu += vu_[i], my += vy_[i], cnt += 1;
       }
       if (cnt < 3) continue;
       mu /= cnt, my /= cnt;
       double suu = 0, suy = 0;
       for (size_t i = 0; i < vu_.size(); ++i) {
-        if (frame_of[i] % 2 == fold) suu += (vu_[i] - mu) * (vu_[i] - mu), suy += (vu_[i] - mu) * (vy_[i] - my);
+        if (vframe_[i] % 2 == fold) suu += (vu_[i] - mu) * (vu_[i] - mu), suy += (vu_[i] - mu) * (vy_[i] - my);
       }
       const double b = suu > 0 ? suy / suu : 0.0;
       double yb = 0;
       for (size_t i = 0; i < vu_.size(); ++i) {
-        if (frame_of[i] % 2 == fold) yb += vy_[i] - b * vu_[i];
+        if (vframe_[i] % 2 == fold) yb += vy_[i] - b * vu_[i];
       }
       yb /= cnt;
       for (size_t i = 0; i < vu_.size(); ++i) {
-        if (frame_of[i] % 2 == fold) continue;
+        if (vframe_[i] % 2 == fold) continue;
         const double e = vy_[i] - my, r = vy_[i] - yb - b * vu_[i];
         ssb += e * e, ssa += r * r, ep += e * (e - r), pp += (e - r) * (e - r);
         ++n;
@@ -418,9 +495,29 @@ class FrameCauseSearch {
     return h;
   }
 
-  // Physical bounds (docs/discrepancy.md): wide on purpose, they catch fits that explain noise or
-  // each other, not unusual cameras. Empty when within them, else why not.
-  std::string OutOfBounds(const std::string& cause) {
+  // Physical bounds (docs/discrepancy.md) of the camera offsets `g` for every geometric cause of `mask`:
+  // wide on purpose, they catch fits that explain noise or each other, not unusual cameras. Empty when
+  // within them, else why not.
+  std::string GeometryOutOfBounds(const double* g, const CamMask& mask) const {
+    if (mask[0] && !(std::abs(g[0] / camera_.focal_length_px) <= 0.05)) return "focal length off by > 5 %";
+    if (mask[1] && !(std::abs(g[1]) <= 0.2 * camera_.width && std::abs(g[2]) <= 0.2 * camera_.height))
+      return "principal point moved by > 20 % of the frame";
+    if (mask[3]) {
+      // k1 r^2 at the corner (normalised coordinates): the relative displacement there.
+      const double rc2 =
+          std::pow(std::max(camera_.cx_px, camera_.width - 1 - camera_.cx_px) / camera_.focal_length_px, 2) +
+          std::pow(std::max(camera_.cy_px, camera_.height - 1 - camera_.cy_px) / camera_.FocalYPx(), 2);
+      if (!(std::abs((camera_.distortion.k1 + g[3]) * rc2) <= 0.3)) return "k1 moves the corners by > 30 %";
+      if (mask[8] && !(std::abs((camera_.distortion.k2 + g[8]) * rc2 * rc2) <= 0.3))
+        return "k2 moves the corners by > 30 %";
+    }
+    if (mask[4] && !(std::abs(g[4]) <= 0.05)) return "aspect off by > 5 %";
+    if (mask[5] && !(Vec3(g[5], g[6], g[7]).norm() * kSpeedOfLightMS / 1000 <= 100)) return "speed > 100 km/s";
+    return "";
+  }
+
+  std::string OutOfBounds(const FrameCandidate& c) {
+    const std::string& cause = c.cause;
     if (cause == "vignetting") return vig_v_ >= 0 && vig_v_ <= 0.95 ? "" : "vignetting outside [0, 0.95]";
     if (cause == "hot_pixels")
       return hot_.parameters.count("hot_pixel_count") && hot_.parameters.at("hot_pixel_count") >= 1 ? "" : "no pixel";
@@ -429,48 +526,31 @@ class FrameCauseSearch {
       const double el = psf_.parameters.count("psf_ellipticity") ? psf_.parameters.at("psf_ellipticity") : 0;
       return sg >= 0.1 && sg <= 10 && el < 0.9 ? "" : "PSF sigma outside [0.1, 10] px or ellipticity >= 0.9";
     }
-    const double* g = fits_[cause].cam;
-    if (cause == "focal_length")
-      return std::abs(g[0] / camera_.focal_length_px) <= 0.05 ? "" : "focal length off by > 5 %";
-    if (cause == "principal_point")
-      return std::abs(g[1]) <= 0.2 * camera_.width && std::abs(g[2]) <= 0.2 * camera_.height
-                 ? ""
-                 : "principal point moved by > 20 % of the frame";
-    if (cause == "lens_distortion") {
-      // k1 r^2 at the corner (normalised coordinates): the relative displacement there.
-      const double rc2 =
-          std::pow(std::max(camera_.cx_px, camera_.width - 1 - camera_.cx_px) / camera_.focal_length_px, 2) +
-          std::pow(std::max(camera_.cy_px, camera_.height - 1 - camera_.cy_px) / camera_.FocalYPx(), 2);
-      return std::abs((camera_.distortion.k1 + g[3]) * rc2) <= 0.3 ? "" : "k1 moves the corners by > 30 %";
-    }
-    if (cause == "pixel_aspect") return std::abs(g[4]) <= 0.05 ? "" : "aspect off by > 5 %";
-    if (cause == "aberration")
-      return Vec3(g[5], g[6], g[7]).norm() * kSpeedOfLightMS / 1000 <= 100 ? "" : "speed > 100 km/s";
-    return "";
+    // The joint fit with the cause: every named geometric cause must stay within its bounds too.
+    return GeometryOutOfBounds(fits_[Key(c)].cam, Union(model_mask_, SpecOf(cause, c.term)->mask));
   }
 
   // Gates, in BIC order until one candidate passes: its parameters lie within the physical bounds and
-  // its held-out improvement is significant (one-sided z above the normal quantile of gain_alpha).
-  // Returns the named candidate (nullptr: none) and its held-out figures.
-  const FrameCandidate* ChooseCause(HeldOut* chosen_ho) {
-    d_.gain_z_min = boost::math::quantile(boost::math::complement(boost::math::normal(), o_.gain_alpha));
+  // its held-out improvement over the model is significant (one-sided z above the normal quantile of
+  // gain_alpha). Returns the index of the candidate that enters (-1: none) and its held-out figures.
+  int ChooseCause(std::vector<FrameCandidate>* cands, HeldOut* chosen_ho) {
     std::vector<int> order;
-    for (int i = 0; i < static_cast<int>(d_.candidates.size()); ++i) {
-      if (d_.candidates[i].significant) order.push_back(i);
+    for (int i = 0; i < static_cast<int>(cands->size()); ++i) {
+      if ((*cands)[i].significant) order.push_back(i);
     }
     std::stable_sort(order.begin(), order.end(),
-                     [&](int a, int b) { return d_.candidates[a].delta_bic > d_.candidates[b].delta_bic; });
+                     [&](int a, int b) { return (*cands)[a].delta_bic > (*cands)[b].delta_bic; });
     for (int i : order) {
-      FrameCandidate& c = d_.candidates[i];
+      FrameCandidate& c = (*cands)[i];
       c.evaluated = true;
-      const std::string why = OutOfBounds(c.cause);
+      const std::string why = OutOfBounds(c);
       if (!why.empty()) {
         c.verdict = "outside bounds: " + why;
         continue;
       }
       HeldOut h;
-      if (const Spec* sp = SpecOf(c.cause)) {
-        h = GeometricHeldOut(*sp);
+      if (const Spec* sp = SpecOf(c.cause, c.term)) {
+        h = GeometricHeldOut(*sp, fits_[Key(c)]);
       } else if (c.cause == "vignetting") {
         h = VignettingHeldOut();
       } else {  // hot_pixels, psf_shape: their own held-out figures (no z)
@@ -478,21 +558,199 @@ class FrameCauseSearch {
         h.before = r.before, h.after = r.after, h.gain = r.gain;
       }
       c.gain = h.gain, c.gain_z = h.z;
-      if (!(h.gain > 1) || (h.z_defined && !(h.z > d_.gain_z_min))) {
+      // From the second step on, the gain over the model is small by nature and its held-out estimate
+      // carries the scatter of parameters fitted on half the frames: the z of the improvement decides.
+      const bool gain_needed = d_.causes.empty() || !h.z_defined;
+      if ((gain_needed && !(h.gain > 1)) || (h.z_defined && !(h.z > d_.gain_z_min))) {
         c.verdict = "held-out gain not significant";
         continue;
       }
       c.verdict = nf_ >= 2 || !SpecOf(c.cause) ? "named" : "named (one frame: gain on the fitted frame)";
       *chosen_ho = h;
-      return &c;
+      return i;
     }
-    return nullptr;
+    return -1;
   }
 
-  // Residuals before (base) and after (the named geometric cause) for the plot, and their RMS.
-  void PlotResiduals(const FrameCandidate* chosen) {
-    const GeoFit* after = &base_;
-    if (chosen && fits_.count(chosen->cause)) after = &fits_[chosen->cause];
+  double ArcsecPerPx() const { return kRadToArcsec / camera_.FocalMeanPx(); }
+
+  // The cause enters the model: its step's figures (the parameters come from the final joint fit).
+  void Enter(const FrameCandidate& c, const HeldOut& ho) {
+    if (c.term == "k2") {  // a further term of a cause in the model: the cause's entry lists it
+      model_mask_ = Union(model_mask_, SpecOf(c.cause, c.term)->mask);
+      model_ = fits_[Key(c)];
+      model_rms_px_ = ho.after;
+      for (auto& e : d_.causes) {
+        if (e.cause == c.cause) e.terms.push_back(c.term), e.residual_rms_arcsec = model_rms_px_ * ArcsecPerPx();
+      }
+      return;
+    }
+    FrameCauseStep e;
+    e.cause = c.cause;
+    e.step = static_cast<int>(d_.causes.size()) + 1;
+    if (c.term == "k1+k2") e.terms.push_back("k2");
+    e.statistic = c.statistic, e.p_value = c.p_value;
+    e.gain = ho.gain, e.gain_z = ho.z;
+    e.held_out_before = ho.before, e.held_out_after = ho.after;
+    if (const Spec* sp = SpecOf(c.cause, c.term)) {
+      model_mask_ = Union(model_mask_, sp->mask);
+      model_ = fits_[Key(c)];
+      model_rms_px_ = ho.after;
+    } else if (c.cause == "vignetting") {
+      vignetting_ = true;
+    }
+    e.residual_rms_arcsec = model_rms_px_ * ArcsecPerPx();
+    d_.causes.push_back(e);
+  }
+
+  // The parameters of a geometric cause from the joint fit g of the camera blocks `mask`, with the
+  // 1-sigmas (residual scale of the fullest model).
+  void GeometricParameters(const std::string& cause, const GeoFit& g, const CamMask& mask,
+                           std::map<std::string, double>* p, std::map<std::string, double>* s) const {
+    constexpr double kc_kms = kSpeedOfLightMS / 1000;  // aberration: observer velocity v = b c (km/s, ICRS)
+    const double aspect0 = camera_.FocalYPx() / camera_.focal_length_px;  // pixel_aspect is fy / fx
+    const double nominal[kCam] = {camera_.focal_length_px, camera_.cx_px, camera_.cy_px, camera_.distortion.k1,
+                                  aspect0, 0, 0, 0, camera_.distortion.k2};
+    const double unit[kCam] = {1, 1, 1, 1, aspect0, kc_kms, kc_kms, kc_kms, 1};
+    const double sc = std::sqrt(s2_);
+    int col = 0;
+    for (int k = 0; k < kCam; ++k) {
+      if (!mask[k]) continue;
+      if (cause == kCamCause[k]) {
+        (*p)[kCamNames[k]] = nominal[k] + unit[k] * g.cam[k];
+        (*s)[kCamNames[k]] = g.cov_cam.rows() > col ? unit[k] * std::sqrt(g.cov_cam(col, col)) * sc : 0.0;
+      }
+      ++col;
+    }
+    if (cause == "aberration") (*p)["speed_kms"] = Vec3(g.cam[5], g.cam[6], g.cam[7]).norm() * kc_kms;
+    if (cause == "pixel_aspect") {
+      (*p)["focal_length_y_px"] = Apply(camera_, g.cam).FocalYPx();
+      (*s)["focal_length_y_px"] = s->at("pixel_aspect") * camera_.focal_length_px;
+    }
+    if (cause == "focal_length") {
+      (*p)["focal_length_ppm"] = g.cam[0] / camera_.focal_length_px * 1e6;
+      (*s)["focal_length_ppm"] = s->at("focal_length_px") / camera_.focal_length_px * 1e6;
+    }
+  }
+
+  // Backward check of the forward steps: a geometric cause (or lens_distortion's k2) that no longer adds
+  // significantly to the final joint model (it stood in for a combination of causes that entered after
+  // it) leaves the model, the least significant first, at the level of the steps (alpha over the
+  // geometric parts in the model).
+  void Prune() {
+    const std::vector<bool> all(nf_, true);
+    for (;;) {
+      struct Part {
+        int entry;
+        CamMask mask;
+        bool term;  // lens_distortion's k2 alone
+      };
+      std::vector<Part> parts;
+      for (int i = 0; i < static_cast<int>(d_.causes.size()); ++i) {
+        const Spec* sp = SpecOf(d_.causes[i].cause);
+        if (!sp) continue;
+        CamMask m = sp->mask;
+        if (d_.causes[i].cause == "lens_distortion" && model_mask_[8]) {
+          m[8] = true;
+          parts.push_back({i, MaskOf({8}), true});
+        }
+        parts.push_back({i, m, false});
+      }
+      if (parts.size() < 2) return;
+      int worst = -1;
+      double worst_p = 0;
+      GeoFit worst_fit;
+      for (int k = 0; k < static_cast<int>(parts.size()); ++k) {
+        CamMask without = model_mask_;
+        for (int b = 0; b < kCam; ++b) without[b] = without[b] && !parts[k].mask[b];
+        double start[kCam];
+        for (int b = 0; b < kCam; ++b) start[b] = without[b] ? model_.cam[b] : 0.0;
+        GeoFit g = FitGeometry(set_, camera_, all, without, start, o_);
+        const int dof = static_cast<int>(std::count(parts[k].mask.begin(), parts[k].mask.end(), true));
+        const double p = ChiSq1or2Survival(std::max(0.0, (g.rss - model_.rss) / s2_), dof);
+        if (p >= o_.alpha / parts.size() && p > worst_p) worst = k, worst_p = p, worst_fit = std::move(g);
+      }
+      if (worst < 0) return;
+      const Part& w = parts[worst];
+      FrameCauseStep& e = d_.causes[w.entry];
+      d_.removed.push_back({e.cause, w.term ? "k2" : "", worst_p});
+      for (int b = 0; b < kCam; ++b) model_mask_[b] = model_mask_[b] && !w.mask[b];
+      model_ = std::move(worst_fit);
+      if (w.term) {
+        e.terms.erase(std::remove(e.terms.begin(), e.terms.end(), "k2"), e.terms.end());
+      } else {
+        d_.causes.erase(d_.causes.begin() + w.entry);
+        for (size_t i = 0; i < d_.causes.size(); ++i) d_.causes[i].step = static_cast<int>(i) + 1;
+      }
+      if (nf_ >= 2) {
+        VectorXd w2;
+        const VectorXd r = HeldOutFolds(model_mask_, &w2);
+        model_rms_px_ = RmsPx(r, w2);
+      }
+    }
+  }
+
+  // After the last step: every named cause's parameters from the final joint fit, the fitted camera,
+  // the correlations, the residual test of the final model, the verdict.
+  void Conclude() {
+    if (!d_.causes.empty() && nf_ > 0 && d_.stars >= 10) {
+      d_.fitted_camera = ModelCamera();
+      if (vignetting_) {  // refitted about the final principal point
+        VignettingCandidate();
+      }
+    }
+    for (auto& e : d_.causes) {
+      if (SpecOf(e.cause)) {
+        GeometricParameters(e.cause, model_, model_mask_, &e.parameters, &e.sigmas);
+      } else if (e.cause == "vignetting") {
+        e.parameters["vignetting"] = vig_v_;
+        e.sigmas["vignetting"] = vig_sigma_;
+        d_.flux_rms_before_mag = e.held_out_before, d_.flux_rms_after_mag = e.held_out_after;
+      } else {
+        const auto& r = e.cause == "hot_pixels" ? hot_ : psf_;
+        e.parameters = r.parameters, e.sigmas = r.sigmas;
+        if (e.cause == "hot_pixels") {
+          d_.spikes_before = r.before, d_.spikes_after = r.after;
+        } else {
+          d_.stamp_rms_before = r.before, d_.stamp_rms_after = r.after;
+        }
+      }
+      for (const auto& [k, v] : e.parameters) d_.parameters[k] = v;
+      for (const auto& [k, v] : e.sigmas) d_.sigmas[k] = v;
+    }
+    Correlations();
+    if (!d_.causes.empty()) {
+      d_.cause = d_.causes.front().cause;
+      d_.gain = d_.causes.front().gain, d_.gain_z = d_.causes.front().gain_z;
+    }
+    if (nf_ == 0 || d_.stars < 10) return;
+    PlotResiduals();
+    // `unexplained`: the residual of the final model (every named cause), structure that no named cause
+    // explains.
+    d_.residual = discover_internal::TestFrameResidual(set_, d_.fitted_camera, model_.jac, model_.res, o_);
+    if (d_.residual.structured) {
+      d_.partial_cause = d_.cause == "none" ? "" : d_.cause;
+      d_.cause = "unexplained";
+    }
+  }
+
+  // Correlations between the camera parameters of the named causes (final joint fit).
+  void Correlations() {
+    std::vector<int> idx;
+    for (int k = 0; k < kCam; ++k) {
+      if (model_mask_[k]) idx.push_back(k);
+    }
+    if (model_.cov_cam.rows() != static_cast<int>(idx.size())) return;
+    for (size_t a = 0; a < idx.size(); ++a) {
+      for (size_t b = a + 1; b < idx.size(); ++b) {
+        const double den = std::sqrt(model_.cov_cam(a, a) * model_.cov_cam(b, b));
+        d_.correlations.push_back({kCamNames[idx[a]], kCamNames[idx[b]], den > 0 ? model_.cov_cam(a, b) / den : 0.0});
+      }
+    }
+  }
+
+  // Residuals before (base) and after (the final model) for the plot, and the held-out RMS.
+  void PlotResiduals() {
     for (int i = 0; i < d_.stars; ++i) {
       const auto& s = set_.stars[i];
       const double w = std::max(s.sigma_px, o_.min_sigma_px);
@@ -500,71 +758,17 @@ class FrameCauseSearch {
       d_.y_px.push_back(s.y_px);
       d_.dx_before_px.push_back(base_.res(2 * i) * w);
       d_.dy_before_px.push_back(base_.res(2 * i + 1) * w);
-      d_.dx_after_px.push_back(after->res(2 * i) * w);
-      d_.dy_after_px.push_back(after->res(2 * i + 1) * w);
+      d_.dx_after_px.push_back(model_.res(2 * i) * w);
+      d_.dy_after_px.push_back(model_.res(2 * i + 1) * w);
     }
-    double ss = 0;
-    for (size_t i = 0; i < d_.dx_before_px.size(); ++i) {
-      ss += d_.dx_before_px[i] * d_.dx_before_px[i] + d_.dy_before_px[i] * d_.dy_before_px[i];
-    }
-    d_.residual_rms_before_arcsec = std::sqrt(ss / std::max<size_t>(1, 2 * d_.dx_before_px.size())) * ArcsecPerPx();
-    d_.residual_rms_after_arcsec = d_.residual_rms_before_arcsec;
+    // Held-out RMS (even/odd frames) of the base and of the final model; one frame: the fitted figures.
+    d_.residual_rms_before_arcsec = base_rms_px_ * ArcsecPerPx();
+    d_.residual_rms_after_arcsec = model_rms_px_ * ArcsecPerPx();
   }
 
-  double ArcsecPerPx() const { return kRadToArcsec / camera_.FocalMeanPx(); }
-
-  // The named cause's parameters, sigmas and held-out figures.
-  void NameCause(const FrameCandidate& chosen, const HeldOut& ho) {
-    d_.gain_z = ho.z;
-    if (chosen.cause == "hot_pixels" || chosen.cause == "psf_shape") {
-      NameOther(chosen.cause == "hot_pixels" ? hot_ : psf_);
-      return;
-    }
-    d_.cause = chosen.cause;
-    if (d_.cause == "vignetting") {
-      d_.parameters["vignetting"] = vig_v_;
-      d_.sigmas["vignetting"] = vig_sigma_;
-      d_.flux_rms_before_mag = ho.before, d_.flux_rms_after_mag = ho.after;
-      d_.gain = ho.gain;
-      return;
-    }
-    const GeoFit& g = fits_[d_.cause];
-    d_.fitted_camera = Apply(camera_, g.cam);
-    const double sc = std::sqrt(s2_);
-    std::vector<int> idx;
-    for (int k = 0; k < kCam; ++k) {
-      if (SpecOf(d_.cause)->mask[k]) idx.push_back(k);
-    }
-    // aberration: the uncorrected observer velocity v = b c (km/s, ICRS).
-    constexpr double kc_kms = kSpeedOfLightMS / 1000;
-    const char* names[kCam] = {"focal_length_px", "cx_px",          "cy_px",          "k1",
-                               "pixel_aspect",    "velocity_x_kms", "velocity_y_kms", "velocity_z_kms"};
-    // pixel_aspect is fy / fx: the nominal aspect times (1 + da).
-    const double aspect0 = camera_.FocalYPx() / camera_.focal_length_px;
-    const double nominal[kCam] = {
-        camera_.focal_length_px, camera_.cx_px, camera_.cy_px, camera_.distortion.k1, aspect0, 0, 0, 0};
-    const double unit[kCam] = {1, 1, 1, 1, aspect0, kc_kms, kc_kms, kc_kms};
-    for (size_t k = 0; k < idx.size(); ++k) {
-      d_.parameters[names[idx[k]]] = nominal[idx[k]] + unit[idx[k]] * g.cam[idx[k]];
-      d_.sigmas[names[idx[k]]] = unit[idx[k]] * std::sqrt(g.cov_cam(k, k)) * sc;
-    }
-    if (d_.cause == "aberration") {
-      d_.fitted_camera = camera_;  // not a camera property: the frames' time and velocity were not given
-      d_.parameters["speed_kms"] = Vec3(g.cam[5], g.cam[6], g.cam[7]).norm() * kc_kms;
-    }
-    if (d_.cause == "pixel_aspect") {
-      d_.parameters["focal_length_y_px"] = d_.fitted_camera.FocalYPx();
-      d_.sigmas["focal_length_y_px"] = d_.sigmas["pixel_aspect"] * camera_.focal_length_px;
-    }
-    if (d_.cause == "focal_length") {
-      d_.parameters["focal_length_ppm"] = g.cam[0] / camera_.focal_length_px * 1e6;
-      d_.sigmas["focal_length_ppm"] = d_.sigmas["focal_length_px"] / camera_.focal_length_px * 1e6;
-    }
-    // Held-out RMS (even/odd frames); with a single frame, the fitted figures.
-    d_.residual_rms_before_arcsec = ho.before * ArcsecPerPx();
-    d_.residual_rms_after_arcsec = ho.after * ArcsecPerPx();
-    d_.gain = ho.gain;
-  }
+  static constexpr const char* kCamNames[kCam] = {"focal_length_px", "cx_px",          "cy_px",
+                                                  "k1",              "pixel_aspect",   "velocity_x_kms",
+                                                  "velocity_y_kms",  "velocity_z_kms", "k2"};
 
   const SolvedFrameSet& set_;
   const Camera& camera_;
@@ -573,12 +777,15 @@ class FrameCauseSearch {
   FrameDiscovery d_;
   discover_internal::CauseResult hot_, psf_;
   bool aberration_testable_ = false;
-  double alpha_each_ = 0;
   std::vector<Spec> specs_;
-  GeoFit base_, fullest_;
-  double s2_ = 0;  // residual variance of the fullest model (whitened units)
-  std::map<std::string, GeoFit> fits_;
-  std::vector<double> vu_, vy_;  // vignetting: squared field radius and flux-magnitude residual
+  GeoFit base_, model_;  // the base and the current (finally the final) joint model
+  CamMask model_mask_ = kNoCam;
+  bool vignetting_ = false;
+  double base_rms_px_ = 0, model_rms_px_ = 0;  // held-out position RMS of the base and of the model
+  double s2_ = 0;                               // residual variance of the fullest model (whitened units)
+  std::map<std::string, GeoFit> fits_;          // this step's joint fits, model + cause
+  std::vector<double> vu_, vy_;                 // vignetting: squared field radius and flux-magnitude residual
+  std::vector<int> vframe_;                     // and the frame of each
   double vig_s_ = 0, vig_v_ = 0, vig_sigma_ = 0;
 };
 
@@ -715,10 +922,30 @@ double discover_internal::FitVignettingLaw(const std::vector<double>& vu, const 
 }
 
 double discover_internal::FieldRadius2(const Camera& camera, double x_px, double y_px) {
-  const double rc2 = std::pow(std::max(camera.cx_px, camera.width - 1 - camera.cx_px), 2) +
-                     std::pow(std::max(camera.cy_px, camera.height - 1 - camera.cy_px), 2);
+  // The simulator's law (sim/frame_sim.cc): about the principal point, over the squared half diagonal.
+  const double rc2 = 0.25 * (static_cast<double>(camera.width) * camera.width +
+                             static_cast<double>(camera.height) * camera.height);
   return (std::pow(x_px - camera.cx_px, 2) + std::pow(y_px - camera.cy_px, 2)) / rc2;
 }
+
+namespace {
+
+Json CandidateJson(const FrameCandidate& c) {
+  Json cj = {{"cause", c.cause},
+             {"statistic", c.statistic},
+             {"p_value", c.p_value},
+             {"delta_bic", c.delta_bic},
+             {"significant", c.significant}};
+  if (!c.term.empty()) cj["term"] = c.term;
+  if (c.evaluated) {
+    cj["gain"] = c.gain;
+    cj["gain_z"] = c.gain_z;
+    cj["verdict"] = c.verdict;
+  }
+  return cj;
+}
+
+}  // namespace
 
 Json FrameDiscoveryToJson(const FrameDiscovery& d) {
   Json j = discover_internal::DiscoveryVerdictJson(d.cause, d.parameters, d.sigmas, d.gain, d.gain_z, d.gain_z_min,
@@ -755,19 +982,25 @@ Json FrameDiscoveryToJson(const FrameDiscovery& d) {
     j["residual"] = rj;
   }
   j["gain_method"] = d.frames_solved >= 2 ? "held-out frames (even/odd)" : "fitted frame (one frame solved)";
-  if (d.cause == "psf_shape") {
-    j["gain_method"] = std::string(d.frames_solved >= 2 ? "held-out frames (even/odd)" : "fitted frame") +
-                       ": stamp residual RMS in noise sigmas, model PSF vs fitted shape";
+  auto named = [&](const char* cause) {
+    return std::any_of(d.causes.begin(), d.causes.end(), [&](const FrameCauseStep& e) { return e.cause == cause; });
+  };
+  const std::string first = d.causes.empty() ? "" : d.causes.front().cause;
+  if (named("psf_shape")) {
+    if (first == "psf_shape")
+      j["gain_method"] = std::string(d.frames_solved >= 2 ? "held-out frames (even/odd)" : "fitted frame") +
+                         ": stamp residual RMS in noise sigmas, model PSF vs fitted shape";
     j["stamp_rms_before"] = d.stamp_rms_before;
     j["stamp_rms_after"] = d.stamp_rms_after;
     j["fitted_camera"]["psf_sigma_px"] = d.parameters.at("psf_sigma_px");
     j["fitted_camera"]["psf_ellipticity"] = d.parameters.at("psf_ellipticity");
     j["fitted_camera"]["psf_angle_deg"] = d.parameters.at("psf_angle_deg");
   }
-  if (d.cause == "hot_pixels") {
-    j["gain_method"] =
-        "held-out frames (even/odd): single-pixel spikes per frame, (before + 1) / (after + 1) after "
-        "masking the pixels found on the other frames";
+  if (named("hot_pixels")) {
+    if (first == "hot_pixels")
+      j["gain_method"] =
+          "held-out frames (even/odd): single-pixel spikes per frame, (before + 1) / (after + 1) after "
+          "masking the pixels found on the other frames";
     j["spikes_per_frame_before"] = d.spikes_before;
     j["spikes_per_frame_after"] = d.spikes_after;
   }
@@ -778,11 +1011,11 @@ Json FrameDiscoveryToJson(const FrameDiscovery& d) {
                                {"excess_adu", d.hot_pixels[i].excess_adu},
                                {"frames", d.hot_pixel_frames[i]}});
   }
-  if (d.cause == "hot_pixels") {
+  if (named("hot_pixels")) {
     j["fitted_camera"]["hot_pixels"] = Json::array();
     for (const auto& h : d.hot_pixels) j["fitted_camera"]["hot_pixels"].push_back({h.x, h.y});
   }
-  if (d.cause == "vignetting") {
+  if (named("vignetting")) {
     j["flux_rms_before_mag"] = d.flux_rms_before_mag;
     j["flux_rms_after_mag"] = d.flux_rms_after_mag;
     j["fitted_camera"]["vignetting"] = d.parameters.at("vignetting");
@@ -800,20 +1033,34 @@ Json FrameDiscoveryToJson(const FrameDiscovery& d) {
   j["frames_solved"] = d.frames_solved;
   j["stars"] = d.stars;
   j["candidates"] = Json::array();
-  for (const auto& c : d.candidates) {
-    Json cj = {{"cause", c.cause},
-               {"statistic", c.statistic},
-               {"p_value", c.p_value},
-               {"delta_bic", c.delta_bic},
-               {"significant", c.significant}};
-    if (c.evaluated) {
-      cj["gain"] = c.gain;
-      cj["gain_z"] = c.gain_z;
-      cj["verdict"] = c.verdict;
-    }
-    j["candidates"].push_back(cj);
-  }
+  for (const auto& c : d.candidates) j["candidates"].push_back(CandidateJson(c));
   j["not_tested"] = d.not_tested;
+  // The extended model: the causes in the order they entered (parameters from the final joint fit),
+  // every step's candidates, the correlations of the named camera parameters.
+  j["causes"] = Json::array();
+  for (const auto& e : d.causes) {
+    Json ej = discover_internal::DiscoveryVerdictJson(e.cause, e.parameters, e.sigmas, e.gain, e.gain_z,
+                                                      d.gain_z_min, "");
+    ej.erase("gain_z_min");
+    ej.update(Json{{"step", e.step},
+                   {"terms", e.terms},
+                   {"statistic", e.statistic},
+                   {"p_value", e.p_value},
+                   {"held_out_before", e.held_out_before},
+                   {"held_out_after", e.held_out_after},
+                   {"residual_rms_arcsec", e.residual_rms_arcsec}});
+    j["causes"].push_back(ej);
+  }
+  j["steps"] = Json::array();
+  for (size_t k = 0; k < d.steps.size(); ++k) {
+    Json sj = {{"step", k + 1}, {"candidates", Json::array()}};
+    for (const auto& c : d.steps[k]) sj["candidates"].push_back(CandidateJson(c));
+    j["steps"].push_back(sj);
+  }
+  j["removed"] = Json::array();
+  for (const auto& r : d.removed) j["removed"].push_back({{"cause", r.cause}, {"term", r.term}, {"p_value", r.p_value}});
+  j["correlations"] = Json::array();
+  for (const auto& c : d.correlations) j["correlations"].push_back({{"a", c.a}, {"b", c.b}, {"r", c.r}});
   return j;
 }
 

@@ -9,10 +9,13 @@
 // principal_point (cx, cy), lens_distortion (k1) or pixel_aspect (fy alone: parameters pixel_aspect =
 // fy/fx and focal_length_y_px), fitted jointly with the rotations by Gauss-Newton, weighted by the
 // centroid sigmas; each is a Wald chi^2 against the base with the variance of the fullest model's
-// residuals. Photometry: vignetting = ln(flux) + 0.4 ln(10) V regressed on (r / r_corner)^2
-// (the simulator's law 1 - v (r/r_corner)^2). A candidate is significant when p < alpha / 5 (more
-// when hot_pixels / psf_shape are tested too);
-// the largest BIC gain among the significant ones is named.
+// residuals (stepwise: each candidate against the model of the causes named before it, fitted
+// jointly with them). Photometry: vignetting = ln(flux) + 0.4 ln(10) V regressed on (r / r_corner)^2
+// (the simulator's law 1 - v (r/r_corner)^2, r about the principal point, r_corner the half
+// diagonal). A candidate is significant when p < alpha / m, m the candidates of its step; the lens
+// distortion's k2 term is a candidate once k1 is in the model;
+// the largest BIC gain among the significant ones that pass the gates enters the model, and the
+// search goes on with the causes left until none passes (FrameCauseStep; docs/discrepancy.md).
 // Gain: the camera fitted on the even frames is scored on the odd ones (rotations refitted there
 // with the camera held) and vice versa; residual RMS with the nominal and with the fitted camera.
 //
@@ -120,6 +123,7 @@ struct FrameDiscoverOptions {
 
 struct FrameCandidate {
   std::string cause;
+  std::string term;  // a further term of a cause already in the model (lens_distortion: "k2"), else empty
   double statistic = 0, p_value = 1, delta_bic = 0;
   int dof = 0;
   bool significant = false;
@@ -156,19 +160,54 @@ struct FrameResidual {
   int cell_stars = 0, grid = 0;
 };
 
+// One cause of the extended model, in the order the causes entered: its parameters and 1-sigmas from
+// the final joint fit of every named cause, and what it gained at the step it entered.
+struct FrameCauseStep {
+  std::string cause;
+  int step = 0;
+  std::map<std::string, double> parameters, sigmas;
+  std::vector<std::string> terms;     // further terms that entered at later steps (lens_distortion: k2)
+  double statistic = 0, p_value = 1;  // its test against the model of the step before
+  double gain = 1, gain_z = 0;        // held-out gain over that model and the z of the improvement
+  // The held-out figure before and after the step in the cause's unit (position RMS px for geometric
+  // causes; flux RMS mag for vignetting; stamp RMS in noise sigmas for psf_shape; spikes per frame for
+  // hot_pixels) and the model's held-out position RMS after the step (arcsec).
+  double held_out_before = 0, held_out_after = 0, residual_rms_arcsec = 0;
+};
+
+// A cause (or a further term of one) that entered the model and left it again in the backward check:
+// with the causes that entered after it, it no longer added significantly (p_value).
+struct RemovedCause {
+  std::string cause, term;
+  double p_value = 1;
+};
+
+// The correlation of two camera parameters of the named causes in the final joint fit.
+struct ParameterCorrelation {
+  std::string a, b;
+  double r = 0;
+};
+
 struct FrameDiscovery {
+  // The first cause named (or none / unexplained); `causes` holds them all in the order they entered,
+  // and `parameters` / `sigmas` the parameters of all of them from the final joint fit.
   std::string cause = "none";
   std::map<std::string, double> parameters, sigmas;
   Camera fitted_camera;
-  double residual_rms_before_arcsec = 0, residual_rms_after_arcsec = 0, gain = 1;  // held-out frames
+  // Held-out position RMS of the base and of the final model; the first cause's held-out gain.
+  double residual_rms_before_arcsec = 0, residual_rms_after_arcsec = 0, gain = 1;
   double flux_rms_before_mag = 0, flux_rms_after_mag = 0;                          // vignetting only
   double stamp_rms_before = 0, stamp_rms_after = 0;  // psf_shape: held-out stamp residual, noise sigmas
   double spikes_before = 0, spikes_after = 0;        // hot_pixels: held-out spikes per frame
   std::vector<PixelSource> hot_pixels;               // persistent pixels (excess: median over frames)
   std::vector<int> hot_pixel_frames;                 // in how many frames each was flagged
   std::vector<std::string> not_tested;
-  std::vector<FrameCandidate> candidates;
-  double gain_z = 0, gain_z_min = 0;  // the named cause's held-out z and the gate on it
+  std::vector<FrameCandidate> candidates;  // the first step's candidates (each against the base)
+  std::vector<FrameCauseStep> causes;
+  std::vector<std::vector<FrameCandidate>> steps;  // every step's candidates against its model
+  std::vector<ParameterCorrelation> correlations;
+  std::vector<RemovedCause> removed;
+  double gain_z = 0, gain_z_min = 0;  // the first cause's held-out z and the gate on it
   // `unexplained`: the cause that was named before the residual test found structure left.
   std::string partial_cause;
   FrameResidual residual;

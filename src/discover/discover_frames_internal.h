@@ -31,7 +31,7 @@ CauseResult AnalyseHotPixels(const SolvedFrameSet& set, const FrameDiscoverOptio
 // sigma from the curvature of the sum of squares with the residual scale.
 double FitVignettingLaw(const std::vector<double>& u, const std::vector<double>& y, double* sigma);
 
-// (r / r_corner)^2 of a pixel, r_corner the distance from the principal point to the farthest corner.
+// (r / r_corner)^2 of a pixel, r from the principal point, r_corner the half diagonal (the simulator's law).
 double FieldRadius2(const Camera& camera, double x_px, double y_px);
 
 // `unexplained`: the star position residuals res_w (2 per star of set.stars, measured - model divided
