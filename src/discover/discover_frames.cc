@@ -449,7 +449,8 @@ class FrameCauseSearch {
       }
     }
     VectorXd out(parts[0].size() + parts[1].size());
-    out << parts[0], parts[1];
+    out.head(parts[0].size()) = parts[0];
+    out.tail(parts[1].size()) = parts[1];
     if (w2) *w2 = Eigen::Map<const VectorXd>(weights.data(), static_cast<Eigen::Index>(weights.size()));
     return out;
   }

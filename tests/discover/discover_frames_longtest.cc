@@ -4,6 +4,9 @@
 // hot pixels and cosmic rays, the fitted camera reduces residuals, held-out gain of the others > 1.
 #include <algorithm>
 #include <cstdio>
+#include <map>
+
+#include "core/astrometry.h"
 
 #include "discover_frames_mc.h"
 #include "discover_frames_oov.h"
@@ -123,6 +126,69 @@ TEST(DiscoverFramesLong, ResidualTestPower) {
       std::printf("\n");
     }
   }
+}
+
+}  // namespace
+}  // namespace ssiu
+
+namespace ssiu {
+namespace {
+
+// Issue 31 on simulated images: the 28 combinations of discover_frames_oov.h (k2 0.5-1.5 beside k1 in the
+// lens_distortion_k2 ones; aberration: frames drawn at a time with the Earth's velocity, ~30 km/s, and
+// solved without it), one set each of 12 frames (16.6 deg, noise, cosmic rays, transient hot pixels).
+TEST(DiscoverFramesLong, SeveralEffectsOnSimulatedImages) {
+  int sets = 0, all_named = 0, wrong = 0, params = 0, within = 0;
+  const auto combos = testing::MultiEffectCombinations();
+  for (size_t i = 0; i < combos.size(); ++i) {
+    const testing::SyntheticFrameSet draw = testing::MakeSyntheticFrameSet(combos[i], 41000 + i, 1, 1);
+    const Camera nominal = MakeCamera(1024, 1024, 16.6);
+    Camera truth = nominal;
+    std::map<std::string, double> want = draw.truth;
+    if (want.count("focal_length_px")) truth.focal_length_px = want["focal_length_px"];
+    if (want.count("cx_px")) truth.cx_px = want["cx_px"], truth.cy_px = want["cy_px"];
+    if (want.count("k1")) truth.distortion.k1 = want["k1"];
+    if (want.count("k2")) truth.distortion.k2 = want["k2"];
+    if (want.count("pixel_aspect")) truth.focal_length_y_px = truth.focal_length_px * want["pixel_aspect"];
+    FrameSimOptions so;
+    so.vignetting = want.count("vignetting") ? want["vignetting"] : 0.0;
+    const bool aberration = want.count("velocity_x_kms") > 0;
+    if (aberration) {
+      so.time_utc = "2026-03-20T12:00:00Z";  // the Earth's velocity then: the truth
+      so.proper_motion = false;
+      const Vec3 v = EarthBarycentricVelocityMS(ParseUtcIso8601(so.time_utc, "test")) / 1e3;
+      for (int a = 0; a < 3; ++a) want["velocity_" + std::string(1, "xyz"[a]) + "_kms"] = v[a];
+    }
+    const SolvedFrameSet set = testing::SimulateAndSolve(truth, nominal, so, 52000 + 100 * i, 12);
+    const FrameDiscovery d = DiscoverFrames(set, nominal, testing::McDiscoverOptions());
+    const std::vector<std::string> inj = testing::InjectedCauses(combos[i]);
+    std::string chain, ps;
+    int named = 0, bad = 0;
+    for (const auto& c : d.causes) {
+      chain += (chain.empty() ? "" : "+") + c.cause;
+      bad += std::find(inj.begin(), inj.end(), c.cause) == inj.end();
+    }
+    for (const auto& c : inj) {
+      named += std::any_of(d.causes.begin(), d.causes.end(), [&](const FrameCauseStep& s) { return s.cause == c; });
+    }
+    for (const auto& [k, v] : want) {
+      if (!d.parameters.count(k)) continue;
+      const double dev = (d.parameters.at(k) - v) / d.sigmas.at(k);
+      ++params, within += std::abs(dev) <= 3;
+      char b[64];
+      std::snprintf(b, sizeof b, " %s %+.1fsig", k.c_str(), dev);
+      ps += b;
+    }
+    ++sets, all_named += named == static_cast<int>(inj.size()), wrong += bad > 0;
+    std::printf("%-46s -> %-46s %s %d/12 solved, %d stars, rms %.2f -> %.2f arcsec%s\n", combos[i].c_str(),
+                chain.c_str(), d.cause == "unexplained" ? "unexplained" : "", d.frames_solved, d.stars,
+                d.residual_rms_before_arcsec, d.residual_rms_after_arcsec, ps.c_str());
+  }
+  std::printf("simulated images, %d sets: all injected named %d, a cause not injected %d, parameters within 3 sigma %d/%d\n",
+              sets, all_named, wrong, within, params);
+  EXPECT_GE(all_named, 0.9 * sets);
+  EXPECT_LE(wrong, 0.05 * sets + 0.5);
+  EXPECT_GE(within, 0.9 * params);
 }
 
 }  // namespace

@@ -130,6 +130,25 @@ inline FrameCase MakeFrameCase(const std::string& cause, uint64_t seed, int fram
   return c;
 }
 
+// `frames` frames simulated through the true camera at random attitudes (seeds seed0 + f; a new defect
+// seed each: transient hot pixels), solved with the nominal camera.
+inline SolvedFrameSet SimulateAndSolve(const Camera& truth, const Camera& nominal, FrameSimOptions so, uint64_t seed0,
+                                       int frames) {
+  std::vector<Image16> imgs;
+  std::vector<ImageView> views;
+  std::vector<std::string> names;
+  for (int f = 0; f < frames; ++f) {
+    const uint64_t seed = seed0 + f;
+    so.defect_seed = static_cast<int>(seed % 1000000);
+    imgs.push_back(SimulateFrame(truth, FrameSky(), RandomAttitude(seed), so, seed).image);
+    names.push_back("f" + std::to_string(f));
+  }
+  for (const auto& im : imgs) views.push_back(im.view());
+  SolveOptions solve;
+  solve.detect.gain_e_per_adu = so.gain_e_per_adu;
+  return SolveFrameSet(FrameIdentifier(), views, names, nominal, solve);
+}
+
 struct FrameMcSummary {
   int sets = 0, right = 0, with_effect = 0, geometric_named = 0, geometric_reduced = 0, params = 0, params_3sigma = 0;
   int none_sets = 0, none_right = 0;

@@ -43,19 +43,7 @@ TEST(DiscoverFramesMulti, IssueExamplesOnSimulatedImages) {
     truth.cx_px += x.dcx_px, truth.cy_px += x.dcy_px;
     FrameSimOptions so;
     so.vignetting = x.vignetting;
-    std::vector<Image16> imgs;
-    std::vector<ImageView> views;
-    std::vector<std::string> names;
-    for (int f = 0; f < 12; ++f) {
-      const uint64_t seed = 7100 + 100 * e + f;
-      so.defect_seed = static_cast<int>(seed);  // transient hot pixels
-      imgs.push_back(SimulateFrame(truth, testing::FrameSky(), RandomAttitude(seed), so, seed).image);
-      names.push_back("f" + std::to_string(f));
-    }
-    for (const auto& im : imgs) views.push_back(im.view());
-    SolveOptions solve;
-    solve.detect.gain_e_per_adu = so.gain_e_per_adu;
-    const SolvedFrameSet set = SolveFrameSet(testing::FrameIdentifier(), views, names, nominal, solve);
+    const SolvedFrameSet set = testing::SimulateAndSolve(truth, nominal, so, 7100 + 100 * e, 12);
     const FrameDiscovery d = DiscoverFrames(set, nominal, testing::McDiscoverOptions());
     std::string chain;
     for (const auto& c : d.causes) chain += " " + c.cause;
