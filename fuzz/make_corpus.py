@@ -60,12 +60,32 @@ def fits(w, h, px, bitpix):
 
 
 px = star_image(16, 16, 3000)
+def bmp(w, h, px, bits):
+    """Windows BMP, BITMAPINFOHEADER, bottom-up rows padded to 4 bytes: 8-bit with a grey palette, or
+    24-bit BGR (the star in blue-green-red = v, v // 2, v // 3)."""
+    rows = []
+    for y in reversed(range(h)):
+        row = bytes(px[y * w:(y + 1) * w]) if bits == 8 else b"".join(
+            bytes((v, v // 2, v // 3)) for v in px[y * w:(y + 1) * w])
+        rows.append(row + b"\0" * (-len(row) % 4))
+    palette = b"".join(bytes((i, i, i, 0)) for i in range(256)) if bits == 8 else b""
+    data = b"".join(rows)
+    off = 14 + 40 + len(palette)
+    head = b"BM" + struct.pack("<IHHI", off + len(data), 0, 0, off)
+    info = struct.pack("<IiiHHIIiiII", 40, w, h, 1, bits, 0, len(data), 2835, 2835, 256 if bits == 8 else 0, 0)
+    return head + info + palette + data
+
+
 put("image", "grey16.png", png(16, 16, px, 16))
 put("image", "grey8.png", png(16, 16, [min(v, 255) for v in star_image(16, 16, 200)], 8))
 put("image", "grey16.tif", tiff(16, 16, px))
 put("image", "int16.fits", fits(16, 16, px, 16))
 put("image", "float.fits", fits(16, 16, px, -32))
 put("image", "byte.fits", fits(16, 16, [min(v, 255) for v in star_image(16, 16, 200)], 8))
+put("image", "grey8.bmp", bmp(16, 16, [min(v, 255) for v in star_image(16, 16, 200)], 8))
+put("image", "rgb24.bmp", bmp(16, 16, [min(v, 255) for v in star_image(16, 16, 200)], 24))
+# grey8.jpg (baseline) and rgb8.jpg (progressive): 16 x 16 stars written by libjpeg-turbo at quality 90,
+# kept as files (no JPEG encoder here).
 
 put("csv", "gyro.csv", "t_s,wx_dph,wy_dph,wz_dph,temp_c\n0.01,1.5,-2,3e1,20.5\n0.02,1.4,-2.1,30,20.6\n")
 put("csv", "units.csv", "t_s,g1_dph,g2_dph,azimuth_deg,bn_ut,be_ut,bh_ut\n0,1,2,90,20,0,-40\n1,1,2,180,20,0,-40\n")

@@ -3,7 +3,7 @@
 # Usage: scripts/setup.sh [build-dir] [cmake args...]
 set -euo pipefail
 cd "$(dirname "$0")/.."
-PKGS="build-essential cmake ninja-build pkg-config libopencv-dev libpng-dev libtiff-dev libeigen3-dev libflann-dev \
+PKGS="build-essential cmake ninja-build pkg-config libopencv-dev libpng-dev libtiff-dev libturbojpeg0-dev libeigen3-dev libflann-dev \
 libapriltag-dev libboost-dev libcfitsio-dev libdeflate-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev nlohmann-json3-dev liberfa-dev xplanet \
 python3-dev python3-pybind11 python3-numpy python3-pytest python3-dask python3-distributed \
 clang libclang-rt-dev valgrind"

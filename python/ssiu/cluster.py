@@ -3,7 +3,7 @@
     python3 -m ssiu.cluster --scheduler local:2 --camera cam.json --jsonl out.jsonl frames/*.png
     python3 -m ssiu.cluster --scheduler tcp://10.0.0.5:8786 --camera cam.json --jsonl out.jsonl --list files.txt
 
-Each input (frame: PNG/TIFF/FITS, or a centroid .csv) is solved independently; every worker process
+Each input (frame: PNG/TIFF/FITS/JPEG/BMP, or a centroid .csv) is solved independently; every worker process
 loads the camera's catalog once and keeps it (``ssiu.solve`` keeps its Solver) for all the frames it
 is given. One JSON object per input is written to --jsonl in input order: the fields of
 ``ssiu solve --json`` plus ``"file"`` (the records of ``ssiu solve --jsonl``); an input that cannot be
@@ -87,7 +87,7 @@ def _progress(done, total, t0):
 
 def main(argv=None):
     p = argparse.ArgumentParser(prog="python3 -m ssiu.cluster", description=__doc__.split("\n\n")[0])
-    p.add_argument("inputs", nargs="*", help="frames (PNG/TIFF/FITS) or centroid CSVs")
+    p.add_argument("inputs", nargs="*", help="frames (PNG/TIFF/FITS/JPEG/BMP) or centroid CSVs")
     p.add_argument("--list", help="file with one input path per line")
     p.add_argument("--scheduler", required=True, help="Dask scheduler address, or local:N for N local worker processes")
     p.add_argument("--camera", required=True, help="camera.json (read here and sent to the workers)")

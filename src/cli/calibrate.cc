@@ -126,7 +126,7 @@ SSIU_REGISTER_COMMAND(calibrate, [](CLI::App& root) {
                                   "--heads also each head's alignment");
   auto o = std::make_shared<Opts>();
   cmd->add_option("frames", o->frames,
-                  "Frames (PNG/TIFF/FITS) or centroid CSVs; with --heads one per head, epoch by epoch")
+                  "Frames (PNG/TIFF/FITS/JPEG/BMP) or centroid CSVs; with --heads one per head, epoch by epoch")
       ->required();
   cmd->add_option("--camera", o->camera, "camera.json: the guess (e.g. from the lens focal length and pixel pitch)");
   cmd->add_option("--heads", o->heads, "heads.json: each head's camera guess and q_body_sensor (head 0's is kept)");

@@ -105,7 +105,7 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
       "named only within physical bounds and with a significant held-out gain; `unexplained` when the star "
       "positions or fluxes keep structure over the field that no cause explains)");
   auto o = std::make_shared<FrameOpts>();
-  cmd->add_option("frames", o->frames, "Frames (PNG/TIFF/FITS)")->required();
+  cmd->add_option("frames", o->frames, "Frames (PNG/TIFF/FITS/JPEG/BMP)")->required();
   cmd->add_option("--camera", o->camera, "camera.json (the model under test)")->required();
   cmd->add_option("--json", o->json, "Output JSON, - for stdout");
   cmd->add_option("--plot", o->plot, "Directory for residual quiver plots before/after");

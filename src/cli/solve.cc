@@ -278,7 +278,7 @@ SSIU_REGISTER_COMMAND(solve, [](CLI::App& root) {
   auto* cmd = root.add_subcommand("solve", "Lost-in-space attitude from a star frame (or centroids)");
   auto o = std::make_shared<Opts>();
   cmd->add_option("frames", o->frames,
-                  "Frames (PNG/TIFF/FITS) or centroid lists (*.csv); more than one is a batch; with --heads one "
+                  "Frames (PNG/TIFF/FITS/JPEG/BMP) or centroid lists (*.csv); more than one is a batch; with --heads one "
                   "frame per head");
   cmd->add_option("--camera", o->camera, "camera.json");
   cmd->add_option("--catalog", o->catalog, "Solver catalog directory (built there if absent; default: cache)");

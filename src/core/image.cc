@@ -157,7 +157,8 @@ Frame FrameFromSamples(const RasterSamples& r, const std::string& path) {
   return fr;
 }
 
-// PNG (the fast grey decoder, else libpng) or TIFF (libtiff); anything else is refused.
+// PNG (the fast grey decoder, else libpng), TIFF (libtiff), JPEG or BMP (libturbojpeg); anything else is
+// refused.
 Frame ReadRaster(const std::string& path, int64_t max_side_px) {
   std::vector<uint8_t> bytes;
   {
@@ -170,13 +171,16 @@ Frame ReadRaster(const std::string& path, int64_t max_side_px) {
     in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
     if (IsTiff(bytes)) return FrameFromSamples(DecodeTiff(path, max_side_px), path);
     static const uint8_t kSig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
-    if (bytes.size() < 8 || !std::equal(kSig, kSig + 8, bytes.begin())) {
-      throw InputError(path, "cannot decode image (corrupt, truncated or not PNG/TIFF/FITS)");
+    const bool png = bytes.size() >= 8 && std::equal(kSig, kSig + 8, bytes.begin());
+    if (!png && !IsJpeg(bytes) && !IsBmp(bytes)) {
+      throw InputError(path, "cannot decode image (corrupt, truncated or not PNG/TIFF/FITS/JPEG/BMP)");
     }
     bytes.resize(static_cast<size_t>(n));
     in.seekg(0);
     in.read(reinterpret_cast<char*>(bytes.data()), n);
     if (!in) throw InputError(path, "read failed");
+    if (IsJpeg(bytes)) return FrameFromSamples(DecodeJpeg(bytes, path, max_side_px), path);
+    if (!png) return FrameFromSamples(DecodeBmp(bytes, path, max_side_px), path);
   }
   // The common case, non-interlaced 8/16-bit grey PNG, has its own fast decoder (png_decode.h). It
   // packs the IDAT chunks in place, but declines (returns false) only before the first IDAT, so libpng

@@ -3,6 +3,9 @@
 #include <libdeflate.h>
 #include <png.h>
 #include <tiffio.h>
+#ifdef SSIU_TURBOJPEG_SONAME
+#include <turbojpeg.h>
+#endif
 
 #include <algorithm>
 #include <cstdarg>
@@ -19,7 +22,7 @@
 namespace ssiu {
 namespace {
 
-const char kCannotDecode[] = "cannot decode image (corrupt, truncated or not PNG/TIFF/FITS)";
+const char kCannotDecode[] = "cannot decode image (corrupt, truncated or not PNG/TIFF/FITS/JPEG/BMP)";
 
 InputError Undecodable(const std::string& path, const std::string& why) {
   return InputError(path, std::string(kCannotDecode) + (why.empty() ? "" : ": " + why));
@@ -154,6 +157,43 @@ void CopySamples(const uint8_t* src, int bits, size_t n, uint16_t* dst) {
   } else {
     for (size_t i = 0; i < n; ++i) dst[i] = src[i];
   }
+}
+
+// ---- libturbojpeg (JPEG, and BMP through its loader) ----
+
+#ifdef SSIU_TURBOJPEG_SONAME
+// Loaded on first use as libtiff is: most runs read no JPEG.
+struct TurboJpegApi {
+  decltype(&tjInitDecompress) InitDecompress;
+  decltype(&tjDecompressHeader3) DecompressHeader3;
+  decltype(&tjDecompress2) Decompress2;
+  decltype(&tjDestroy) Destroy;
+  decltype(&tjGetErrorStr2) GetErrorStr2;
+  decltype(&tjLoadImage) LoadImage;
+  decltype(&tjFree) Free;
+};
+
+const TurboJpegApi& TurboJpeg() {
+  static const TurboJpegApi api = [] {
+    constexpr const char* so = SSIU_TURBOJPEG_SONAME;
+    void* lib = internal::OpenLazyLibrary(so, "JPEG/BMP support");
+    TurboJpegApi a{};
+    internal::Resolve(lib, so, "tjInitDecompress", &a.InitDecompress);
+    internal::Resolve(lib, so, "tjDecompressHeader3", &a.DecompressHeader3);
+    internal::Resolve(lib, so, "tjDecompress2", &a.Decompress2);
+    internal::Resolve(lib, so, "tjDestroy", &a.Destroy);
+    internal::Resolve(lib, so, "tjGetErrorStr2", &a.GetErrorStr2);
+    internal::Resolve(lib, so, "tjLoadImage", &a.LoadImage);
+    internal::Resolve(lib, so, "tjFree", &a.Free);
+    return a;
+  }();
+  return api;
+}
+#endif
+
+InputError TooLarge(const std::string& path, int64_t w, int64_t h, int64_t max_side_px) {
+  return InputError(path, "image of " + std::to_string(w) + " x " + std::to_string(h) + " px, more than the limit of " +
+                              std::to_string(max_side_px) + " per side");
 }
 
 // ---- PNG writing (ISO/IEC 15948: 5 chunks, 9 filters, 11.2.2 IHDR) ----
@@ -362,5 +402,89 @@ std::string EncodePng(const void* samples, int width, int height, int channels, 
   PutChunk(&png, "IEND", "");
   return png;
 }
+
+bool IsJpeg(const std::vector<uint8_t>& b) { return b.size() >= 3 && b[0] == 0xFF && b[1] == 0xD8 && b[2] == 0xFF; }
+
+bool IsBmp(const std::vector<uint8_t>& b) { return b.size() >= 2 && b[0] == 'B' && b[1] == 'M'; }
+
+#ifdef SSIU_TURBOJPEG_SONAME
+RasterSamples DecodeJpeg(const std::vector<uint8_t>& bytes, const std::string& path, int64_t max_side_px) {
+  const TurboJpegApi& tj = TurboJpeg();
+  tjhandle h = tj.InitDecompress();
+  if (!h) throw InputError(path, "out of memory decoding JPEG");
+  struct Closer {
+    const TurboJpegApi& tj;
+    tjhandle h;
+    ~Closer() { tj.Destroy(h); }
+  } closer{tj, h};
+  int w = 0, ht = 0, subsamp = 0, colourspace = 0;
+  const auto* data = bytes.data();
+  const auto size = static_cast<unsigned long>(bytes.size());
+  if (tj.DecompressHeader3(h, data, size, &w, &ht, &subsamp, &colourspace) != 0) {
+    throw Undecodable(path, std::string("libjpeg-turbo: ") + tj.GetErrorStr2(h));
+  }
+  if (w <= 0 || ht <= 0) throw Undecodable(path, "JPEG of zero size");
+  if (w > max_side_px || ht > max_side_px) throw TooLarge(path, w, ht, max_side_px);
+  RasterSamples out;
+  out.width = w, out.height = ht, out.depth = 8;
+  out.channels = colourspace == TJCS_GRAY ? 1 : 3;
+  std::vector<uint8_t> px(static_cast<size_t>(w) * ht * out.channels);
+  // A warning (a truncated or damaged stream, filled with grey by libjpeg) is an error here.
+  if (tj.Decompress2(h, data, size, px.data(), w, 0, ht, out.channels == 1 ? TJPF_GRAY : TJPF_RGB,
+                     TJFLAG_STOPONWARNING | TJFLAG_ACCURATEDCT) != 0) {
+    throw Undecodable(path, std::string("libjpeg-turbo: ") + tj.GetErrorStr2(h));
+  }
+  out.samples.assign(px.begin(), px.end());
+  return out;
+}
+
+RasterSamples DecodeBmp(const std::vector<uint8_t>& bytes, const std::string& path, int64_t max_side_px) {
+  // BITMAPINFOHEADER (or larger): width and height at bytes 18 and 22, little-endian, height < 0 for a
+  // top-down image; checked before the loader allocates the pixels.
+  if (bytes.size() < 26) throw Undecodable(path, "BMP header truncated");
+  auto le32 = [&](int i) {
+    return static_cast<int32_t>(uint32_t(bytes[i]) | uint32_t(bytes[i + 1]) << 8 | uint32_t(bytes[i + 2]) << 16 |
+                                uint32_t(bytes[i + 3]) << 24);
+  };
+  const int64_t w = le32(18), ht = std::abs(static_cast<int64_t>(le32(22)));
+  if (w > max_side_px || ht > max_side_px) throw TooLarge(path, w, ht, max_side_px);
+  const TurboJpegApi& tj = TurboJpeg();
+  int width = 0, height = 0, format = TJPF_UNKNOWN;
+  unsigned char* px = tj.LoadImage(path.c_str(), &width, 1, &height, &format, 0);
+  if (!px) throw Undecodable(path, std::string("libjpeg-turbo: ") + tj.GetErrorStr2(nullptr));
+  struct Freer {
+    const TurboJpegApi& tj;
+    unsigned char* p;
+    ~Freer() { tj.Free(p); }
+  } freer{tj, px};
+  if (width <= 0 || height <= 0 || width > max_side_px || height > max_side_px) {
+    throw TooLarge(path, width, height, max_side_px);
+  }
+  RasterSamples out;
+  out.width = width, out.height = height, out.depth = 8;
+  const size_t n = static_cast<size_t>(width) * height;
+  if (format == TJPF_GRAY) {
+    out.channels = 1;
+    out.samples.assign(px, px + n);
+    return out;
+  }
+  if (format < 0 || format >= TJ_NUMPF || tjRedOffset[format] < 0) throw Undecodable(path, "BMP pixel format");
+  out.channels = 3;
+  out.samples.resize(3 * n);
+  const int step = tjPixelSize[format], r = tjRedOffset[format], g = tjGreenOffset[format], b = tjBlueOffset[format];
+  for (size_t i = 0; i < n; ++i) {
+    const unsigned char* p = px + i * step;
+    out.samples[3 * i] = p[r], out.samples[3 * i + 1] = p[g], out.samples[3 * i + 2] = p[b];
+  }
+  return out;
+}
+#else
+RasterSamples DecodeJpeg(const std::vector<uint8_t>&, const std::string& path, int64_t) {
+  throw InputError(path, "JPEG support not built (libturbojpeg0-dev was missing when ssiu was configured)");
+}
+RasterSamples DecodeBmp(const std::vector<uint8_t>&, const std::string& path, int64_t) {
+  throw InputError(path, "BMP support not built (libturbojpeg0-dev was missing when ssiu was configured)");
+}
+#endif
 
 }  // namespace ssiu

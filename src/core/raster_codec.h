@@ -1,7 +1,7 @@
-// Internal to core: PNG and TIFF without OpenCV's codec chain. OpenCV's imgcodecs pulls in GDAL,
+// Internal to core: PNG, TIFF, JPEG and BMP without OpenCV's codec chain. OpenCV's imgcodecs pulls in GDAL,
 // GDCM, OpenEXR and ~120 other shared libraries that cost ~50 ms of CPU at every start of `ssiu`
-// (docs/results.md, issue 17 item 2); ssiu only needs PNG and TIFF, so it calls libpng, libtiff and
-// libdeflate directly. The common grey PNG keeps its own fast decoder (png_decode.h).
+// (docs/results.md, issue 17 item 2); ssiu only needs a few formats, so it calls libpng, libtiff,
+// libturbojpeg and libdeflate directly. The common grey PNG keeps its own fast decoder (png_decode.h).
 #pragma once
 
 #include <cstdint>
@@ -30,6 +30,19 @@ bool IsTiff(const std::vector<uint8_t>& bytes);
 // RGBA reader. InputError naming `path` for a corrupt file, an unsupported kind, or a side longer
 // than max_side_px (checked before the pixels are allocated).
 RasterSamples DecodeTiff(const std::string& path, int64_t max_side_px);
+
+// True when `bytes` start with a JPEG SOI marker and the first marker's prefix (FF D8 FF).
+bool IsJpeg(const std::vector<uint8_t>& bytes);
+// True when `bytes` start with a Windows BMP file header ("BM").
+bool IsBmp(const std::vector<uint8_t>& bytes);
+// A JPEG (baseline or progressive, grey or colour) decoded by libjpeg-turbo's TurboJPEG API, loaded on
+// first use like libtiff: grey as one 8-bit channel, colour as RGB. A warning of the decoder (a
+// truncated or damaged stream) is an error. InputError naming `path` for a corrupt file, a side longer
+// than max_side_px (from the header, before the pixels are allocated), or a build without TurboJPEG.
+RasterSamples DecodeJpeg(const std::vector<uint8_t>& bytes, const std::string& path, int64_t max_side_px);
+// A BMP (8-bit with a grey palette as one channel; 8-bit palette, 24- and 32-bit colour as RGB) read
+// by TurboJPEG's loader; the same errors.
+RasterSamples DecodeBmp(const std::vector<uint8_t>& bytes, const std::string& path, int64_t max_side_px);
 
 // A PNG file's bytes: `samples` row-major interleaved, channels 1-4 (grey, grey+alpha, RGB, RGBA),
 // depth 8 (uint8_t samples) or 16 (uint16_t samples, host order); each row filtered with the

@@ -128,7 +128,48 @@ float RobustSigma(const std::vector<int32_t>& s, const MedianMad& mm) {
   return std::max(static_cast<float>(std::sqrt(std::max(var, 0.0))), 0.5f);
 }
 
+// A lossy frame's noise (of the pixels and of the box sums): JPEG leaves many blocks flat (their AC coefficients quantised to zero)
+// and others textured, a distribution with a narrow core and wide shoulders whose MAD understates the
+// spread that reaches the threshold. Stars sit in the upper tail only, so the lower one measures the
+// shoulders: (median - 10 % quantile) / 1.2816 is sigma for Gaussian noise.
+float LowerTailSigma(const std::vector<int32_t>& s, double median, std::vector<int32_t>* scratch) {
+  scratch->assign(s.begin(), s.end());
+  const size_t k = scratch->size() / 10;
+  std::nth_element(scratch->begin(), scratch->begin() + static_cast<std::ptrdiff_t>(k), scratch->end());
+  return static_cast<float>(std::max(0.0, (median - (*scratch)[k]) / 1.2816));
+}
+
 }  // namespace
+
+double BlockArtefactRatio(const ImageView& img) {
+  if (img.width < 32 || img.height < 32) return 1;
+  double edge = 0, inside = 0;
+  int64_t n_edge = 0, n_inside = 0;
+  // Every 4th row and column are enough (about N/8 edge pairs of N/2 sampled: the ratio to ~1 % on a
+  // 512^2 frame) and keep the cost to half a pass over the frame.
+  for (int y = 0; y + 1 < img.height; y += 4) {  // across vertical grid lines
+    const uint16_t* r = img.row(y);
+    for (int x = 0; x + 1 < img.width; ++x) {
+      const int d = std::abs(int(r[x + 1]) - int(r[x]));
+      if ((x & 7) == 7) {
+        edge += d, ++n_edge;
+      } else {
+        inside += d, ++n_inside;
+      }
+    }
+  }
+  for (int y = 0; y + 1 < img.height; ++y) {  // across horizontal grid lines
+    const uint16_t *r0 = img.row(y), *r1 = img.row(y + 1);
+    const bool at_edge = (y & 7) == 7;
+    double sum = 0;
+    int64_t n = 0;
+    for (int x = 0; x < img.width; x += 4, ++n) sum += std::abs(int(r1[x]) - int(r0[x]));
+    (at_edge ? edge : inside) += sum;
+    (at_edge ? n_edge : n_inside) += n;
+  }
+  if (n_edge == 0 || n_inside == 0 || inside <= 0) return 1;
+  return (edge / n_edge) / (inside / n_inside);
+}
 
 namespace {
 // Samples of one tile: about 256 (step = tile / 16), at most 31 per row and column (tiles under 32 px
@@ -160,7 +201,7 @@ BackgroundGrid EstimateBackground(const ImageView& img, int tile_px, int box_hal
 }
 
 void EstimateBackground(const ImageView& img, int tile_px, int box_half, BackgroundScratch* sc,
-                        BackgroundGrid* out) {
+                        BackgroundGrid* out, bool block_aware) {
   BackgroundGrid& g = *out;
   g.width = img.width;
   g.height = img.height;
@@ -171,6 +212,9 @@ void EstimateBackground(const ImageView& img, int tile_px, int box_half, Backgro
   g.sigma.resize(g.level.size());
   g.box_sigma.resize(g.level.size());
   g.box_half = box_half;
+  g.block_ratio = block_aware ? BlockArtefactRatio(img) : 1.0;
+  g.block_artefacts = g.block_ratio > kBlockArtefactRatio;
+  const bool lower_tails = block_aware && g.block_artefacts;
   const int hb = box_half;
   // Subsample about 256 pixels of each tile (median to ~0.08 sigma; the 3x3 grid median then
   // averages neighbouring tiles).
@@ -204,12 +248,17 @@ void EstimateBackground(const ImageView& img, int tile_px, int box_half, Backgro
       }
       if (s.empty()) s.push_back(img.at(x0, y0));
       const MedianMad mm = MedianAndMad(s, &scratch, &hist);
-      const float sig = RobustSigma(s, mm);
+      float sig = RobustSigma(s, mm);
+      if (lower_tails && s.size() >= 16) sig = std::max(sig, LowerTailSigma(s, mm.median, &scratch));
       g.level[ty * g.nx + tx] = static_cast<float>(mm.median);
       g.sigma[ty * g.nx + tx] = sig;
       const int nbox = (2 * hb + 1);
       float box_sig = static_cast<float>(nbox) * sig;
-      if (bs.size() >= 16) box_sig = std::max(RobustSigma(bs, MedianAndMad(bs, &scratch, &hist)), 0.5f * box_sig);
+      if (bs.size() >= 16) {
+        const MedianMad bm = MedianAndMad(bs, &scratch, &hist);
+        box_sig = std::max(RobustSigma(bs, bm), 0.5f * box_sig);
+        if (lower_tails) box_sig = std::max(box_sig, LowerTailSigma(bs, bm.median, &scratch));
+      }
       g.box_sigma[ty * g.nx + tx] = box_sig;
     }
   }

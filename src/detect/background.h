@@ -16,6 +16,10 @@ struct BackgroundGrid {
   std::vector<float> box_sigma;
   int box_half = 1;
   double median_level = 0, median_sigma = 0;
+  // The frame shows JPEG's 8x8 blocks (BlockArtefactRatio above kBlockArtefactRatio): the noise of the
+  // pixels and of the box sums is then taken from their lower tails too (background.cc).
+  bool block_artefacts = false;
+  double block_ratio = 1;
 
   double LevelAt(double x, double y) const { return Interp(level, x, y); }
   double SigmaAt(double x, double y) const { return Interp(sigma, x, y); }
@@ -37,6 +41,12 @@ struct BackgroundGrid {
   double Interp(const std::vector<float>& v, double x, double y) const;
 };
 
+// Mean absolute difference of neighbouring pixels across the 8-pixel grid lines (x or y = 8k - 1 | 8k)
+// over that within the blocks, rows and columns together: about 1 for a frame that was never
+// block-coded, above it for a JPEG whose quantised DCT blocks (ITU-T T.81) left steps at their edges.
+double BlockArtefactRatio(const ImageView& img);
+constexpr double kBlockArtefactRatio = 1.05;
+
 // Scratch of EstimateBackground, reserved once (Reserve) so that repeated estimates allocate nothing.
 struct BackgroundScratch {
   std::vector<int32_t> samples, box_samples, select, hist;
@@ -52,7 +62,8 @@ struct BackgroundScratch {
 BackgroundGrid EstimateBackground(const ImageView& img, int tile_px, int box_half = 1);
 // The same into `out`, with the scratch given (no allocation when both were reserved for the image
 // and tile size).
+// block_aware: the noise of a frame with JPEG blocks from the lower tails too (BackgroundGrid::block_artefacts).
 void EstimateBackground(const ImageView& img, int tile_px, int box_half, BackgroundScratch* scratch,
-                        BackgroundGrid* out);
+                        BackgroundGrid* out, bool block_aware = true);
 
 }  // namespace ssiu

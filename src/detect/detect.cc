@@ -902,6 +902,7 @@ DetectStatus Detect(const ImageView& view, const DetectOptions& opt, const Defec
   const auto t_start = now();
   out->width = out->height = 0;
   out->background_adu = out->noise_adu = out->psf_sigma_px = 0;
+  out->block_artefact_ratio = 1, out->block_artefacts = false;
   out->stars.clear();
   out->rejected.clear();
   out->timing_ms.clear();
@@ -935,9 +936,11 @@ DetectStatus Detect(const ImageView& view, const DetectOptions& opt, const Defec
   const double psf_guess = opt.psf_sigma_px > 0 ? opt.psf_sigma_px : 1.2;
   const int half = psf_guess <= 1.6 ? 1 : (psf_guess <= 2.8 ? 2 : 3);
   const BackgroundGrid& bg = bu.bg;
-  EstimateBackground(img, opt.tile_px, half, &bu.bg_scratch, &bu.bg);
+  EstimateBackground(img, opt.tile_px, half, &bu.bg_scratch, &bu.bg, opt.block_aware_noise);
   out->background_adu = bg.median_level;
   out->noise_adu = bg.median_sigma;
+  out->block_artefact_ratio = bg.block_ratio;
+  out->block_artefacts = bg.block_artefacts;
   if (diag) out->timing_ms["background"] = MsSince(t0);
 
   // 2. Threshold the box sum on its own measured local noise.

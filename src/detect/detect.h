@@ -39,6 +39,9 @@ struct DetectOptions {
   int max_stars = 1000;           // keep at most this many (brightest first)
   bool reject_hot_pixels = true;  // on-the-fly single-pixel spike rejection
   bool fit_gaussian = true;       // refine centroids by a Gaussian fit (else: weighted moments)
+  // A frame that shows JPEG's 8x8 blocks (docs/detection.md, "JPEG frames") gets its noise from the
+  // lower tails of the pixels and box sums as well: the quantised blocks' spread, not only the core.
+  bool block_aware_noise = true;
   // Motion during the exposure, from the gyros (inactive by default: the static detector). When
   // active, each star is fitted as the PSF smeared along its predicted path (detect/smear.h) and the
   // shape tests allow that smear, not more: cosmic rays and streaks that do not match stay rejected.
@@ -92,6 +95,9 @@ struct Detections {
   int width = 0, height = 0;
   double background_adu = 0;         // median of the tile backgrounds
   double noise_adu = 0;              // median of the tile noise sigmas
+  // The frame's 8x8 block statistic (BlockArtefactRatio: ~1 uncompressed, above 1.05 JPEG blocks).
+  double block_artefact_ratio = 1;
+  bool block_artefacts = false;
   double psf_sigma_px = 0;           // PSF sigma used (estimated or given)
   std::vector<StarDetection> stars;  // brightest first
   std::vector<Rejection> rejected;

@@ -228,7 +228,7 @@ class Solver {
         MakeIdentifierFor(config_.catalog, camera_, io, config_.mag_max, config_.source));
   }
 
-  // A frame (uint8/uint16 array or a file path: PNG/TIFF/FITS, or a .csv centroid list) -> solve JSON.
+  // A frame (uint8/uint16 array or a file path: PNG/TIFF/FITS/JPEG/BMP, or a .csv centroid list) -> solve JSON.
   py::object Solve(const py::object& input) const {
     SolveResult r;
     if (py::isinstance<py::str>(input)) {
@@ -493,7 +493,7 @@ PYBIND11_MODULE(_ssiu, m) {
       .def("update", &PyTracker::Update, py::arg("image_or_centroids"), py::arg("t_s"))
       .def_property_readonly("locked", &PyTracker::locked);
   m.def("read_frame", &ReadFramePy, py::arg("path"),
-        "A PNG/TIFF/FITS frame as (uint16 array, info dict with bit_depth, saturation_adu, value_scale, ...)");
+        "A PNG/TIFF/FITS/JPEG/BMP frame as (uint16 array, info dict with bit_depth, saturation_adu, value_scale, ...)");
   m.def("detect", &DetectPy, py::arg("image"), py::arg("camera") = py::none(),
         "Stars, background, noise and rejected objects of a frame: the fields of `ssiu detect --json`");
   m.def("fuse", &FusePy, py::arg("gyro"), py::arg("star_tracker"), py::arg("unit") = py::none(),

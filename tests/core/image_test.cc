@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <random>
 
 #include "core/error.h"
@@ -304,6 +305,60 @@ TEST(RasterCodec, PngAndTiffOfEveryDepthAndChannelCountMatchOpenCv) {
   const std::string tiff((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   std::ofstream(dir + "/cut.tiff", std::ios::binary) << tiff.substr(0, 200);
   EXPECT_THAT(ErrorOf(dir + "/cut.tiff"), ::testing::HasSubstr("cut.tiff"));
+}
+
+// JPEG and BMP (libturbojpeg, loaded on first use): OpenCV's codecs (the system's libjpeg-turbo, its
+// default accurate integer IDCT) are the reference: grey read as it is, colour as the rounded mean of
+// R, G, B; BMP is lossless, so the pixels written come back. A truncated JPEG (a decoder warning) and
+// a BMP larger than the limit are errors naming the file.
+TEST(RasterCodec, JpegAndBmpMatchOpenCv) {
+  const std::string dir = testing::TempDir("codec_jpeg");
+  for (int type : {CV_8UC1, CV_8UC3}) {
+    cv::Mat m(61, 83, type);
+    cv::randu(m, 0, 256);
+    cv::GaussianBlur(m, m, cv::Size(5, 5), 1.5);  // a star-like smooth field: JPEG's usual content
+    for (const std::string ext : {".jpg", ".bmp"}) {
+      const std::string path = dir + "/f" + std::to_string(type) + ext;
+      ASSERT_TRUE(cv::imwrite(path, m, {cv::IMWRITE_JPEG_QUALITY, 85}));
+      const cv::Mat ref = cv::imread(path, cv::IMREAD_UNCHANGED);
+      ASSERT_EQ(ref.type(), type) << path;
+      if (ext == ".bmp") {
+        EXPECT_EQ(cv::norm(ref, m, cv::NORM_INF), 0);  // lossless
+      }
+      const Frame fr = ReadFrame(path);
+      ASSERT_EQ(fr.image.width, m.cols);
+      ASSERT_EQ(fr.image.height, m.rows);
+      EXPECT_EQ(fr.bit_depth, 8);
+      EXPECT_EQ(fr.saturation_adu, 255);
+      EXPECT_EQ(fr.grey_conversion, m.channels() == 1 ? "none" : "mean_rgb") << path;
+      for (int y = 0; y < m.rows; ++y) {
+        for (int x = 0; x < m.cols; ++x) {
+          int want = 0;
+          if (m.channels() == 1) {
+            want = ref.at<uchar>(y, x);
+          } else {
+            const cv::Vec3b p = ref.at<cv::Vec3b>(y, x);
+            want = (p[0] + p[1] + p[2] + 1) / 3;
+          }
+          ASSERT_EQ(fr.image.at(x, y), want) << path << " " << x << "," << y;
+        }
+      }
+    }
+  }
+  std::ifstream in(dir + "/f" + std::to_string(CV_8UC3) + ".jpg", std::ios::binary);
+  const std::string jpg((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::ofstream(dir + "/cut.jpg", std::ios::binary) << jpg.substr(0, jpg.size() / 2);
+  EXPECT_THAT(ErrorOf(dir + "/cut.jpg"), ::testing::HasSubstr("cut.jpg: cannot decode image"));
+  std::ofstream(dir + "/head.jpg", std::ios::binary) << jpg.substr(0, 40);
+  EXPECT_THAT(ErrorOf(dir + "/head.jpg"), ::testing::HasSubstr("head.jpg: cannot decode image"));
+  // A BMP header declaring 70000 x 10 px: refused from the header, before any pixel is read.
+  std::string bmp(54, '\0');
+  bmp[0] = 'B', bmp[1] = 'M', bmp[14] = 40;
+  const uint32_t w = 70000, h = 10;
+  for (int k = 0; k < 4; ++k) bmp[18 + k] = static_cast<char>(w >> (8 * k)), bmp[22 + k] = static_cast<char>(h >> (8 * k));
+  std::ofstream(dir + "/wide.bmp", std::ios::binary) << bmp;
+  EXPECT_THAT(ErrorOf(dir + "/wide.bmp"), ::testing::HasSubstr("wide.bmp: "));
+  EXPECT_THAT(ErrorOf(dir + "/wide.bmp"), ::testing::HasSubstr("70000"));
 }
 
 }  // namespace
