@@ -275,10 +275,16 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
     const ssiu::GyroDiscovery d = ssiu::DiscoverGyro(logs, o->opt);
     // Output first: a path that cannot be written is then the only line printed.
     if (!o->json.empty()) ssiu::WriteJsonFile(o->json, ssiu::GyroDiscoveryToJson(d));
-    std::cerr << "discover gyro: cause " << d.cause;
-    for (const auto& [k, v] : d.parameters) std::cerr << " " << k << "=" << v << "+-" << d.sigmas.at(k);
+    // The chain of named causes (the stepwise extension), each with its joint-fit parameters.
+    std::string chain;
+    for (const auto& c : d.causes) chain += (chain.empty() ? "" : " + ") + c.cause;
+    std::cerr << "discover gyro: cause " << (d.cause == "unexplained" || chain.empty() ? d.cause : chain);
+    for (const auto& c : d.causes) {
+      if (d.causes.size() > 1) std::cerr << (&c == &d.causes.front() ? "" : ";") << " " << c.cause << ":";
+      for (const auto& [k, v] : c.parameters) std::cerr << " " << k << "=" << v << "+-" << c.sigmas.at(k);
+    }
     std::cerr << "; held-out rms " << d.rms_before_dph << " -> " << d.rms_after_dph << " deg/h (gain " << d.gain
-              << ")\n";
+              << (d.causes.size() > 1 ? ", first cause" : "") << ")\n";
     if (d.cause == "unexplained") {
       std::cerr << "  residual structure (" << d.residual.finding << ", p " << d.residual.p_value << "): period "
                 << d.residual.period_s << " s, amplitude " << d.residual.amplitude_dph << " deg/h, follows column "
@@ -297,7 +303,7 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
         std::cerr << "; a shape in time: " << d.residual.trend_term;
         if (d.residual.trend_term == "exp(-t/tau)") std::cerr << " with tau " << d.residual.warm_up_tau_s << " s";
       }
-      if (!d.partial_cause.empty()) std::cerr << "; fitted first: " << d.partial_cause;
+      if (!d.partial_cause.empty()) std::cerr << "; fitted first: " << chain;
       std::cerr << "\n";
     }
   });
