@@ -2816,6 +2816,17 @@ MatrixXd BaseWithNamed(const Design& d, const MatrixXd& bias, const std::vector<
   return x;
 }
 
+// Calls fn(k) for each named cause k with the base model holding the biases and every other named cause
+// (as they are when fn is called: fn may change cause k), then sets the base to the biases + all of them.
+void WithOthersInBase(Design* d, const std::vector<NamedCause>& named, const std::function<void(int)>& fn) {
+  const MatrixXd bias = d->base.leftCols(static_cast<Eigen::Index>(d->bins.size()));
+  for (int k = 0; k < static_cast<int>(named.size()); ++k) {
+    d->base = BaseWithNamed(*d, bias, named, k);
+    fn(k);
+  }
+  d->base = BaseWithNamed(*d, bias, named, -1);
+}
+
 // Names of a named cause's coefficients in the joint fit (for the correlations).
 std::vector<std::string> CoefficientNames(const NamedCause& nc) {
   static const std::map<int, std::string> kName = {{kT1, "K10_dph"},
@@ -2845,14 +2856,13 @@ std::vector<std::string> CoefficientNames(const NamedCause& nc) {
 constexpr double kReportedCorrelation = 0.3;
 void JointFit(Design* design, const GyroDiscoverOptions& o, const std::vector<NoiseModel>& nm,
               const std::vector<double>& scale, const std::vector<NamedCause>& named, GyroDiscovery* res) {
-  Design& d = *design;
+  const Design& d = *design;
   const int l = static_cast<int>(d.bins.size());
-  const MatrixXd full_base = d.base, bias = d.base.leftCols(l);
   const VectorXd yw = WhitenRows(d, nm, d.y);
-  const MatrixXd xw = WhitenRows(d, nm, full_base);
+  const MatrixXd xw = WhitenRows(d, nm, d.base);
   const LsFit joint = SolveLs(xw, yw);
   const double infl = VarianceInflation(d, yw - xw * joint.beta, o.max_noise_lag);
-  for (int k = 0; k < static_cast<int>(named.size()); ++k) {
+  WithOthersInBase(design, named, [&](int k) {
     const NamedCause& nc = named[k];
     GyroNamedCause gc;
     gc.cause = nc.candidate.cause;
@@ -2863,7 +2873,6 @@ void JointFit(Design* design, const GyroDiscoverOptions& o, const std::vector<No
     gc.rms_after_dph = nc.ev.cv.rms_after;
     gc.parameters = nc.ev.parameters, gc.sigmas = nc.ev.sigmas;  // a walk: its step's (it is in the noise model)
     if (gc.cause != "rate_random_walk" && named.size() > 1) {
-      d.base = BaseWithNamed(d, bias, named, k);
       Fitted fit;
       fit.cols = nc.cols;
       fit.x = Assemble(d, nc.cols, nc.extra);
@@ -2875,8 +2884,7 @@ void JointFit(Design* design, const GyroDiscoverOptions& o, const std::vector<No
     }
     gc.parameters.erase("swing_ratio");
     res->causes.push_back(gc);
-  }
-  d.base = full_base;
+  });
   // Correlations of the coefficients (columns l.. of the joint fit, in the order the causes entered).
   std::vector<std::string> names;
   std::vector<int> owner;
@@ -2903,15 +2911,12 @@ void JointFit(Design* design, const GyroDiscoverOptions& o, const std::vector<No
 // residual under nm, the statistic scaled by that residual's variance and inflation.
 void RelocateNamed(Design* design, const GyroDiscoverOptions& o, const std::vector<NoiseModel>& nm,
                    std::vector<NamedCause>* named) {
-  Design& d = *design;
-  const int l = static_cast<int>(d.bins.size());
-  const MatrixXd bias = d.base.leftCols(l);
+  const Design& d = *design;
   const VectorXd yw = WhitenRows(d, nm, d.y);
-  for (int k = 0; k < static_cast<int>(named->size()); ++k) {
+  WithOthersInBase(design, *named, [&](int k) {
     NamedCause& nc = (*named)[k];
     const bool step = nc.candidate.cause == "bias_step", periodic = nc.candidate.cause == "periodic_drift";
-    if (!step && !periodic) continue;
-    d.base = BaseWithNamed(d, bias, *named, k);
+    if (!step && !periodic) return;
     const MatrixXd bw = WhitenRows(d, nm, d.base);
     const LsFit g = SolveLs(bw, yw);
     const VectorXd res = yw - bw * g.beta;
@@ -2926,8 +2931,7 @@ void RelocateNamed(Design* design, const GyroDiscoverOptions& o, const std::vect
       ScanPeriodic(d, nm, bw, res, o, 1, sigma2_f, &sc);
       if (sc.best_sin.size() == d.n) nc.periodic_scan = sc, nc.extra = {sc.best_sin, sc.best_cos};
     }
-  }
-  d.base = BaseWithNamed(d, bias, *named, -1);
+  });
 }
 
 // A nested cause named in the chain (misalignment, scale_factor) is tested again against its wider partner
@@ -2938,19 +2942,16 @@ void RelocateNamed(Design* design, const GyroDiscoverOptions& o, const std::vect
 // its step's gain; its parameters are the joint fit's.
 void WidenNested(Design* design, const GyroDiscoverOptions& o, const std::vector<NoiseModel>& nm,
                  const std::vector<bool>& usable, std::vector<NamedCause>* named) {
-  Design& d = *design;
-  const int l = static_cast<int>(d.bins.size());
-  const MatrixXd bias = d.base.leftCols(l);
+  const Design& d = *design;
   const VectorXd yw = WhitenRows(d, nm, d.y);
-  for (int k = 0; k < static_cast<int>(named->size()); ++k) {
+  WithOthersInBase(design, *named, [&](int k) {
     NamedCause& nc = (*named)[k];
     std::vector<int> wide;
     std::string cause, model;
     if (nc.candidate.cause == "misalignment")
       wide = {kMagSin, kMagCos}, cause = "magnetic_field", model = "azimuth_harmonic";
     if (nc.candidate.cause == "scale_factor") wide = {kScale, kAbsRef}, cause = "scale_factor_asymmetry";
-    if (wide.empty() || !usable[wide[0]] || !usable[wide[1]]) continue;
-    d.base = BaseWithNamed(d, bias, *named, k);
+    if (wide.empty() || !usable[wide[0]] || !usable[wide[1]]) return;
     const MatrixXd xn = WhitenRows(d, nm, Assemble(d, nc.cols, {})), xw = WhitenRows(d, nm, Assemble(d, wide, {}));
     const LsFit gn = SolveLs(xn, yw), gw = SolveLs(xw, yw);
     const double s2 = gw.rss / std::max(1, d.n - static_cast<int>(xw.cols()));
@@ -2959,8 +2960,7 @@ void WidenNested(Design* design, const GyroDiscoverOptions& o, const std::vector
     if (ChiSquaredSurvival(stat, static_cast<double>(wide.size() - nc.cols.size())) < o.alpha) {
       nc.candidate.cause = cause, nc.candidate.model = model, nc.cols = wide;
     }
-  }
-  d.base = BaseWithNamed(d, bias, *named, -1);
+  });
 }
 
 // Stepwise extension (issue 31): step s tests every cause not yet named against the base model extended by
