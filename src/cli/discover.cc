@@ -2,6 +2,7 @@
 // CAM.json --json OUT`: model discrepancy analysis (docs/discrepancy.md). The library does the work
 // (discover/discover_gyro.h, discover/discover_frames.h); this file parses flags and writes JSON.
 #include <iostream>
+#include <map>
 #include <memory>
 #include <sstream>
 #include <string>
@@ -90,10 +91,40 @@ SSIU_REGISTER_COMMAND(discover_allan, [](CLI::App& root) {
                      {"rrw_deg_per_h_per_sqrt_h", g.rrw_deg_per_h_per_sqrt_h.value},
                      {"quantization_arcsec", g.quantization_arcsec.value},
                      {"rate_ramp_deg_per_h2", g.rate_ramp_deg_per_h2.value}};
+    // The stepwise extension: the terms in the order they entered, with the final joint fit's values.
+    const auto jg = ssiu::ToGyroUnits(d.joint);
+    const std::map<std::string, std::pair<std::string, ssiu::NoiseTerm>> in_units = {
+        {"quantization", {"quantization_arcsec", jg.quantization_arcsec}},
+        {"rate_random_walk", {"rrw_deg_per_h_per_sqrt_h", jg.rrw_deg_per_h_per_sqrt_h}},
+        {"rate_ramp", {"rate_ramp_deg_per_h2", jg.rate_ramp_deg_per_h2}}};
+    j["causes"] = ssiu::Json::array();
+    std::string chain;
+    for (const auto& st : d.steps) {
+      const auto& [key, term] = in_units.at(st.term);
+      j["causes"].push_back({{"cause", st.term},
+                             {"parameters", {{key, term.value}}},
+                             {"parameter_sigmas", {{key, term.sigma}}},
+                             {"p_value", st.p_value},
+                             {"gain", st.gain},
+                             {"gain_z", st.gain_z},
+                             {"chi2_per_dof", st.chi2_per_dof}});
+      chain += (chain.empty() ? "" : " + ") + st.term;
+    }
+    j["joint"] = {{"arw_deg_per_sqrt_h", jg.arw_deg_per_sqrt_h.value},
+                  {"arw_sigma_deg_per_sqrt_h", jg.arw_deg_per_sqrt_h.sigma},
+                  {"bias_instability_dph", jg.bias_instability_dph.value},
+                  {"bias_instability_sigma_dph", jg.bias_instability_dph.sigma},
+                  {"chi2_per_dof", d.joint.chi2_per_dof}};
+    j["correlations"] = ssiu::Json::array();
+    for (const auto& c : d.correlations) j["correlations"].push_back({{"a", c.a}, {"b", c.b}, {"r", c.r}});
+    j["left"] = d.left;
+    j["final_departures_tau_s"] = ssiu::Json::array();
+    for (const auto& [lo, hi] : d.final_departures_s) j["final_departures_tau_s"].push_back({lo, hi});
     // Output first: a path that cannot be written is then the only line printed.
     if (!o->json.empty()) ssiu::WriteJsonFile(o->json, j);
     std::cerr << "discover allan: " << o->curve << " " << cf.channel << ": chi2/dof " << d.chi2_per_dof_before << " -> "
-              << d.chi2_per_dof_after << ", departs in " << d.departures_s.size() << " tau range(s)\n";
+              << d.chi2_per_dof_after << ", departs in " << d.departures_s.size() << " tau range(s); cause "
+              << (chain.empty() ? "none" : chain) << (d.left == "unexplained" ? ", then unexplained" : "") << "\n";
   });
 });
 
