@@ -310,10 +310,12 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
     std::string chain;
     for (const auto& c : d.causes) chain += (chain.empty() ? "" : " + ") + c.cause;
     std::cerr << "discover gyro: cause " << (d.cause == "unexplained" || chain.empty() ? d.cause : chain);
+    const bool several = d.causes.size() > 1;
     for (const auto& c : d.causes) {
-      if (d.causes.size() > 1) std::cerr << (&c == &d.causes.front() ? "" : ";") << " " << c.cause << ":";
+      if (several) std::cerr << (&c == &d.causes.front() ? " (" : "; ") << c.cause << ":";
       for (const auto& [k, v] : c.parameters) std::cerr << " " << k << "=" << v << "+-" << c.sigmas.at(k);
     }
+    if (several) std::cerr << ")";
     std::cerr << "; held-out rms " << d.rms_before_dph << " -> " << d.rms_after_dph << " deg/h (gain " << d.gain
               << (d.causes.size() > 1 ? ", first cause" : "") << ")\n";
     if (d.cause == "unexplained") {
