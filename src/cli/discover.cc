@@ -48,7 +48,9 @@ struct AllanOpts {
 SSIU_REGISTER_COMMAND(discover_allan, [](CLI::App& root) {
   auto* discover = ssiu::cli::GetOrAddSubcommand(root, "discover", "Find what the model gets wrong in measured data");
   auto* cmd = discover->add_subcommand(
-      "allan", "Where the default gyro noise model (ARW + bias instability) leaves a measured Allan curve");
+      "allan",
+      "Where the default gyro noise model (ARW + bias instability) leaves a measured Allan curve, and the terms "
+      "(quantization, rate_random_walk, rate_ramp) that extend it step by step (`causes`)");
   auto o = std::make_shared<AllanOpts>();
   cmd->add_option("--curve", o->curve, "Allan curve file (as for `ssiu allan --curve`)")->required();
   cmd->add_option("--channel", o->channel, "Channel within the file");
@@ -273,7 +275,9 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
       "logged column, jumps between two levels, a periodic drift that is not a sinusoid, a change of the noise "
       "level, outliers, a nonlinear function of the reference rate or the azimuth's second harmonic, a trend or a "
       "warm-up in time, a spectral line above the bins' band in the raw samples) that no cause "
-      "explains; the JSON's `residual` block gives each test's statistic and p-value (docs/discrepancy.md)");
+      "explains; the JSON's `residual` block gives each test's statistic and p-value. The model is extended step by "
+      "step: each named cause joins the base model and the rest are tested again until none passes (`causes`: the "
+      "chain with the joint fit's parameters; `cause` is the first) (docs/discrepancy.md)");
   auto o = std::make_shared<GyroOpts>();
   cmd->add_option("logs", o->logs,
                   "Bench logs t_s,w_dph,ref_dph,temp_c[,azimuth_deg][,bn_ut,be_ut,bh_ut] (other numeric columns "

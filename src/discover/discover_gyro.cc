@@ -2643,7 +2643,8 @@ struct GyroStep {
 
 GyroStep RunGyroStep(const Design& d, const GyroDiscoverOptions& o, const std::vector<bool>& usable,
                      const std::vector<double>& scale, const std::vector<int>& full_cols,
-                     const std::set<std::string>& excluded, double alpha, double gain_alpha) {
+                     const std::set<std::string>& excluded, double alpha, double gain_alpha,
+                     const std::string& first_file) {
   const int l = static_cast<int>(d.bins.size());
   GyroStep out;
   // Two passes: the step of `bias_step` and the sinusoid of `periodic_drift` are located with the
@@ -2668,7 +2669,7 @@ GyroStep RunGyroStep(const Design& d, const GyroDiscoverOptions& o, const std::v
     }
     x_full = Assemble(d, full_cols, extra);
     const LsFit ols = SolveLs(x_full, d.y);
-    if (!ols.ok) throw InputError(d.bins.empty() ? "" : "logs", "degenerate regressors");
+    if (!ols.ok) throw InputError(first_file, "degenerate regressors");
     const VectorXd e_ols = d.y - x_full * ols.beta;
     FitLogNoise(d, o, x_full, e_ols, &nm, &log_var);
     // 2. GLS of the full model; effective sample size from the whitened residuals.
@@ -2990,7 +2991,7 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
   for (int step = 0; step < kMaxSteps; ++step) {
     const double share = std::ldexp(1.0, -step);
     GyroStep s = RunGyroStep(d, o, usable, scale, FreeColumns(full_cols, named), excluded, o.alpha * share,
-                             o.gain_alpha * share);
+                             o.gain_alpha * share, logs.front().file);
     if (step == 0) {
       res.candidates = s.candidates;
       res.alpha_per_candidate = s.alpha_each;
