@@ -49,8 +49,12 @@
 //     constant bias vs an exponentially smoothed level tuned on the first half.
 //  7. Stepwise extension (issue 31): the named cause's columns join the base model and steps 1-5 are redone
 //     against it (one GLS of the biases + every cause named so far), each step at alpha 2^-s (step s from 0),
-//     until no candidate passes; the residual test (4c) then runs on the final joint model. `cause` stays the
-//     first named; `causes` lists the chain with the joint fit's parameters (docs/discrepancy.md).
+//     until no candidate passes; with two causes a shape in time must beat a candidate together with its best
+//     partner, and a walk ranked first goes last when two deterministic candidates beat it in BIC. With
+//     several named, the step and the sinusoid are located again and a nested cause (misalignment,
+//     scale_factor) is weighed against its wider partner in the final model. The residual test (4c) then
+//     runs on the final joint model. `cause` stays the first named; `causes` lists the chain with the joint
+//     fit's parameters (docs/discrepancy.md).
 #pragma once
 
 #include <map>
