@@ -2,6 +2,7 @@
 // CAM.json --json OUT`: model discrepancy analysis (docs/discrepancy.md). The library does the work
 // (discover/discover_gyro.h, discover/discover_frames.h); this file parses flags and writes JSON.
 #include <iostream>
+#include <map>
 #include <memory>
 #include <sstream>
 #include <string>
@@ -47,7 +48,9 @@ struct AllanOpts {
 SSIU_REGISTER_COMMAND(discover_allan, [](CLI::App& root) {
   auto* discover = ssiu::cli::GetOrAddSubcommand(root, "discover", "Find what the model gets wrong in measured data");
   auto* cmd = discover->add_subcommand(
-      "allan", "Where the default gyro noise model (ARW + bias instability) leaves a measured Allan curve");
+      "allan",
+      "Where the default gyro noise model (ARW + bias instability) leaves a measured Allan curve, and the terms "
+      "(quantization, rate_random_walk, rate_ramp) that extend it step by step (`causes`)");
   auto o = std::make_shared<AllanOpts>();
   cmd->add_option("--curve", o->curve, "Allan curve file (as for `ssiu allan --curve`)")->required();
   cmd->add_option("--channel", o->channel, "Channel within the file");
@@ -90,10 +93,40 @@ SSIU_REGISTER_COMMAND(discover_allan, [](CLI::App& root) {
                      {"rrw_deg_per_h_per_sqrt_h", g.rrw_deg_per_h_per_sqrt_h.value},
                      {"quantization_arcsec", g.quantization_arcsec.value},
                      {"rate_ramp_deg_per_h2", g.rate_ramp_deg_per_h2.value}};
+    // The stepwise extension: the terms in the order they entered, with the final joint fit's values.
+    const auto jg = ssiu::ToGyroUnits(d.joint);
+    const std::map<std::string, std::pair<std::string, ssiu::NoiseTerm>> in_units = {
+        {"quantization", {"quantization_arcsec", jg.quantization_arcsec}},
+        {"rate_random_walk", {"rrw_deg_per_h_per_sqrt_h", jg.rrw_deg_per_h_per_sqrt_h}},
+        {"rate_ramp", {"rate_ramp_deg_per_h2", jg.rate_ramp_deg_per_h2}}};
+    j["causes"] = ssiu::Json::array();
+    std::string chain;
+    for (const auto& st : d.steps) {
+      const auto& [key, term] = in_units.at(st.term);
+      j["causes"].push_back({{"cause", st.term},
+                             {"parameters", {{key, term.value}}},
+                             {"parameter_sigmas", {{key, term.sigma}}},
+                             {"p_value", st.p_value},
+                             {"gain", st.gain},
+                             {"gain_z", st.gain_z},
+                             {"chi2_per_dof", st.chi2_per_dof}});
+      chain += (chain.empty() ? "" : " + ") + st.term;
+    }
+    j["joint"] = {{"arw_deg_per_sqrt_h", jg.arw_deg_per_sqrt_h.value},
+                  {"arw_sigma_deg_per_sqrt_h", jg.arw_deg_per_sqrt_h.sigma},
+                  {"bias_instability_dph", jg.bias_instability_dph.value},
+                  {"bias_instability_sigma_dph", jg.bias_instability_dph.sigma},
+                  {"chi2_per_dof", d.joint.chi2_per_dof}};
+    j["correlations"] = ssiu::Json::array();
+    for (const auto& c : d.correlations) j["correlations"].push_back({{"a", c.a}, {"b", c.b}, {"r", c.r}});
+    j["left"] = d.left;
+    j["final_departures_tau_s"] = ssiu::Json::array();
+    for (const auto& [lo, hi] : d.final_departures_s) j["final_departures_tau_s"].push_back({lo, hi});
     // Output first: a path that cannot be written is then the only line printed.
     if (!o->json.empty()) ssiu::WriteJsonFile(o->json, j);
     std::cerr << "discover allan: " << o->curve << " " << cf.channel << ": chi2/dof " << d.chi2_per_dof_before << " -> "
-              << d.chi2_per_dof_after << ", departs in " << d.departures_s.size() << " tau range(s)\n";
+              << d.chi2_per_dof_after << ", departs in " << d.departures_s.size() << " tau range(s); cause "
+              << (chain.empty() ? "none" : chain) << (d.left == "unexplained" ? ", then unexplained" : "") << "\n";
   });
 });
 
@@ -245,7 +278,9 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
       "logged column, jumps between two levels, a periodic drift that is not a sinusoid, a change of the noise "
       "level, outliers, a nonlinear function of the reference rate or the azimuth's second harmonic, a trend or a "
       "warm-up in time, a spectral line above the bins' band in the raw samples) that no cause "
-      "explains; the JSON's `residual` block gives each test's statistic and p-value (docs/discrepancy.md)");
+      "explains; the JSON's `residual` block gives each test's statistic and p-value. The model is extended step by "
+      "step: each named cause joins the base model and the rest are tested again until none passes (`causes`: the "
+      "chain with the joint fit's parameters; `cause` is the first) (docs/discrepancy.md)");
   auto o = std::make_shared<GyroOpts>();
   cmd->add_option("logs", o->logs,
                   "Bench logs t_s,w_dph,ref_dph,temp_c[,azimuth_deg][,bn_ut,be_ut,bh_ut] (other numeric columns "
@@ -278,10 +313,18 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
     const ssiu::GyroDiscovery d = ssiu::DiscoverGyro(logs, o->opt);
     // Output first: a path that cannot be written is then the only line printed.
     if (!o->json.empty()) ssiu::WriteJsonFile(o->json, ssiu::GyroDiscoveryToJson(d));
-    std::cerr << "discover gyro: cause " << d.cause;
-    for (const auto& [k, v] : d.parameters) std::cerr << " " << k << "=" << v << "+-" << d.sigmas.at(k);
+    // The chain of named causes (the stepwise extension), each with its joint-fit parameters.
+    std::string chain;
+    for (const auto& c : d.causes) chain += (chain.empty() ? "" : " + ") + c.cause;
+    std::cerr << "discover gyro: cause " << (d.cause == "unexplained" || chain.empty() ? d.cause : chain);
+    const bool several = d.causes.size() > 1;
+    for (const auto& c : d.causes) {
+      if (several) std::cerr << (&c == &d.causes.front() ? " (" : "; ") << c.cause << ":";
+      for (const auto& [k, v] : c.parameters) std::cerr << " " << k << "=" << v << "+-" << c.sigmas.at(k);
+    }
+    if (several) std::cerr << ")";
     std::cerr << "; held-out rms " << d.rms_before_dph << " -> " << d.rms_after_dph << " deg/h (gain " << d.gain
-              << ")\n";
+              << (d.causes.size() > 1 ? ", first cause" : "") << ")\n";
     if (d.cause == "unexplained") {
       std::cerr << "  residual structure (" << d.residual.finding << ", p " << d.residual.p_value << "): period "
                 << d.residual.period_s << " s, amplitude " << d.residual.amplitude_dph << " deg/h, follows column "
@@ -300,7 +343,7 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
         std::cerr << "; a shape in time: " << d.residual.trend_term;
         if (d.residual.trend_term == "exp(-t/tau)") std::cerr << " with tau " << d.residual.warm_up_tau_s << " s";
       }
-      if (!d.partial_cause.empty()) std::cerr << "; fitted first: " << d.partial_cause;
+      if (!d.partial_cause.empty()) std::cerr << "; fitted first: " << chain;
       std::cerr << "\n";
     }
   });

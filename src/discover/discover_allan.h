@@ -5,6 +5,10 @@
 // weights from each point's edf); the tau ranges where it leaves the curve's confidence interval
 // by more than `sigmas` are reported, and the extended model is the full IEEE 952 fit of allan.h
 // (FitNoiseTerms), whose significant extra terms name what was missing.
+// Stepwise extension (issue 31): the terms the default model lacks (quantization, rate_random_walk,
+// rate_ramp) are added one at a time to ARW + B, the one of largest significant held-out gain first,
+// every term refitted jointly at each step, until none passes; the final model then fits the curve
+// (`none` left) or still departs from it (`unexplained`, the departing tau ranges given).
 #pragma once
 
 #include <string>
@@ -17,7 +21,27 @@ namespace ssiu {
 
 struct AllanDiscrepancyOptions {
   double sigmas = 3.0;  // a point departs when |model - adev| > sigmas * its 1-sigma
+  // Stepwise extension: family-wise false-alarm probability of the first step's terms (step s: 2^-s of it)
+  // and the one-sided false-alarm probability of the held-out gain's gate.
+  double alpha = 0.01;
+  double gain_alpha = 0.05;
   void Check() const;
+};
+
+// A term added by the stepwise extension, in the order the terms entered.
+struct AllanStepTerm {
+  std::string term;             // quantization, rate_random_walk, rate_ramp
+  double value = 0, sigma = 0;  // final joint fit, curve's unit (Q: u s, K: u / sqrt(s), R: u / s)
+  double p_value = 1;           // its chi^2 test at the step it entered
+  double gain = 1, gain_z = 0;  // held-out at that step: RMS of the held-out points' normalised residuals
+                                // before / after, and the paired z of that improvement
+  double chi2_per_dof = 0;      // of the model after that step
+};
+
+// The correlation r of two coefficients (squared terms) of the final joint fit, |r| > 0.3, one of them named.
+struct AllanCorrelation {
+  std::string a, b;
+  double r = 0;
 };
 
 struct AllanDiscrepancy {
@@ -27,6 +51,15 @@ struct AllanDiscrepancy {
   std::vector<std::string> missing_terms;                  // significant extra terms of the full fit
   NoiseFit extended;
   std::vector<double> base_adev;  // at the curve's taus
+  // Stepwise extension: the terms named in order, the final joint fit (ARW, B and the named terms with their
+  // 1-sigmas, curve's unit; the others 0), the correlations, and what is left: "none" or "unexplained"
+  // (the final model's departures).
+  std::vector<AllanStepTerm> steps;
+  NoiseFit joint;
+  std::vector<AllanCorrelation> correlations;
+  std::string left = "none";
+  std::vector<std::pair<double, double>> final_departures_s;
+  std::vector<double> final_adev;  // the final model at the curve's taus
 };
 
 AllanDiscrepancy CompareAllanToDefaultModel(const AllanCurve& curve, const AllanDiscrepancyOptions& options);

@@ -47,6 +47,14 @@
 //     on the odd ones and vice versa (bin RMS of the drift after a bias-only fit / after the cause).
 //     For rate_random_walk: one-step prediction of the bins of the second half of each log by a
 //     constant bias vs an exponentially smoothed level tuned on the first half.
+//  7. Stepwise extension (issue 31): the named cause's columns join the base model and steps 1-5 are redone
+//     against it (one GLS of the biases + every cause named so far), each step at alpha 2^-s (step s from 0),
+//     until no candidate passes; with two causes a shape in time must beat a candidate together with its best
+//     partner, and a walk ranked first goes last when two deterministic candidates beat it in BIC. With
+//     several named, the step and the sinusoid are located again and a nested cause (misalignment,
+//     scale_factor) is weighed against its wider partner in the final model. The residual test (4c) then
+//     runs on the final joint model. `cause` stays the first named; `causes` lists the chain with the joint
+//     fit's parameters (docs/discrepancy.md).
 #pragma once
 
 #include <map>
@@ -178,13 +186,36 @@ struct GyroResidual {
   double line_p = 1, line_frequency_hz = 0, line_amplitude_dph = 0, line_power_ratio = 0;
 };
 
+// A cause of the stepwise extension (issue 31), in the order the causes entered the model.
+struct GyroNamedCause {
+  std::string cause, model;
+  // From the final joint fit (one GLS of the biases + every named cause); a walk's from its own step.
+  std::map<std::string, double> parameters, sigmas;
+  double gain = 1, gain_z = 0;                   // held-out, at the step it entered (against the model before it)
+  double rms_before_dph = 0, rms_after_dph = 0;  // held-out bin RMS before / after that step
+};
+
+// The correlation r of two coefficients of different named causes in the joint fit ("cause.coefficient").
+struct GyroCorrelation {
+  std::string a, b;
+  double r = 0;
+};
+
 struct GyroDiscovery {
+  // The FIRST named cause (or none / unexplained): the contract's field. `causes` holds the chain.
   std::string cause = "none";
-  std::map<std::string, double> parameters;  // names of the FOG calibration issue (K10_dph, amplitude_dph, ...)
-  std::map<std::string, double> sigmas;      // 1-sigma of each parameter (same keys)
+  // The first cause's: names of the FOG calibration issue (K10_dph, amplitude_dph, ...); from the joint fit
+  // when several causes were named.
+  std::map<std::string, double> parameters;
+  std::map<std::string, double> sigmas;                    // 1-sigma of each parameter (same keys)
   double rms_before_dph = 0, rms_after_dph = 0, gain = 1;  // cross-validated, held-out bins
-  double gain_z = 0, gain_z_min = 0;  // significance of the held-out improvement and the gate on it
-  std::vector<GyroCandidate> candidates;
+  double gain_z = 0, gain_z_min = 0;      // significance of the held-out improvement and the gate on it
+  std::vector<GyroCandidate> candidates;  // the first step's
+  // Stepwise extension: the named causes in order, the correlations of their coefficients (|r| > 0.3,
+  // between different causes) and the candidates of each later step (step 2, 3, ...; the last named none).
+  std::vector<GyroNamedCause> causes;
+  std::vector<GyroCorrelation> correlations;
+  std::vector<std::vector<GyroCandidate>> later_steps;
   // `unexplained`: the cause that was fitted before the residual test found structure left.
   std::string partial_cause;
   GyroResidual residual;

@@ -44,6 +44,10 @@ TEST(DiscoverAllan, Kvh1750MissesRateRandomWalk) {
   const auto d = CompareAllanToDefaultModel(ReadAllanCurveFile(path, co).curve, {});
   EXPECT_EQ(d.missing_terms, std::vector<std::string>{"rate_random_walk"});
   EXPECT_GT(d.chi2_per_dof_before, 4 * d.chi2_per_dof_after);
+  // Stepwise: the short-tau rise first (quantization), then the random walk; nothing departs after them.
+  ASSERT_EQ(d.steps.size(), 2u);
+  EXPECT_EQ(d.steps[1].term, "rate_random_walk");
+  EXPECT_EQ(d.left, "none");
 }
 
 }  // namespace
@@ -86,6 +90,48 @@ TEST(DiscoverAllan, BadFlagsHexAndUnwritableOutputAreOneLine) {
   }
   std::string out;  // the same curve with sane flags runs
   EXPECT_EQ(testing::Run(run + dir + "/c.csv --duration-s 3600 --json " + dir + "/ok.json", &out), 0) << out;
+}
+
+}  // namespace
+}  // namespace ssiu
+
+namespace ssiu {
+namespace {
+
+// Stepwise extension (issue 31): a log with white noise, a rate random walk and angle quantization (a
+// pulse-counting output: the integrated angle read in steps of q, quantization noise Q = q / sqrt(12),
+// IEEE 952 C.2) names both missing terms, each with its joint-fit value within 3 sigma of the truth, and
+// leaves nothing; white noise alone names nothing.
+TEST(DiscoverAllan, StepwiseNamesQuantizationAndRandomWalk) {
+  Rng rng(11);
+  const double rate_hz = 100, n_arw = 2e-5, k_rrw = 2e-6, q_step = 2e-6;  // rad/s sqrt(s), rad/s/sqrt(s), rad
+  std::vector<double> both, white;
+  double walk = 0, angle = 0, read_prev = 0;
+  for (int i = 0; i < 400000; ++i) {
+    const double w = n_arw * std::sqrt(rate_hz) * rng.Normal();
+    walk += k_rrw / std::sqrt(rate_hz) * rng.Normal();
+    angle += (w + walk) / rate_hz;
+    const double read = q_step * std::round(angle / q_step);
+    both.push_back((read - read_prev) * rate_hz);
+    read_prev = read;
+    white.push_back(w);
+  }
+  const auto d = CompareAllanToDefaultModel(OverlappingAllanDeviation(both, rate_hz), {});
+  std::vector<std::string> named;
+  for (const auto& st : d.steps) {
+    named.push_back(st.term);
+    EXPECT_GT(st.gain, 1) << st.term;
+    EXPECT_LT(st.p_value, 0.01) << st.term;
+  }
+  std::sort(named.begin(), named.end());
+  ASSERT_EQ(named, (std::vector<std::string>{"quantization", "rate_random_walk"}));
+  EXPECT_NEAR(d.joint.rrw.value, k_rrw, 3 * d.joint.rrw.sigma);
+  EXPECT_NEAR(d.joint.quantization.value, q_step / std::sqrt(12.0), 3 * d.joint.quantization.sigma);
+  EXPECT_NEAR(d.joint.arw.value, n_arw, 3 * d.joint.arw.sigma);
+  EXPECT_EQ(d.left, "none");
+  const auto c = CompareAllanToDefaultModel(OverlappingAllanDeviation(white, rate_hz), {});
+  EXPECT_TRUE(c.steps.empty());
+  EXPECT_EQ(c.left, "none");
 }
 
 }  // namespace

@@ -19,7 +19,9 @@ namespace ssiu::testing {
 
 struct GyroCase {
   std::string cause = "none";
-  std::map<std::string, double> truth;  // parameter values under the library's names
+  std::map<std::string, double> truth;  // parameter values under the library's names (one hidden cause)
+  std::vector<std::string> causes;      // every hidden cause, expected answers (cause: the first)
+  std::map<std::string, std::map<std::string, double>> truths;  // hidden cause -> its parameters
   std::vector<GyroBenchLog> logs;
   // Not parameters of a cause (for oracles of the tests): the base noise (ARW in dph sqrt(s), the
   // Gauss-Markov wander and its correlation time) and a telegraph's switch times in the static log.
@@ -222,13 +224,62 @@ inline GyroBenchLog RateTableRun(const GyroCaseModel& m, Rng& rng) {
   return log;
 }
 
+// A hidden cause's strength drawn from the case's stream into m, its parameters under the library's names
+// into *truth (nothing for a cause outside the vocabulary).
+inline void DrawHiddenCause(const std::string& cause, Rng& rng, GyroCaseModel& m,
+                            std::map<std::string, double>* truth) {
+  if (cause == "temperature") {
+    m.k10 = RandomSign(rng) * rng.Uniform(0.02, 0.06);
+    m.k20 = RandomSign(rng) * rng.Uniform(0.0, 0.03);
+    *truth = {{"K10_dph", m.k10}, {"K20_dph", m.k20}};
+  } else if (cause == "temperature_gradient") {
+    m.k01 = RandomSign(rng) * rng.Uniform(0.02, 0.04);
+    *truth = {{"K01_dph", m.k01}};
+  } else if (cause == "magnetic_field") {
+    m.mag_amp = rng.Uniform(0.01, 0.03);
+    m.mag_phase = rng.Uniform(-kPi, kPi);
+    *truth = {{"amplitude_dph", m.mag_amp}, {"phase_deg", m.mag_phase * kRadToDeg}};
+  } else if (cause == "misalignment") {
+    m.mis_rad = RandomSign(rng) * rng.Uniform(300, 900) * kArcsecToRad;
+    *truth = {{"misalignment_arcsec", m.mis_rad * kRadToArcsec}};
+  } else if (cause == "scale_factor") {
+    m.sf_ppm = RandomSign(rng) * rng.Uniform(20, 200);
+    *truth = {{"scale_factor_ppm", m.sf_ppm}};
+  } else if (cause == "time_delay") {
+    m.delay_s = rng.Uniform(0.5e-3, 3e-3);
+    *truth = {{"delay_s", m.delay_s}};
+  } else if (cause == "bias_step") {
+    m.step = RandomSign(rng) * rng.Uniform(0.03, 0.06);
+    m.step_t = rng.Uniform(0.2, 0.8) * 43200;
+    *truth = {{"step_dph", m.step}, {"step_time_s", m.step_t}};
+  } else if (cause == "periodic_drift") {
+    // An orbital thermal cycle (80-110 min) that the logged temperature does not follow.
+    m.per_amp = rng.Uniform(0.03, 0.1);
+    m.per_period = rng.Uniform(80, 110) * 60;
+    m.per_phase = rng.Uniform(-kPi, kPi);
+    *truth = {{"amplitude_dph", m.per_amp}, {"period_s", m.per_period}, {"phase_deg", m.per_phase * kRadToDeg}};
+  } else if (cause == "scale_factor_asymmetry") {
+    m.asym_ppm = RandomSign(rng) * rng.Uniform(50, 170);  // scale factor +a/2 for positive rates, -a/2 negative
+    *truth = {{"asymmetry_ppm", m.asym_ppm}};
+  } else if (cause == "magnetic_field_logged") {
+    m.k_bh = RandomSign(rng) * rng.Uniform(0.001, 0.003);  // dph per uT of the vertical field
+    *truth = {{"sensitivity_bh_dph_per_ut", m.k_bh}};
+  } else if (cause == "rate_random_walk") {
+    m.rrw = rng.Uniform(0.05, 0.1);  // dph / sqrt(h)
+    *truth = {{"K_dph_per_sqrt_h", m.rrw}};
+  }
+}
+
 // The case's parameters, then its two runs; every stream draws in the same order as ever, so that
-// a seed gives the data the tests' figures were measured on.
-inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
+// a seed gives the data the tests' figures were measured on. Several hidden causes (`causes`, drawn in
+// that order from the case's stream): c.cause is the first, c.causes all (expected answers).
+inline GyroCase MakeGyroCase(const std::vector<std::string>& causes, uint64_t seed) {
   Rng rng(seed);
   GyroCase c;
   GyroCaseModel m;
-  c.cause = cause == "magnetic_field_logged" ? "magnetic_field" : cause;
+  const std::string& cause = causes.front();
+  for (const auto& hidden : causes) c.causes.push_back(hidden == "magnetic_field_logged" ? "magnetic_field" : hidden);
+  c.cause = c.causes.front();
   // Every effect of the three out-of-vocabulary lists (and the faster telegraph) expects `unexplained`.
   for (const auto* list : {&UnexplainedGyroEffects(), &MoreUnexplainedGyroEffects(), &DriftShapeGyroEffects()}) {
     if (std::find(list->begin(), list->end(), cause) != list->end()) c.cause = "unexplained";
@@ -289,51 +340,21 @@ inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
   c.arw_dph_sqrt_s = m.arw, c.wander_dph = m.gm, c.wander_tau_s = m.gm_tau;
   c.telegraph_switch_s = m.tele_switch;
   m.bias = rng.Uniform(-0.5, 0.5);
-  // Hidden-cause strengths.
-  if (cause == "temperature") {
-    m.k10 = RandomSign(rng) * rng.Uniform(0.02, 0.06);
-    m.k20 = RandomSign(rng) * rng.Uniform(0.0, 0.03);
-    c.truth = {{"K10_dph", m.k10}, {"K20_dph", m.k20}};
-  } else if (cause == "temperature_gradient") {
-    m.k01 = RandomSign(rng) * rng.Uniform(0.02, 0.04);
-    c.truth = {{"K01_dph", m.k01}};
-  } else if (cause == "magnetic_field") {
-    m.mag_amp = rng.Uniform(0.01, 0.03);
-    m.mag_phase = rng.Uniform(-kPi, kPi);
-    c.truth = {{"amplitude_dph", m.mag_amp}, {"phase_deg", m.mag_phase * kRadToDeg}};
-  } else if (cause == "misalignment") {
-    m.mis_rad = RandomSign(rng) * rng.Uniform(300, 900) * kArcsecToRad;
-    c.truth = {{"misalignment_arcsec", m.mis_rad * kRadToArcsec}};
-  } else if (cause == "scale_factor") {
-    m.sf_ppm = RandomSign(rng) * rng.Uniform(20, 200);
-    c.truth = {{"scale_factor_ppm", m.sf_ppm}};
-  } else if (cause == "time_delay") {
-    m.delay_s = rng.Uniform(0.5e-3, 3e-3);
-    c.truth = {{"delay_s", m.delay_s}};
-  } else if (cause == "bias_step") {
-    m.step = RandomSign(rng) * rng.Uniform(0.03, 0.06);
-    m.step_t = rng.Uniform(0.2, 0.8) * 43200;
-    c.truth = {{"step_dph", m.step}, {"step_time_s", m.step_t}};
-  } else if (cause == "periodic_drift") {
-    // An orbital thermal cycle (80-110 min) that the logged temperature does not follow.
-    m.per_amp = rng.Uniform(0.03, 0.1);
-    m.per_period = rng.Uniform(80, 110) * 60;
-    m.per_phase = rng.Uniform(-kPi, kPi);
-    c.truth = {{"amplitude_dph", m.per_amp}, {"period_s", m.per_period}, {"phase_deg", m.per_phase * kRadToDeg}};
-  } else if (cause == "scale_factor_asymmetry") {
-    m.asym_ppm = RandomSign(rng) * rng.Uniform(50, 170);  // scale factor +a/2 for positive rates, -a/2 negative
-    c.truth = {{"asymmetry_ppm", m.asym_ppm}};
-  } else if (cause == "magnetic_field_logged") {
-    m.k_bh = RandomSign(rng) * rng.Uniform(0.001, 0.003);  // dph per uT of the vertical field
-    c.truth = {{"sensitivity_bh_dph_per_ut", m.k_bh}};
-  } else if (cause == "rate_random_walk") {
-    m.rrw = rng.Uniform(0.05, 0.1);  // dph / sqrt(h)
-    c.truth = {{"K_dph_per_sqrt_h", m.rrw}};
+  // Hidden-cause strengths (in the order given; one cause: the data the single-cause figures were measured on).
+  for (const auto& hidden : causes) {
+    std::map<std::string, double> truth;
+    DrawHiddenCause(hidden, rng, m, &truth);
+    if (!truth.empty()) c.truths[hidden == "magnetic_field_logged" ? "magnetic_field" : hidden] = truth;
+    if (causes.size() == 1 && !truth.empty()) c.truth = truth;
   }
 
   c.logs.push_back(StaticRun(m, rng, rng_x, seed));
   c.logs.push_back(RateTableRun(m, rng));
   return c;
+}
+
+inline GyroCase MakeGyroCase(const std::string& cause, uint64_t seed) {
+  return MakeGyroCase(std::vector<std::string>{cause}, seed);
 }
 
 }  // namespace ssiu::testing

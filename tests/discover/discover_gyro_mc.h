@@ -1,6 +1,7 @@
 // Monte Carlo of `DiscoverGyro` on generated cases (shared by the normal test and the long test).
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <map>
@@ -15,9 +16,26 @@ namespace ssiu::testing {
 struct GyroMcSummary {
   int cases = 0, with_cause = 0, right_cause = 0, clean = 0, clean_none = 0;
   int named = 0, named_gain_above_1 = 0, params_checked = 0, params_within_3_sigma = 0;
+  int chain_extra = 0;  // cases whose chain of named causes (d.causes) holds more than one
   std::map<std::string, std::pair<int, int>> per_cause;  // generator cause -> (right, cases)
   std::map<std::string, int> found;                      // cause found -> cases
 };
+
+// The true parameters (truth) against the estimates (par, sig) that have them: counts those checked and
+// those within 3 sigma (phases modulo 360 deg), and appends "prefix name=estimate(truth+-sigma)" to *out.
+inline void CheckParameters(const std::string& prefix, const std::map<std::string, double>& truth,
+                            const std::map<std::string, double>& par, const std::map<std::string, double>& sig,
+                            int* checked, int* within, std::string* out) {
+  for (const auto& [k, v] : truth) {
+    if (!par.count(k)) continue;
+    double diff = par.at(k) - v;
+    if (k == "phase_deg") diff = std::remainder(diff, 360.0);
+    ++*checked;
+    *within += std::abs(diff) <= 3 * sig.at(k);
+    *out += " " + prefix + k + "=" + std::to_string(par.at(k)) + "(" + std::to_string(v) + "+-" +
+            std::to_string(sig.at(k)) + ")";
+  }
+}
 
 // One case into the summary (its expected answer is c.cause).
 inline void ScoreGyroCase(const std::string& variant, const GyroCase& c, const GyroDiscovery& d, bool verbose,
@@ -34,29 +52,23 @@ inline void ScoreGyroCase(const std::string& variant, const GyroCase& c, const G
     ++s->with_cause;
     s->right_cause += d.cause == c.cause;
   }
+  s->chain_extra += d.causes.size() > 1;  // one hidden cause at most: a second named one is spurious
   if (d.cause != "none" && d.cause != "unexplained") {
     ++s->named;
     s->named_gain_above_1 += d.gain > 1;
   }
   std::string params;
   if (d.cause == c.cause) {
-    for (const auto& [k, v] : c.truth) {
-      if (!d.parameters.count(k)) continue;
-      double diff = d.parameters.at(k) - v;
-      if (k == "phase_deg") diff = std::remainder(diff, 360.0);
-      const double sig = d.sigmas.at(k);
-      ++s->params_checked;
-      s->params_within_3_sigma += std::abs(diff) <= 3 * sig;
-      params += " " + k + "=" + std::to_string(d.parameters.at(k)) + "(" + std::to_string(v) + "+-" +
-                std::to_string(sig) + ")";
-    }
+    CheckParameters("", c.truth, d.parameters, d.sigmas, &s->params_checked, &s->params_within_3_sigma, &params);
   }
   if (verbose) {
-    std::cout << "case " << variant << " found " << d.cause << " gain " << d.gain << " z " << d.gain_z << params
-              << "\n   residual p " << d.residual.p_value << " " << d.residual.finding << " period "
-              << d.residual.period_s << " column " << d.residual.follows_column << " partial " << d.partial_cause
-              << " jumps " << d.residual.jumps << " (within " << d.residual.levels_within_ratio << ", p "
-              << d.residual.jumps_p << ", levels differ " << d.residual.jump_size_dph << " deg/h) shape p "
+    std::string chain;
+    for (const auto& n : d.causes) chain += " " + n.cause;
+    std::cout << "case " << variant << " found " << d.cause << " [" << chain << " ] gain " << d.gain << " z "
+              << d.gain_z << params << "\n   residual p " << d.residual.p_value << " " << d.residual.finding
+              << " period " << d.residual.period_s << " column " << d.residual.follows_column << " partial "
+              << d.partial_cause << " jumps " << d.residual.jumps << " (within " << d.residual.levels_within_ratio
+              << ", p " << d.residual.jumps_p << ", levels differ " << d.residual.jump_size_dph << " deg/h) shape p "
               << d.residual.periodic_shape_p << " harmonics p " << d.residual.harmonics_p << "\n   levels split p "
               << d.residual.levels_within_p << ", telegraph llr " << d.residual.telegraph_llr << " p "
               << d.residual.telegraph_p << " share " << d.residual.telegraph_share << " (HMM levels "
@@ -105,6 +117,74 @@ inline GyroMcSummary RunGyroMonteCarlo(int n, uint64_t seed0, bool verbose) {
 
 inline void PrintGyroRates(const GyroMcSummary& s) {
   for (const auto& [cause, rc] : s.per_cause) std::cout << "  " << cause << " " << rc.first << "/" << rc.second << "\n";
+}
+
+// Several hidden causes at once (the stepwise extension): a case counts as both named when every hidden
+// cause is in d.causes and the verdict is not `unexplained`; a wrong cause is a named cause that was not
+// hidden. Parameters: each hidden cause's truth against the joint fit's values and sigmas.
+struct GyroMultiSummary {
+  int cases = 0, all_named = 0, wrong = 0, unexplained = 0, params_checked = 0, params_within_3_sigma = 0;
+  std::map<std::string, std::pair<int, int>> per_combo;  // "a + b" -> (all named, cases)
+};
+
+inline void ScoreGyroMulti(const GyroCase& c, const GyroDiscovery& d, bool verbose, GyroMultiSummary* s) {
+  ++s->cases;
+  std::string combo, chain;
+  for (const auto& h : c.causes) combo += (combo.empty() ? "" : " + ") + h;
+  for (const auto& n : d.causes) chain += (chain.empty() ? "" : " + ") + n.cause;
+  int found = 0, wrong = 0;
+  std::string params;
+  for (const auto& n : d.causes) {
+    if (std::find(c.causes.begin(), c.causes.end(), n.cause) == c.causes.end()) {
+      ++wrong;
+      continue;
+    }
+    ++found;
+    if (!c.truths.count(n.cause)) continue;
+    CheckParameters(n.cause + ".", c.truths.at(n.cause), n.parameters, n.sigmas, &s->params_checked,
+                    &s->params_within_3_sigma, &params);
+  }
+  const bool all = found == static_cast<int>(c.causes.size()) && d.cause != "unexplained";
+  s->all_named += all;
+  s->wrong += wrong > 0;
+  s->unexplained += d.cause == "unexplained";
+  auto& pc = s->per_combo[combo];
+  pc.first += all, ++pc.second;
+  if (verbose) {
+    std::cout << "case " << combo << ": " << d.cause << " [" << chain << "]" << params << "\n   residual p "
+              << d.residual.p_value << " " << d.residual.finding << "\n";
+    for (size_t k = 0; k < d.later_steps.size() + 1; ++k) {
+      for (const auto& cand : k == 0 ? d.candidates : d.later_steps[k - 1]) {
+        if (!cand.applicable || !cand.significant) continue;
+        std::cout << "   step " << k + 1 << " " << cand.cause << " p " << cand.p_value;
+        if (cand.evaluated) std::cout << " gain " << cand.gain << " z " << cand.gain_z << " " << cand.verdict;
+        std::cout << "\n";
+      }
+    }
+  }
+}
+
+// Every unordered pair of `causes`.
+inline std::vector<std::vector<std::string>> GyroCausePairs(const std::vector<std::string>& causes) {
+  std::vector<std::vector<std::string>> out;
+  for (size_t i = 0; i < causes.size(); ++i) {
+    for (size_t j = i + 1; j < causes.size(); ++j) out.push_back({causes[i], causes[j]});
+  }
+  return out;
+}
+
+// per_combo cases of each combination, seeds seed0 + 7919 i.
+inline GyroMultiSummary RunGyroMultiMonteCarlo(const std::vector<std::vector<std::string>>& combos, int per_combo,
+                                               uint64_t seed0, bool verbose) {
+  GyroMultiSummary s;
+  int i = 0;
+  for (int k = 0; k < per_combo; ++k) {
+    for (const auto& combo : combos) {
+      const GyroCase c = MakeGyroCase(combo, seed0 + 7919 * i++);
+      ScoreGyroMulti(c, DiscoverGyro(c.logs, GyroDiscoverOptions{}), verbose, &s);
+    }
+  }
+  return s;
 }
 
 }  // namespace ssiu::testing

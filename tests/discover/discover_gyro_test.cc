@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <fstream>
+#include <set>
 
 #include "core/csv.h"
 #include "core/error.h"
@@ -312,6 +313,29 @@ TEST(DiscoverGyroCli, FindsMagneticHarmonicAndWritesJson) {
 // Through the CLI: logged field columns and an unknown numeric column are read from the CSV; a drift
 // that follows the vertical field is magnetic_field with its sensitivity, one that follows the heater
 // column is `unexplained` and the JSON's residual names the column.
+// Two causes (the bias step with a periodic drift): the JSON's chain and the summary line that
+// lists it, each cause with its parameters.
+TEST(DiscoverGyroCli, ChainOfTwoCausesInJsonAndSummary) {
+  const auto c = testing::MakeGyroCase(std::vector<std::string>{"bias_step", "periodic_drift"}, 408159);
+  const std::string dir = testing::TempDir("discover_gyro_cli_chain");
+  WriteLog(dir + "/static.csv", c.logs[0]);
+  WriteLog(dir + "/rate.csv", c.logs[1]);
+  std::string out;
+  ASSERT_EQ(testing::Run(testing::SsiuProgram() + " discover gyro " + dir + "/static.csv " + dir + "/rate.csv --json " +
+                             dir + "/d.json",
+                         &out),
+            0)
+      << out;
+  const Json j = ReadJsonFile(dir + "/d.json");
+  ASSERT_EQ(j["causes"].size(), 2u) << j.dump(1);
+  const std::string a = j["causes"][0]["cause"], b = j["causes"][1]["cause"];
+  EXPECT_EQ(j["cause"], a);
+  EXPECT_EQ(std::set<std::string>({a, b}), std::set<std::string>({"bias_step", "periodic_drift"}));
+  EXPECT_THAT(out, ::testing::HasSubstr("discover gyro: cause " + a + " + " + b + " (" + a + ":"));
+  EXPECT_THAT(out, ::testing::HasSubstr("; " + b + ":"));
+  EXPECT_TRUE(j["causes"][1]["parameters"].contains(b == "bias_step" ? "step_dph" : "period_s"));
+}
+
 TEST(DiscoverGyroCli, LoggedFieldAndUnknownColumnReachTheAnalysis) {
   const std::string dir = testing::TempDir("discover_gyro_cols");
   for (const std::string variant : {"magnetic_field_logged", "square_wave_column"}) {
