@@ -34,9 +34,15 @@
 namespace ssiu {
 
 struct UnitProcessorOptions {
-  SolveOptions solve;  // detection threshold, identification, tracking search radius; with
-                       // solve.detect.smear.exposure_s > 0 the detector is told the smear the gyro
-                       // rate predicts (motion during the exposure, docs/inertial.md)
+  // Detection threshold, identification, tracking search radius; with solve.detect.smear.exposure_s > 0
+  // the detector is told the smear the gyro rate predicts (motion during the exposure, docs/inertial.md).
+  // The unit's frames come from its own detectors, never block-coded: no look for JPEG blocks (half a
+  // pass over each frame, 0.1 ms a 512^2 head).
+  SolveOptions solve = [] {
+    SolveOptions s;
+    s.detect.block_aware_noise = false;
+    return s;
+  }();
   FuseOptions fuse;    // MEKF prior, NIS gate, FDI (the star noise comes from each solution's covariance)
   // The QUEST covariance is multiplied by this squared before it enters the filter (1 = trusted as is).
   double solution_sigma_scale = 1.0;
