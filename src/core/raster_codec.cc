@@ -189,12 +189,12 @@ const TurboJpegApi& TurboJpeg() {
   }();
   return api;
 }
-#endif
 
 InputError TooLarge(const std::string& path, int64_t w, int64_t h, int64_t max_side_px) {
   return InputError(path, "image of " + std::to_string(w) + " x " + std::to_string(h) + " px, more than the limit of " +
                               std::to_string(max_side_px) + " per side");
 }
+#endif
 
 // ---- PNG writing (ISO/IEC 15948: 5 chunks, 9 filters, 11.2.2 IHDR) ----
 
