@@ -166,21 +166,23 @@ Frame ReadRaster(const std::string& path, int64_t max_side_px) {
     in.seekg(0, std::ios::end);
     const std::streamoff n = in.tellg();
     if (!in || n <= 0) throw InputError(path, "cannot read file");
-    bytes.resize(static_cast<size_t>(std::min<std::streamoff>(n, 8)));
+    // The head says the format: TIFF and BMP are read by their libraries from the file (BMP's header,
+    // 26 bytes, checked here first), PNG and JPEG from the bytes read once here.
+    bytes.resize(static_cast<size_t>(std::min<std::streamoff>(n, 26)));
     in.seekg(0);
     in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
     if (IsTiff(bytes)) return FrameFromSamples(DecodeTiff(path, max_side_px), path);
+    if (IsBmp(bytes)) return FrameFromSamples(DecodeBmp(bytes, path, max_side_px), path);
     static const uint8_t kSig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
     const bool png = bytes.size() >= 8 && std::equal(kSig, kSig + 8, bytes.begin());
-    if (!png && !IsJpeg(bytes) && !IsBmp(bytes)) {
+    if (!png && !IsJpeg(bytes)) {
       throw InputError(path, "cannot decode image (corrupt, truncated or not PNG/TIFF/FITS/JPEG/BMP)");
     }
     bytes.resize(static_cast<size_t>(n));
     in.seekg(0);
     in.read(reinterpret_cast<char*>(bytes.data()), n);
     if (!in) throw InputError(path, "read failed");
-    if (IsJpeg(bytes)) return FrameFromSamples(DecodeJpeg(bytes, path, max_side_px), path);
-    if (!png) return FrameFromSamples(DecodeBmp(bytes, path, max_side_px), path);
+    if (!png) return FrameFromSamples(DecodeJpeg(bytes, path, max_side_px), path);
   }
   // The common case, non-interlaced 8/16-bit grey PNG, has its own fast decoder (png_decode.h). It
   // packs the IDAT chunks in place, but declines (returns false) only before the first IDAT, so libpng

@@ -438,13 +438,13 @@ RasterSamples DecodeJpeg(const std::vector<uint8_t>& bytes, const std::string& p
   return out;
 }
 
-RasterSamples DecodeBmp(const std::vector<uint8_t>& bytes, const std::string& path, int64_t max_side_px) {
+RasterSamples DecodeBmp(const std::vector<uint8_t>& header, const std::string& path, int64_t max_side_px) {
   // BITMAPINFOHEADER (or larger): width and height at bytes 18 and 22, little-endian, height < 0 for a
   // top-down image; checked before the loader allocates the pixels.
-  if (bytes.size() < 26) throw Undecodable(path, "BMP header truncated");
+  if (header.size() < 26) throw Undecodable(path, "BMP header truncated");
   auto le32 = [&](int i) {
-    return static_cast<int32_t>(uint32_t(bytes[i]) | uint32_t(bytes[i + 1]) << 8 | uint32_t(bytes[i + 2]) << 16 |
-                                uint32_t(bytes[i + 3]) << 24);
+    return static_cast<int32_t>(uint32_t(header[i]) | uint32_t(header[i + 1]) << 8 | uint32_t(header[i + 2]) << 16 |
+                                uint32_t(header[i + 3]) << 24);
   };
   const int64_t w = le32(18), ht = std::abs(static_cast<int64_t>(le32(22)));
   if (w > max_side_px || ht > max_side_px) throw TooLarge(path, w, ht, max_side_px);

@@ -41,8 +41,9 @@ bool IsBmp(const std::vector<uint8_t>& bytes);
 // than max_side_px (from the header, before the pixels are allocated), or a build without TurboJPEG.
 RasterSamples DecodeJpeg(const std::vector<uint8_t>& bytes, const std::string& path, int64_t max_side_px);
 // A BMP (8-bit with a grey palette as one channel; 8-bit palette, 24- and 32-bit colour as RGB) read
-// by TurboJPEG's loader; the same errors.
-RasterSamples DecodeBmp(const std::vector<uint8_t>& bytes, const std::string& path, int64_t max_side_px);
+// from `path` by TurboJPEG's loader; `header` holds the file's first bytes (its size is checked from
+// them before the loader allocates the pixels); the same errors.
+RasterSamples DecodeBmp(const std::vector<uint8_t>& header, const std::string& path, int64_t max_side_px);
 
 // A PNG file's bytes: `samples` row-major interleaved, channels 1-4 (grey, grey+alpha, RGB, RGBA),
 // depth 8 (uint8_t samples) or 16 (uint16_t samples, host order); each row filtered with the
