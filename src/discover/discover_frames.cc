@@ -273,6 +273,24 @@ class FrameCauseSearch {
     for (int k = 0; k < kCam; ++k) m[k] = a[k] || b[k];
     return m;
   }
+  static CamMask Minus(const CamMask& a, const CamMask& b) {
+    CamMask m;
+    for (int k = 0; k < kCam; ++k) m[k] = a[k] && !b[k];
+    return m;
+  }
+  // The model's camera offsets on the blocks of `mask`, zero elsewhere: where a fit of `mask` starts.
+  void StartOf(const CamMask& mask, double* start) const {
+    for (int k = 0; k < kCam; ++k) start[k] = mask[k] ? model_.cam[k] : 0.0;
+  }
+  // RMS (px) of a fit's whitened residuals over the stars it was fitted to.
+  double FittedRmsPx(const VectorXd& res) const {
+    double ss = 0;
+    for (int i = 0; i < d_.stars; ++i) {
+      const double w = std::max(set_.stars[i].sigma_px, o_.min_sigma_px);
+      ss += (std::pow(res(2 * i), 2) + std::pow(res(2 * i + 1), 2)) * w * w;
+    }
+    return std::sqrt(ss / (2 * d_.stars));
+  }
 
   bool InModel(const std::string& cause) const {
     for (const auto& e : d_.causes) {
@@ -300,12 +318,7 @@ class FrameCauseSearch {
     s2_ = fullest.rss / std::max(1, 2 * d_.stars - (3 * nf_ + kCam));
     model_ = base_;
     model_mask_ = kNoCam;
-    double ss = 0;
-    for (int i = 0; i < d_.stars; ++i) {
-      const double w = std::max(set_.stars[i].sigma_px, o_.min_sigma_px);
-      ss += (std::pow(base_.res(2 * i), 2) + std::pow(base_.res(2 * i + 1), 2)) * w * w;
-    }
-    base_rms_px_ = model_rms_px_ = std::sqrt(ss / (2 * d_.stars));
+    base_rms_px_ = model_rms_px_ = FittedRmsPx(base_.res);
   }
 
   // The candidates of one step: every cause not in the model, tested against it.
@@ -407,23 +420,24 @@ class FrameCauseSearch {
   }
   static std::string Key(const FrameCandidate& c) { return c.term.empty() ? c.cause : c.cause + ":" + c.term; }
 
+  // The model's held-out residuals of a step (HeldOutFolds of model_mask_), computed once for every
+  // candidate of the step that reaches the held-out gate.
+  struct ModelFolds {
+    bool done = false;
+    VectorXd e, w2;
+  };
+
   // Geometric: the model with and without the cause fitted on the even frames, scored on the odd ones
   // and vice versa (rotations refitted there with the camera held); RMS in px, z over both folds.
-  HeldOut GeometricHeldOut(const Spec& sp, const GeoFit& fit) {
+  HeldOut GeometricHeldOut(const Spec& sp, const GeoFit& fit, ModelFolds* model) {
     HeldOut h;
-    const CamMask with = Union(model_mask_, sp.mask);
     if (nf_ < 2) {  // one frame: the fitted figures stand (no held-out frames)
-      double sa = 0;
-      for (int i = 0; i < d_.stars; ++i) {
-        const double w = std::max(set_.stars[i].sigma_px, o_.min_sigma_px);
-        sa += (std::pow(fit.res(2 * i), 2) + std::pow(fit.res(2 * i + 1), 2)) * w * w;
-      }
-      h.before = model_rms_px_, h.after = std::sqrt(sa / (2 * d_.stars));
+      h.before = model_rms_px_, h.after = FittedRmsPx(fit.res);
       h.gain = h.after > 0 ? h.before / h.after : 1.0;
       return h;
     }
-    VectorXd w2;
-    const VectorXd e = HeldOutFolds(model_mask_, &w2), r = HeldOutFolds(with);
+    if (!model->done) model->e = HeldOutFolds(model_mask_, &model->w2), model->done = true;
+    const VectorXd &e = model->e, &w2 = model->w2, r = HeldOutFolds(Union(model_mask_, sp.mask));
     if (e.size() == 0) return h;
     h.before = RmsPx(e, w2), h.after = RmsPx(r, w2);
     h.gain = h.after > 0 ? h.before / h.after : 1.0;
@@ -436,7 +450,7 @@ class FrameCauseSearch {
   // squared centroid sigma of each residual.
   VectorXd HeldOutFolds(const CamMask& mask, VectorXd* w2 = nullptr) const {
     double start[kCam];
-    for (int k = 0; k < kCam; ++k) start[k] = mask[k] ? model_.cam[k] : 0.0;
+    StartOf(mask, start);
     std::vector<VectorXd> parts;
     std::vector<double> weights;
     for (int fold = 0; fold < 2; ++fold) {
@@ -541,6 +555,7 @@ class FrameCauseSearch {
     }
     std::stable_sort(order.begin(), order.end(),
                      [&](int a, int b) { return (*cands)[a].delta_bic > (*cands)[b].delta_bic; });
+    ModelFolds model;
     for (int i : order) {
       FrameCandidate& c = (*cands)[i];
       c.evaluated = true;
@@ -551,7 +566,7 @@ class FrameCauseSearch {
       }
       HeldOut h;
       if (const Spec* sp = SpecOf(c.cause, c.term)) {
-        h = GeometricHeldOut(*sp, fits_[Key(c)]);
+        h = GeometricHeldOut(*sp, fits_[Key(c)], &model);
       } else if (c.cause == "vignetting") {
         h = VignettingHeldOut();
       } else {  // hot_pixels, psf_shape: their own held-out figures (no z)
@@ -662,10 +677,9 @@ class FrameCauseSearch {
       double worst_p = 0;
       GeoFit worst_fit;
       for (int k = 0; k < static_cast<int>(parts.size()); ++k) {
-        CamMask without = model_mask_;
-        for (int b = 0; b < kCam; ++b) without[b] = without[b] && !parts[k].mask[b];
+        const CamMask without = Minus(model_mask_, parts[k].mask);
         double start[kCam];
-        for (int b = 0; b < kCam; ++b) start[b] = without[b] ? model_.cam[b] : 0.0;
+        StartOf(without, start);
         GeoFit g = FitGeometry(set_, camera_, all, without, start, o_);
         const int dof = static_cast<int>(std::count(parts[k].mask.begin(), parts[k].mask.end(), true));
         const double p = ChiSq1or2Survival(std::max(0.0, (g.rss - model_.rss) / s2_), dof);
@@ -675,7 +689,7 @@ class FrameCauseSearch {
       const Part& w = parts[worst];
       FrameCauseStep& e = d_.causes[w.entry];
       d_.removed.push_back({e.cause, w.term ? "k2" : "", worst_p});
-      for (int b = 0; b < kCam; ++b) model_mask_[b] = model_mask_[b] && !w.mask[b];
+      model_mask_ = Minus(model_mask_, w.mask);
       model_ = std::move(worst_fit);
       if (w.term) {
         e.terms.erase(std::remove(e.terms.begin(), e.terms.end(), "k2"), e.terms.end());
