@@ -701,6 +701,8 @@ class FrameCauseSearch {
         VectorXd w2;
         const VectorXd r = HeldOutFolds(model_mask_, &w2);
         model_rms_px_ = RmsPx(r, w2);
+      } else {  // one frame: the fitted figure, as the gate used
+        model_rms_px_ = FittedRmsPx(model_.res);
       }
     }
   }
