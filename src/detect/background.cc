@@ -128,8 +128,8 @@ float RobustSigma(const std::vector<int32_t>& s, const MedianMad& mm) {
   return std::max(static_cast<float>(std::sqrt(std::max(var, 0.0))), 0.5f);
 }
 
-// A lossy frame's noise (of the pixels and of the box sums): JPEG leaves many blocks flat (their AC coefficients quantised to zero)
-// and others textured, a distribution with a narrow core and wide shoulders whose MAD understates the
+// A lossy frame's noise (of the pixels and of the box sums): JPEG leaves many blocks flat (their AC
+// coefficients quantised to zero) and others textured, a distribution with a narrow core and wide shoulders whose MAD understates the
 // spread that reaches the threshold. Stars sit in the upper tail only, so the lower one measures the
 // shoulders: (median - 10 % quantile) / 1.2816 is sigma for Gaussian noise.
 float LowerTailSigma(const std::vector<int32_t>& s, double median, std::vector<int32_t>* scratch) {
@@ -213,8 +213,7 @@ void EstimateBackground(const ImageView& img, int tile_px, int box_half, Backgro
   g.box_sigma.resize(g.level.size());
   g.box_half = box_half;
   g.block_ratio = block_aware ? BlockArtefactRatio(img) : 1.0;
-  g.block_artefacts = g.block_ratio > kBlockArtefactRatio;
-  const bool lower_tails = block_aware && g.block_artefacts;
+  g.block_artefacts = g.block_ratio > kBlockArtefactRatio;  // never without block_aware (ratio 1)
   const int hb = box_half;
   // Subsample about 256 pixels of each tile (median to ~0.08 sigma; the 3x3 grid median then
   // averages neighbouring tiles).
@@ -249,7 +248,7 @@ void EstimateBackground(const ImageView& img, int tile_px, int box_half, Backgro
       if (s.empty()) s.push_back(img.at(x0, y0));
       const MedianMad mm = MedianAndMad(s, &scratch, &hist);
       float sig = RobustSigma(s, mm);
-      if (lower_tails && s.size() >= 16) sig = std::max(sig, LowerTailSigma(s, mm.median, &scratch));
+      if (g.block_artefacts && s.size() >= 16) sig = std::max(sig, LowerTailSigma(s, mm.median, &scratch));
       g.level[ty * g.nx + tx] = static_cast<float>(mm.median);
       g.sigma[ty * g.nx + tx] = sig;
       const int nbox = (2 * hb + 1);
@@ -257,7 +256,7 @@ void EstimateBackground(const ImageView& img, int tile_px, int box_half, Backgro
       if (bs.size() >= 16) {
         const MedianMad bm = MedianAndMad(bs, &scratch, &hist);
         box_sig = std::max(RobustSigma(bs, bm), 0.5f * box_sig);
-        if (lower_tails) box_sig = std::max(box_sig, LowerTailSigma(bs, bm.median, &scratch));
+        if (g.block_artefacts) box_sig = std::max(box_sig, LowerTailSigma(bs, bm.median, &scratch));
       }
       g.box_sigma[ty * g.nx + tx] = box_sig;
     }

@@ -43,7 +43,7 @@ struct UnitProcessorOptions {
     s.detect.block_aware_noise = false;
     return s;
   }();
-  FuseOptions fuse;    // MEKF prior, NIS gate, FDI (the star noise comes from each solution's covariance)
+  FuseOptions fuse;  // MEKF prior, NIS gate, FDI (the star noise comes from each solution's covariance)
   // The QUEST covariance is multiplied by this squared before it enters the filter (1 = trusted as is).
   double solution_sigma_scale = 1.0;
   // Added in quadrature to each axis' 1-sigma of a solution (arcsec): the QUEST covariance knows only
