@@ -217,6 +217,7 @@ SolvedSet SolveAll(const StarIdentifier& id, const std::vector<CalibrationFrame>
                    const CalibrateOptions& o, double tol_pct) {
   SolveOptions so = o.solve;
   so.identify.fov_tolerance_pct = tol_pct;
+  so.identify.refine_focal_p = 0;  // the calibration fits the focal length over all frames jointly
   SolvedSet s;
   for (size_t i = 0; i < frames.size(); ++i) {
     SolveResult r = SolveCentroids(id, frames[i].centroids, cam, so);

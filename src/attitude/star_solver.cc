@@ -33,10 +33,14 @@ double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std:
 
 Json NumOrNull(double v) { return std::isfinite(v) ? Json(v) : Json(nullptr); }
 
-void Finish(const StarIdentifier& id, const SkyCorrections& sky, SolveResult* r) {
+// `lost_in_space`: the camera and options r was identified with (null when tracking): with sky
+// corrections, a focal length refined on catalog directions is tested again on the apparent ones.
+void Finish(const StarIdentifier& id, const SkyCorrections& sky, SolveResult* r, const Camera* camera = nullptr,
+            const IdentifyOptions* lost_in_space = nullptr) {
   r->sky = sky;
   r->catalog_epoch_year = id.catalog().epoch_year;
   ApplySkyCorrections(id, sky, &r->identification);
+  if (sky.active() && camera && lost_in_space) RetestFocalLength(*camera, *lost_in_space, &r->identification);
   r->status = r->identification.status;
   r->message = r->identification.message;
   for (const auto& [k, v] : r->identification.timing_ms) r->timing_ms[k] = v;
@@ -146,7 +150,7 @@ SolveResult SolveCentroids(const StarIdentifier& id, const std::vector<Centroid>
   SolveResult r;
   r.centroids = centroids;
   r.identification = id.Identify(centroids, camera, options.identify);
-  Finish(id, options.sky, &r);
+  Finish(id, options.sky, &r, &camera, &options.identify);
   return r;
 }
 
@@ -192,6 +196,9 @@ Json SolveResultToJson(const SolveResult& r) {
   j["focal_length_y_px"] = NumOrNull(r.identification.focal_length_y_px);
   j["focal_length_sigma_px"] =
       NumOrNull(ok && r.identification.focal_length_fitted ? r.identification.focal_length_sigma_px : nan);
+  // A fixed focal length the stars rejected and that was refitted (docs/identify.md, "Focal length").
+  j["focal_length_refined"] = ok && r.identification.focal_length_refined;
+  j["focal_length_p_value"] = NumOrNull(ok ? r.identification.focal_length_p_value : nan);
   j["outliers_rejected"] = r.identification.outliers_rejected;
   j["false_match_probability"] = r.identification.false_match_probability;
   j["photometric_factor"] = r.identification.photometric_factor;
@@ -375,16 +382,17 @@ SolveResult Tracker::Update(const std::vector<Centroid>& centroids, double t_s) 
         id_.MatchWithAttitude(centroids, camera_, q_pred, options_.track_search_radius_px, options_.identify);
     r.mode = SolveMode::kTracking;
   }
+  const Camera camera_before = camera_;
   if (!locked_ || r.identification.status != SolveStatus::kSolved) {
     r.identification = id_.Identify(centroids, camera_, options_.identify);
     r.mode = SolveMode::kLostInSpace;
     have_rate_ = false;
-    if (r.identification.status == SolveStatus::kSolved && options_.identify.FocalSearched())
-      camera_ = FittedCamera(camera_, r.identification);  // keep the fitted focal length
   }
   SkyCorrections sky = options_.sky;
   if (sky.active()) sky.time = AddSeconds(sky.time, t_s);
-  Finish(id_, sky, &r);
+  Finish(id_, sky, &r, &camera_before, r.mode == SolveMode::kLostInSpace ? &options_.identify : nullptr);
+  if (r.mode == SolveMode::kLostInSpace && r.identification.status == SolveStatus::kSolved)
+    camera_ = FittedCamera(camera_before, r.identification);
   if (r.status == SolveStatus::kSolved) {
     const Quat q = r.attitude.q_inertial_from_sensor;
     if (locked_ && r.mode == SolveMode::kTracking) {  // a rate only from two attitudes of one lock

@@ -46,6 +46,10 @@ void AddSolverFlags(CLI::App* cmd, Opts* o) {
       ->delimiter(',');
   cmd->add_option("--max-false-prob", o->solve.identify.max_false_match_prob, "Accept below this chance probability")
       ->capture_default_str();
+  cmd->add_option("--refine-focal-p", o->solve.identify.refine_focal_p,
+                  "Lost in space with a fixed focal length: refit it with the attitude when the stars reject the "
+                  "camera's at this p-value (F-test; 0 = keep the camera's)")
+      ->capture_default_str();
   cmd->add_flag_callback(
       "--no-photometry", [o] { o->solve.identify.use_photometry = false; },
       "Lost in space: leave the centroids' fluxes out of the chance probability (geometry only)");

@@ -835,13 +835,17 @@ SolvedFrameSet SolveFrameSet(const StarIdentifier& id, const std::vector<ImageVi
       throw InputError(i < names.size() ? names[i] : "frame", "frame size differs from the camera's width/height");
     }
   }
+  // The camera is what discovery tests: each frame's matches are taken with it as given, not with a
+  // focal length refitted frame by frame.
+  SolveOptions so = options;
+  so.identify.refine_focal_p = 0;
   SolvedFrameSet set;
   set.names = names;
   set.width = camera.width, set.height = camera.height;
   constexpr int kStampHalf = 5;  // 11 x 11: +-3 sigma of a 1.8 px PSF
   for (size_t i = 0; i < images.size(); ++i) {
     const ImageView& img = images[i];
-    const SolveResult r = SolveFrame(id, img, camera, options, known_defects);
+    const SolveResult r = SolveFrame(id, img, camera, so, known_defects);
     set.status.push_back(r.status);
     std::vector<PixelSource> spikes;
     for (const auto& rej : r.detections.rejected) {

@@ -331,9 +331,17 @@ Mat3 SvdFromMatches(const Context& ctx, const std::vector<StarMatch>& ms) {
   return SolveWahbaSvd(pairs.data(), pairs.size()).toRotationMatrix();
 }
 
-// The pixel fit (PixelFit) of the matches, in ctx.s->fit.
-const PixelFit& Linearize(const Context& ctx, const std::vector<StarMatch>& ms, const Camera& cam, const Mat3& r) {
-  PixelFit& f = ctx.s->fit;
+// Each match's position sigma (px): the workspace's by centroid, or from the match's own sigma_rad.
+struct PixelSigma {
+  const double* by_centroid = nullptr;
+  double focal_px = 0;  // with by_centroid null: sigma_rad * focal_px
+  double Of(const StarMatch& m) const { return by_centroid ? by_centroid[m.centroid] : m.sigma_rad * focal_px; }
+};
+
+// The pixel fit (PixelFit) of the matches, in *fit.
+const PixelFit& LinearizeInto(const std::vector<StarMatch>& ms, const Camera& cam, const Mat3& r, PixelSigma sigma,
+                              PixelFit* fit) {
+  PixelFit& f = *fit;
   f.j.clear();
   f.e.clear();
   f.w.clear();
@@ -361,7 +369,7 @@ const PixelFit& Linearize(const Context& ctx, const std::vector<StarMatch>& ms, 
         j.col(k) = -(e1 - e0) / 1e-7;  // of the prediction
       }
     }
-    const double w = ok ? 1.0 / std::pow(ctx.sigma_px[m.centroid], 2) : 0.0;
+    const double w = ok ? 1.0 / std::pow(sigma.Of(m), 2) : 0.0;
     f.j.push_back(j);
     f.e.push_back(e0);
     f.w.push_back(w);
@@ -370,6 +378,11 @@ const PixelFit& Linearize(const Context& ctx, const std::vector<StarMatch>& ms, 
     f.g += w * j.transpose() * e0;
   }
   return f;
+}
+
+// The pixel fit of the matches with the workspace's sigmas, in ctx.s->fit.
+const PixelFit& Linearize(const Context& ctx, const std::vector<StarMatch>& ms, const Camera& cam, const Mat3& r) {
+  return LinearizeInto(ms, cam, r, {ctx.sigma_px, 0}, &ctx.s->fit);
 }
 
 // Gauss-Newton on pixel residuals over a small rotation (sensor frame) and a common scale of fx and fy
@@ -384,6 +397,63 @@ void RefineFocal(const Context& ctx, const std::vector<StarMatch>& ms, Camera* c
     *r = *r * ExpSo3(dx.head<3>());
     if (dx.head<3>().norm() < 1e-10 && std::abs(dx[3]) < 1e-10) break;
   }
+}
+
+// Gauss-Newton on pixel residuals as RefineFocal, over the rotation alone or with the scale; returns
+// the fit's chi-square (centroid sigmas) at its end.
+double PixelChi2(const std::vector<StarMatch>& ms, PixelSigma sigma, PixelFit* fit, bool fit_scale, Camera* cam,
+                 Mat3* r) {
+  for (int iter = 0; iter < 4; ++iter) {
+    const PixelFit& f = LinearizeInto(ms, *cam, *r, sigma, fit);
+    Vec4 dx = Vec4::Zero();
+    if (fit_scale)
+      dx = f.h.ldlt().solve(f.g);
+    else
+      dx.head<3>() = f.h.topLeftCorner<3, 3>().ldlt().solve(f.g.head<3>());
+    if (!dx.allFinite()) break;
+    cam->ScaleFocal(1 + dx[3]);
+    *r = *r * ExpSo3(dx.head<3>());
+    if (dx.head<3>().norm() < 1e-10 && std::abs(dx[3]) < 1e-10) break;
+  }
+  const PixelFit& f = LinearizeInto(ms, *cam, *r, sigma, fit);
+  double chi2 = 0;
+  for (size_t i = 0; i < f.e.size(); ++i) chi2 += f.w[i] * f.e[i].squaredNorm();
+  return chi2;
+}
+
+// Two-sided tail P(|T| >= t) of Student's t with nu degrees of freedom (integer nu >= 1), by the finite
+// series of Abramowitz & Stegun 26.7.3-26.7.4 for A(t|nu) = 1 - P: theta = atan(t / sqrt(nu)).
+double StudentTwoSidedTail(double t, int nu) {
+  if (!(t > 0) || nu < 1) return 1.0;
+  const double th = std::atan(t / std::sqrt(static_cast<double>(nu)));
+  const double c2 = std::cos(th) * std::cos(th), sn = std::sin(th);
+  double a;
+  if (nu % 2 == 1) {
+    double term = std::cos(th), sum = nu > 1 ? term : 0.0;
+    for (int k = 3; k <= nu - 2; k += 2) sum += (term *= c2 * (k - 1) / k);
+    a = 2 / kPi * (th + sn * sum);
+  } else {
+    double term = 1, sum = 1;
+    for (int k = 2; k <= nu - 2; k += 2) sum += (term *= c2 * (k - 1) / k);
+    a = sn * sum;
+  }
+  return std::clamp(1 - a, 0.0, 1.0);
+}
+
+// Whether the matches ask for another focal length than the camera's (a fixed-focal solve, issue 27):
+// the pixel fit with the rotation alone against the rotation and a common scale of fx and fy, by the
+// F-test of the extra parameter, F = (chi2_0 - chi2_1) / (chi2_1 / nu), nu = 2n - 4, which does not
+// depend on the centroid sigmas' scale (a camera whose distortion is unmodelled inflates every
+// residual alike). F(1, nu) is t(nu)^2, so p = P(|T| >= sqrt(F)). The scale fit is left in *cam, *r.
+double ScaleFitP(const std::vector<StarMatch>& ms, PixelSigma sigma, PixelFit* fit, Camera* cam, Mat3* r) {
+  const int n = static_cast<int>(ms.size());
+  Camera c0 = *cam;
+  Mat3 r0 = *r;
+  const double chi2_0 = PixelChi2(ms, sigma, fit, false, &c0, &r0);
+  const double chi2_1 = PixelChi2(ms, sigma, fit, true, cam, r);
+  const int nu = 2 * n - 4;
+  if (nu < 1 || !(chi2_1 > 0) || !(chi2_0 > chi2_1)) return 1.0;
+  return StudentTwoSidedTail(std::sqrt((chi2_0 - chi2_1) / (chi2_1 / nu)), nu);
 }
 
 // PhotometricEvidence over n pairs and n_other other fluxes, with scratch vectors for the zero points.
@@ -526,11 +596,11 @@ struct Refined {
 
 // Fit the attitude (and the focal length when it is uncertain) to the matches in ctx.s->cur (n_cat
 // catalog stars predicted) and re-match, twice; the matches are refined in place.
-Refined Refine(const Context& ctx, const IdentifyOptions& o, Camera cam, Mat3 r, int n_cat,
-               const std::vector<char>* excluded = nullptr) {
+Refined Refine(const Context& ctx, Camera cam, Mat3 r, int n_cat,
+               const std::vector<char>* excluded, bool fit_scale) {
   Scratch& s = *ctx.s;
   for (int pass = 0; pass < 3; ++pass) {
-    if (o.FocalSearched()) {
+    if (fit_scale) {
       RefineFocal(ctx, s.cur, &cam, &r);
       for (auto& m : s.cur) m.b_sensor = cam.Unproject(Vec2(m.x_px, m.y_px));
     } else {
@@ -541,7 +611,7 @@ Refined Refine(const Context& ctx, const IdentifyOptions& o, Camera cam, Mat3 r,
     std::swap(s.cur, s.next);
     n_cat = n_cat2;
   }
-  if (!o.FocalSearched()) r = SvdFromMatches(ctx, s.cur);
+  if (!fit_scale) r = SvdFromMatches(ctx, s.cur);
   for (auto& m : s.cur) {
     m.sigma_rad = ctx.sigma_px[m.centroid] / cam.FocalMeanPx();
     m.residual_rad = Angle(r * m.b_sensor, m.r_inertial);
@@ -661,6 +731,42 @@ double ChanceProbability(int n_trials, int n_cat, double radius_px, const Camera
 
 }  // namespace
 
+void RetestFocalLength(const Camera& camera, const IdentifyOptions& o, Identification* id) {
+  if (id->status != SolveStatus::kSolved || o.FocalSearched() || !(o.refine_focal_p > 0)) return;
+  std::vector<StarMatch>& ms = id->matches;
+  const PixelSigma sigma{nullptr, FittedCamera(camera, *id).FocalMeanPx()};  // what sigma_rad was made with
+  Camera cam = camera;
+  Mat3 r = id->q_inertial_from_sensor.toRotationMatrix();
+  PixelFit fit;
+  double p = std::nan("");
+  bool refit = false;
+  if (static_cast<int>(ms.size()) >= o.refine_focal_min_matches) {
+    p = ScaleFitP(ms, sigma, &fit, &cam, &r);
+    refit = p < o.refine_focal_p;
+  }
+  if (!refit) {
+    cam = camera;
+    r = id->q_inertial_from_sensor.toRotationMatrix();
+    PixelChi2(ms, sigma, &fit, false, &cam, &r);
+  }
+  id->focal_length_px = cam.focal_length_px;
+  id->focal_length_y_px = cam.FocalYPx();
+  id->focal_length_fitted = id->focal_length_refined = refit;
+  id->focal_length_p_value = p;
+  id->focal_length_sigma_px = 0;
+  if (refit) {
+    const double var = LinearizeInto(ms, cam, r, sigma, &fit).h.ldlt().solve(Vec4::UnitW())[3];
+    id->focal_length_sigma_px = var > 0 ? std::sqrt(var) * cam.focal_length_px : std::nan("");
+  }
+  for (auto& m : ms) {
+    m.b_sensor = cam.Unproject(Vec2(m.x_px, m.y_px));
+    m.sigma_rad = sigma.Of(m) / cam.FocalMeanPx();
+    m.residual_rad = Angle(r * m.b_sensor, m.r_inertial);
+  }
+  id->q_inertial_from_sensor = Quat(r).normalized();
+  if (id->q_inertial_from_sensor.w() < 0) id->q_inertial_from_sensor.coeffs() *= -1;
+}
+
 Camera FittedCamera(Camera camera, const Identification& id) {
   if (id.focal_length_px > 0 && std::isfinite(id.focal_length_px))
     camera.ScaleFocal(id.focal_length_px / camera.focal_length_px);
@@ -680,6 +786,8 @@ void IdentifyOptions::Check() const {
   if (!(fov_min_deg == 0 && fov_max_deg == 0) && !(fov_min_deg > 0.5 && fov_min_deg < fov_max_deg && fov_max_deg < 90))
     bad("fov_range_deg", "must be MIN,MAX with 0.5 < MIN < MAX < 90 deg");
   if (FovRange() && fov_tolerance_pct > 0) bad("fov_range_deg", "and fov_tolerance_pct exclude each other");
+  if (!(refine_focal_p >= 0 && refine_focal_p < 1)) bad("refine_focal_p", "must be in [0, 1)");
+  if (refine_focal_min_matches < 4) bad("refine_focal_min_matches", "must be >= 4");
   if (!(max_false_match_prob > 0 && max_false_match_prob < 1)) bad("max_false_match_prob", "must be in (0, 1)");
   if (min_matches < 4) bad("min_matches", "must be >= 4");
   if (max_hypotheses < 1) bad("max_hypotheses", "must be >= 1");
@@ -848,17 +956,36 @@ bool FinishHypothesis(const Context& ctx, const IdentifyOptions& o, const Camera
   s.test_extras.clear();  // centroids of the test's extra matches (its evidence)
   for (size_t i = 3; i < ht_matches.size(); ++i) s.test_extras.push_back(ht_matches[i].centroid);
   s.cur.assign(ht_matches.begin(), ht_matches.end());
-  Refined rf = Refine(ctx, o, cam, rot, ht.n_cat);
+  bool fit_scale = focal_searched;
+  Refined rf = Refine(ctx, cam, rot, ht.n_cat, nullptr, fit_scale);
   std::vector<char>& excluded = s.excluded;
   excluded.assign(ctx.n, 0);
   int rejected = 0, lost_evidence = 0;
-  for (int worst; (worst = WorstOutlier(ctx, o, s.cur, rf.cam, rf.r, focal_searched)) >= 0;) {
-    if (++rejected > kMaxOutliers || s.cur.size() <= 3) break;
-    const int ci = s.cur[worst].centroid;
-    excluded[ci] = 1;
-    lost_evidence += static_cast<int>(std::count(s.test_extras.begin(), s.test_extras.end(), ci));
-    s.cur.erase(s.cur.begin() + worst);
-    rf = Refine(ctx, o, rf.cam, rf.r, rf.n_cat, &excluded);
+  auto leave_out_outliers = [&] {
+    for (int worst; (worst = WorstOutlier(ctx, o, s.cur, rf.cam, rf.r, fit_scale)) >= 0;) {
+      if (++rejected > kMaxOutliers || s.cur.size() <= 3) break;
+      const int ci = s.cur[worst].centroid;
+      excluded[ci] = 1;
+      lost_evidence += static_cast<int>(std::count(s.test_extras.begin(), s.test_extras.end(), ci));
+      s.cur.erase(s.cur.begin() + worst);
+      rf = Refine(ctx, rf.cam, rf.r, rf.n_cat, &excluded, fit_scale);
+    }
+  };
+  leave_out_outliers();
+  // A fixed focal length that the stars themselves reject (the scale test, ScaleFitP) is refitted
+  // with the attitude, the stars matched again with it and the outliers looked for again.
+  double scale_p = std::nan("");
+  if (!focal_searched && o.refine_focal_p > 0 && rejected <= kMaxOutliers &&
+      static_cast<int>(s.cur.size()) >= o.refine_focal_min_matches) {
+    Camera c1 = rf.cam;
+    Mat3 r1 = rf.r;
+    scale_p = ScaleFitP(s.cur, {ctx.sigma_px, 0}, &s.fit, &c1, &r1);
+    if (scale_p < o.refine_focal_p) {
+      fit_scale = true;
+      for (auto& m : s.cur) m.b_sensor = c1.Unproject(Vec2(m.x_px, m.y_px));
+      rf = Refine(ctx, c1, r1, rf.n_cat, &excluded, true);
+      leave_out_outliers();
+    }
   }
   if (rejected > kMaxOutliers || static_cast<int>(s.cur.size()) < o.min_matches) return false;
   double prob_final = ct.prob, phot_final = ct.phot;
@@ -880,8 +1007,10 @@ bool FinishHypothesis(const Context& ctx, const IdentifyOptions& o, const Camera
   out->focal_length_y_px = rf.cam.FocalYPx();
   out->false_match_probability = prob_final;
   out->photometric_factor = phot_final;
-  out->focal_length_fitted = focal_searched;
-  if (focal_searched) {
+  out->focal_length_fitted = fit_scale;
+  out->focal_length_refined = fit_scale && !focal_searched;
+  out->focal_length_p_value = scale_p;
+  if (fit_scale) {
     // The scale's 1-sigma from the pixel fit's normal equations (rotation and scale jointly).
     const Eigen::Matrix4d h = Linearize(ctx, s.cur, rf.cam, rf.r).h;
     const double var = h.ldlt().solve(Vec4::UnitW())[3];
@@ -1152,9 +1281,8 @@ SolveStatus StarIdentifier::MatchWithAttitude(const Centroid* centroids, size_t 
     }
     return out->status;
   }
-  IdentifyOptions fixed = o;
-  fixed.fov_tolerance_pct = 0;  // tracking keeps the focal length found when the lock was acquired
-  const Refined rf = Refine(ctx, fixed, camera, r_pred, n_cat0);
+  // Tracking keeps the focal length found (or refined) when the lock was acquired.
+  const Refined rf = Refine(ctx, camera, r_pred, n_cat0, nullptr, false);
   const int k = static_cast<int>(sc.cur.size());
   // The refit attitude has three free parameters that can line up a few wrong pairs (a 5-degree
   // jump found 5 such matches in a test): count them out as in lost in space, take a Bonferroni

@@ -24,6 +24,7 @@
 // Accepted only below max_false_match_prob.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <map>
 #include <memory>
@@ -94,6 +95,13 @@ struct IdentifyOptions {
   // probability by a calibrated factor (at most 2 when the photometry disagrees). Off when the
   // centroids carry no usable flux (any <= 0, or all equal).
   bool use_photometry = true;
+  // A fixed focal length refined by default (docs/identify.md, "Focal length"): with at least
+  // refine_focal_min_matches matches, the focal length is fitted with the attitude when the F-test of
+  // that one extra parameter on the stars' pixel residuals gives p < refine_focal_p, and then used
+  // (matches, attitude, the JSON's focal_length_px with its sigma). 0 = keep the camera's focal length
+  // (tracking, the flight core: a calibrated camera, whose focal length should not wander frame to frame).
+  double refine_focal_p = 1e-3;
+  int refine_focal_min_matches = 4;
   void Check() const;  // throws InputError naming the field
   bool FovRange() const { return fov_max_deg > 0; }
   bool FocalSearched() const { return fov_tolerance_pct > 0 || FovRange(); }
@@ -129,6 +137,10 @@ struct Identification {
   double focal_length_y_px = 0;                    // fy used (the camera's aspect fy/fx is kept)
   bool focal_length_fitted = false;  // the focal length was searched and fitted (tolerance or unknown FOV)
   double focal_length_sigma_px = 0;  // its 1-sigma from the fit (jointly with the attitude); 0 when not fitted
+  // A fixed focal length that the stars rejected and that was refitted (IdentifyOptions::refine_focal_p);
+  // focal_length_fitted is then true too. The scale test's p-value (NaN when not tested).
+  bool focal_length_refined = false;
+  double focal_length_p_value = std::nan("");
   int outliers_rejected = 0;         // refined matches left out as inconsistent with the others
   double false_match_probability = 1.0;
   // The photometric factor in false_match_probability (2 / (1 + E), docs/identify.md step 5); 1 = not used.
@@ -188,6 +200,16 @@ struct IdentifyWorkspace {
 
 // `camera` with the focal lengths that `id` used (fitted when the focal length is searched); the aspect is kept.
 Camera FittedCamera(Camera camera, const Identification& id);
+
+// The focal-length test of a fixed-focal lost-in-space solve (IdentifyOptions::refine_focal_p) again,
+// on a solved `id`'s matches as they now are: their r_inertial made apparent (aberration, proper
+// motion: attitude/star_solver.h ApplySkyCorrections), which moves the stars by a scale of up to 1e-4
+// that the search, made on catalog directions, took for the focal length's. `camera` is the one given
+// to Identify. The focal length (the camera's when the test is not significant), its sigma and
+// p-value, the matches' b_sensor, sigma_rad and residual_rad, and the attitude are updated; the
+// matches themselves are kept. Does nothing unless id was solved with a fixed focal length and
+// refine_focal_p > 0.
+void RetestFocalLength(const Camera& camera, const IdentifyOptions& options, Identification* id);
 
 class StarIdentifier {
  public:

@@ -37,10 +37,12 @@ struct UnitProcessorOptions {
   // Detection threshold, identification, tracking search radius; with solve.detect.smear.exposure_s > 0
   // the detector is told the smear the gyro rate predicts (motion during the exposure, docs/inertial.md).
   // The unit's frames come from its own detectors, never block-coded: no look for JPEG blocks (half a
-  // pass over each frame, 0.1 ms a 512^2 head).
+  // pass over each frame, 0.1 ms a 512^2 head). The camera is calibrated (each head's camera.json,
+  // discover frames in orbit): its focal length is kept, not refitted frame by frame.
   SolveOptions solve = [] {
     SolveOptions s;
     s.detect.block_aware_noise = false;
+    s.identify.refine_focal_p = 0;
     return s;
   }();
   FuseOptions fuse;  // MEKF prior, NIS gate, FDI (the star noise comes from each solution's covariance)

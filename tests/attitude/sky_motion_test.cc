@@ -101,6 +101,10 @@ TEST(SkyMotion, TimeAndVelocityGiveIcrsAttitudeAndWithoutThemTheErrorIsTheAberra
     plain.identify.systematic_px = 0;  // simulated optics: the fit's sigma is all
     SolveOptions corrected = plain;
     corrected.sky = SkyForSimulation(fo);
+    // The comparison is of the same matches at the camera's focal length: uncorrected, the field's
+    // differential aberration (a scale of up to 1e-4) would be taken for the focal length's and
+    // refitted, and the refitted solve matches more stars (tests/identify/refine_focal_test.cc).
+    plain.identify.refine_focal_p = corrected.identify.refine_focal_p = 0;
     const SolveResult rc = SolveCentroids(id, cs, cam, corrected);
     const SolveResult rp = SolveCentroids(id, cs, cam, plain);
     if (rc.status != SolveStatus::kSolved || rp.status != SolveStatus::kSolved) continue;
@@ -114,9 +118,10 @@ TEST(SkyMotion, TimeAndVelocityGiveIcrsAttitudeAndWithoutThemTheErrorIsTheAberra
     const double uncorrected = SplitAttitudeError(qp, qc).cross_rad * kRadToArcsec;
     std::printf(
         "frame %d: corrected %.2f arcsec (sigma %.2f), uncorrected %.2f, aberration at the boresight %.2f, "
-        "uncorrected - expected %.3f arcsec\n",
+        "uncorrected - expected %.3f arcsec; corrected focal length %.2f px (p %.2g)\n",
         i, cross_corrected.back(), rc.attitude.sigma_cross_rad * kRadToArcsec, uncorrected, shift.norm() * kRadToArcsec,
-        AttitudeErrorRad(qp, q_expected) * kRadToArcsec);
+        AttitudeErrorRad(qp, q_expected) * kRadToArcsec, rc.identification.focal_length_px,
+        rc.identification.focal_length_p_value);
     EXPECT_LT(AttitudeErrorRad(qp, q_expected) * kRadToArcsec, 0.1);
     EXPECT_NEAR(uncorrected, shift.norm() * kRadToArcsec, 3.0);  // the field's differential aberration, proper motion
     aberration.push_back(shift.norm() * kRadToArcsec);
@@ -163,6 +168,7 @@ TEST(SkyMotion, NonSquarePixelsDistortionProperMotionAndAberrationTogether) {
       plain.identify.systematic_px = 0;
       plain.detect.gain_e_per_adu = fo.gain_e_per_adu;
       SolveOptions corrected = plain;
+      plain.identify.refine_focal_p = 0;  // as above
       corrected.sky = SkyForSimulation(fo);
       const SolveResult rc = SolveFrame(id, sf.image.view(), cam, corrected);
       if (rc.status != SolveStatus::kSolved) continue;
