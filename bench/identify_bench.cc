@@ -13,6 +13,7 @@
 #include <ctime>
 #include <fstream>
 #include <memory>
+#include <iterator>
 #include <numeric>
 #include <vector>
 
@@ -316,6 +317,18 @@ void BM_EsaScenes(benchmark::State& state) {
   std::vector<double> ms;
   std::vector<int> pats, hyps;
   int solved = 0, solved4 = 0, with4 = 0, wrong = 0;
+  // Solved / scenes by the number of true stars, and (scenes with >= 4 true stars) by false objects.
+  struct Bin {
+    const char* name;
+    int lo, hi;
+    int scenes = 0, solved = 0;
+  };
+  Bin by_true[] = {{"t3", 3, 3}, {"t4", 4, 4}, {"t5", 5, 5}, {"t6to7", 6, 7}, {"t8plus", 8, 1 << 30}};
+  Bin by_false[] = {{"f0", 0, 0}, {"f1to10", 1, 10}, {"f11to40", 11, 40}, {"f41plus", 41, 1 << 30}};
+  auto count = [](Bin* bins, size_t n, int v, bool ok) {
+    for (size_t i = 0; i < n; ++i)
+      if (v >= bins[i].lo && v <= bins[i].hi) ++bins[i].scenes, bins[i].solved += ok;
+  };
   for (auto _ : state) {
     for (const EsaScene& s : scenes) {
       const double t0 = CpuMs();
@@ -327,6 +340,9 @@ void BM_EsaScenes(benchmark::State& state) {
       const bool ok = r.status == SolveStatus::kSolved;
       solved += ok;
       if (s.n_true >= 4) ++with4, solved4 += ok;
+      count(by_true, std::size(by_true), s.n_true, ok);
+      if (s.n_true >= 4)
+        count(by_false, std::size(by_false), static_cast<int>(s.centroids.size()) - s.n_true, ok);
       if (ok && (!s.has_truth || IsWrong(r, s.truth))) ++wrong;
     }
   }
@@ -343,6 +359,14 @@ void BM_EsaScenes(benchmark::State& state) {
   state.counters["max_cpu_ms"] = quantile(ms, 1.0);
   state.counters["max_patterns"] = *std::max_element(pats.begin(), pats.end());
   state.counters["max_hypotheses"] = *std::max_element(hyps.begin(), hyps.end());
+  for (const Bin& b : by_true) {
+    state.counters[std::string(b.name) + "_scenes"] = b.scenes;
+    state.counters[std::string(b.name) + "_solved"] = b.solved;
+  }
+  for (const Bin& b : by_false) {
+    state.counters[std::string(b.name) + "_scenes"] = b.scenes;
+    state.counters[std::string(b.name) + "_solved"] = b.solved;
+  }
 }
 // The CPU-time deadline before issue 26 (50 ms, 200,000 hypotheses), the default count budget (no
 // clock), and the solve rate as a function of the budget; the same with the focal length searched (15%).
