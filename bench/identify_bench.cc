@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <ctime>
 #include <fstream>
+#include <map>
 #include <memory>
 #include <iterator>
 #include <numeric>
@@ -303,20 +304,28 @@ void BM_EsaScenes(benchmark::State& state) {
     state.SkipWithError("../shared/data/esa/generated.jsonl not found (set SSIU_SHARED_DIR)");
     return;
   }
-  static const StarIdentifier id = [] {
+  // One catalog per pattern_bright_neighbours (argument 5; -1 = the default).
+  static std::map<int64_t, std::unique_ptr<StarIdentifier>> ids;
+  std::unique_ptr<StarIdentifier>& id_ptr = ids[state.range(5)];
+  if (!id_ptr) {
     CatalogBuildOptions co;
     co.fov_deg = 10.0;
-    return StarIdentifier(BuildSolverCatalog(LoadSourceCatalog(DefaultBscPath()), co));
-  }();
+    if (state.range(5) >= 0) co.pattern_bright_neighbours = static_cast<int>(state.range(5));
+    id_ptr = std::make_unique<StarIdentifier>(BuildSolverCatalog(LoadSourceCatalog(DefaultBscPath()), co));
+  }
+  const StarIdentifier& id = *id_ptr;
   SolveOptions opt;
+  opt.identify.use_photometry = state.range(6) != 0;
   opt.identify.systematic_px = 0;
   if (state.range(0) > 0) opt.identify.max_hypotheses = static_cast<int>(state.range(0));
   if (state.range(1) > 0) opt.identify.max_patterns = static_cast<int>(state.range(1));
   opt.identify.timeout_ms = static_cast<double>(state.range(2));
   opt.identify.fov_tolerance_pct = static_cast<double>(state.range(3));
+  if (state.range(4) >= 0) opt.identify.detect_limit_margin_mag = state.range(4) / 10.0;  // tenths; -1 = default
   std::vector<double> ms;
   std::vector<int> pats, hyps;
   int solved = 0, solved4 = 0, with4 = 0, wrong = 0;
+  int half_solved4[2] = {0, 0}, half_with4[2] = {0, 0};  // scenes 0-499 and 500-999: the same rate?
   // Solved / scenes by the number of true stars, and (scenes with >= 4 true stars) by false objects.
   struct Bin {
     const char* name;
@@ -340,6 +349,8 @@ void BM_EsaScenes(benchmark::State& state) {
       const bool ok = r.status == SolveStatus::kSolved;
       solved += ok;
       if (s.n_true >= 4) ++with4, solved4 += ok;
+      const int half = ms.size() > scenes.size() / 2;
+      if (s.n_true >= 4) ++half_with4[half], half_solved4[half] += ok;
       count(by_true, std::size(by_true), s.n_true, ok);
       if (s.n_true >= 4)
         count(by_false, std::size(by_false), static_cast<int>(s.centroids.size()) - s.n_true, ok);
@@ -352,6 +363,10 @@ void BM_EsaScenes(benchmark::State& state) {
   };
   state.counters["solved"] = solved;
   state.counters["solved_4plus"] = solved4;
+  state.counters["solved_4plus_first_half"] = half_solved4[0];
+  state.counters["scenes_4plus_first_half"] = half_with4[0];
+  state.counters["solved_4plus_second_half"] = half_solved4[1];
+  state.counters["scenes_4plus_second_half"] = half_with4[1];
   state.counters["scenes_4plus"] = with4;
   state.counters["wrong"] = wrong;
   state.counters["median_cpu_ms"] = quantile(ms, 0.5);
@@ -375,7 +390,17 @@ void EsaBudgets(benchmark::internal::Benchmark* b) {
       {200000, 0, 50, 0}, {0, 0, 0, 0},     {25, 0, 0, 0},    {50, 0, 0, 0},       {100, 0, 0, 0},
       {200, 0, 0, 0},     {0, 20000, 0, 0}, {0, 50000, 0, 0}, {200000, 0, 50, 15}, {0, 0, 0, 15},
       {2000, 0, 0, 15},   {5000, 0, 0, 15}, {20000, 0, 0, 15}};
-  for (const auto& a : args) b->Args(a);
+  for (auto a : args) {
+    for (const int64_t x : {-1, -1, 1}) a.push_back(x);
+    b->Args(a);
+  }
+  // The parts of issue 27 one at a time (docs/identify.md, "Four true stars among false objects"):
+  // the detection-limit margin (IdentifyOptions::detect_limit_margin_mag, tenths of a mag; 0 = off),
+  // the bright neighbours of the index (CatalogBuildOptions::pattern_bright_neighbours), photometry.
+  for (const int64_t margin : {0, 10, 20}) b->Args({0, 0, 0, 0, margin, -1, 1});
+  b->Args({0, 0, 0, 0, -1, 0, 1});
+  b->Args({0, 0, 0, 0, 0, 0, 1});
+  b->Args({0, 0, 0, 0, -1, -1, 0});
 }
 BENCHMARK(BM_EsaScenes)->Apply(EsaBudgets)->Iterations(1)->Unit(benchmark::kMillisecond);
 

@@ -35,6 +35,9 @@ SSIU_REGISTER_COMMAND(catalog, [](CLI::App& root) {
   cmd->add_option("--neighbours", o->build.pattern_neighbours,
                   "Triangles per pattern star: among its K nearest pattern neighbours (0 = all in the FOV)")
       ->capture_default_str();
+  cmd->add_option("--bright-neighbours", o->build.pattern_bright_neighbours,
+                  "And among its B brightest pattern neighbours in the FOV beyond those K")
+      ->capture_default_str();
   cmd->add_option("--out", o->out, "Output directory")->required();
   cmd->callback([o] {
     const std::string src = o->source.empty() ? DefaultSourceFor(o->build.FovMinDeg()) : o->source;

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <string>
@@ -139,6 +140,10 @@ struct Context {
   double median_sigma_px = 0;  // typical centroid sigma (with the systematic part)
   double match_radius_px = 0;
   bool photometry = false;  // fluxes usable as photometric evidence (all > 0, not all equal)
+  // ln of the faintest verification centroid's flux less the margin (detect_limit_margin_mag): a
+  // catalog star predicted fainter than this is not expected among the centroids (TestHypothesis).
+  // -inf: every predicted star is expected (no photometry, or the margin 0).
+  double ln_flux_limit = -std::numeric_limits<double>::infinity();
 };
 
 // Catalog stars within radius_rad of u into ctx.s->near, brightest first; more than the workspace
@@ -264,11 +269,27 @@ HypothesisTest TestHypothesis(const Context& ctx, const IdentifyOptions& o, cons
   std::vector<Pred>& pred = sc.pred;
   pred.clear();
   const Mat3 rt = r.transpose();
+  // The triangle's photometric zero point (median of ln f + 0.4 ln(10) V over its vertices): a star
+  // it predicts fainter than the faintest verification centroid (less a margin) cannot be among them,
+  // so it is no place where a chance centroid could count as a match (a smaller p_hit). The rule
+  // depends on fluxes and the hypothesis, not on the other centroids' positions, so under the null
+  // hypothesis they remain uniform and the chance probability stays exact.
+  const double k_mag = 0.4 * std::log(10.0);
+  double zp = 0;
+  const bool limited = std::isfinite(ctx.ln_flux_limit);
+  if (limited) {
+    double z[3];
+    for (int i = 0; i < 3; ++i) z[i] = std::log(c[tri_c[i]].flux) + k_mag * ctx.cat->stars[tri_s[i]].mag;
+    zp = std::max(std::min(z[0], z[1]), std::min(std::max(z[0], z[1]), z[2]));
+  }
   double area_hit = 0;
+  int n_in_image = 0;
   for (int s : sc.near) {
     if (s == tri_s[0] || s == tri_s[1] || s == tri_s[2]) continue;
     const auto p = cam.Project(rt * ctx.cat->stars[s].unit);
     if (!p || !cam.InImage(*p)) continue;
+    ++n_in_image;
+    if (limited && zp - k_mag * ctx.cat->stars[s].mag < ctx.ln_flux_limit) continue;
     // In tolerance mode the camera model is known to be off (focal length, and often the pixel
     // aspect or distortion that the caller is about to calibrate): at least twice the refinement
     // radius, as the verification before this test used (the probability counts whatever radius).
@@ -276,7 +297,7 @@ HypothesisTest TestHypothesis(const Context& ctx, const IdentifyOptions& o, cons
     area_hit += kPi * r2;
     pred.push_back({*p, s, r2});
   }
-  h.n_cat = static_cast<int>(pred.size()) + 3;
+  h.n_cat = n_in_image + 3;
   h.p_hit = std::min(1.0, area_hit / (static_cast<double>(cam.width) * cam.height));
   std::vector<Cand>& cands = sc.cands;  // key: squared distance over squared radius
   cands.clear();
@@ -456,15 +477,85 @@ double ScaleFitP(const std::vector<StarMatch>& ms, PixelSigma sigma, PixelFit* f
   return StudentTwoSidedTail(std::sqrt((chi2_0 - chi2_1) / (chi2_1 / nu)), nu);
 }
 
+// The harmonic number H_T = sum_{k <= T} 1/k: summed below 10^4, else ln T + gamma + 1/(2T) - 1/(12T^2)
+// (Abramowitz & Stegun 6.3.18; the next term, 1/(120 T^4), is below 1e-17 there).
+double Harmonic(double t) {
+  if (t < 1e4) {
+    double h = 0;
+    for (double k = t; k >= 1; --k) h += 1 / k;  // smallest terms first
+    return h;
+  }
+  return std::log(t) + 0.57721566490153286 + 1 / (2 * t) - 1 / (12 * t * t);
+}
+
+// The triangle's photometric p-value. The search takes triangles brightest first: every triangle whose
+// faintest vertex is the c-th brightest centroid comes before those of the (c+1)-th (step 1), and the
+// geometry alone (positions, independent of the fluxes under a chance match) picks which two of the
+// c - 1 brighter ones join it and which vertex each becomes. So under the null hypothesis the
+// triangle's fluxes are, given its faintest, a uniformly drawn ordered triple of the T = 3 (c-1)(c-2)
+// that hold the faintest and two of the brighter, and p = the share of those whose zero points
+// z = ln f + 0.4 ln(10) V against the triangle's magnitudes scatter (sum of squares about their mean,
+// which unlike the range has no ties between triples) no more than the triangle's own. ln_brighter:
+// the c - 1 brighter centroids' ln fluxes, sorted ascending (the triangle's other two among them).
+// Counted in O(c log c): with the faintest at one vertex and a brighter one at another, the z that
+// keep the sum of squares <= q at the third form the interval (z_i + z_j) / 2 +- sqrt(1.5 q - 0.75
+// (z_i - z_j)^2), one range of the sorted list. Returns p and T.
+std::pair<double, double> TriangleZeroPointP(const double* pair_flux, const double* pair_mag,
+                                             const std::vector<double>& ln_brighter) {
+  const double k_mag = 0.4 * std::log(10.0);
+  double z[3], c[3];
+  int faintest = 0;
+  for (int i = 0; i < 3; ++i) {
+    c[i] = k_mag * pair_mag[i];
+    z[i] = std::log(pair_flux[i]) + c[i];
+    if (pair_flux[i] < pair_flux[faintest]) faintest = i;
+  }
+  const double mean = (z[0] + z[1] + z[2]) / 3;
+  const double q = ((z[0] - mean) * (z[0] - mean) + (z[1] - mean) * (z[1] - mean) + (z[2] - mean) * (z[2] - mean)) *
+                       (1 + 1e-9) +
+                   1e-15;  // the triangle's own triple always counts
+  const double x_faint = std::log(pair_flux[faintest]);
+  const auto begin = ln_brighter.begin(), end = ln_brighter.end();
+  double count = 0;
+  for (int p = 0; p < 3; ++p) {  // the faintest at vertex p, a brighter one at q, the third at r
+    const int q_v = (p + 1) % 3, r_v = (p + 2) % 3;
+    const double zp = x_faint + c[p];
+    for (auto b = begin; b != end; ++b) {
+      const double zq = *b + c[q_v];
+      const double h2 = 1.5 * q - 0.75 * (zp - zq) * (zp - zq);
+      if (h2 < 0) continue;
+      const double mid = 0.5 * (zp + zq) - c[r_v], half = std::sqrt(h2);
+      const auto first = std::lower_bound(begin, end, mid - half);
+      const auto last = std::upper_bound(first, end, mid + half);
+      count += static_cast<double>(last - first) - (b >= first && b < last);  // distinct from the one at q
+    }
+  }
+  const double n = static_cast<double>(ln_brighter.size());
+  const double t = 3 * n * (n - 1);
+  return {t > 0 ? std::clamp(count / t, 0.0, 1.0) : 1.0, t};
+}
+
 // PhotometricEvidence over n pairs and n_other other fluxes, with scratch vectors for the zero points.
 double PhotometricEvidenceOf(const double* pair_flux, const double* pair_mag, size_t n, const double* other_flux,
                              size_t n_other, std::vector<double>* zp, std::vector<double>* z) {
-  int disc = 0;
-  for (int i = 0; i < 3; ++i)
-    for (int j = i + 1; j < 3; ++j) disc += !((pair_flux[i] - pair_flux[j]) * (pair_mag[i] - pair_mag[j]) < 0);
-  static constexpr double kTriP[4] = {1.0 / 6, 3.0 / 6, 5.0 / 6, 1.0};
-  static constexpr double kTriC = 1.0 + 2.0 / 3 + 2.0 / 5 + 1.0 / 6;  // sum over the atoms of P(p = t) / t
-  double e = 1.0 / (kTriP[disc] * kTriC);
+  // The triangle: e = 1 / (p H_T), T = 3 (c-1)(c-2) ordered triples (TriangleZeroPointP): p is
+  // (super-)uniform on {1/T, ..., 1}, so E[1/p] <= H_T and the mean of e is at most 1. The brighter
+  // ones: the verification centroids at least as bright as the triangle's faintest, less that vertex.
+  z->clear();
+  const double f_min = std::min({pair_flux[0], pair_flux[1], pair_flux[2]});
+  bool skipped = false;  // the faintest vertex itself (once, should another flux equal it)
+  for (size_t i = 0; i < n; ++i) {
+    if (i < 3 && !skipped && pair_flux[i] == f_min) {
+      skipped = true;
+      continue;
+    }
+    if (pair_flux[i] >= f_min) z->push_back(std::log(pair_flux[i]));
+  }
+  for (size_t i = 0; i < n_other; ++i)
+    if (other_flux[i] >= f_min) z->push_back(std::log(other_flux[i]));
+  std::sort(z->begin(), z->end());
+  const auto [p_tri, t_tri] = TriangleZeroPointP(pair_flux, pair_mag, *z);
+  double e = t_tri > 0 ? 1.0 / (p_tri * Harmonic(t_tri)) : 1.0;
   const double k_mag = 0.4 * std::log(10.0);
   zp->clear();  // ln f + 0.4 ln(10) V of the pairs so far: the zero point
   for (int i = 0; i < 3; ++i) zp->push_back(std::log(pair_flux[i]) + k_mag * pair_mag[i]);
@@ -496,9 +587,13 @@ double PhotometricEvidenceOf(const double* pair_flux, const double* pair_mag, si
 // fluxes are independent of the positions, so given the positions (which alone chose the hypothesis
 // and its matches) the fluxes of the verification centroids are exchangeable. Two conditionally
 // exact tests, each turned into an e-value (a statistic with mean 1 under the null):
-// - the triangle: the rank order of its three fluxes against its three catalog magnitudes is one of
-//   3! equally likely ones; p = P(D <= d) for d discordant pairs (ties count as discordant), exact
-//   values 1/6, 3/6, 5/6, 1, and e = 1 / (p C), C = sum over the atoms of P(p = t) / t = 67/30;
+// - the triangle: given its faintest vertex, the c-th brightest centroid, its three fluxes are one of
+//   the T = 3 (c-1)(c-2) equally likely ordered triples of that flux and two of the c - 1 brighter
+//   ones (the search goes brightest first; the geometry picks the rest); p = the fraction of them
+//   whose zero points (ln f + 0.4 ln(10) V against the triangle's three magnitudes) agree at least as
+//   closely as the triangle's own (their scatter), and e = 1 / (p H_T) (TriangleZeroPointP). Where the
+//   fluxes follow the magnitudes to a few hundredths of a magnitude, as on ESA's scenes, p is about
+//   (spread / range of ln f)^2 and e reaches 10^2-10^4 (a rank test of the three, before, at most 2.7);
 // - each extra match in the test's (geometric) order: given the pairs before it, its flux is a
 //   uniform draw from the N centroids not yet used. Its flux predicted from their zero point (median
 //   of ln f + 0.4 ln(10) V) ranks K-th closest among those N (ties counted in), p = K / N and
@@ -699,6 +794,8 @@ Context MakeContext(const StarIdentifier* id, const CatalogIndex* index, Scratch
   if (ctx.photometry)
     ctx.photometry = std::any_of(c.begin(), c.end(), [&](const Centroid& x) { return x.flux != c[0].flux; });
   ctx.match_radius_px = o.match_radius_px > 0 ? o.match_radius_px : std::max(2.0, 5.0 * ctx.median_sigma_px);
+  if (ctx.photometry && o.detect_limit_margin_mag > 0 && ctx.m > 0)
+    ctx.ln_flux_limit = std::log(c[ctx.order[ctx.m - 1]].flux) - 0.4 * std::log(10.0) * o.detect_limit_margin_mag;
   return ctx;
 }
 
@@ -787,6 +884,8 @@ void IdentifyOptions::Check() const {
     bad("fov_range_deg", "must be MIN,MAX with 0.5 < MIN < MAX < 90 deg");
   if (FovRange() && fov_tolerance_pct > 0) bad("fov_range_deg", "and fov_tolerance_pct exclude each other");
   if (!(refine_focal_p >= 0 && refine_focal_p < 1)) bad("refine_focal_p", "must be in [0, 1)");
+  if (!(detect_limit_margin_mag >= 0 && detect_limit_margin_mag <= 20))
+    bad("detect_limit_margin_mag", "must be in [0, 20]");
   if (refine_focal_min_matches < 4) bad("refine_focal_min_matches", "must be >= 4");
   if (!(max_false_match_prob > 0 && max_false_match_prob < 1)) bad("max_false_match_prob", "must be in (0, 1)");
   if (min_matches < 4) bad("min_matches", "must be >= 4");

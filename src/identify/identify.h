@@ -95,6 +95,11 @@ struct IdentifyOptions {
   // probability by a calibrated factor (at most 2 when the photometry disagrees). Off when the
   // centroids carry no usable flux (any <= 0, or all equal).
   bool use_photometry = true;
+  // The hypothesis test expects only the catalog stars that the triangle's photometric zero point
+  // predicts brighter than the faintest verification centroid plus this margin (mag): fainter ones
+  // are no place for a chance match (docs/identify.md, step 4). Only with photometry; 0 = every star
+  // in the field. The margin covers colour terms and saturation; it changes power, never validity.
+  double detect_limit_margin_mag = 0.5;
   // A fixed focal length refined by default (docs/identify.md, "Focal length"): with at least
   // refine_focal_min_matches matches, the focal length is fitted with the attitude when the F-test of
   // that one extra parameter on the stars' pixel residuals gives p < refine_focal_p, and then used

@@ -97,6 +97,8 @@ void CatalogBuildOptions::Check() const {
     throw InputError("catalog options", "min_side_frac must be in [0, 0.5)");
   if (pattern_neighbours != 0 && (pattern_neighbours < 2 || pattern_neighbours > 100))
     throw InputError("catalog options", "pattern_neighbours must be 0 (all) or in [2, 100]");
+  if (pattern_bright_neighbours < 0 || pattern_bright_neighbours > 100)
+    throw InputError("catalog options", "pattern_bright_neighbours must be in [0, 100]");
   if (!(fov_min_deg == 0 || (fov_min_deg > 0.5 && fov_min_deg <= fov_deg)))
     throw InputError("catalog options", "fov_min_deg must be 0 (= fov_deg) or in (0.5, fov_deg]");
 }
@@ -258,7 +260,11 @@ void AddPatternLevel(double fov, const CatalogBuildOptions& o, SolverCatalog* ca
     });
     if (k_nb > 0 && static_cast<int>(nb.size()) > k_nb) {
       std::partial_sort(nb.begin(), nb.begin() + k_nb, nb.end());  // nearest first (largest cosine)
-      nb.resize(static_cast<size_t>(k_nb));
+      // Then the brightest of the rest (pattern indices are in brightness order).
+      const auto rest = nb.begin() + k_nb;
+      const auto n_bright = std::min<ptrdiff_t>(o.pattern_bright_neighbours, nb.end() - rest);
+      std::partial_sort(rest, rest + n_bright, nb.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
+      nb.resize(static_cast<size_t>(k_nb + n_bright));
     }
     std::sort(nb.begin(), nb.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
     for (size_t j = 0; j < nb.size(); ++j) {
@@ -634,9 +640,9 @@ SolverCatalog LoadOrBuildCatalog(const std::string& source_path, const CatalogBu
   for (char& c : base)
     if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
   char key[256];
-  std::snprintf(key, sizeof key, "%s_fov%.2f_mag%.2f_ep%.1f_dbl%.1f_p%d_s%.0f_k%d_v5", base.c_str(), o.fov_deg,
+  std::snprintf(key, sizeof key, "%s_fov%.2f_mag%.2f_ep%.1f_dbl%.1f_p%d_s%.0f_k%d_b%d_v5", base.c_str(), o.fov_deg,
                 o.mag_max, o.epoch_year, o.double_star_arcsec, o.pattern_stars_per_fov, o.stars_per_fov,
-                o.pattern_neighbours);
+                o.pattern_neighbours, o.pattern_bright_neighbours);
   std::string dir_key = key;
   if (o.FovMinDeg() < o.fov_deg) {
     std::snprintf(key, sizeof key, "_min%.2f", o.fov_min_deg);

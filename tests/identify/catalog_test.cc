@@ -142,6 +142,7 @@ TEST(Catalog, NeighbourLimitedIndexIsASmallerSubset) {
   o.pattern_neighbours = 0;
   const SolverCatalog all = BuildSolverCatalog(src, o);
   o.pattern_neighbours = 10;
+  o.pattern_bright_neighbours = 0;
   const SolverCatalog k10 = BuildSolverCatalog(src, o);
   ASSERT_EQ(all.stars.size(), k10.stars.size());
   EXPECT_LT(k10.triangles.size() * 4, all.triangles.size());
@@ -163,6 +164,16 @@ TEST(Catalog, NeighbourLimitedIndexIsASmallerSubset) {
   const std::vector<uint64_t> full = keys(all), sub = keys(k10);
   EXPECT_TRUE(std::adjacent_find(sub.begin(), sub.end()) == sub.end()) << "duplicate triangle";
   EXPECT_TRUE(std::includes(full.begin(), full.end(), sub.begin(), sub.end())) << "a triangle not in the full index";
+  // With the 5 brightest beyond the 10 nearest: (K + B)(K + B - 1) / 2 = 105 at most per pattern
+  // star, between the two, holding every triangle of the 10 nearest.
+  o.pattern_bright_neighbours = 5;
+  const SolverCatalog k10b5 = BuildSolverCatalog(src, o);
+  const std::vector<uint64_t> sub_b = keys(k10b5);
+  EXPECT_LE(k10b5.triangles.size(), static_cast<size_t>(k10b5.num_pattern_stars) * 105);
+  EXPECT_GT(k10b5.triangles.size(), k10.triangles.size());
+  EXPECT_LT(k10b5.triangles.size(), all.triangles.size());
+  EXPECT_TRUE(std::includes(full.begin(), full.end(), sub_b.begin(), sub_b.end()));
+  EXPECT_TRUE(std::includes(sub_b.begin(), sub_b.end(), sub.begin(), sub.end()));
   const std::string dir = testing::TempDir("catalog_k10");
   SaveSolverCatalog(k10, dir);
   const SolverCatalog back = LoadSolverCatalog(dir);

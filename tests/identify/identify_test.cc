@@ -25,41 +25,58 @@ TEST(BinomialTail, MatchesDirectSums) {
   EXPECT_NEAR(BinomialTail(5, 0.2, 5), std::pow(0.2, 5), 1e-15);
 }
 
-// The photometric e-value under the null (docs/identify.md, step 5): every assignment of eight
-// distinct fluxes to the triangle's three pairs, two extra matches and three other centroids is
-// equally likely, and the mean of E over all 8! of them must be exactly 1 (a larger mean would make
-// chance matches pass more often than --max-false-prob says).
+// The photometric e-value under the null (docs/identify.md, step 5): the search takes triangles
+// brightest first, so given that the triangle's faintest vertex is the c-th brightest of the eight
+// fluxes, every assignment of the fluxes to the triangle's three pairs, two extra matches and three
+// other centroids that keeps it so is equally likely, and the mean of E over them must be exactly 1
+// for every c (a larger mean would make chance matches pass more often than --max-false-prob says).
 TEST(Photometry, EvidenceHasMeanOneOverEveryPermutation) {
   const std::vector<double> mags = {3.1, 4.7, 2.2, 5.0, 3.9};  // triangle, then the extras in test order
   std::vector<double> f = {1, 2, 3, 5, 8, 13, 21, 34};
   std::sort(f.begin(), f.end());
-  double sum = 0, max_e = 0;
-  int n = 0;
+  double sum[9] = {0}, max_e = 0;
+  int count[9] = {0}, n = 0;
   do {
     const double e = PhotometricEvidence({f[0], f[1], f[2], f[3], f[4]}, mags, {f[5], f[6], f[7]});
-    sum += e, max_e = std::max(max_e, e), ++n;
+    const double faintest = std::min({f[0], f[1], f[2]});
+    const int c = static_cast<int>(std::count_if(f.begin(), f.end(), [&](double x) { return x >= faintest; }));
+    sum[c] += e, ++count[c], max_e = std::max(max_e, e), ++n;
   } while (std::next_permutation(f.begin(), f.end()));
   EXPECT_EQ(n, 40320);
-  EXPECT_NEAR(sum / n, 1.0, 1e-12);
+  for (int c = 3; c <= 8; ++c) {
+    ASSERT_GT(count[c], 0) << c;
+    EXPECT_NEAR(sum[c] / count[c], 1.0, 1e-12) << "faintest vertex the " << c << "-th brightest";
+  }
   EXPECT_GT(max_e, 10.0);  // and it can be large: the test has power
 }
 
-// Analytic cases: a triangle in perfect rank order has p = 1/3! and E = 1 / (p C), C = 1 + 2/3 + 2/5
-// + 1/6 = 67/30; reversed order p = 1; a tie in magnitude counts as discordant. An extra match whose
-// flux is exactly the predicted one among N candidates: e = N / H_N.
+// Analytic cases. The triangle: p = the share of the T = 3 (c-1)(c-2) ordered triples of its faintest
+// flux (the c-th brightest) and two brighter ones whose zero points ln f + 0.4 ln(10) V scatter no more
+// than its own, e = 1 / (p H_T). Three fluxes that follow their magnitudes exactly (c = 3): only the
+// identity scatters 0, p = 1/6;
+// reversed: every triple scatters less, p = 1; magnitudes 2, 3, 3: the identity and the swap of the
+// last two tie, p = 2/6. An extra match whose flux is exactly the predicted one among N candidates:
+// e = the mean of N / (K H_N) and N / (K^2 S_N) with K = 1.
 TEST(Photometry, EvidenceAnalyticCases) {
   const std::vector<double> mags = {2.0, 3.0, 4.0};
   auto flux = [](double v) { return std::pow(10.0, -0.4 * v); };
-  EXPECT_NEAR(PhotometricEvidence({flux(2), flux(3), flux(4)}, mags, {}), 6 * 30.0 / 67, 1e-12);
-  EXPECT_NEAR(PhotometricEvidence({flux(4), flux(3), flux(2)}, mags, {}), 30.0 / 67, 1e-12);
-  EXPECT_NEAR(PhotometricEvidence({flux(2), flux(3), flux(4)}, {2.0, 3.0, 3.0}, {}), 2 * 30.0 / 67, 1e-12);
-  // Fourth pair at V 5 with its exact flux, four other centroids far from it: K = 1 of N = 5, e = the
-  // mean of the harmonic calibrator N / (K H_N) and the steeper N / (K^2 S_N).
-  const double h5 = 1 + 1 / 2.0 + 1 / 3.0 + 1 / 4.0 + 1 / 5.0;
+  auto harmonic = [](int t) {
+    double h = 0;
+    for (int k = 1; k <= t; ++k) h += 1.0 / k;
+    return h;
+  };
+  const double h6 = harmonic(6);
+  EXPECT_NEAR(PhotometricEvidence({flux(2), flux(3), flux(4)}, mags, {}), 6 / h6, 1e-12);
+  EXPECT_NEAR(PhotometricEvidence({flux(4), flux(3), flux(2)}, mags, {}), 1 / h6, 1e-12);
+  EXPECT_NEAR(PhotometricEvidence({flux(2), flux(3), flux(4)}, {2.0, 3.0, 3.0}, {}), 3 / h6, 1e-12);
+  // Fourth pair at V 5 with its exact flux, four other centroids (V 0, 1, 8, 9) far from it: K = 1 of
+  // N = 5. The triangle's faintest (V 4) is the 5th brightest: T = 3 x 4 x 3 = 36 triples of it and two
+  // of V 0, 1, 2, 3, of which only 2-3-4 scatters 0 against V 2, 3, 4, so p = 1 / 36.
+  const double h5 = harmonic(5);
   const double s5 = 1 + 1 / 4.0 + 1 / 9.0 + 1 / 16.0 + 1 / 25.0;
   EXPECT_NEAR(
       PhotometricEvidence({flux(2), flux(3), flux(4), flux(5)}, {2, 3, 4, 5}, {flux(0), flux(1), flux(8), flux(9)}),
-      6 * 30.0 / 67 * 0.5 * (5 / h5 + 5 / s5), 1e-9);
+      36 / harmonic(36) * 0.5 * (5 / h5 + 5 / s5), 1e-9);
   EXPECT_THROW(PhotometricEvidence({1, 2}, {1, 2}, {}), InputError);
 }
 

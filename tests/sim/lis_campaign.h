@@ -116,11 +116,25 @@ struct Calibration {
 
 // A uniformly random centroid set for seed: min_centroids to max_centroids centroids anywhere on a
 // 1024 x 1024 px image, uniform random fluxes, sigma 0.3 px.
-inline std::vector<Centroid> RandomCentroidSet(uint64_t seed, int min_centroids, int max_centroids) {
+// How a random set's fluxes are drawn: uniform in (0, 1) (few faint ones), or as stars are, 10^(-0.4 m)
+// with m in [0, 7] following the star counts N(< m) ~ 10^(0.5 m) (most near the faint end), or with m
+// uniform in [0, 7]. The photometric tests must be calibrated under each.
+enum class RandomFlux { kUniform, kStarCounts, kFlatMagnitude };
+
+inline std::vector<Centroid> RandomCentroidSet(uint64_t seed, int min_centroids, int max_centroids,
+                                               RandomFlux flux = RandomFlux::kUniform) {
   Rng rng(seed);
   const int m = min_centroids + static_cast<int>(rng.Uniform() * (max_centroids - min_centroids + 1));
   std::vector<Centroid> cs(m);
-  for (auto& x : cs) x = {rng.Uniform(0, 1023), rng.Uniform(0, 1023), rng.Uniform(), 0.3};
+  for (auto& x : cs) {
+    x = {rng.Uniform(0, 1023), rng.Uniform(0, 1023), rng.Uniform(), 0.3};
+    if (flux == RandomFlux::kStarCounts) {
+      const double mag = std::log10(x.flux * (std::pow(10.0, 0.5 * 7) - 1) + 1) / 0.5;  // inverse of the CDF
+      x.flux = std::pow(10.0, -0.4 * mag);
+    } else if (flux == RandomFlux::kFlatMagnitude) {
+      x.flux = std::pow(10.0, -0.4 * 7 * x.flux);
+    }
+  }
   return cs;
 }
 inline Camera RandomSetCamera() { return MakeCamera(1024, 1024, 16.6); }
@@ -149,13 +163,13 @@ inline Calibration RunRandomCentroids(int n, uint64_t seed0, const IdentifyOptio
 // up to its first acceptance, so a set would be solved at alpha only if this is below alpha: the share
 // of sets below alpha bounds the false-solve rate at every threshold at once.
 inline std::vector<double> RandomSetsBestChance(int n, uint64_t seed0, IdentifyOptions io, int min_centroids,
-                                                int max_centroids) {
+                                                int max_centroids, RandomFlux flux = RandomFlux::kUniform) {
   const StarIdentifier& id = BscIdentifier(16.6);
   io.max_false_match_prob = 1e-300;
   std::vector<double> best;
   for (int k = 0; k < n; ++k) {
     const Identification r =
-        id.Identify(RandomCentroidSet(seed0 + k, min_centroids, max_centroids), RandomSetCamera(), io);
+        id.Identify(RandomCentroidSet(seed0 + k, min_centroids, max_centroids, flux), RandomSetCamera(), io);
     if (r.status == SolveStatus::kSolved)
       std::fprintf(stderr, "random set seed %llu solved at 1e-300\n", static_cast<unsigned long long>(seed0 + k));
     best.push_back(r.status == SolveStatus::kSolved ? 0.0 : r.false_match_probability);

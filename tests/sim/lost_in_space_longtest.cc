@@ -105,6 +105,28 @@ TEST(LostInSpaceLong, CalibrationRandomSetsBestChance) {
   std::printf("\n");
 }
 
+// The same with star-like fluxes (RandomFlux): the triangle's photometric test compares its three
+// fluxes with every ordered triple of the set's, while the search takes triangles brightest first, so
+// its calibration must hold whatever the shape of the flux distribution (star counts: most fluxes near
+// the faint end and the bright ones sparse; flat in magnitude). LIS_TRIALS sets the number of sets.
+TEST(LostInSpaceLong, CalibrationRandomSetsStarLikeFluxes) {
+  IdentifyOptions io;
+  io.timeout_ms = 0;
+  io.pattern_centroids = 40;
+  for (const RandomFlux flux : {RandomFlux::kStarCounts, RandomFlux::kFlatMagnitude}) {
+    const std::vector<double> best = RandomSetsBestChance(Trials(10000), Seed0(300000), io, 8, 40, flux);
+    const int n = static_cast<int>(best.size());
+    std::printf("random sets of 8-40 centroids, %s fluxes, %d sets: best chance below",
+                flux == RandomFlux::kStarCounts ? "star-count" : "flat-magnitude", n);
+    for (double a : {1e-1, 1e-2, 1e-3, 1e-4}) {
+      const int k = static_cast<int>(std::count_if(best.begin(), best.end(), [&](double p) { return p <= a; }));
+      std::printf(" %g: %d (%.2g)", a, k, static_cast<double>(k) / n);
+      EXPECT_LE(k, Allowed(n, a)) << "at " << a;
+    }
+    std::printf("\n");
+  }
+}
+
 // Star-free rendered frames (8 deg, 512 x 512: noise, hot pixels, cosmic rays, 5-40 false stars),
 // detected and solved with the defaults: every solve is false.
 TEST(LostInSpaceLong, CalibrationStarFreeFrames) {
