@@ -7,6 +7,7 @@
 #include <deque>
 #include <limits>
 
+#include "ccsds/adm.h"
 #include "core/attitude.h"
 #include "core/csv.h"
 #include "core/error.h"
@@ -46,7 +47,40 @@ GyroLog ReadGyroLog(const std::string& path, int n_gyros) {
   return log;
 }
 
-StarTrackerLog ReadStarTrackerLog(const std::string& path) {
+namespace {
+
+StarTrackerLog StarTrackerLogFromAdm(const AttitudeHistory& h) {
+  StarTrackerLog log;
+  log.file = h.file;
+  log.epoch_utc = h.epoch_utc;
+  for (const AdmState& s : h.states) {
+    log.t_s.push_back(s.t_s);
+    log.q_inertial_from_body.push_back(s.q_inertial_from_body);
+  }
+  // Sigmas only when the covariance covers every attitude epoch.
+  if (h.covariances.size() == h.states.size()) {
+    for (size_t k = 0; k < h.states.size(); ++k) {
+      const std::vector<double>& d = h.covariances[k].diagonal;
+      if (std::abs(h.covariances[k].t_s - h.states[k].t_s) > 1e-6 || !(d[0] + d[1] > 0) || !(d[2] > 0)) {
+        log.sigma_cross_arcsec.clear();
+        log.sigma_roll_arcsec.clear();
+        break;
+      }
+      log.sigma_cross_arcsec.push_back(std::sqrt((d[0] + d[1]) / 2) * kRadToArcsec);
+      log.sigma_roll_arcsec.push_back(std::sqrt(d[2]) * kRadToArcsec);
+    }
+  }
+  return log;
+}
+
+}  // namespace
+
+StarTrackerLog ReadStarTrackerLog(const std::string& path, const std::string& epoch_utc) {
+  if (LooksLikeAdm(path)) {
+    const AttitudeHistory h = ReadAdmFile(path, epoch_utc);
+    if (h.states.size() < 1) throw InputError(path, "no attitude");
+    return StarTrackerLogFromAdm(h);
+  }
   const CsvTable t = ReadCsv(path);
   StarTrackerLog log;
   log.file = path;
