@@ -41,15 +41,9 @@ std::vector<AdmSensor> FuseSensors(const StarTrackerLog& st, const GyroLog& gyro
     std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
     return v[v.size() / 2];
   };
-  const double cross = median(st.sigma_cross_arcsec, options.st_sigma_cross_arcsec) * kArcsecToRad;
-  const double roll = median(st.sigma_roll_arcsec, options.st_sigma_roll_arcsec) * kArcsecToRad;
-  AdmSensor tracker{1, "AST_1", {cross, cross, roll}, MedianRateHz(st.t_s)};
-  AdmSensor gyros{2, "GYRO", {}, MedianRateHz(gyro.t_s)};
-  if (gyros.rate_hz > 0) {
-    const double angle = SigmaVRadS05(r.noise.value("arw_deg_per_sqrt_h", 0.0)) / std::sqrt(gyros.rate_hz);
-    gyros.noise_sigma_rad = {angle, angle, angle};
-  }
-  return {tracker, gyros};
+  return {StarTrackerSensor(1, 1, median(st.sigma_cross_arcsec, options.st_sigma_cross_arcsec),
+                            median(st.sigma_roll_arcsec, options.st_sigma_roll_arcsec), MedianRateHz(st.t_s)),
+          GyroSensor(2, r.noise.value("arw_deg_per_sqrt_h", 0.0), MedianRateHz(gyro.t_s))};
 }
 
 void Run(Opts o) {

@@ -7,6 +7,17 @@ namespace ssiu {
 double SigmaVRadS05(double arw_deg_per_sqrt_h) { return arw_deg_per_sqrt_h / 60.0 * kDegToRad; }
 double SigmaURadS15(double bias_walk_dph_per_sqrt_h) { return bias_walk_dph_per_sqrt_h / 3600.0 / 60.0 * kDegToRad; }
 
+AdmSensor StarTrackerSensor(int number, int head, double sigma_cross_arcsec, double sigma_roll_arcsec, double rate_hz) {
+  const double c = sigma_cross_arcsec * kArcsecToRad, r = sigma_roll_arcsec * kArcsecToRad;
+  return {number, "AST_" + std::to_string(head), {c, c, r}, rate_hz};
+}
+
+AdmSensor GyroSensor(int number, double arw_deg_per_sqrt_h, double rate_hz) {
+  AdmSensor s{number, "GYRO", {}, rate_hz};
+  if (rate_hz > 0) s.noise_sigma_rad.assign(3, SigmaVRadS05(arw_deg_per_sqrt_h) / std::sqrt(rate_hz));
+  return s;
+}
+
 double MedianRateHz(const std::vector<double>& t_s) {
   if (t_s.size() < 2) return 0.0;
   std::vector<double> dt(t_s.size() - 1);

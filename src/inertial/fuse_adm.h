@@ -23,6 +23,12 @@ double SigmaURadS15(double bias_walk_dph_per_sqrt_h);
 AttitudeHistory FusedAttitudeHistory(const std::vector<FusedSample>& samples, const std::string& epoch_utc,
                                      const Json& noise, const std::vector<AdmSensor>& sensors);
 
+// The AD section's sensors: star-tracker head `head` (1-based, AST_<head>) with its 1-sigma noise
+// about x, y (cross-boresight) and z (roll); the gyros with the angle noise of one sample,
+// SIGMA_V sqrt(1 / rate). Rates in Hz (0 = not stated).
+AdmSensor StarTrackerSensor(int number, int head, double sigma_cross_arcsec, double sigma_roll_arcsec, double rate_hz);
+AdmSensor GyroSensor(int number, double arw_deg_per_sqrt_h, double rate_hz);
+
 // Median sample rate (Hz) of a time column; 0 with fewer than two samples.
 double MedianRateHz(const std::vector<double>& t_s);
 

@@ -1,5 +1,6 @@
 // The `ssiu` program with CCSDS attitude messages: `fuse --st` from an ACM/AEM equals the CSV run, and
 // `--aem/--acm` outputs read back to what the run printed, valid against the official schemas.
+#include <fitsio.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -10,6 +11,7 @@
 #include "ccsds/adm.h"
 #include "core/attitude.h"
 #include "core/csv.h"
+#include "core/image.h"
 #include "core/json.h"
 #include "testing/testing.h"
 
@@ -154,6 +156,103 @@ TEST(AdmCli, BadMessageIsOneLineNamingFileLineKeyword) {
   EXPECT_EQ(r.status, 1);
   EXPECT_THAT(r.output, ::testing::MatchesRegex(".*bad\\.acm:[0-9]+: NUMBER_STATEZ: not an ATT keyword\n"));
   EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+}
+
+// `ssiu run` on a tiny mission: the ACM's attitudes are the simulated truth within their covariance.
+TEST(AdmCli, RunWritesTheFusedAttitudeAgainstTheTruth) {
+  const std::string d = testing::TempDir("adm_cli_run");
+  std::ofstream(d + "/ssiu.json")
+      << R"({"seed": 2, "duration_s": 12, "frame_rate_hz": 0.5, "score_after_s": 4, "start_utc": "2025-03-01T12:00:00Z",)"
+      << R"("heads": [{"camera": {"width": 384, "height": 384, "focal_length_px": 1316}, "q_body_sensor": [1, 0, 0, 0]}]})";
+  const testing::SsiuResult r = testing::RunSsiu("run --config " + d + "/ssiu.json --out " + d + "/out --acm " + d +
+                                                 "/run_acm.xml --aem " + d + "/run.aem");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const AttitudeHistory acm = ReadAdmFile(d + "/run_acm.xml");
+  const AttitudeHistory aem = ReadAdmFile(d + "/run.aem", "2025-03-01T12:00:00");
+  EXPECT_EQ(acm.epoch_utc, "2025-03-01T12:00:00.000000");
+  EXPECT_EQ(acm.basis, "SIMULATED");
+  ASSERT_GT(acm.states.size(), 100u);
+  ASSERT_EQ(aem.states.size(), acm.states.size());
+  const CsvTable truth = ReadCsv(d + "/out/attitude.csv");
+  ASSERT_EQ(truth.rows(), acm.states.size());
+  int within = 0;
+  for (size_t k = 0; k < truth.rows(); ++k) {
+    EXPECT_NEAR(acm.states[k].t_s, truth.Column("t_s")[k], 1e-6);
+    EXPECT_NEAR(aem.states[k].t_s, truth.Column("t_s")[k], 1e-6);
+    const Quat q_true = FromWxyz(truth.Column("true_qw")[k], truth.Column("true_qx")[k], truth.Column("true_qy")[k],
+                                 truth.Column("true_qz")[k]);
+    const Quat dq = q_true.conjugate() * acm.states[k].q_inertial_from_body;
+    const Vec3 e = 2 * dq.vec() * (dq.w() < 0 ? -1 : 1);
+    for (int i = 0; i < 3; ++i) within += std::abs(e[i]) <= 3 * std::sqrt(acm.covariances[k].diagonal[i]);
+  }
+  EXPECT_GT(within, 0.95 * 3 * truth.rows());
+  ASSERT_TRUE(acm.determination.has_value());
+  EXPECT_EQ(acm.determination->sensors.size(), 2u);  // one head and the gyros
+  EXPECT_EQ(acm.determination->sensors[0].used, "AST_1");
+  EXPECT_NEAR(acm.determination->sensors[0].rate_hz, 0.5, 1e-9);
+}
+
+// Frames with their own times: a batch `ssiu solve` of FITS frames (DATE-OBS) and `ssiu track` (--time,
+// --dt-s) write the solved attitudes at those times, each the simulated truth within its covariance.
+TEST(AdmCli, SolveAndTrackWriteTheSolutionsAtTheFrameTimes) {
+  const std::string d = testing::TempDir("adm_cli_solve");
+  std::ofstream(d + "/cam.json") << R"({"width": 384, "height": 384, "focal_length_px": 1316})";
+  testing::SsiuResult r = testing::RunSsiu("simulate frame --camera " + d + "/cam.json --ra-deg 80 --dec-deg 20 "
+                                           "--roll-deg 10 --seed 5 --count 3 --out " + d + "/f");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const char* dates[] = {"2030-01-05T03:00:05", "2030-01-05T03:00:00", "2030-01-05T03:00:02.5"};  // out of order
+  std::string fits_list;
+  for (int k = 0; k < 3; ++k) {
+    char name[64];
+    std::snprintf(name, sizeof name, "/f/frame_%04d", k);
+    const std::string fits = d + name + ".fits";
+    WriteFits16(fits, ReadFrame(d + name + ".png").image);
+    fitsfile* f = nullptr;
+    int status = 0;
+    std::string value = dates[k];
+    fits_open_file(&f, fits.c_str(), READWRITE, &status);
+    fits_update_key(f, TSTRING, "DATE-OBS", &value[0], "UTC", &status);
+    fits_close_file(f, &status);
+    ASSERT_EQ(status, 0);
+    fits_list += " " + fits;
+  }
+  const Json truth = ReadJsonFile(d + "/f/frame_0000.json");
+  const Quat q_true = FromWxyz(truth["q"][0], truth["q"][1], truth["q"][2], truth["q"][3]);
+  auto check = [&](const AttitudeHistory& h, const std::vector<double>& t_s) {
+    ASSERT_EQ(h.states.size(), t_s.size());
+    EXPECT_EQ(h.body_frame, "AST_1");
+    ASSERT_TRUE(h.determination.has_value());
+    EXPECT_EQ(h.determination->method, "QUEST");
+    for (size_t k = 0; k < t_s.size(); ++k) {
+      EXPECT_NEAR(h.states[k].t_s, t_s[k], 1e-6);
+      const Quat dq = q_true.conjugate() * h.states[k].q_inertial_from_body;
+      const Vec3 e = 2 * dq.vec() * (dq.w() < 0 ? -1 : 1);  // sensor axes
+      for (int i = 0; i < 3; ++i) EXPECT_LT(std::abs(e[i]), 4 * std::sqrt(h.covariances[k].diagonal[i])) << k << " " << i;
+    }
+  };
+  const std::string common = " --camera " + d + "/cam.json --catalog " + d + "/cat ";
+  r = testing::RunSsiu("solve" + fits_list + common + "--jsonl " + d + "/s.jsonl --acm " + d + "/s.acm --aem " + d +
+                       "/s_aem.xml");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const AttitudeHistory s = ReadAdmFile(d + "/s.acm");
+  EXPECT_EQ(s.epoch_utc, "2030-01-05T03:00:00.000000");
+  check(s, {0.0, 2.5, 5.0});
+  EXPECT_NEAR(s.determination->sensors[0].rate_hz, 0.4, 1e-9);  // median interval 2.5 s
+  EXPECT_EQ(ReadAdmFile(d + "/s_aem.xml").states.size(), 3u);
+  // One time for every frame is not a history: refused, naming the flag.
+  r = testing::RunSsiu("solve" + fits_list + common + "--time 2030-01-05T03:00:00Z --jsonl " + d + "/t.jsonl --acm " +
+                       d + "/t.acm");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_THAT(r.output, HasSubstr("--aem/--acm: two solved frames at the same time"));
+  // track: the first frame's time and the interval.
+  r = testing::RunSsiu("track " + d + "/f/frame_0000.png " + d + "/f/frame_0001.png " + d + "/f/frame_0002.png" +
+                       common + "--time 2030-01-05T03:00:00Z --dt-s 0.5 --json " + d + "/tr.json --acm " + d + "/tr.acm");
+  ASSERT_EQ(r.status, 0) << r.output;
+  check(ReadAdmFile(d + "/tr.acm"), {0.0, 0.5, 1.0});
+  // Without a time there is no history to write: one line naming the flags.
+  r = testing::RunSsiu("track " + d + "/f/frame_0000.png" + common + "--json " + d + "/tr2.json --aem " + d + "/tr2.aem");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_THAT(r.output, HasSubstr("--aem/--acm: a solved frame has no time"));
 }
 
 }  // namespace
