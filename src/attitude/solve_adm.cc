@@ -26,7 +26,8 @@ AttitudeHistory SolvedAttitudeHistory(std::vector<TimedAttitude> solutions, cons
                   solutions.end());
   if (solutions.empty()) throw InputError(where, "no solved frame: no attitude history to write");
   for (const TimedAttitude& s : solutions)
-    if (!s.time.valid()) throw InputError(where, "a solved frame has no time (give --time, or FITS frames with DATE-OBS)");
+    if (!s.time.valid())
+      throw InputError(where, "a solved frame has no time (give --time, or FITS frames with DATE-OBS)");
   std::sort(solutions.begin(), solutions.end(),
             [](const TimedAttitude& a, const TimedAttitude& b) { return SecondsBetween(b.time, a.time) < 0; });
   AttitudeHistory h;

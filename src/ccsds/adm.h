@@ -64,12 +64,12 @@ struct AttitudeHistory {
   std::string epoch_utc;             // ISO 8601 UTC of t_s = 0 (required to write)
   std::string object_name = "SSIU";  // OBJECT_NAME
   std::string object_id = "UNKNOWN";
-  std::string inertial_frame = "ICRF";  // REF_FRAME_A as written (ICRF, EME2000, ...)
-  std::string body_frame = "SC_BODY_1"; // REF_FRAME_B (SC_BODY_1, AST_1, ...)
-  std::string basis;                    // ATT_BASIS / COV_BASIS (DETERMINED_GND, SIMULATED); "" = none
+  std::string inertial_frame = "ICRF";   // REF_FRAME_A as written (ICRF, EME2000, ...)
+  std::string body_frame = "SC_BODY_1";  // REF_FRAME_B (SC_BODY_1, AST_1, ...)
+  std::string basis;                     // ATT_BASIS / COV_BASIS (DETERMINED_GND, SIMULATED); "" = none
   std::vector<std::string> comments;
-  std::vector<AdmState> states;        // time order
-  std::string cov_type;                // "", "ANGLE" or "ANGLE_GYROBIAS"
+  std::vector<AdmState> states;  // time order
+  std::string cov_type;          // "", "ANGLE" or "ANGLE_GYROBIAS"
   std::vector<AdmCovariance> covariances;
   std::optional<AdmDetermination> determination;
   // When read: the message type, its version ("1.0", "2.0") and the time system it stated.

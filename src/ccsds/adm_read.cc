@@ -35,7 +35,8 @@ std::string Upper(std::string s) {
   return s;
 }
 bool IsKeyword(const std::string& s) {
-  return !s.empty() && std::all_of(s.begin(), s.end(), [](unsigned char c) { return std::isupper(c) || std::isdigit(c) || c == '_'; });
+  return !s.empty() && std::all_of(s.begin(), s.end(),
+                                   [](unsigned char c) { return std::isupper(c) || std::isdigit(c) || c == '_'; });
 }
 
 // KVN (sec. 6.4): `KEY = value [units]`, `COMMENT text`, `BLOCK_START`/`BLOCK_STOP`, data lines.
@@ -113,10 +114,14 @@ class XmlReader {
   void SkipMisc() {  // declarations, comments, processing instructions, DOCTYPE, blanks
     for (;;) {
       SkipSpace();
-      if (At("<?")) SkipTo("?>");
-      else if (At("<!--")) SkipTo("-->");
-      else if (At("<!")) SkipTo(">");
-      else return;
+      if (At("<?"))
+        SkipTo("?>");
+      else if (At("<!--"))
+        SkipTo("-->");
+      else if (At("<!"))
+        SkipTo(">");
+      else
+        return;
     }
   }
   std::string Name() {
@@ -138,12 +143,18 @@ class XmlReader {
       }
       const size_t e = t.find(';', i);
       const std::string ent = e == std::string::npos ? "" : t.substr(i + 1, e - i - 1);
-      if (ent == "amp") r += '&';
-      else if (ent == "lt") r += '<';
-      else if (ent == "gt") r += '>';
-      else if (ent == "quot") r += '"';
-      else if (ent == "apos") r += '\'';
-      else Fail("unknown entity &" + ent + ";");
+      if (ent == "amp")
+        r += '&';
+      else if (ent == "lt")
+        r += '<';
+      else if (ent == "gt")
+        r += '>';
+      else if (ent == "quot")
+        r += '"';
+      else if (ent == "apos")
+        r += '\'';
+      else
+        Fail("unknown entity &" + ent + ";");
       i = e;
     }
     return r;
@@ -235,16 +246,18 @@ void EmitMessage(const Element& root, const std::string& file, std::vector<Item>
                      "CCSDS_" + kind + "_VERS: XML version " + v->second +
                          " is not read (ADM 2.0 XML is; an ADM 1.0 message is read in KVN)");
   static const std::map<std::string, std::string> blocks = {
-      {"metadata", "META"}, {"att", "ATT"}, {"cov", "COV"}, {"ad", "AD"},    {"phys", "PHYS"},
+      {"metadata", "META"}, {"att", "ATT"},   {"cov", "COV"},           {"ad", "AD"},    {"phys", "PHYS"},
       {"man", "MAN"},       {"user", "USER"}, {"sensorData", "SENSOR"}, {"data", "DATA"}};
   for (const auto& part : root.children) {
     if (part->name == "header") {
       EmitKeys(*part, items);
       continue;
     }
-    if (part->name != "body") throw InputError(file + ":" + std::to_string(part->line), "XML: unexpected <" + part->name + ">");
+    if (part->name != "body")
+      throw InputError(file + ":" + std::to_string(part->line), "XML: unexpected <" + part->name + ">");
     for (const auto& seg : part->children) {
-      if (seg->name != "segment") throw InputError(file + ":" + std::to_string(seg->line), "XML: unexpected <" + seg->name + ">");
+      if (seg->name != "segment")
+        throw InputError(file + ":" + std::to_string(seg->line), "XML: unexpected <" + seg->name + ">");
       for (const auto& sec : seg->children) {
         if (sec->name == "metadata") {
           items->push_back({Kind::kStart, "META", "", sec->line});
@@ -309,7 +322,8 @@ std::vector<Item> LexXml(const std::string& text, const std::string& file) {
         EmitMessage(*c, file, &items);
         return items;
       }
-    throw InputError(file + ":" + std::to_string(root->line), "ndm: holds no AEM or ACM (ssiu reads attitude histories)");
+    throw InputError(file + ":" + std::to_string(root->line),
+                     "ndm: holds no AEM or ACM (ssiu reads attitude histories)");
   }
   throw InputError(file + ":" + std::to_string(root->line),
                    "<" + root->name + ">: not an AEM or ACM (ssiu reads attitude histories)");
@@ -334,12 +348,16 @@ class Parser {
     }
     h_.message = first.key == "CCSDS_AEM_VERS" ? AdmMessage::kAem : AdmMessage::kAcm;
     h_.version = first.value;
-    if (h_.version != "1.0" && h_.version != "2.0") Fail(first, first.key, "version '" + first.value + "' (1.0 or 2.0 are read)");
-    if (h_.message == AdmMessage::kAcm && h_.version != "2.0") Fail(first, first.key, "the ACM exists only as version 2.0");
+    if (h_.version != "1.0" && h_.version != "2.0")
+      Fail(first, first.key, "version '" + first.value + "' (1.0 or 2.0 are read)");
+    if (h_.message == AdmMessage::kAcm && h_.version != "2.0")
+      Fail(first, first.key, "the ACM exists only as version 2.0");
     pos_ = 1;
     Header();
-    if (h_.message == AdmMessage::kAem) Aem();
-    else Acm();
+    if (h_.message == AdmMessage::kAem)
+      Aem();
+    else
+      Acm();
     h_.epoch_utc = epoch_;
     return std::move(h_);
   }
@@ -374,7 +392,8 @@ class Parser {
 
   void Header() {
     std::set<std::string> seen;
-    static const std::set<std::string> known = {"COMMENT", "CLASSIFICATION", "CREATION_DATE", "ORIGINATOR", "MESSAGE_ID"};
+    static const std::set<std::string> known = {"COMMENT", "CLASSIFICATION", "CREATION_DATE", "ORIGINATOR",
+                                                "MESSAGE_ID"};
     while (!Done() && Cur().kind != Kind::kStart) {
       const Item& it = Cur();
       if (it.kind != Kind::kKey) Fail(it, "header", "unexpected line '" + it.value + "'");
@@ -407,8 +426,9 @@ class Parser {
       }
       if (it.kind == Kind::kStart) {
         if (it.key == "SENSOR" && sensors) {
-          sensors->push_back(Block("SENSOR", {"COMMENT", "SENSOR_NUMBER", "SENSOR_USED", "NUMBER_SENSOR_NOISE_COVARIANCE",
-                                              "SENSOR_NOISE_STDDEV", "SENSOR_FREQUENCY"}));
+          sensors->push_back(
+              Block("SENSOR", {"COMMENT", "SENSOR_NUMBER", "SENSOR_USED", "NUMBER_SENSOR_NOISE_COVARIANCE",
+                               "SENSOR_NOISE_STDDEV", "SENSOR_FREQUENCY"}));
           continue;
         }
         if (known.empty()) {  // a section ssiu does not read: nested blocks too
@@ -427,7 +447,8 @@ class Parser {
         continue;
       }
       if (data && !data->empty() && it.key != "COMMENT") Fail(it, it.key, "keyword among the data lines");
-      if (!known.empty() && !known.count(it.key)) Fail(it, it.key, "not " + std::string(name == "ATT" || name == "AD" ? "an " : "a ") + name + " keyword");
+      if (!known.empty() && !known.count(it.key))
+        Fail(it, it.key, "not " + std::string(name == "ATT" || name == "AD" ? "an " : "a ") + name + " keyword");
       if (it.key != "COMMENT") {
         if (kv.count(it.key)) Fail(it, it.key, "given twice");
         kv[it.key] = &it;
@@ -450,17 +471,20 @@ class Parser {
   // Which of REF_FRAME_A/B is inertial: +1 A inertial (the quaternion is inertial -> body as ssiu's),
   // -1 B inertial (the inverse).
   int Direction(const Item& a, const Item& b) {
-    static const std::set<std::string> inertial = {"ICRF", "ICRF1", "ICRF2", "ICRF3", "EME2000", "J2000", "GCRF", "MCI", "TOD", "MOD"};
+    static const std::set<std::string> inertial = {"ICRF",  "ICRF1", "ICRF2", "ICRF3", "EME2000",
+                                                   "J2000", "GCRF",  "MCI",   "TOD",   "MOD"};
     const bool ia = inertial.count(Upper(a.value)) > 0, ib = inertial.count(Upper(b.value)) > 0;
     if (ia == ib)
-      Fail(a, "REF_FRAME_A", "'" + a.value + "' to '" + b.value +
-                                 "': ssiu reads attitudes between an inertial frame (ICRF, EME2000, J2000, GCRF) and a body frame");
+      Fail(a, "REF_FRAME_A",
+           "'" + a.value + "' to '" + b.value +
+               "': ssiu reads attitudes between an inertial frame (ICRF, EME2000, J2000, GCRF) and a body frame");
     if (h_.states.empty() || frames_set_ == false) {
       h_.inertial_frame = ia ? a.value : b.value;
       h_.body_frame = ia ? b.value : a.value;
       frames_set_ = true;
     } else if ((ia ? b.value : a.value) != h_.body_frame) {
-      Fail(a, "REF_FRAME_B", "a second body frame '" + (ia ? b.value : a.value) + "' (the first was " + h_.body_frame + ")");
+      Fail(a, "REF_FRAME_B",
+           "a second body frame '" + (ia ? b.value : a.value) + "' (the first was " + h_.body_frame + ")");
     }
     return ia ? 1 : -1;
   }
@@ -489,10 +513,11 @@ class Parser {
 
   void Aem() {
     static const std::set<std::string> meta_keys = {
-        "COMMENT",     "OBJECT_NAME",        "OBJECT_ID",         "CENTER_NAME",   "REF_FRAME_A",   "REF_FRAME_B",
-        "ATTITUDE_DIR", "TIME_SYSTEM",       "START_TIME",        "USEABLE_START_TIME", "USEABLE_STOP_TIME",
-        "STOP_TIME",   "ATTITUDE_TYPE",      "QUATERNION_TYPE",   "EULER_ROT_SEQ", "RATE_FRAME",    "ANGVEL_FRAME",
-        "INTERPOLATION_METHOD", "INTERPOLATION_DEGREE"};
+        "COMMENT",       "OBJECT_NAME",          "OBJECT_ID",           "CENTER_NAME",
+        "REF_FRAME_A",   "REF_FRAME_B",          "ATTITUDE_DIR",        "TIME_SYSTEM",
+        "START_TIME",    "USEABLE_START_TIME",   "USEABLE_STOP_TIME",   "STOP_TIME",
+        "ATTITUDE_TYPE", "QUATERNION_TYPE",      "EULER_ROT_SEQ",       "RATE_FRAME",
+        "ANGVEL_FRAME",  "INTERPOLATION_METHOD", "INTERPOLATION_DEGREE"};
     int segments = 0;
     while (!Done()) {
       const Item& start = Cur();
@@ -522,13 +547,17 @@ class Parser {
       bool scalar_first = false;
       if (v1) {  // ADM 1.0 (504.0-B-1): QUATERNION_TYPE FIRST/LAST and ATTITUDE_DIR A2B/B2A
         const Item& qt = *Need(kv, "QUATERNION_TYPE", start);
-        if (Upper(qt.value) != "FIRST" && Upper(qt.value) != "LAST") Fail(qt, "QUATERNION_TYPE", "'" + qt.value + "' (FIRST or LAST)");
+        if (Upper(qt.value) != "FIRST" && Upper(qt.value) != "LAST")
+          Fail(qt, "QUATERNION_TYPE", "'" + qt.value + "' (FIRST or LAST)");
         scalar_first = Upper(qt.value) == "FIRST";
         const Item& ad = *Need(kv, "ATTITUDE_DIR", start);
-        if (Upper(ad.value) != "A2B" && Upper(ad.value) != "B2A") Fail(ad, "ATTITUDE_DIR", "'" + ad.value + "' (A2B or B2A)");
+        if (Upper(ad.value) != "A2B" && Upper(ad.value) != "B2A")
+          Fail(ad, "ATTITUDE_DIR", "'" + ad.value + "' (A2B or B2A)");
         if (Upper(ad.value) == "B2A") dir = -dir;
-        if (kv.count("EULER_ROT_SEQ")) Fail(*kv.at("EULER_ROT_SEQ"), "EULER_ROT_SEQ", "given for a quaternion attitude");
-        if (kv.count("RATE_FRAME") && type == "QUATERNION") Fail(*kv.at("RATE_FRAME"), "RATE_FRAME", "given without rates");
+        if (kv.count("EULER_ROT_SEQ"))
+          Fail(*kv.at("EULER_ROT_SEQ"), "EULER_ROT_SEQ", "given for a quaternion attitude");
+        if (kv.count("RATE_FRAME") && type == "QUATERNION")
+          Fail(*kv.at("RATE_FRAME"), "RATE_FRAME", "given without rates");
       } else if (kv.count("QUATERNION_TYPE") || kv.count("ATTITUDE_DIR")) {
         const Item& x = *kv.at(kv.count("QUATERNION_TYPE") ? "QUATERNION_TYPE" : "ATTITUDE_DIR");
         Fail(x, x.key, "an ADM 1.0 keyword in a version 2.0 message");
@@ -540,11 +569,13 @@ class Parser {
         if (Upper(f) == "REF_FRAME_A") f = kv.at("REF_FRAME_A")->value;
         if (Upper(f) == "REF_FRAME_B") f = kv.at("REF_FRAME_B")->value;
         if (f != h_.body_frame && f != h_.inertial_frame)
-          Fail(*kv.at("ANGVEL_FRAME"), "ANGVEL_FRAME", "'" + f + "' is neither " + h_.body_frame + " nor " + h_.inertial_frame);
+          Fail(*kv.at("ANGVEL_FRAME"), "ANGVEL_FRAME",
+               "'" + f + "' is neither " + h_.body_frame + " nor " + h_.inertial_frame);
         rate_in_inertial = f == h_.inertial_frame;
       }
       if (Done() || Cur().kind != Kind::kStart || Cur().key != "DATA")
-        Done() ? FailEnd("DATA_START", "missing after META_STOP") : Fail(Cur(), "DATA_START", "missing after META_STOP");
+        Done() ? FailEnd("DATA_START", "missing after META_STOP")
+               : Fail(Cur(), "DATA_START", "missing after META_STOP");
       std::vector<const Item*> data;
       Block("DATA", {"COMMENT"}, &data);
       const size_t first_of_segment = h_.states.size();
@@ -556,8 +587,9 @@ class Parser {
         std::getline(is, rest);
         const std::vector<double> v = Numbers(*d, "DATA", rest);
         if (v.size() != static_cast<size_t>(4 + n_rate))
-          Fail(*d, "ATTITUDE_TYPE", type + " needs " + std::to_string(5 + n_rate) + " fields per line, found " +
-                                        std::to_string(v.size() + 1));
+          Fail(*d, "ATTITUDE_TYPE",
+               type + " needs " + std::to_string(5 + n_rate) + " fields per line, found " +
+                   std::to_string(v.size() + 1));
         AdmState s;
         s.t_s = Epoch(*d, "EPOCH", epoch);
         s.q_inertial_from_body = scalar_first ? ToQuat(*d, "DATA", v[1], v[2], v[3], v[0], dir)
@@ -569,7 +601,8 @@ class Parser {
           s.w_body_rad_s = dir > 0 ? w : Vec3(-w);
         }
         // Segments may share their boundary epoch (one ends where the next starts): kept once.
-        if (h_.states.size() == first_of_segment && first_of_segment > 0 && std::abs(s.t_s - h_.states.back().t_s) < 1e-9)
+        if (h_.states.size() == first_of_segment && first_of_segment > 0 &&
+            std::abs(s.t_s - h_.states.back().t_s) < 1e-9)
           continue;
         Add(*d, s);
       }
@@ -584,20 +617,35 @@ class Parser {
   }
 
   void Acm() {
-    static const std::set<std::string> meta_keys = {
-        "COMMENT",          "OBJECT_NAME",         "INTERNATIONAL_DESIGNATOR", "CATALOG_NAME",      "OBJECT_DESIGNATOR",
-        "ORIGINATOR_POC",   "ORIGINATOR_POSITION", "ORIGINATOR_PHONE",         "ORIGINATOR_EMAIL",  "ORIGINATOR_ADDRESS",
-        "ODM_MSG_LINK",     "CENTER_NAME",         "TIME_SYSTEM",              "EPOCH_TZERO",       "ACM_DATA_ELEMENTS",
-        "START_TIME",       "STOP_TIME",           "TAIMUTC_AT_TZERO",         "NEXT_LEAP_EPOCH",   "NEXT_LEAP_TAIMUTC"};
-    static const std::set<std::string> att_keys = {"COMMENT",     "ATT_ID",      "ATT_PREV_ID",   "ATT_BASIS",
-                                                   "ATT_BASIS_ID", "REF_FRAME_A", "REF_FRAME_B",   "NUMBER_STATES",
-                                                   "ATT_TYPE",    "EULER_ROT_SEQ", "RATE_TYPE"};
+    static const std::set<std::string> meta_keys = {"COMMENT",
+                                                    "OBJECT_NAME",
+                                                    "INTERNATIONAL_DESIGNATOR",
+                                                    "CATALOG_NAME",
+                                                    "OBJECT_DESIGNATOR",
+                                                    "ORIGINATOR_POC",
+                                                    "ORIGINATOR_POSITION",
+                                                    "ORIGINATOR_PHONE",
+                                                    "ORIGINATOR_EMAIL",
+                                                    "ORIGINATOR_ADDRESS",
+                                                    "ODM_MSG_LINK",
+                                                    "CENTER_NAME",
+                                                    "TIME_SYSTEM",
+                                                    "EPOCH_TZERO",
+                                                    "ACM_DATA_ELEMENTS",
+                                                    "START_TIME",
+                                                    "STOP_TIME",
+                                                    "TAIMUTC_AT_TZERO",
+                                                    "NEXT_LEAP_EPOCH",
+                                                    "NEXT_LEAP_TAIMUTC"};
+    static const std::set<std::string> att_keys = {"COMMENT",      "ATT_ID",        "ATT_PREV_ID", "ATT_BASIS",
+                                                   "ATT_BASIS_ID", "REF_FRAME_A",   "REF_FRAME_B", "NUMBER_STATES",
+                                                   "ATT_TYPE",     "EULER_ROT_SEQ", "RATE_TYPE"};
     static const std::set<std::string> cov_keys = {"COMMENT",      "COV_ID",        "COV_PREV_ID", "COV_BASIS",
                                                    "COV_BASIS_ID", "COV_REF_FRAME", "COV_TYPE"};
     static const std::set<std::string> ad_keys = {
-        "COMMENT",     "AD_ID",       "AD_PREV_ID",  "AD_METHOD", "ATTITUDE_SOURCE", "NUMBER_STATES", "ATTITUDE_STATES",
-        "EULER_ROT_SEQ", "COV_TYPE",  "REF_FRAME_A", "REF_FRAME_B", "RATE_STATES",   "SIGMA_U",       "SIGMA_V",
-        "RATE_PROCESS_NOISE_STDDEV"};
+        "COMMENT",       "AD_ID",           "AD_PREV_ID",    "AD_METHOD", "ATTITUDE_SOURCE",
+        "NUMBER_STATES", "ATTITUDE_STATES", "EULER_ROT_SEQ", "COV_TYPE",  "REF_FRAME_A",
+        "REF_FRAME_B",   "RATE_STATES",     "SIGMA_U",       "SIGMA_V",   "RATE_PROCESS_NOISE_STDDEV"};
     if (Done() || Cur().kind != Kind::kStart || Cur().key != "META")
       Done() ? FailEnd("META_START", "missing") : Fail(Cur(), "META_START", "expected after the header");
     const Item& meta_start = Cur();
@@ -660,10 +708,16 @@ class Parser {
     const double n_states = Number(ns, "NUMBER_STATES", ns.value);
     const std::string rate = Upper(Get(kv, "RATE_TYPE"));
     int expect = 4;
-    if (rate == "ANGVEL" || rate == "GYRO_BIAS" || rate == "EULER_RATE") expect = 7;
-    else if (rate == "Q_DOT") expect = 8;
-    else if (!rate.empty() && rate != "NONE") Fail(*kv.at("RATE_TYPE"), "RATE_TYPE", "'" + rate + "' is not an ACM rate type");
-    if (n_states != expect) Fail(ns, "NUMBER_STATES", ns.value + " for QUATERNION" + (rate.empty() ? "" : " and " + rate) + " (expected " + std::to_string(expect) + ")");
+    if (rate == "ANGVEL" || rate == "GYRO_BIAS" || rate == "EULER_RATE")
+      expect = 7;
+    else if (rate == "Q_DOT")
+      expect = 8;
+    else if (!rate.empty() && rate != "NONE")
+      Fail(*kv.at("RATE_TYPE"), "RATE_TYPE", "'" + rate + "' is not an ACM rate type");
+    if (n_states != expect)
+      Fail(ns, "NUMBER_STATES",
+           ns.value + " for QUATERNION" + (rate.empty() ? "" : " and " + rate) + " (expected " +
+               std::to_string(expect) + ")");
     if (kv.count("ATT_BASIS")) h_.basis = kv.at("ATT_BASIS")->value;
     if (data.empty()) Fail(start, "ATT_START", "no data lines");
     for (const Item* d : data) {
@@ -696,8 +750,9 @@ class Parser {
                double t0) {
     const Item& ct = *kv.at("COV_TYPE");
     const std::string type = Upper(ct.value);
-    static const std::map<std::string, int> sizes = {{"ANGLE", 3}, {"ANGLE_GYROBIAS", 6}, {"ANGLE_ANGVEL", 6},
-                                                     {"QUATERNION", 4}, {"QUATERNION_GYROBIAS", 7}, {"QUATERNION_ANGVEL", 7}};
+    static const std::map<std::string, int> sizes = {
+        {"ANGLE", 3},      {"ANGLE_GYROBIAS", 6},      {"ANGLE_ANGVEL", 6},
+        {"QUATERNION", 4}, {"QUATERNION_GYROBIAS", 7}, {"QUATERNION_ANGVEL", 7}};
     const auto n = sizes.find(type);
     if (n == sizes.end()) Fail(ct, "COV_TYPE", "'" + ct.value + "' is not an ACM covariance type");
     if (data.empty()) Fail(start, "COV_START", "no data lines");
@@ -705,7 +760,8 @@ class Parser {
     for (const Item* d : data) {
       const std::vector<double> v = Numbers(*d, "COV", d->value);
       if (v.size() != static_cast<size_t>(1 + n->second))
-        Fail(*d, "COV_TYPE", type + " needs " + std::to_string(n->second) + " values per line, found " + std::to_string(v.size() - 1));
+        Fail(*d, "COV_TYPE",
+             type + " needs " + std::to_string(n->second) + " values per line, found " + std::to_string(v.size() - 1));
       AdmCovariance c;
       c.t_s = t0 + v[0];
       for (size_t i = 1; i < v.size(); ++i) {
@@ -716,7 +772,8 @@ class Parser {
     }
     const std::string frame = Get(kv, "COV_REF_FRAME");
     // Kept: the first ANGLE or ANGLE_GYROBIAS block in the attitude's body frame (ssiu's covariance).
-    if ((type == "ANGLE" || type == "ANGLE_GYROBIAS") && h_.covariances.empty() && (frame.empty() || frame == h_.body_frame)) {
+    if ((type == "ANGLE" || type == "ANGLE_GYROBIAS") && h_.covariances.empty() &&
+        (frame.empty() || frame == h_.body_frame)) {
       h_.cov_type = type;
       h_.covariances = std::move(rows);
     }
@@ -730,8 +787,10 @@ class Parser {
     AdmDetermination d;
     d.method = Get(kv, "AD_METHOD");
     d.source = Get(kv, "ATTITUDE_SOURCE");
-    if (kv.count("SIGMA_U")) d.sigma_u_rad_s15 = Number(*kv.at("SIGMA_U"), "SIGMA_U", kv.at("SIGMA_U")->value) * kDegToRad;
-    if (kv.count("SIGMA_V")) d.sigma_v_rad_s05 = Number(*kv.at("SIGMA_V"), "SIGMA_V", kv.at("SIGMA_V")->value) * kDegToRad;
+    if (kv.count("SIGMA_U"))
+      d.sigma_u_rad_s15 = Number(*kv.at("SIGMA_U"), "SIGMA_U", kv.at("SIGMA_U")->value) * kDegToRad;
+    if (kv.count("SIGMA_V"))
+      d.sigma_v_rad_s05 = Number(*kv.at("SIGMA_V"), "SIGMA_V", kv.at("SIGMA_V")->value) * kDegToRad;
     std::set<int> numbers;
     for (const auto& s : sensors) {
       AdmSensor a;
@@ -746,8 +805,8 @@ class Parser {
         if (s.count("NUMBER_SENSOR_NOISE_COVARIANCE")) {
           const Item& nn = *s.at("NUMBER_SENSOR_NOISE_COVARIANCE");
           if (Number(nn, nn.key, nn.value) != static_cast<double>(a.noise_sigma_rad.size()))
-            Fail(ns, "SENSOR_NOISE_STDDEV", std::to_string(a.noise_sigma_rad.size()) +
-                                                " values, NUMBER_SENSOR_NOISE_COVARIANCE is " + nn.value);
+            Fail(ns, "SENSOR_NOISE_STDDEV",
+                 std::to_string(a.noise_sigma_rad.size()) + " values, NUMBER_SENSOR_NOISE_COVARIANCE is " + nn.value);
         }
       }
       if (s.count("SENSOR_FREQUENCY")) {

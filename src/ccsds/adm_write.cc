@@ -47,10 +47,14 @@ std::string NowUtc() {
 std::string XmlEscape(const std::string& s) {
   std::string r;
   for (char c : s) {
-    if (c == '&') r += "&amp;";
-    else if (c == '<') r += "&lt;";
-    else if (c == '>') r += "&gt;";
-    else r += c;
+    if (c == '&')
+      r += "&amp;";
+    else if (c == '<')
+      r += "&lt;";
+    else if (c == '>')
+      r += "&gt;";
+    else
+      r += c;
   }
   return r;
 }
@@ -72,8 +76,10 @@ class Out {
     }
   }
   void Comment(const std::string& text) {
-    if (xml_) Kv("COMMENT", text);
-    else os_ << "COMMENT " << text << "\n";
+    if (xml_)
+      Kv("COMMENT", text);
+    else
+      os_ << "COMMENT " << text << "\n";
   }
   // kvn: "META" -> META_START; xml: "metadata".
   void Open(const std::string& kvn, const std::string& xml) {
@@ -91,8 +97,10 @@ class Out {
     }
   }
   void Line(const std::string& xml_tag, const std::string& text) {
-    if (xml_) os_ << Indent() << "<" << xml_tag << ">" << text << "</" << xml_tag << ">\n";
-    else os_ << text << "\n";
+    if (xml_)
+      os_ << Indent() << "<" << xml_tag << ">" << text << "</" << xml_tag << ">\n";
+    else
+      os_ << text << "\n";
   }
   void Raw(const std::string& s) { os_ << s; }
   void Blank() {
@@ -113,10 +121,12 @@ void CheckWritable(const AttitudeHistory& h) {
   if (h.epoch_utc.empty()) throw InputError(where, "no epoch (UTC of t_s = 0): cannot write a CCSDS ADM");
   if (h.states.empty()) throw InputError(where, "no attitude to write");
   for (size_t k = 1; k < h.states.size(); ++k)
-    if (!(h.states[k].t_s > h.states[k - 1].t_s)) throw InputError(where, "times do not increase at state " + std::to_string(k + 1));
+    if (!(h.states[k].t_s > h.states[k - 1].t_s))
+      throw InputError(where, "times do not increase at state " + std::to_string(k + 1));
   for (const AdmCovariance& c : h.covariances) {
     const size_t n = h.cov_type == "ANGLE" ? 3 : 6;
-    if (c.diagonal.size() != n) throw InputError(where, "covariance of " + h.cov_type + " needs " + std::to_string(n) + " values");
+    if (c.diagonal.size() != n)
+      throw InputError(where, "covariance of " + h.cov_type + " needs " + std::to_string(n) + " values");
   }
 }
 
@@ -293,7 +303,8 @@ std::string FormatAcm(const AttitudeHistory& h, bool xml, const std::string& cre
 }  // namespace
 
 bool AttitudeHistory::has_rates() const {
-  return !states.empty() && std::all_of(states.begin(), states.end(), [](const AdmState& s) { return s.w_body_rad_s.has_value(); });
+  return !states.empty() &&
+         std::all_of(states.begin(), states.end(), [](const AdmState& s) { return s.w_body_rad_s.has_value(); });
 }
 bool AttitudeHistory::has_bias() const {
   return !states.empty() &&

@@ -3,8 +3,9 @@
 namespace ssiu::cli {
 
 void AddAdmFlags(CLI::App* cmd, AdmFlags* f, const std::string& what) {
-  cmd->add_option("--aem", f->aem,
-                  "CCSDS attitude ephemeris message (ADM 2.0 AEM) of " + what + "; KVN, XML when the name ends in .xml");
+  cmd->add_option(
+      "--aem", f->aem,
+      "CCSDS attitude ephemeris message (ADM 2.0 AEM) of " + what + "; KVN, XML when the name ends in .xml");
   cmd->add_option("--acm", f->acm,
                   "CCSDS attitude comprehensive message (ADM 2.0 ACM) of " + what +
                       ": attitude, covariance, determination; KVN, XML when the name ends in .xml");

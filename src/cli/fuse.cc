@@ -70,7 +70,8 @@ void Run(Opts o) {
   if (!o.noise.empty()) r.noise["noise_file"] = o.noise;
   if (!o.json.empty()) WriteJsonFile(o.json, r.ToJson());
   if (!o.out.empty()) WriteFusedAttitude(o.out, r);
-  if (o.adm.given()) WriteAdmOutputs(o.adm, FusedAttitudeHistory(r.samples, epoch_utc, r.noise, FuseSensors(st, log, r, o.fuse)));
+  if (o.adm.given())
+    WriteAdmOutputs(o.adm, FusedAttitudeHistory(r.samples, epoch_utc, r.noise, FuseSensors(st, log, r, o.fuse)));
   std::cerr << "fuse: noise (" << noise_source << "): ARW " << r.noise.value("arw_deg_per_sqrt_h", 0.0)
             << " deg/sqrt(h), bias instability " << r.noise.value("bias_instability_dph", 0.0) << " deg/h, RRW "
             << r.noise.value("rrw_dph_per_sqrt_h", 0.0) << " deg/h/sqrt(h) -> bias walk "

@@ -55,8 +55,8 @@ void WriteFlightFiles(const ssiu::MissionConfig& config, const std::string& dir)
   const std::string meta_path = dir + "/catalog/meta.json";
   const ssiu::Json meta = ssiu::ReadJsonFile(meta_path);
   const ssiu::MissionConfig known = ssiu::WithUnitKnowledge(config);  // as RunMission's processor has it
-  ssiu_flight_config c = ssiu::FlightConfigFor(known.heads, known.unit, known.processor, known.start_utc,
-                                               known.velocity_kms);
+  ssiu_flight_config c =
+      ssiu::FlightConfigFor(known.heads, known.unit, known.processor, known.start_utc, known.velocity_kms);
   c.catalog_crc32 = static_cast<uint32_t>(ssiu::JsonInt(meta, "catalog_bin_crc32", 1, 0xffffffffLL, meta_path));
   ssiu::WriteFileAtomic(dir + "/flight.cfg", ssiu::FlightConfigText(c));
 }
@@ -92,9 +92,8 @@ SSIU_REGISTER_COMMAND(run, [](CLI::App& root) {
                 config.heads.size(), config.frame_rate_hz, config.unit.size(), config.unit.rate_hz,
                 static_cast<unsigned long long>(config.seed));
     std::fflush(stdout);
-    const ssiu::MissionResult r =
-        ssiu::RunMission(config, ssiu::LoadXplanetBsc(ssiu::DefaultBscPath()), opts->out, opts->write_frames,
-                         opts->adm.given());
+    const ssiu::MissionResult r = ssiu::RunMission(config, ssiu::LoadXplanetBsc(ssiu::DefaultBscPath()), opts->out,
+                                                   opts->write_frames, opts->adm.given());
     if (opts->adm.given()) ssiu::cli::WriteAdmOutputs(opts->adm, RunHistory(config, r));
     if (opts->write_frames) WriteFlightFiles(config, opts->out);
     std::fputs(r.Text().c_str(), stdout);

@@ -301,9 +301,10 @@ void RunHeads(const Opts& o) {
 SSIU_REGISTER_COMMAND(solve, [](CLI::App& root) {
   auto* cmd = root.add_subcommand("solve", "Lost-in-space attitude from a star frame (or centroids)");
   auto o = std::make_shared<Opts>();
-  cmd->add_option("frames", o->frames,
-                  "Frames (PNG/TIFF/FITS/JPEG/BMP) or centroid lists (*.csv); more than one is a batch; with --heads one "
-                  "frame per head");
+  cmd->add_option(
+      "frames", o->frames,
+      "Frames (PNG/TIFF/FITS/JPEG/BMP) or centroid lists (*.csv); more than one is a batch; with --heads one "
+      "frame per head");
   cmd->add_option("--camera", o->camera, "camera.json");
   cmd->add_option("--catalog", o->catalog, "Solver catalog directory (built there if absent; default: cache)");
   cmd->add_option("--centroids", o->centroids,
@@ -347,7 +348,8 @@ SSIU_REGISTER_COMMAND(solve, [](CLI::App& root) {
       if (o->batch.given() || !o->centroids.empty()) {
         throw InputError("--heads", "takes one frame per head: not with --centroids, --list, --jsonl or --csv");
       }
-      if (o->adm.given()) throw InputError(o->adm.aem.empty() ? "--acm" : "--aem", "not with --heads (one body attitude)");
+      if (o->adm.given())
+        throw InputError(o->adm.aem.empty() ? "--acm" : "--aem", "not with --heads (one body attitude)");
       RunHeads(*o);
       return;
     }

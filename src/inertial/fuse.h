@@ -28,7 +28,7 @@ struct GyroLog {
 // A star-tracker log: t_s,qw,qx,qy,qz (body -> inertial), optional sigma_cross_arcsec,sigma_roll_arcsec.
 struct StarTrackerLog {
   std::string file;
-  std::string epoch_utc;  // UTC of t_s = 0 when read from a CCSDS message, else 
+  std::string epoch_utc;  // UTC of t_s = 0 when read from a CCSDS message, else
   std::vector<double> t_s;
   std::vector<Quat> q_inertial_from_body;
   std::vector<double> sigma_cross_arcsec, sigma_roll_arcsec;  // empty when the columns are absent

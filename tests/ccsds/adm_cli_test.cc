@@ -70,7 +70,8 @@ void ExpectSameCsv(const std::string& a, const std::string& b) {
   ASSERT_EQ(x.size(), y.size());
   for (size_t i = 0; i < x.size(); ++i) {
     ASSERT_EQ(x[i].size(), y[i].size());
-    for (size_t k = 0; k < x[i].size(); ++k) EXPECT_NEAR(x[i][k], y[i][k], 1e-9 * (1 + std::abs(x[i][k]))) << i << "," << k;
+    for (size_t k = 0; k < x[i].size(); ++k)
+      EXPECT_NEAR(x[i][k], y[i][k], 1e-9 * (1 + std::abs(x[i][k]))) << i << "," << k;
   }
 }
 
@@ -104,7 +105,8 @@ TEST(AdmCli, FuseWritesAemAndAcmThatReadBackToTheRun) {
   testing::SsiuResult r = testing::RunSsiu(fuse + "--acm " + s.dir + "/x.acm");
   EXPECT_EQ(r.status, 1);
   EXPECT_THAT(r.output, HasSubstr("--epoch-utc"));
-  const std::string run = fuse + "--epoch-utc 2025-06-21T10:00:00Z --out " + s.dir + "/f.csv --json " + s.dir + "/f.json ";
+  const std::string run =
+      fuse + "--epoch-utc 2025-06-21T10:00:00Z --out " + s.dir + "/f.csv --json " + s.dir + "/f.json ";
   r = testing::RunSsiu(run + "--aem " + s.dir + "/f.aem --acm " + s.dir + "/f.acm");
   ASSERT_EQ(r.status, 0) << r.output;
   r = testing::RunSsiu(run + "--aem " + s.dir + "/f_aem.xml --acm " + s.dir + "/f_acm.xml");
@@ -134,7 +136,8 @@ TEST(AdmCli, FuseWritesAemAndAcmThatReadBackToTheRun) {
   ASSERT_TRUE(acm.determination.has_value());
   EXPECT_EQ(acm.determination->method, "EKF");
   const Json j = ReadJsonFile(s.dir + "/f.json");
-  EXPECT_NEAR(acm.determination->sigma_v_rad_s05, j["noise"]["arw_deg_per_sqrt_h"].get<double>() / 60 * kDegToRad, 1e-15);
+  EXPECT_NEAR(acm.determination->sigma_v_rad_s05, j["noise"]["arw_deg_per_sqrt_h"].get<double>() / 60 * kDegToRad,
+              1e-15);
   ASSERT_EQ(acm.determination->sensors.size(), 2u);
   EXPECT_NEAR(acm.determination->sensors[0].rate_hz, 1.0, 1e-9);   // the star tracker at 1 Hz
   EXPECT_NEAR(acm.determination->sensors[1].rate_hz, 10.0, 1e-6);  // the gyros at 10 Hz
@@ -142,9 +145,11 @@ TEST(AdmCli, FuseWritesAemAndAcmThatReadBackToTheRun) {
   // The XML validates against the official schemas (skipped without ../shared or xmllint).
   const std::string xsd = testing::SharedData("ccsds/xsd/ndmxml-4.0.0-master-4.0.xsd");
   std::string msg;
-  if (xsd.empty() || testing::Run("command -v xmllint", &msg) != 0) GTEST_SKIP() << "no ../shared schemas or no xmllint";
+  if (xsd.empty() || testing::Run("command -v xmllint", &msg) != 0)
+    GTEST_SKIP() << "no ../shared schemas or no xmllint";
   for (const std::string f : {"f_aem.xml", "f_acm.xml"})
-    EXPECT_EQ(testing::Run("xmllint --noout --nonet --schema '" + xsd + "' '" + s.dir + "/" + f + "' 2>&1", &msg), 0) << msg;
+    EXPECT_EQ(testing::Run("xmllint --noout --nonet --schema '" + xsd + "' '" + s.dir + "/" + f + "' 2>&1", &msg), 0)
+        << msg;
 }
 
 TEST(AdmCli, BadMessageIsOneLineNamingFileLineKeyword) {
@@ -197,8 +202,10 @@ TEST(AdmCli, RunWritesTheFusedAttitudeAgainstTheTruth) {
 TEST(AdmCli, SolveAndTrackWriteTheSolutionsAtTheFrameTimes) {
   const std::string d = testing::TempDir("adm_cli_solve");
   std::ofstream(d + "/cam.json") << R"({"width": 384, "height": 384, "focal_length_px": 1316})";
-  testing::SsiuResult r = testing::RunSsiu("simulate frame --camera " + d + "/cam.json --ra-deg 80 --dec-deg 20 "
-                                           "--roll-deg 10 --seed 5 --count 3 --out " + d + "/f");
+  testing::SsiuResult r = testing::RunSsiu("simulate frame --camera " + d +
+                                           "/cam.json --ra-deg 80 --dec-deg 20 "
+                                           "--roll-deg 10 --seed 5 --count 3 --out " +
+                                           d + "/f");
   ASSERT_EQ(r.status, 0) << r.output;
   const char* dates[] = {"2030-01-05T03:00:05", "2030-01-05T03:00:00", "2030-01-05T03:00:02.5"};  // out of order
   std::string fits_list;
@@ -227,7 +234,8 @@ TEST(AdmCli, SolveAndTrackWriteTheSolutionsAtTheFrameTimes) {
       EXPECT_NEAR(h.states[k].t_s, t_s[k], 1e-6);
       const Quat dq = q_true.conjugate() * h.states[k].q_inertial_from_body;
       const Vec3 e = 2 * dq.vec() * (dq.w() < 0 ? -1 : 1);  // sensor axes
-      for (int i = 0; i < 3; ++i) EXPECT_LT(std::abs(e[i]), 4 * std::sqrt(h.covariances[k].diagonal[i])) << k << " " << i;
+      for (int i = 0; i < 3; ++i)
+        EXPECT_LT(std::abs(e[i]), 4 * std::sqrt(h.covariances[k].diagonal[i])) << k << " " << i;
     }
   };
   const std::string common = " --camera " + d + "/cam.json --catalog " + d + "/cat ";
@@ -246,11 +254,13 @@ TEST(AdmCli, SolveAndTrackWriteTheSolutionsAtTheFrameTimes) {
   EXPECT_THAT(r.output, HasSubstr("--aem/--acm: two solved frames at the same time"));
   // track: the first frame's time and the interval.
   r = testing::RunSsiu("track " + d + "/f/frame_0000.png " + d + "/f/frame_0001.png " + d + "/f/frame_0002.png" +
-                       common + "--time 2030-01-05T03:00:00Z --dt-s 0.5 --json " + d + "/tr.json --acm " + d + "/tr.acm");
+                       common + "--time 2030-01-05T03:00:00Z --dt-s 0.5 --json " + d + "/tr.json --acm " + d +
+                       "/tr.acm");
   ASSERT_EQ(r.status, 0) << r.output;
   check(ReadAdmFile(d + "/tr.acm"), {0.0, 0.5, 1.0});
   // Without a time there is no history to write: one line naming the flags.
-  r = testing::RunSsiu("track " + d + "/f/frame_0000.png" + common + "--json " + d + "/tr2.json --aem " + d + "/tr2.aem");
+  r = testing::RunSsiu("track " + d + "/f/frame_0000.png" + common + "--json " + d + "/tr2.json --aem " + d +
+                       "/tr2.aem");
   EXPECT_EQ(r.status, 1);
   EXPECT_THAT(r.output, HasSubstr("--aem/--acm: a solved frame has no time"));
 }

@@ -124,7 +124,8 @@ TEST(AdmRoundTrip, EveryMessageAndEncodingReadsBackWithinPrintedPrecision) {
         const AttitudeHistory h = Slew(rates, bias && m == AdmMessage::kAcm, m == AdmMessage::kAcm);
         const AttitudeHistory kvn = ParseAdm(FormatAdm(h, m, false), "mem.kvn", h.epoch_utc);
         const AttitudeHistory xml = ParseAdm(FormatAdm(h, m, true), "mem.xml", h.epoch_utc);
-        SCOPED_TRACE(std::string(m == AdmMessage::kAem ? "AEM" : "ACM") + (rates ? " rates" : "") + (bias ? " bias" : ""));
+        SCOPED_TRACE(std::string(m == AdmMessage::kAem ? "AEM" : "ACM") + (rates ? " rates" : "") +
+                     (bias ? " bias" : ""));
         ExpectSameHistory(h, kvn);
         ExpectSameHistory(kvn, xml);
         // read -> write -> read: nothing moves beyond the printed digits
@@ -145,7 +146,8 @@ TEST(AdmRoundTrip, EveryMessageAndEncodingReadsBackWithinPrintedPrecision) {
 TEST(AdmRoundTrip, KvnAndXmlCarryTheSameDigits) {
   const AttitudeHistory h = Slew(true, true, true);
   for (AdmMessage m : {AdmMessage::kAem, AdmMessage::kAcm}) {
-    const std::string kvn = FormatAdm(h, m, false, "2025-01-01T00:00:00"), xml = FormatAdm(h, m, true, "2025-01-01T00:00:00");
+    const std::string kvn = FormatAdm(h, m, false, "2025-01-01T00:00:00"),
+                      xml = FormatAdm(h, m, true, "2025-01-01T00:00:00");
     // every number token of the KVN data appears in the XML
     std::istringstream is(kvn);
     std::string tok;
@@ -166,18 +168,21 @@ TEST(AdmTime, EpochsAcrossTimeSystemsAndALeapSecond) {
   // TAI - UTC = 37 s in 2020; day-of-year form.
   EXPECT_NEAR(AdmSecondsSince("2020-032T00:00:37", "TAI", "2020-02-01T00:00:00", "t"), 0.0, 1e-9);
   EXPECT_NEAR(AdmSecondsSince("2020-02-01T00:00:18", "GPS", "2020-02-01T00:00:00", "t"), 0.0, 1e-9);
-  EXPECT_THAT(testing::ErrorOf([] { AdmSecondsSince("2020-02-31T00:00:00", "UTC", "2020-01-01T00:00:00", "F:3: EPOCH"); }),
-              ::testing::HasSubstr("F:3: EPOCH"));
+  EXPECT_THAT(
+      testing::ErrorOf([] { AdmSecondsSince("2020-02-31T00:00:00", "UTC", "2020-01-01T00:00:00", "F:3: EPOCH"); }),
+      ::testing::HasSubstr("F:3: EPOCH"));
 }
 
 TEST(AdmRead, ErrorsNameFileLineAndKeyword) {
   const AttitudeHistory h = Slew(false, false, false);
   std::string kvn = FormatAdm(h, AdmMessage::kAem, false);
   const std::string bad = std::string(kvn).replace(kvn.find("QUATERNION"), 10, "EULER_ANGLE");
-  EXPECT_THAT(testing::ErrorOf([&] { ParseAdm(bad, "x.aem"); }), ::testing::MatchesRegex("x\\.aem:[0-9]+: ATTITUDE_TYPE: .*"));
+  EXPECT_THAT(testing::ErrorOf([&] { ParseAdm(bad, "x.aem"); }),
+              ::testing::MatchesRegex("x\\.aem:[0-9]+: ATTITUDE_TYPE: .*"));
   std::string typo = kvn;
   typo.replace(typo.find("OBJECT_ID"), 9, "OBJECT_IDX");
-  EXPECT_THAT(testing::ErrorOf([&] { ParseAdm(typo, "x.aem"); }), ::testing::MatchesRegex("x\\.aem:[0-9]+: OBJECT_IDX: .*"));
+  EXPECT_THAT(testing::ErrorOf([&] { ParseAdm(typo, "x.aem"); }),
+              ::testing::MatchesRegex("x\\.aem:[0-9]+: OBJECT_IDX: .*"));
   std::string num = kvn;
   num.insert(num.find(' ', num.find("DATA_START") + 11) + 1, "x");
   EXPECT_THAT(testing::ErrorOf([&] { ParseAdm(num, "x.aem"); }), ::testing::MatchesRegex("x\\.aem:[0-9]+: DATA: 'x.*"));
@@ -216,12 +221,20 @@ std::string Escaped(const std::string& s) {
 TEST(AdmSamples, QuaternionHistoriesAreReadTheRestRefusedWithFileLineKeyword) {
   SSIU_REQUIRE_SHARED(dir, "ccsds/samples");
   const std::map<std::string, size_t> must_read = {
-      {"jmaene_acm_g6.kvn", 3},          {"jmaene_adm_g12.xml", 1},           {"orbitformats_golden_aem.xml", 4},
-      {"orekit-acm_ACMExample01.txt", 3}, {"orekit-acm_ACMExample02.txt", 4}, {"orekit-acm_ACMExample05.txt", 2},
+      {"jmaene_acm_g6.kvn", 3},
+      {"jmaene_adm_g12.xml", 1},
+      {"orbitformats_golden_aem.xml", 4},
+      {"orekit-acm_ACMExample01.txt", 3},
+      {"orekit-acm_ACMExample02.txt", 4},
+      {"orekit-acm_ACMExample05.txt", 2},
       {"orekit-acm_ACM-frame-mapper.txt", 2},
       // ADM 1.0 KVN (QUATERNION_TYPE, ATTITUDE_DIR)
-      {"orbitformats_golden_aem.aem", 4}, {"gmat_QuaternionFile.aem", 8},   {"orekit-aem_AEMExample01.txt", 8},
-      {"orekit-aem_AEMExample02.txt", 4}, {"orekit-aem_AEMExample04.txt", 13}, {"orekit-aem_AEMExample07.txt", 3},
+      {"orbitformats_golden_aem.aem", 4},
+      {"gmat_QuaternionFile.aem", 8},
+      {"orekit-aem_AEMExample01.txt", 8},
+      {"orekit-aem_AEMExample02.txt", 4},
+      {"orekit-aem_AEMExample04.txt", 13},
+      {"orekit-aem_AEMExample07.txt", 3},
       {"orekit-aem_AEMExample10.txt", 8},
       {"gmat_CCSDS_BasicQuatFile.aem", 123}};  // two segments sharing their boundary epoch (124 lines)
   size_t read = 0, refused = 0;
