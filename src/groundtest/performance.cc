@@ -115,7 +115,9 @@ PerformanceReport AnalysePerformance(const std::vector<AttitudeSample>& measured
                              " Hz) aliases into the FOV band at this sample rate: counted as FOV error");
         continue;
       }
-      r.pixel_band_centres_hz.push_back(c);
+      const bool known = std::any_of(r.pixel_band_centres_hz.begin(), r.pixel_band_centres_hz.end(),
+                                     [&](double x) { return std::abs(x - c) < 1e-6 * r.sample_rate_hz; });
+      if (!known) r.pixel_band_centres_hz.push_back(c);  // x and y cross pixels at one rate on a diagonal slew
     }
   }
 
