@@ -18,7 +18,7 @@
 //   removed from the FOV and pixel bands, and a band's excess counts only above 3 sigma of the noise power in it. The
 //   bands are wide (40 field crossings by default) because stars entering and leaving the field turn the spatial errors
 //   into steps, whose spectrum falls only as 1/f^2.
-// Powers come from a Hann-windowed periodogram of each axis, normalised so that the bins sum to the
+// Powers come from the periodogram of each axis (no taper: see the .cc), normalised so that the bins sum to the
 // variance (Parseval); each contribution is the square root of its band's power above the noise floor.
 // The star image velocity is the reference's mean rate seen near the boresight: v = (-w_y fx, w_x fy).
 #pragma once

@@ -193,5 +193,26 @@ TEST(PerformanceCli, JsonContractAndPlots) {
   EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
 }
 
+// `ssiu simulate performance` writes what `ssiu performance` reads, and a truth to hold it against.
+TEST(PerformanceCli, SimulatedSequenceEndToEnd) {
+  const std::string d = testing::TempDir("performance_sim_cli");
+  testing::SsiuResult r = testing::RunSsiu("simulate performance --out " + d + " --duration-s 600 --noise-px 0.15 " +
+                                           "--bias-arcsec 5,0,-20 --stars-per-deg2 0.1");
+  ASSERT_EQ(r.status, 0) << r.output;
+  r = testing::RunSsiu("performance --measured " + d + "/measured.csv --reference " + d + "/reference.csv --camera " +
+                       d + "/camera.json --temperature " + d + "/temperature.csv --json " + d + "/p.json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const Json truth = ReadJsonFile(d + "/truth.json"), found = ReadJsonFile(d + "/p.json");
+  for (int a = 0; a < 3; ++a) {
+    const double noise = truth["temporal_noise_arcsec"][a].get<double>();
+    EXPECT_NEAR(found["temporal_noise_arcsec"][a].get<double>(), noise, 0.1 * noise) << a;
+    EXPECT_NEAR(found["bias_arcsec"][a].get<double>(), truth["bias_arcsec"][a].get<double>(), 0.1 * noise) << a;
+    EXPECT_LT(found["thermoelastic_arcsec"][a].get<double>(), 0.1 * noise) << a;
+  }
+  r = testing::RunSsiu("simulate performance --out " + d + " --bias-arcsec 5,0");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_THAT(r.output, ::testing::HasSubstr("--bias-arcsec: expected X,Y,ROLL"));
+}
+
 }  // namespace
 }  // namespace ssiu
