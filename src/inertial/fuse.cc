@@ -361,6 +361,7 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
       s.sigma_rad = fusion.attitude_sigma_rad();
       s.bias_sigma_dph = fusion.bias_sigma_dph();
       s.bias_dph = fusion.bias_rad_s() * kRadSToDph;
+      s.w_body_rad_s = fusion.last_rate_rad_s() - fusion.bias_rad_s();
       s.status = status;
       res.samples.push_back(s);
     }

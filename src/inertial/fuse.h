@@ -121,6 +121,9 @@ struct FusedSample {
   Vec3 sigma_rad = Vec3::Zero();  // 1 sigma attitude error about body x, y, z
   Vec3 bias_dph = Vec3::Zero();
   Vec3 bias_sigma_dph = Vec3::Zero();
+  // The body rate of the gyro interval ending at t_s, bias removed (rad/s): what the CCSDS messages
+  // carry as angular velocity.
+  Vec3 w_body_rad_s = Vec3::Zero();
   FusionStatus status = FusionStatus::kOk;
 };
 

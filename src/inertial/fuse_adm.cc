@@ -39,6 +39,7 @@ AttitudeHistory FusedAttitudeHistory(const std::vector<FusedSample>& samples, co
     a.t_s = s.t_s;
     a.q_inertial_from_body = s.q_inertial_from_body;
     a.gyro_bias_rad_s = s.bias_dph * kDphToRadS;
+    a.w_body_rad_s = s.w_body_rad_s;
     h.states.push_back(a);
     AdmCovariance c;
     c.t_s = s.t_s;

@@ -1,5 +1,6 @@
 // A fused attitude history as a CCSDS attitude message (ccsds/adm.h): `ssiu fuse --aem/--acm` and
-// `ssiu run --aem/--acm`. The ACM carries the gyro bias (RATE_TYPE GYRO_BIAS), the filter's covariance
+// `ssiu run --aem/--acm`. The AEM and ACM carry the angular velocity (the gyro rate, bias removed), the ACM
+// also the gyro bias (a second ATT block, RATE_TYPE GYRO_BIAS), the filter's covariance
 // per epoch (COV_TYPE ANGLE_GYROBIAS: attitude error and bias, body axes) and the determination (AD:
 // EKF, the gyro noise as SIGMA_U / SIGMA_V, the sensors with their noise and rate).
 #pragma once

@@ -505,6 +505,7 @@ void MissionRun::OnGyroSample(size_t k) {
     f.sigma_rad = a.covariance_rad2.diagonal().cwiseSqrt();
     f.bias_dph = a.bias_dph;
     f.bias_sigma_dph = a.bias_sigma_dph;
+    f.w_body_rad_s = proc_.fusion().last_rate_rad_s() - a.bias_dph * kDphToRadS;
     f.status = a.status;
     res_.history.push_back(f);
   }

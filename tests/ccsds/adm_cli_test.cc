@@ -131,6 +131,11 @@ TEST(AdmCli, FuseWritesAemAndAcmThatReadBackToTheRun) {
     EXPECT_EQ(acm.states[k].q_inertial_from_body.coeffs(), acm_xml.states[k].q_inertial_from_body.coeffs());
     EXPECT_EQ(acm.covariances[k].diagonal, acm_xml.covariances[k].diagonal);
   }
+  // The angular velocity is the scene's 0.05 deg/s about z once the bias is removed.
+  ASSERT_TRUE(acm.has_rates());
+  ASSERT_TRUE(aem.has_rates());
+  EXPECT_LT((*acm.states.back().w_body_rad_s - Vec3(0, 0, 0.05 * kDegToRad)).norm(), 0.2 * kDphToRadS);
+  EXPECT_LT((*aem.states.back().w_body_rad_s - *acm.states.back().w_body_rad_s).norm(), 1e-12);
   // The filter found the bias it was given (the truth of the scene).
   EXPECT_NEAR(acm.states.back().gyro_bias_rad_s->x() * kRadSToDph, kBiasXDph, 0.2);
   ASSERT_TRUE(acm.determination.has_value());
