@@ -265,6 +265,28 @@ TEST(AdmSamples, QuaternionHistoriesAreReadTheRestRefusedWithFileLineKeyword) {
   EXPECT_GT(refused, 0u);
 }
 
+// read -> write -> read of every sample that is read: no number moves beyond the printed precision,
+// in either encoding (the epochs come back in UTC whatever time system the sample used).
+TEST(AdmSamples, ReadWriteReadChangesNoNumber) {
+  SSIU_REQUIRE_SHARED(dir, "ccsds/samples");
+  int n = 0;
+  for (const std::string& f : SampleFiles(dir)) {
+    AttitudeHistory h;
+    try {
+      h = ReadAdmFile(f);
+    } catch (const InputError&) {
+      continue;
+    }
+    SCOPED_TRACE(f);
+    for (bool xml : {false, true}) {
+      const AttitudeHistory again = ParseAdm(FormatAdm(h, h.message, xml), "again", h.epoch_utc);
+      ExpectSameHistory(h, again);
+    }
+    ++n;
+  }
+  EXPECT_EQ(n, 15);
+}
+
 // A message another tool wrote in both encodings (orbit-formats: KVN 1.0, XML 2.0) reads the same.
 TEST(AdmSamples, KvnAndXmlTwinsOfAnotherToolReadTheSame) {
   SSIU_REQUIRE_SHARED(kvn, "ccsds/samples/orbitformats_golden_aem.aem");
