@@ -95,7 +95,7 @@ void WriteAdmFile(const std::string& path, const AttitudeHistory& h, AdmMessage 
 AttitudeHistory ParseAdm(const std::string& text, const std::string& file, const std::string& epoch_utc = "");
 AttitudeHistory ReadAdmFile(const std::string& path, const std::string& epoch_utc = "");
 
-// True when the file's first non-blank text is an ADM KVN version line or an XML declaration/root.
+// True when the file's first non-blank text is a CCSDS KVN version line (CCSDS_..._VERS) or XML.
 bool LooksLikeAdm(const std::string& path);
 
 // Seconds from `from_utc` to the epoch `text` of time system `time_system` (UTC, TAI, TT, GPS):

@@ -854,8 +854,8 @@ bool LooksLikeAdm(const std::string& path) {
   f.read(&head[0], head.size());
   head.resize(static_cast<size_t>(f.gcount()));
   if (StartsXml(head)) return true;
-  const std::string t = Trim(head);
-  return t.rfind("CCSDS_AEM_VERS", 0) == 0 || t.rfind("CCSDS_ACM_VERS", 0) == 0 || t.rfind("CCSDS_APM_VERS", 0) == 0;
+  // Any CCSDS message (an OEM or OPM too): the ADM reader names what it is and refuses it in one line.
+  return Trim(head).rfind("CCSDS_", 0) == 0;
 }
 
 }  // namespace ssiu
