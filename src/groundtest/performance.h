@@ -3,9 +3,11 @@
 //   PerformanceReport r = AnalysePerformance(measured, reference, camera, temperature, PerformanceOptions{});
 //
 // The error e(t) = RotationVector(conj(q_ref) q_meas) in the sensor frame, [x, y, roll], is split into
-// the contributions ECSS-E-ST-60-20C (sec. 5.2, "Star sensor performance": error sources and their
-// statistics) names, each told apart by what distinguishes it:
-// - bias: the mean of e (the standard's bias error, a constant over the test);
+// the contributions ECSS-E-ST-60-20C names (Rev.1 clause 3.2.8: 3.2.8.2 bias, 3.2.8.3 FOV spatial error,
+// 3.2.8.4 pixel spatial error, with the temporal noise and thermo-elastic error beside them; its notes
+// convert the spatial errors to the time domain through the sensor's rate, as done here), each told
+// apart by what distinguishes it:
+// - bias: the mean of e (the standard's bias, whose metric is the mean error, Annex B.5.7);
 // - thermo-elastic: the part that follows the temperature, a least-squares line of e on temp_c (interpolated
 //   at each sample), reported as |slope| x std(temp_c), the 1-sigma it contributes over the test;
 // - FOV spatial: the residual's power at low frequencies, up to `fov_band_crossings` x the field-crossing
