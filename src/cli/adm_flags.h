@@ -14,7 +14,8 @@ struct AdmFlags {
   bool given() const { return !aem.empty() || !acm.empty(); }
 };
 
-void AddAdmFlags(CLI::App* cmd, AdmFlags* f, const std::string& what);
+// `what` the history ("the fused attitude"), `acm_adds` what the ACM carries besides the attitude.
+void AddAdmFlags(CLI::App* cmd, AdmFlags* f, const std::string& what, const std::string& acm_adds);
 
 // Writes the messages asked for (nothing when neither flag is given).
 void WriteAdmOutputs(const AdmFlags& f, const AttitudeHistory& h);

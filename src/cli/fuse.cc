@@ -97,7 +97,7 @@ SSIU_REGISTER_COMMAND(fuse, [](CLI::App& root) {
   cmd->add_option("--epoch-utc", o->epoch_utc,
                   "UTC (ISO 8601) of t_s = 0: the origin of an AEM/ACM --st's epochs (default: the ACM's EPOCH_TZERO, "
                   "the AEM's first epoch) and of --aem/--acm (needed with a CSV --st)");
-  AddAdmFlags(cmd, &o->adm, "the fused attitude (ACM: gyro bias, covariance, EKF and its noise)");
+  AddAdmFlags(cmd, &o->adm, "the fused attitude and rate", "gyro bias, covariance, EKF and its noise, sensors");
   cmd->add_option("--unit", o->unit,
                   "unit.json for g*_dph logs (default: the four-FOG unit); on a wx_dph log only its noise counts "
                   "(a 3-gyro unit: x, y, z; else its first gyro's on every axis)");

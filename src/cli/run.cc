@@ -69,7 +69,8 @@ SSIU_REGISTER_COMMAND(run, [](CLI::App& root) {
   cmd->add_option("--config", opts->config, "Mission config SSIU.json (docs/inertial.md); default: built in");
   cmd->add_option("--json", opts->json, "Write the figures as JSON (- for stdout)");
   cmd->add_option("--out", opts->out, "Write attitude.csv, frames.csv, gyro.csv, truth.csv, first frames here");
-  ssiu::cli::AddAdmFlags(cmd, &opts->adm, "the fused attitude (ACM: gyro bias, covariance, EKF and its noise)");
+  ssiu::cli::AddAdmFlags(cmd, &opts->adm, "the fused attitude and rate",
+                         "gyro bias, covariance, EKF and its noise, sensors");
   cmd->add_flag("--print-config", opts->print_config, "Print the mission config in use as JSON and exit");
   cmd->add_flag("--write-frames", opts->write_frames,
                 "With --out: also every frame (frames/*.pgm), flight.cfg and catalog/ for examples/flight");

@@ -320,9 +320,8 @@ SSIU_REGISTER_COMMAND(solve, [](CLI::App& root) {
   AddSmearFlags(cmd, &o->smear, "sensor axes (with --heads: body axes)");
   AddSkyFlags(cmd, &o->sky);
   AddBatchFlags(cmd, &o->batch, "the --json of that input");
-  AddAdmFlags(cmd, &o->adm,
-              "the solutions at their frames' times (FITS DATE-OBS or --time; sensor frame AST_1; ACM: covariance, "
-              "QUEST)");
+  AddAdmFlags(cmd, &o->adm, "the solutions at their frames' times (FITS DATE-OBS or --time), sensor frame AST_1",
+              "each solution's covariance, QUEST");
   cmd->footer(
       "Batch: `ssiu solve F1.png F2.fits C3.csv ... --camera CAM --jsonl OUT.jsonl [--csv OUT.csv] [--threads N]`\n"
       "  Inputs: positional (frames; names ending in .csv are centroid lists), then --centroids (repeatable),\n"

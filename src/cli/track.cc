@@ -42,8 +42,8 @@ SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
       ->capture_default_str();
   AddSmearFlags(cmd, &o->smear, "sensor axes, the same for every frame");
   AddSkyFlags(cmd, &o->sky);
-  AddAdmFlags(cmd, &o->adm,
-              "the solved attitudes (sensor frame AST_1; ACM: covariance, QUEST); needs --time or DATE-OBS");
+  AddAdmFlags(cmd, &o->adm, "the solved attitudes (sensor frame AST_1; needs --time or DATE-OBS)",
+              "each solution's covariance, QUEST");
   cmd->callback([o] {
     if (!(o->dt_s > 0) || !std::isfinite(o->dt_s)) throw InputError("--dt-s", "must be a finite number > 0");
     const Camera cam = LoadCamera(o->camera);
