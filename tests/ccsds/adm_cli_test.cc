@@ -200,6 +200,10 @@ TEST(AdmCli, RunWritesTheFusedAttitudeAgainstTheTruth) {
   EXPECT_EQ(acm.determination->sensors.size(), 2u);  // one head and the gyros
   EXPECT_EQ(acm.determination->sensors[0].used, "AST_1");
   EXPECT_NEAR(acm.determination->sensors[0].rate_hz, 0.5, 1e-9);
+  const std::string xsd = testing::SharedData("ccsds/xsd/ndmxml-4.0.0-master-4.0.xsd");
+  std::string msg;
+  if (xsd.empty() || testing::Run("command -v xmllint", &msg) != 0) GTEST_SKIP() << "no ../shared schemas or no xmllint";
+  EXPECT_EQ(testing::Run("xmllint --noout --nonet --schema '" + xsd + "' '" + d + "/run_acm.xml' 2>&1", &msg), 0) << msg;
 }
 
 // Frames with their own times: a batch `ssiu solve` of FITS frames (DATE-OBS) and `ssiu track` (--time,
