@@ -202,12 +202,23 @@ TEST(AdmCli, RunWritesTheFusedAttitudeAgainstTheTruth) {
   EXPECT_NEAR(acm.determination->sensors[0].rate_hz, 0.5, 1e-9);
   const std::string xsd = testing::SharedData("ccsds/xsd/ndmxml-4.0.0-master-4.0.xsd");
   std::string msg;
-  if (xsd.empty() || testing::Run("command -v xmllint", &msg) != 0) GTEST_SKIP() << "no ../shared schemas or no xmllint";
-  EXPECT_EQ(testing::Run("xmllint --noout --nonet --schema '" + xsd + "' '" + d + "/run_acm.xml' 2>&1", &msg), 0) << msg;
+  if (xsd.empty() || testing::Run("command -v xmllint", &msg) != 0)
+    GTEST_SKIP() << "no ../shared schemas or no xmllint";
+  EXPECT_EQ(testing::Run("xmllint --noout --nonet --schema '" + xsd + "' '" + d + "/run_acm.xml' 2>&1", &msg), 0)
+      << msg;
 }
 
 // Frames with their own times: a batch `ssiu solve` of FITS frames (DATE-OBS) and `ssiu track` (--time,
 // --dt-s) write the solved attitudes at those times, each the simulated truth within its covariance.
+void ExpectSameDigits(const AttitudeHistory& a, const AttitudeHistory& b) {
+  ASSERT_EQ(a.states.size(), b.states.size());
+  for (size_t k = 0; k < a.states.size(); ++k) {
+    EXPECT_EQ(a.states[k].t_s, b.states[k].t_s);
+    EXPECT_EQ(a.states[k].q_inertial_from_body.coeffs(), b.states[k].q_inertial_from_body.coeffs());
+    EXPECT_EQ(a.covariances[k].diagonal, b.covariances[k].diagonal);
+  }
+}
+
 TEST(AdmCli, SolveAndTrackWriteTheSolutionsAtTheFrameTimes) {
   const std::string d = testing::TempDir("adm_cli_solve");
   std::ofstream(d + "/cam.json") << R"({"width": 384, "height": 384, "focal_length_px": 1316})";
@@ -272,6 +283,16 @@ TEST(AdmCli, SolveAndTrackWriteTheSolutionsAtTheFrameTimes) {
                        "/tr2.aem");
   EXPECT_EQ(r.status, 1);
   EXPECT_THAT(r.output, HasSubstr("--aem/--acm: a solved frame has no time"));
+  const std::string xsd = testing::SharedData("ccsds/xsd/ndmxml-4.0.0-master-4.0.xsd");
+  std::string msg;
+  if (xsd.empty() || testing::Run("command -v xmllint", &msg) != 0)
+    GTEST_SKIP() << "no ../shared schemas or no xmllint";
+  r = testing::RunSsiu("solve" + fits_list + common + "--jsonl " + d + "/s2.jsonl --acm " + d + "/s_acm.xml");
+  ASSERT_EQ(r.status, 0) << r.output;
+  ExpectSameDigits(s, ReadAdmFile(d + "/s_acm.xml"));  // KVN and XML of the same solutions
+  for (const std::string f : {"s_aem.xml", "s_acm.xml"})
+    EXPECT_EQ(testing::Run("xmllint --noout --nonet --schema '" + xsd + "' '" + d + "/" + f + "' 2>&1", &msg), 0)
+        << msg;
 }
 
 }  // namespace
