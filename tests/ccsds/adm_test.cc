@@ -310,6 +310,23 @@ TEST(AdmSamples, AcmQuaternionAndGyroBiasAsPrinted) {
   EXPECT_EQ(h.determination->sensors.size(), 4u);
 }
 
+// ADM 1.0 (504.0-B-1): QUATERNION_TYPE = FIRST puts QC first (Orekit's AEM example 4); ATTITUDE_DIR =
+// B2A means the quaternion rotates REF_FRAME_B into REF_FRAME_A, so the same numbers give the inverse.
+TEST(AdmSamples, Adm1QuaternionTypeAndDirection) {
+  SSIU_REQUIRE_SHARED(path, "ccsds/samples/orekit-aem_AEMExample04.txt");
+  const AttitudeHistory h = ReadAdmFile(path);
+  ASSERT_FALSE(h.states.empty());
+  EXPECT_THAT(h.states[0].q_inertial_from_body,
+              QuaternionNear(Quat(0.488615, -0.402157, 0.581628, 0.511111).normalized(), 1e-6));
+  std::ifstream f(path);
+  std::ostringstream text;
+  text << f.rdbuf();
+  std::string b2a = text.str();
+  b2a.replace(b2a.find("A2B"), 3, "B2A");
+  const AttitudeHistory inv = ParseAdm(b2a, "b2a.aem");
+  EXPECT_THAT(inv.states[0].q_inertial_from_body, QuaternionNear(h.states[0].q_inertial_from_body.conjugate(), 1e-6));
+}
+
 // Every malformed message of the other tools' own tests that reaches what ssiu reads is refused, naming
 // the file, the line and the keyword (aemLowerCaseValue is Orekit's check that lower-case values are read).
 TEST(AdmSamples, NegativeSamplesAreRefusedWithFileLineKeyword) {
