@@ -98,5 +98,29 @@ put("json", "camera_mm.json", json.dumps({"width": 1392, "height": 1040, "focal_
 put("json", "heads.json", json.dumps([{"camera": cam, "q_body_sensor": [1, 0, 0, 0]}]))
 put("json", "nested.json", '{"a": {"k": 1}, "b": [{"k": 2}, {"k": 3}], // comment\n "c": "s"}')
 
+AEM = ("CCSDS_AEM_VERS = 2.0\nCREATION_DATE = 2025-01-01T00:00:00\nORIGINATOR = X\nMETA_START\nOBJECT_NAME = S\n"
+       "OBJECT_ID = 2025-001A\nREF_FRAME_A = EME2000\nREF_FRAME_B = SC_BODY_1\nTIME_SYSTEM = UTC\n"
+       "START_TIME = 2025-001T00:00:00\nSTOP_TIME = 2025-01-01T00:00:01.5\nATTITUDE_TYPE = QUATERNION/ANGVEL\n"
+       "ANGVEL_FRAME = REF_FRAME_B\nMETA_STOP\nDATA_START\n2025-001T00:00:00 0 0 0.7071 0.7071 0.1 0 -0.2\n"
+       "2025-01-01T00:00:01.5 0 0 0.7072 0.7070 0.1 0 -0.2\nDATA_STOP\n")
+put("adm", "aem.kvn", AEM)
+put("adm", "aem_v1.kvn", AEM.replace("2.0", "1.0", 1).replace("QUATERNION/ANGVEL", "QUATERNION\nQUATERNION_TYPE = FIRST\n"
+                                      "ATTITUDE_DIR = B2A").replace("ANGVEL_FRAME = REF_FRAME_B\n", "")
+    .replace(" 0.1 0 -0.2", ""))
+put("adm", "acm.kvn", "CCSDS_ACM_VERS = 2.0\nCREATION_DATE = 2025-01-01T00:00:00\nORIGINATOR = X\nMETA_START\n"
+    "OBJECT_NAME = S\nTIME_SYSTEM = TAI\nEPOCH_TZERO = 2025-01-01T00:00:00\nMETA_STOP\nATT_START\nREF_FRAME_A = ICRF\n"
+    "REF_FRAME_B = AST_1\nNUMBER_STATES = 7\nATT_TYPE = QUATERNION\nRATE_TYPE = GYRO_BIAS\n0 0 0 0 1 1e-6 0 0\n"
+    "0.5 0 0 0.01 1 1e-6 0 0\nATT_STOP\nCOV_START\nCOV_TYPE = ANGLE\n0 1e-8 1e-8 1e-6\n0.5 1e-8 1e-8 1e-6\nCOV_STOP\n"
+    "AD_START\nAD_METHOD = EKF\nATTITUDE_STATES = QUATERNION\nREF_FRAME_A = ICRF\nREF_FRAME_B = AST_1\n"
+    "SIGMA_U = 1e-9\nSIGMA_V = 1e-6\nSENSOR_START\nSENSOR_NUMBER = 1\nSENSOR_USED = AST_1\n"
+    "NUMBER_SENSOR_NOISE_COVARIANCE = 2\nSENSOR_NOISE_STDDEV = 0.001 0.004 [deg]\nSENSOR_FREQUENCY = 2 [Hz]\n"
+    "SENSOR_STOP\nAD_STOP\nPHYS_START\nWET_MASS = 1 [kg]\nPHYS_STOP\n")
+put("adm", "acm.xml", '<?xml version="1.0"?>\n<!-- c -->\n<ndm><acm id="CCSDS_ACM_VERS" version="2.0"><header>'
+    "<CREATION_DATE>2025-01-01T00:00:00</CREATION_DATE><ORIGINATOR>X &amp; Y</ORIGINATOR></header><body><segment>"
+    "<metadata><OBJECT_NAME>S</OBJECT_NAME><TIME_SYSTEM>UTC</TIME_SYSTEM><EPOCH_TZERO>2025-01-01T00:00:00Z</EPOCH_TZERO>"
+    "</metadata><data><att><REF_FRAME_A>J2000</REF_FRAME_A><REF_FRAME_B>SC_BODY_1</REF_FRAME_B><NUMBER_STATES>4"
+    "</NUMBER_STATES><ATT_TYPE>QUATERNION</ATT_TYPE><attLine>0 0 0 0 1</attLine><attLine>1 0 0.1 0 1</attLine>"
+    "</att></data></segment></body></acm></ndm>\n")
+
 put("centroids", "centroids.csv", "x_px,y_px,flux,sigma_px\n10.5,20.25,1000,0.1\n300,400.5,250,0.2\n")
 put("centroids", "xy.csv", "x_px,y_px\n1,2\n3,4\n")

@@ -6,7 +6,7 @@ cd "$(dirname "$0")/.."
 PKGS="build-essential cmake ninja-build pkg-config libopencv-dev libpng-dev libtiff-dev libturbojpeg0-dev libeigen3-dev libflann-dev \
 libapriltag-dev libboost-dev libcfitsio-dev libdeflate-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev nlohmann-json3-dev liberfa-dev xplanet \
 python3-dev python3-pybind11 python3-numpy python3-pytest python3-dask python3-distributed \
-clang libclang-rt-dev valgrind"
+clang libclang-rt-dev valgrind libxml2-utils"
 missing=""
 # With foreign architectures added (scripts/cross-test.sh), a name installed for both is ambiguous to
 # dpkg: ask for the native one then.

@@ -18,12 +18,12 @@ if [ "${SSIU_SKIP_ASAN:-0}" != "1" ]; then
 fi
 if [ "${SSIU_SKIP_FUZZ:-0}" != "1" ]; then
   # clang + libFuzzer, ASan, UBSan and float-cast-overflow (which GCC lacks); only the readers' stages
-  # and the flight interface are built. SSIU_FUZZ_SECONDS per harness (default 10 s: 5 harnesses add about 1 min).
+  # and the flight interface are built. SSIU_FUZZ_SECONDS per harness (default 10 s: 6 harnesses add about 1 min).
   CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1" -DSSIU_FUZZ=ON -DSSIU_BUILD_TESTS=OFF -DSSIU_BUILD_BENCH=OFF \
     -DSSIU_BUILD_LONGTESTS=OFF -DSSIU_WERROR=OFF >/dev/null
-  cmake --build build-fuzz -j"$jobs" --target fuzz_image fuzz_csv fuzz_json fuzz_centroids fuzz_flight
-  for h in image csv json centroids flight; do
+  cmake --build build-fuzz -j"$jobs" --target fuzz_image fuzz_csv fuzz_json fuzz_centroids fuzz_flight fuzz_adm
+  for h in image csv json centroids flight adm; do
     work=$(mktemp -d)  # new inputs go here, the corpus in the repository stays as it is
     UBSAN_OPTIONS=halt_on_error=1 build-fuzz/fuzz/fuzz_$h -max_total_time="${SSIU_FUZZ_SECONDS:-10}" -timeout=10 \
       -rss_limit_mb=2048 -print_final_stats=1 "$work" fuzz/corpus/$h

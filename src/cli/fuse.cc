@@ -1,19 +1,23 @@
 // `ssiu fuse`: star-tracker quaternions + gyro log -> attitude, gyro biases and fault events (MEKF).
 #include "inertial/fuse.h"
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <memory>
 #include <vector>
 
+#include "cli/adm_flags.h"
 #include "cli/command.h"
 #include "core/error.h"
+#include "inertial/fuse_adm.h"
 
 namespace ssiu::cli {
 namespace {
 
 struct Opts {
-  std::string gyro, st, unit, json, out, noise;
+  std::string gyro, st, unit, json, out, noise, epoch_utc;
+  AdmFlags adm;
   FuseOptions fuse;
   bool no_fdi = false;
   // Noise flags (override --noise and the unit) and whether each was given.
@@ -26,6 +30,20 @@ void CheckFlag(double v, const char* flag, bool positive) {
   if (!std::isfinite(v) || v < 0 || (positive && v == 0)) {
     throw InputError(flag, positive ? "must be a finite number > 0" : "must be a finite number >= 0");
   }
+}
+
+// The AD section's sensors: the star tracker (its noise: the log's median sigmas, else the options')
+// and the gyros (the angle noise of one sample, SIGMA_V sqrt(dt)), each at its median rate.
+std::vector<AdmSensor> FuseSensors(const StarTrackerLog& st, const GyroLog& gyro, const FuseResult& r,
+                                   const FuseOptions& options) {
+  auto median = [](std::vector<double> v, double fallback) {
+    if (v.empty()) return fallback;
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return v[v.size() / 2];
+  };
+  return {StarTrackerSensor(1, 1, median(st.sigma_cross_arcsec, options.st_sigma_cross_arcsec),
+                            median(st.sigma_roll_arcsec, options.st_sigma_roll_arcsec), MedianRateHz(st.t_s)),
+          GyroSensor(2, r.noise.value("arw_deg_per_sqrt_h", 0.0), MedianRateHz(gyro.t_s))};
 }
 
 void Run(Opts o) {
@@ -41,13 +59,19 @@ void Run(Opts o) {
   const GyroLog log = ReadGyroLog(o.gyro, 0);
   std::string noise_source;
   const GyroUnit unit = FuseUnitForLog(log, o.gyro, o.unit, given, &noise_source);
-  const StarTrackerLog st = ReadStarTrackerLog(o.st);
+  const StarTrackerLog st = ReadStarTrackerLog(o.st, o.epoch_utc);
+  const std::string epoch_utc = o.epoch_utc.empty() ? st.epoch_utc : o.epoch_utc;
+  if (o.adm.given() && epoch_utc.empty())
+    throw InputError("--epoch-utc", "--aem/--acm need the UTC of t_s = 0 (a CSV log has no time of day)");
+  if (!epoch_utc.empty()) AdmEpoch(epoch_utc, 0.0);  // a bad --epoch-utc is reported before the run
   o.fuse.fdi = !o.no_fdi;
   FuseResult r = Fuse(log, st, unit, o.fuse);
   r.noise["source"] = noise_source;
   if (!o.noise.empty()) r.noise["noise_file"] = o.noise;
   if (!o.json.empty()) WriteJsonFile(o.json, r.ToJson());
   if (!o.out.empty()) WriteFusedAttitude(o.out, r);
+  if (o.adm.given())
+    WriteAdmOutputs(o.adm, FusedAttitudeHistory(r.samples, epoch_utc, r.noise, FuseSensors(st, log, r, o.fuse)));
   std::cerr << "fuse: noise (" << noise_source << "): ARW " << r.noise.value("arw_deg_per_sqrt_h", 0.0)
             << " deg/sqrt(h), bias instability " << r.noise.value("bias_instability_dph", 0.0) << " deg/h, RRW "
             << r.noise.value("rrw_dph_per_sqrt_h", 0.0) << " deg/h/sqrt(h) -> bias walk "
@@ -66,8 +90,14 @@ SSIU_REGISTER_COMMAND(fuse, [](CLI::App& root) {
       "fuse", "Fuse gyro rates with star-tracker attitudes (multiplicative EKF): attitude, gyro biases, gyro faults");
   auto o = std::make_shared<Opts>();
   cmd->add_option("--gyro", o->gyro, "Gyro log: t_s + wx_dph,wy_dph,wz_dph or g1_dph..gN_dph")->required();
-  cmd->add_option("--st", o->st, "Star-tracker log: t_s,qw,qx,qy,qz [,sigma_cross_arcsec,sigma_roll_arcsec]")
+  cmd->add_option("--st", o->st,
+                  "Star-tracker log: t_s,qw,qx,qy,qz [,sigma_cross_arcsec,sigma_roll_arcsec], or a CCSDS AEM/ACM "
+                  "(KVN or XML; an ACM's ANGLE covariance gives the sigmas)")
       ->required();
+  cmd->add_option("--epoch-utc", o->epoch_utc,
+                  "UTC (ISO 8601) of t_s = 0: the origin of an AEM/ACM --st's epochs (default: the ACM's EPOCH_TZERO, "
+                  "the AEM's first epoch) and of --aem/--acm (needed with a CSV --st)");
+  AddAdmFlags(cmd, &o->adm, "the fused attitude and rate", "gyro bias, covariance, EKF and its noise, sensors");
   cmd->add_option("--unit", o->unit,
                   "unit.json for g*_dph logs (default: the four-FOG unit); on a wx_dph log only its noise counts "
                   "(a 3-gyro unit: x, y, z; else its first gyro's on every axis)");

@@ -20,9 +20,11 @@ SSIU_REGISTER_COMMAND(groundtest_compare, [](CLI::App& root) {
   auto* cmd =
       gt->add_subcommand("compare", "Compare reference and tracker quaternions: misalignment, RMS, drift, verdict");
   auto o = std::make_shared<Opts>();
-  cmd->add_option("--reference", o->reference, "Reference CSV t_s,qw,qx,qy,qz[,sigma_cross_arcsec,sigma_roll_arcsec]")
+  cmd->add_option("--reference", o->reference,
+                  "Reference CSV t_s,qw,qx,qy,qz[,sigma_cross_arcsec,sigma_roll_arcsec], or a CCSDS AEM/ACM")
       ->required();
-  cmd->add_option("--computed", o->computed, "Tracker CSV t_s,qw,qx,qy,qz[,sigma_cross_arcsec,sigma_roll_arcsec]")
+  cmd->add_option("--computed", o->computed,
+                  "Tracker CSV t_s,qw,qx,qy,qz[,sigma_cross_arcsec,sigma_roll_arcsec], or a CCSDS AEM/ACM")
       ->required();
   cmd->add_option("--json", o->json, "Output JSON, - for stdout")->capture_default_str();
   cmd->add_option("--plot", o->plot, "Directory for errors.png and residuals.png");
@@ -35,8 +37,9 @@ SSIU_REGISTER_COMMAND(groundtest_compare, [](CLI::App& root) {
   cmd->callback([o] {
     CompareOptions co = o->compare;
     co.remove_misalignment = !o->keep;
-    const CompareResult r =
-        CompareAttitudes(ReadAttitudeSeries(o->reference), ReadAttitudeSeries(o->computed), co, o->computed);
+    std::string epoch_utc;  // CCSDS messages: both on the reference's time axis
+    const std::vector<AttitudeSample> reference = ReadAttitudeSeries(o->reference, &epoch_utc);
+    const CompareResult r = CompareAttitudes(reference, ReadAttitudeSeries(o->computed, &epoch_utc), co, o->computed);
     WriteJsonFile(o->json, CompareResultToJson(r));
     if (!o->plot.empty()) WriteComparePlots(r, o->plot);
     std::cerr << r.pictures << " pictures; misalignment " << r.misalignment_rad.x() * kRadToArcsec << ", "

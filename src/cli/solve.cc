@@ -6,9 +6,12 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <mutex>
 
 #include "attitude/overlay.h"
+#include "attitude/solve_adm.h"
 #include "attitude/star_solver.h"
+#include "cli/adm_flags.h"
 #include "cli/batch.h"
 #include "cli/command.h"
 #include "cli/sky_flags.h"
@@ -32,6 +35,7 @@ struct Opts {
   SmearFlags smear;  // sensor axes; body axes with --heads
   SkyFlags sky;      // one time and velocity for every head
   BatchFlags batch;
+  AdmFlags adm;  // a batch's solutions at their frames' times
   CLI::Option* json_opt = nullptr;
   std::vector<double> fov_range_deg;  // --fov-range-deg MIN,MAX: unknown field of view
 };
@@ -120,6 +124,7 @@ void RunSingle(const Opts& o) {
   const SolveResult r = SolveInput(o, id, cam, input, centroids, o.dark.empty() ? nullptr : &dark, &fr);
   // Every output is written before the summary line, so that an unwritable one is the only message.
   WriteJsonFile(o.json, SolveResultToJson(r));
+  if (o.adm.given()) WriteAdmOutputs(o.adm, SolvedAttitudeHistory({{r.sky.time, r.attitude}}, "--aem/--acm"));
   if (!o.overlay.empty()) {
     if (fr.image.pixels.empty()) throw InputError(o.overlay, "--overlay needs a frame, not --centroids");
     WriteSolveOverlay(o.overlay, fr.image.view(), cam, id, r);
@@ -184,12 +189,31 @@ void RunBatchSolve(const Opts& o, const std::vector<std::string>& inputs) {
   const Camera cam = LoadSolveCamera(o);
   const StarIdentifier id = MakeIdentifier(o, cam);
   const Frame dark = o.dark.empty() ? Frame{} : ReadFrame(o.dark);
-  RunBatch("ssiu solve", inputs, o.batch, kBatchColumns, [&](const std::string& input) {
-    Frame fr;
-    const bool centroids = IsCentroidCsv(input);
-    Json j = SolveResultToJson(SolveInput(o, id, cam, input, centroids, o.dark.empty() ? nullptr : &dark, &fr));
-    return BatchRecord{j, BatchRow(input, j)};
-  });
+  std::mutex timed_mutex;
+  std::vector<TimedAttitude> timed;  // for --aem/--acm: each solution at its frame's time
+  auto write_adm = [&] {
+    if (o.adm.given()) WriteAdmOutputs(o.adm, SolvedAttitudeHistory(timed, "--aem/--acm"));
+  };
+  try {
+    RunBatch("ssiu solve", inputs, o.batch, kBatchColumns, [&](const std::string& input) {
+      Frame fr;
+      const bool centroids = IsCentroidCsv(input);
+      const SolveResult r = SolveInput(o, id, cam, input, centroids, o.dark.empty() ? nullptr : &dark, &fr);
+      if (o.adm.given()) {
+        std::lock_guard<std::mutex> lock(timed_mutex);
+        timed.push_back({r.sky.time, r.attitude});
+      }
+      Json j = SolveResultToJson(r);
+      return BatchRecord{j, BatchRow(input, j)};
+    });
+  } catch (const InputError&) {
+    try {  // the inputs that solved, as their records were written; then the batch's own error
+      write_adm();
+    } catch (const InputError&) {
+    }
+    throw;
+  }
+  write_adm();
 }
 
 void RunHeads(const Opts& o) {
@@ -281,9 +305,10 @@ void RunHeads(const Opts& o) {
 SSIU_REGISTER_COMMAND(solve, [](CLI::App& root) {
   auto* cmd = root.add_subcommand("solve", "Lost-in-space attitude from a star frame (or centroids)");
   auto o = std::make_shared<Opts>();
-  cmd->add_option("frames", o->frames,
-                  "Frames (PNG/TIFF/FITS/JPEG/BMP) or centroid lists (*.csv); more than one is a batch; with --heads one "
-                  "frame per head");
+  cmd->add_option(
+      "frames", o->frames,
+      "Frames (PNG/TIFF/FITS/JPEG/BMP) or centroid lists (*.csv); more than one is a batch; with --heads one "
+      "frame per head");
   cmd->add_option("--camera", o->camera, "camera.json");
   cmd->add_option("--catalog", o->catalog, "Solver catalog directory (built there if absent; default: cache)");
   cmd->add_option("--centroids", o->centroids,
@@ -299,6 +324,8 @@ SSIU_REGISTER_COMMAND(solve, [](CLI::App& root) {
   AddSmearFlags(cmd, &o->smear, "sensor axes (with --heads: body axes)");
   AddSkyFlags(cmd, &o->sky);
   AddBatchFlags(cmd, &o->batch, "the --json of that input");
+  AddAdmFlags(cmd, &o->adm, "the solutions at their frames' times (FITS DATE-OBS or --time), sensor frame AST_1",
+              "each solution's covariance, QUEST");
   cmd->footer(
       "Batch: `ssiu solve F1.png F2.fits C3.csv ... --camera CAM --jsonl OUT.jsonl [--csv OUT.csv] [--threads N]`\n"
       "  Inputs: positional (frames; names ending in .csv are centroid lists), then --centroids (repeatable),\n"
@@ -324,6 +351,8 @@ SSIU_REGISTER_COMMAND(solve, [](CLI::App& root) {
       if (o->batch.given() || !o->centroids.empty()) {
         throw InputError("--heads", "takes one frame per head: not with --centroids, --list, --jsonl or --csv");
       }
+      if (o->adm.given())
+        throw InputError(o->adm.aem.empty() ? "--acm" : "--aem", "not with --heads (one body attitude)");
       RunHeads(*o);
       return;
     }

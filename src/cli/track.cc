@@ -4,7 +4,9 @@
 #include <iostream>
 #include <memory>
 
+#include "attitude/solve_adm.h"
 #include "attitude/star_solver.h"
+#include "cli/adm_flags.h"
 #include "cli/command.h"
 #include "cli/sky_flags.h"
 #include "cli/smear_flags.h"
@@ -20,6 +22,7 @@ struct Opts {
   SolveOptions solve;
   SmearFlags smear;  // one rate for the whole sequence
   SkyFlags sky;      // the first frame's time (frame k at + k * dt); one velocity
+  AdmFlags adm;
 };
 
 SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
@@ -39,6 +42,8 @@ SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
       ->capture_default_str();
   AddSmearFlags(cmd, &o->smear, "sensor axes, the same for every frame");
   AddSkyFlags(cmd, &o->sky);
+  AddAdmFlags(cmd, &o->adm, "the solved attitudes (sensor frame AST_1; needs --time or DATE-OBS)",
+              "each solution's covariance, QUEST");
   cmd->callback([o] {
     if (!(o->dt_s > 0) || !std::isfinite(o->dt_s)) throw InputError("--dt-s", "must be a finite number > 0");
     const Camera cam = LoadCamera(o->camera);
@@ -48,6 +53,8 @@ SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
     Frame dark;
     if (!o->dark.empty()) dark = ReadFrame(o->dark);
     Json out = Json::array();
+    std::vector<TimedAttitude> timed;  // for --aem/--acm
+    UtcTime t0;                        // the first frame's time, when known
     int solved = 0, tracked = 0;
     for (size_t k = 0; k < o->frames.size(); ++k) {
       const Frame fr = o->dark.empty() ? ReadFrame(o->frames[k]) : SubtractDark(ReadFrame(o->frames[k]), dark);
@@ -62,6 +69,7 @@ SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
         SolveOptions so = o->solve;
         so.sky = SkyFromFlags(o->sky, &fr);
         tracker = std::make_unique<Tracker>(id, cam, so);
+        t0 = so.sky.time;
       }
       SolveResult r = tracker->Update(CentroidsFromDetections(det, o->solve.detector_sigma_scale), k * o->dt_s);
       r.timing_ms["detect"] = det.timing_ms.count("total") ? det.timing_ms.at("total") : 0.0;
@@ -69,10 +77,12 @@ SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
       j["frame"] = o->frames[k];
       j["t_s"] = k * o->dt_s;
       out.push_back(j);
+      if (o->adm.given()) timed.push_back({t0.valid() ? AddSeconds(t0, k * o->dt_s) : UtcTime{}, r.attitude});
       solved += r.status == SolveStatus::kSolved;
       tracked += r.mode == SolveMode::kTracking && r.status == SolveStatus::kSolved;
     }
     WriteJsonFile(o->json, out);
+    if (o->adm.given()) WriteAdmOutputs(o->adm, SolvedAttitudeHistory(timed, "--aem/--acm"));
     std::cerr << "track: " << solved << "/" << o->frames.size() << " solved, " << tracked << " by tracking\n";
   });
 });

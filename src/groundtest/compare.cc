@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 
+#include "ccsds/adm.h"
 #include "core/attitude.h"
 #include "core/csv.h"
 #include "core/error.h"
@@ -12,7 +13,25 @@
 
 namespace ssiu {
 
-std::vector<AttitudeSample> ReadAttitudeSeries(const std::string& path) {
+std::vector<AttitudeSample> ReadAttitudeSeries(const std::string& path, std::string* epoch_utc) {
+  if (LooksLikeAdm(path)) {  // a CCSDS AEM/ACM: t_s from its epoch, sigmas from an ACM's ANGLE covariance
+    const AttitudeHistory h = ReadAdmFile(path, epoch_utc ? *epoch_utc : "");
+    if (epoch_utc && epoch_utc->empty()) *epoch_utc = h.epoch_utc;
+    const bool sig = h.covariances.size() == h.states.size();
+    std::vector<AttitudeSample> out;
+    for (size_t i = 0; i < h.states.size(); ++i) {
+      AttitudeSample s;
+      s.t_s = h.states[i].t_s;
+      s.q = h.states[i].q_inertial_from_body;
+      if (sig) {
+        const std::vector<double>& d = h.covariances[i].diagonal;
+        s.sigma_cross_rad = std::sqrt((d[0] + d[1]) / 2);
+        s.sigma_roll_rad = std::sqrt(d[2]);
+      }
+      out.push_back(s);
+    }
+    return out;
+  }
   const CsvTable t = ReadCsv(path);
   if (t.rows() < 1) throw InputError(path, "no data rows");
   t.CheckIncreasing("t_s");

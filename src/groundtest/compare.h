@@ -29,7 +29,11 @@ struct AttitudeSample {
 // t_s,qw,qx,qy,qz[,sigma_cross_arcsec,sigma_roll_arcsec][,common_sigma_cross_arcsec,common_sigma_roll_arcsec];
 // InputError naming file/column/row, for
 // unsorted times, for fewer than one row.
-std::vector<AttitudeSample> ReadAttitudeSeries(const std::string& path);
+// Or a CCSDS AEM/ACM (ccsds/adm.h), sigmas from an ACM's ANGLE covariance (cross: RMS of x and y), t_s
+// after *epoch_utc when given and not empty, else after the message's epoch (the ACM's EPOCH_TZERO, the
+// AEM's first epoch), which is then stored in *epoch_utc: reading the reference, then the computed
+// series with the same string puts both on one time axis.
+std::vector<AttitudeSample> ReadAttitudeSeries(const std::string& path, std::string* epoch_utc = nullptr);
 
 struct CompareOptions {
   double requirement_arcsec = 10.0;      // cross-boresight 1-sigma (RMS) requirement

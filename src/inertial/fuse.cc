@@ -7,6 +7,7 @@
 #include <deque>
 #include <limits>
 
+#include "ccsds/adm.h"
 #include "core/attitude.h"
 #include "core/csv.h"
 #include "core/error.h"
@@ -46,7 +47,40 @@ GyroLog ReadGyroLog(const std::string& path, int n_gyros) {
   return log;
 }
 
-StarTrackerLog ReadStarTrackerLog(const std::string& path) {
+namespace {
+
+StarTrackerLog StarTrackerLogFromAdm(const AttitudeHistory& h) {
+  StarTrackerLog log;
+  log.file = h.file;
+  log.epoch_utc = h.epoch_utc;
+  for (const AdmState& s : h.states) {
+    log.t_s.push_back(s.t_s);
+    log.q_inertial_from_body.push_back(s.q_inertial_from_body);
+  }
+  // Sigmas only when the covariance covers every attitude epoch.
+  if (h.covariances.size() == h.states.size()) {
+    for (size_t k = 0; k < h.states.size(); ++k) {
+      const std::vector<double>& d = h.covariances[k].diagonal;
+      if (std::abs(h.covariances[k].t_s - h.states[k].t_s) > 1e-6 || !(d[0] + d[1] > 0) || !(d[2] > 0)) {
+        log.sigma_cross_arcsec.clear();
+        log.sigma_roll_arcsec.clear();
+        break;
+      }
+      log.sigma_cross_arcsec.push_back(std::sqrt((d[0] + d[1]) / 2) * kRadToArcsec);
+      log.sigma_roll_arcsec.push_back(std::sqrt(d[2]) * kRadToArcsec);
+    }
+  }
+  return log;
+}
+
+}  // namespace
+
+StarTrackerLog ReadStarTrackerLog(const std::string& path, const std::string& epoch_utc) {
+  if (LooksLikeAdm(path)) {
+    const AttitudeHistory h = ReadAdmFile(path, epoch_utc);
+    if (h.states.size() < 1) throw InputError(path, "no attitude");
+    return StarTrackerLogFromAdm(h);
+  }
   const CsvTable t = ReadCsv(path);
   StarTrackerLog log;
   log.file = path;
@@ -327,6 +361,7 @@ FuseResult Fuse(const GyroLog& gyro, const StarTrackerLog& st, const GyroUnit& u
       s.sigma_rad = fusion.attitude_sigma_rad();
       s.bias_sigma_dph = fusion.bias_sigma_dph();
       s.bias_dph = fusion.bias_rad_s() * kRadSToDph;
+      s.w_body_rad_s = fusion.last_rate_rad_s() - fusion.bias_rad_s();
       s.status = status;
       res.samples.push_back(s);
     }

@@ -28,6 +28,7 @@ struct GyroLog {
 // A star-tracker log: t_s,qw,qx,qy,qz (body -> inertial), optional sigma_cross_arcsec,sigma_roll_arcsec.
 struct StarTrackerLog {
   std::string file;
+  std::string epoch_utc;  // UTC of t_s = 0 when read from a CCSDS message, else
   std::vector<double> t_s;
   std::vector<Quat> q_inertial_from_body;
   std::vector<double> sigma_cross_arcsec, sigma_roll_arcsec;  // empty when the columns are absent
@@ -37,7 +38,10 @@ struct StarTrackerLog {
 // when > 0, else as many g*_dph columns as are found. InputError (file, column, row) for a missing column, a non-number
 // or NaN, a time column that does not strictly increase, or fewer than 2 rows.
 GyroLog ReadGyroLog(const std::string& path, int n_gyros = 0);
-StarTrackerLog ReadStarTrackerLog(const std::string& path);
+// The star-tracker log is that CSV or a CCSDS AEM/ACM (KVN or XML, ccsds/adm.h): its quaternions, and
+// from an ACM's ANGLE covariance the sigmas (cross: RMS of x and y, roll: z). t_s counts from
+// `epoch_utc`, "" = the ACM's EPOCH_TZERO or the AEM's first epoch (log.epoch_utc says which).
+StarTrackerLog ReadStarTrackerLog(const std::string& path, const std::string& epoch_utc = "");
 
 // The estimator's policies (OnlineFusion, the one MEKF + fault detection core behind both Fuse and
 // the unit processor): the defaults are the values the filter was tuned and measured with
@@ -117,6 +121,9 @@ struct FusedSample {
   Vec3 sigma_rad = Vec3::Zero();  // 1 sigma attitude error about body x, y, z
   Vec3 bias_dph = Vec3::Zero();
   Vec3 bias_sigma_dph = Vec3::Zero();
+  // The body rate of the gyro interval ending at t_s, bias removed (rad/s): what the CCSDS messages
+  // carry as angular velocity.
+  Vec3 w_body_rad_s = Vec3::Zero();
   FusionStatus status = FusionStatus::kOk;
 };
 

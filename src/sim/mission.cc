@@ -320,7 +320,7 @@ std::vector<std::shared_ptr<const StarIdentifier>> IdentifiersForHeads(const std
 class MissionRun {
  public:
   MissionRun(const MissionConfig& config, const MissionData& data, const StarCatalog& catalog,
-             const std::string& out_dir, bool write_frames);
+             const std::string& out_dir, bool write_frames, bool keep_history);
   MissionResult Run();
 
  private:
@@ -339,7 +339,7 @@ class MissionRun {
   const StarCatalog& catalog_;
   const std::string out_dir_;
   const int nh_;
-  const bool write_, write_frames_;
+  const bool write_, write_frames_, keep_history_;
   UnitProcessor proc_;
   MissionResult res_;
   const Quat q_sensor1_from_body_;
@@ -354,7 +354,7 @@ class MissionRun {
 };
 
 MissionRun::MissionRun(const MissionConfig& config, const MissionData& data, const StarCatalog& catalog,
-                       const std::string& out_dir, bool write_frames)
+                       const std::string& out_dir, bool write_frames, bool keep_history)
     : config_(config),
       data_(data),
       g_(data.gyro),
@@ -363,6 +363,7 @@ MissionRun::MissionRun(const MissionConfig& config, const MissionData& data, con
       nh_(static_cast<int>(config.heads.size())),
       write_(!out_dir.empty()),
       write_frames_(write_frames && write_),
+      keep_history_(keep_history),
       proc_(config.heads, IdentifiersForHeads(config.heads), config.unit, config.processor),
       q_sensor1_from_body_(config.heads[0].q_body_from_sensor.conjugate()) {
   res_.heads.resize(nh_);
@@ -497,6 +498,17 @@ void MissionRun::OnGyroSample(size_t k) {
     }
   }
   if (write_) RecordAttitudeRow(k, a, e, static_cast<int>(a.status));  // status_code
+  if (keep_history_) {
+    FusedSample f;
+    f.t_s = g_.t_s[k];
+    f.q_inertial_from_body = a.q_inertial_from_body;
+    f.sigma_rad = a.covariance_rad2.diagonal().cwiseSqrt();
+    f.bias_dph = a.bias_dph;
+    f.bias_sigma_dph = a.bias_sigma_dph;
+    f.w_body_rad_s = proc_.fusion().last_rate_rad_s() - a.bias_dph * kDphToRadS;
+    f.status = a.status;
+    res_.history.push_back(f);
+  }
 }
 
 // A row of attitude.csv (columns in WriteCsvs).
@@ -587,11 +599,11 @@ std::string MissionFramePath(const std::string& out_dir, int head, int frame) {
 }
 
 MissionResult RunMission(const MissionConfig& config_in, const StarCatalog& catalog, const std::string& out_dir,
-                         bool write_frames) {
+                         bool write_frames, bool keep_history) {
   config_in.Check("mission");
   const MissionConfig config = WithUnitKnowledge(config_in);
   const MissionData data = SimulateMission(config);
-  return MissionRun(config, data, catalog, out_dir, write_frames).Run();
+  return MissionRun(config, data, catalog, out_dir, write_frames, keep_history).Run();
 }
 
 std::string MissionResult::Text() const {

@@ -12,6 +12,7 @@
 
 #include "core/catalog.h"
 #include "core/json.h"
+#include "inertial/fuse.h"
 #include "inertial/unit_processor.h"
 #include "sim/frame_sim.h"
 #include "sim/gyro_sim.h"
@@ -101,6 +102,9 @@ struct MissionResult {
   double frame_ms_mean = 0, frame_ms_max = 0;  // processor time per frame set (all heads + update)
   double gyro_us_mean = 0;                     // processor time per gyro sample
   double simulate_s = 0, process_s = 0;        // wall time spent rendering frames / processing
+  // With RunMission's keep_history: the fused attitude after every gyro sample once it is valid
+  // (t_s from start_utc), for `ssiu run --aem/--acm`.
+  std::vector<FusedSample> history;
 
   std::string Text() const;  // human summary
   Json ToJson() const;
@@ -113,7 +117,7 @@ struct MissionResult {
 // frame); with write_frames also every frame of every head, DIR/frames/head<h>_<frame>.pgm (16-bit
 // binary PGM, frame numbered from 0 with five digits, in the order of frames.csv).
 MissionResult RunMission(const MissionConfig& config, const StarCatalog& catalog, const std::string& out_dir = "",
-                         bool write_frames = false);
+                         bool write_frames = false, bool keep_history = false);
 // The name of head h's (0-based) frame number `frame` under DIR/frames.
 std::string MissionFramePath(const std::string& out_dir, int head, int frame);
 
