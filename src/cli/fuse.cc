@@ -8,6 +8,7 @@
 
 #include "cli/command.h"
 #include "core/error.h"
+#include "inertial/unit_inflight.h"
 
 namespace ssiu::cli {
 namespace {
@@ -16,6 +17,8 @@ struct Opts {
   std::string gyro, st, unit, json, out, noise;
   FuseOptions fuse;
   bool no_fdi = false;
+  bool calibrate_unit = false;  // in-flight calibration of scale factors and axes (off by default)
+  InflightCalOptions inflight;
   // Noise flags (override --noise and the unit) and whether each was given.
   double arw = 0, bias_instability = 0, rrw = 0;
   bool arw_given = false, bias_instability_given = false, rrw_given = false, init_bias_sigma_given = false;
@@ -43,10 +46,25 @@ void Run(Opts o) {
   const GyroUnit unit = FuseUnitForLog(log, o.gyro, o.unit, given, &noise_source);
   const StarTrackerLog st = ReadStarTrackerLog(o.st);
   o.fuse.fdi = !o.no_fdi;
-  FuseResult r = Fuse(log, st, unit, o.fuse);
+  // In-flight calibration first (a batch over the whole log); the fusion then uses the calibrated unit.
+  Json calibration;
+  GyroUnit used = unit;
+  if (o.calibrate_unit) {
+    const InflightCalResult c =
+        CalibrateUnitInFlight(log, st, unit, o.fuse.st_sigma_cross_arcsec, o.fuse.st_sigma_roll_arcsec, o.inflight);
+    calibration = c.ToJson();
+    if (c.ok) used = c.unit;
+    std::cerr << "fuse: unit calibration: " << (c.ok ? "fitted" : c.message) << " (" << c.n_windows
+              << " star windows)\n";
+  }
+  FuseResult r = Fuse(log, st, used, o.fuse);
   r.noise["source"] = noise_source;
   if (!o.noise.empty()) r.noise["noise_file"] = o.noise;
-  if (!o.json.empty()) WriteJsonFile(o.json, r.ToJson());
+  if (!o.json.empty()) {
+    Json j = r.ToJson();
+    if (o.calibrate_unit) j["unit_calibration"] = calibration;
+    WriteJsonFile(o.json, j);
+  }
   if (!o.out.empty()) WriteFusedAttitude(o.out, r);
   std::cerr << "fuse: noise (" << noise_source << "): ARW " << r.noise.value("arw_deg_per_sqrt_h", 0.0)
             << " deg/sqrt(h), bias instability " << r.noise.value("bias_instability_dph", 0.0) << " deg/h, RRW "
@@ -92,5 +110,13 @@ SSIU_REGISTER_COMMAND(fuse, [](CLI::App& root) {
   cmd->add_option("--st-sigma-roll-arcsec", o->fuse.st_sigma_roll_arcsec, "Star-tracker roll noise");
   cmd->add_option("--output-every", o->fuse.output_every, "Write every n-th gyro sample");
   cmd->add_flag("--no-fdi", o->no_fdi, "Switch off gyro fault detection and isolation");
+  cmd->add_flag("--calibrate-unit", o->calibrate_unit,
+                "Estimate the gyros' scale factors and axes from the star attitudes first (batch; needs g1..gN and "
+                "turns about three axes), then fuse with them; JSON unit_calibration");
+  cmd->add_option("--calibration-window-s", o->inflight.window_s, "Star-to-star window of --calibrate-unit, s")
+      ->capture_default_str();
+  cmd->add_option("--calibration-bias-block-s", o->inflight.bias_block_s,
+                  "--calibrate-unit: the bias is constant within blocks of this length, s")
+      ->capture_default_str();
   cmd->callback([o] { Run(*o); });
 });

@@ -118,7 +118,12 @@ Vec3 MotionProfile::RateBodyRadS(double t) const {
     if (t < slew_start_s || t >= slew_end_s) return Vec3::Zero();
     return axis_body.normalized() * (rate_dps * kDegToRad);
   }
-  return amplitude_dps * (kDegToRad * std::sin(2 * kPi * t / period_s));  // sine
+  Vec3 w;  // sine
+  for (int a = 0; a < 3; ++a) {
+    const double per = periods_s[a] > 0 ? periods_s[a] : period_s;
+    w[a] = amplitude_dps[a] * kDegToRad * std::sin(2 * kPi * t / per);
+  }
+  return w;
 }
 
 bool MotionProfile::InStarOutage(double t) const {
@@ -148,6 +153,7 @@ void MotionProfile::Check(const std::string& file, int n_gyros) const {
   if (type == "slew" && !(axis_body.norm() > 0)) throw InputError(file, "axis must be nonzero");
   if (!std::isfinite(rate_dps) || !amplitude_dps.allFinite()) throw InputError(file, "rates must be finite");
   if (!(period_s > 0)) throw InputError(file, "period_s must be positive");
+  if (!(periods_s.minCoeff() >= 0) || !periods_s.allFinite()) throw InputError(file, "periods_s must be >= 0");
   // Above the gyro rates a star tracker is absurd, and 1e9 Hz ran for hours.
   if (!(st_rate_hz > 0 && st_rate_hz <= 1000)) throw InputError(file, "star_tracker.rate_hz must be in (0, 1000]");
   if (!(st_sigma_cross_arcsec >= 0) || !(st_sigma_roll_arcsec >= 0)) {
@@ -208,7 +214,7 @@ MotionProfile MotionProfileFromJson(const Json& j, const std::string& file) {
   CheckKeys(
       j,
       {"type", "latitude_deg", "azimuth_deg", "rate_dps", "period_s", "axis", "amplitude_dps", "magnetic_field_ut",
-       "q0", "temperature", "star_tracker", "faults", "comment", "start_s", "end_s", "bench"},
+       "q0", "temperature", "star_tracker", "faults", "comment", "start_s", "end_s", "bench", "periods_s"},
       file);
   MotionProfile p;
   if (j.contains("type")) {
@@ -242,6 +248,7 @@ MotionProfile MotionProfileFromJson(const Json& j, const std::string& file) {
   }
   if (j.contains("axis")) p.axis_body = Vec3From(j, "axis", file);
   if (j.contains("amplitude_dps")) p.amplitude_dps = Vec3From(j, "amplitude_dps", file);
+  if (j.contains("periods_s")) p.periods_s = Vec3From(j, "periods_s", file);
   if (j.contains("magnetic_field_ut")) p.magnetic_field_body_ut = Vec3From(j, "magnetic_field_ut", file);
   if (p.type == "static" || p.type == "temperature") {
     p.q0 = StaticAttitude(p.latitude_deg * kDegToRad, p.azimuth_deg * kDegToRad);

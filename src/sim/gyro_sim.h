@@ -69,6 +69,7 @@ struct MotionProfile {
   std::vector<BenchSegment> bench;           // bench
   Vec3 amplitude_dps = Vec3(1.0, 0.5, 0.3);  // sine
   double period_s = 60.0;                    // sine
+  Vec3 periods_s = Vec3::Zero();             // sine: per body axis (0: period_s), for turns about changing axes
   TemperatureProgramme temperature;
   Vec3 magnetic_field_body_ut = Vec3::Zero();
   // Star tracker: samples at multiples of 1/st_rate_hz, noise about body x, y (cross) and z (roll).

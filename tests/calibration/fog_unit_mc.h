@@ -12,6 +12,7 @@
 #include "core/rng.h"
 #include "inertial/fuse.h"
 #include "sim/gyro_sim.h"
+#include "testing/sim_logs.h"
 
 namespace ssiu {
 
@@ -153,24 +154,9 @@ inline double OutageErrorArcsec(const GyroUnit& truth, const GyroUnit& processor
   so.seed = seed + 1000;
   so.duration_s = 960;
   const GyroSimulation sim = SimulateGyro(truth, p, so);
-  GyroLog log;
-  log.file = "slew";
-  log.t_s = sim.t_s;
-  log.rates_dph = sim.gyro_dph;
-  StarTrackerLog st;
-  st.file = "st";
-  st.t_s = sim.st_t_s;
-  st.q_inertial_from_body = sim.st_q;
-  const FuseResult r = Fuse(log, st, processor_unit, FuseOptions{});
-  double worst = 0;
-  for (const auto& f : r.samples) {
-    if (f.t_s < 600 || f.t_s > 900) continue;
-    const long k = std::lround(f.t_s * truth.rate_hz) - 1;
-    if (k < 0 || k >= static_cast<long>(sim.q_true.size())) continue;
-    const Quat d = f.q_inertial_from_body * sim.q_true[k].conjugate();
-    worst = std::max(worst, 2 * std::asin(std::min(1.0, d.vec().norm())) * kRadToArcsec);
-  }
-  return worst;
+  return testing::WorstErrorArcsec(
+      Fuse(testing::GyroLogOf(sim), testing::StarLogOf(sim), processor_unit, FuseOptions{}), sim, truth.rate_hz, 600,
+      900);
 }
 
 }  // namespace ssiu
