@@ -50,6 +50,21 @@ TEST(UnitInflight, NoiselessMissionGivesTheErrorsBack) {
     EXPECT_NEAR(c.gyros[i].misalignment_arcsec[0], mu[i], 0.3) << i;
     EXPECT_NEAR(c.gyros[i].misalignment_arcsec[1], nu[i], 0.3) << i;
   }
+  // On top of a bench calibration that left 20 ppm and 40 arcsec: the calibrated unit is the truth.
+  GyroUnit bench = truth;
+  bench.calibrated = true;
+  for (int i = 0; i < 4; ++i) {
+    bench.gyros[i].scale_factor_ppm -= 20;
+    bench.gyros[i].misalignment_arcsec[0] -= 40;
+  }
+  const InflightCalResult cb = CalibrateUnitInFlight(log, st, bench, 0.01, 0.01, InflightCalOptions{});
+  ASSERT_TRUE(cb.ok) << cb.message;
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_NEAR(cb.unit.gyros[i].scale_factor_ppm, sf[i], 0.2) << i;
+    const Vec3 a = cb.unit.SensingAxis(i), t = truth.SensingAxis(i);
+    EXPECT_LT(std::atan2(a.cross(t).norm(), a.dot(t)) * kRadToArcsec, 0.3) << i;
+    EXPECT_NEAR(cb.gyros[i].scale_factor_ppm, 1e6 * ((1 + 1e-6 * sf[i]) / (1 + 1e-6 * (sf[i] - 20)) - 1), 0.2) << i;
+  }
 }
 
 TEST(UnitInflight, FuseFlagWritesTheCalibrationAndRefusesBodyRates) {
