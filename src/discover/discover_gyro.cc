@@ -2965,7 +2965,8 @@ void JointFit(Design* design, const GyroDiscoverOptions& o, const std::vector<No
       EvaluateFitted(d, o, nm, fit, gc.cause, scale, nc.step_scan, nc.periodic_scan, &ev);
       gc.parameters = ev.parameters, gc.sigmas = ev.sigmas;
     }
-    gc.parameters.erase("swing_ratio");
+    gc.parameters.erase("swing_ratio");  // gate quantities, not parameters of the cause
+    gc.parameters.erase("lag_vs_none_chi2");
     res->causes.push_back(gc);
   });
   // Correlations of the coefficients (columns l.. of the joint fit, in the order the causes entered).
