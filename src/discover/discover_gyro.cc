@@ -2188,12 +2188,17 @@ void EvaluateFitted(const Design& d, const GyroDiscoverOptions& o, const std::ve
     xd << fit.x, d.lag_dtau * (g.beta(pos(kLag)) / scale[kLag]);
     const LsFit gd = SolveLs(WhitenRows(d, nm, xd), WhitenRows(d, nm, d.y));
     par["tau_s"] = d.lag_tau_s, sig["tau_s"] = std::sqrt(gd.cov_unscaled(fit.x.cols(), fit.x.cols()) * s2);
-    // The lag against none (tau -> 0: the temperature itself, K10 alone), by the likelihood ratio: the
-    // linearised sigma of tau is a poor guide near 0, where the profile is one-sided.
-    MatrixXd x0 = fit.x;
+    // The lag against none (tau -> 0: the temperature itself), by the likelihood ratio, both with eq. (1)'s
+    // K20: a curvature of the drift in T is not a lag (the linearised sigma of tau is a poor guide near 0,
+    // where the profile is one-sided).
+    MatrixXd x1(d.n, fit.x.cols() + 1), x0;
+    x1 << fit.x, d.cols.col(kT2);
+    x0 = x1;
     x0.col(pos(kLag)) = d.cols.col(kT1);
+    const LsFit g1 = SolveLs(WhitenRows(d, nm, x1), WhitenRows(d, nm, d.y));
     const LsFit g0 = SolveLs(WhitenRows(d, nm, x0), WhitenRows(d, nm, d.y));
-    par["lag_vs_none_chi2"] = std::max(0.0, (g0.rss - g.rss) / s2);
+    const double s2_1 = g1.rss / std::max(1, d.n - static_cast<int>(x1.cols())) * fit.inflation;
+    par["lag_vs_none_chi2"] = std::max(0.0, (g0.rss - g1.rss) / s2_1);
   } else if (cause == "magnetic_field") {
     // f = e_sin sin(psi) + e_cos cos(psi) = S sin(psi + phi); the logged field's sensitivities.
     if (has(kMagSin) && has(kMagCos)) harmonic(pos(kMagSin), pos(kMagCos), scale[kMagSin], scale[kMagCos], g);
@@ -2684,15 +2689,22 @@ struct NamedCause {
   std::vector<NoiseModel> nm, nm_walk;  // the step's noise models (nm_walk: with rate_random_walk's walk)
 };
 
-// thermal_lag is named only when its lag is significant (the likelihood ratio against tau = 0, which is
-// the temperature itself, beyond 3 sigma) and it predicts the held-out blocks better than temperature and
+// thermal_lag is named only when its BIC is below that of temperature and temperature_gradient together,
+// its lag is significant (the likelihood ratio against tau = 0, which is the temperature itself, beyond 3
+// sigma, both with K20) and it predicts the held-out blocks better than temperature and
 // temperature_gradient do (both are eq. (1)'s view of the same drift: a lag's drift on a ramp is K10
 // plus a K01 term). True when refused; the verdict says why.
 constexpr double kLagMinTauZ = 3;
-template <typename Evaluate>
+template <typename Evaluate, typename PairBic>
 bool LagBeatenOnHeldOut(const Evaluation& ev, std::vector<GyroCandidate>& candidates, const Evaluate& evaluate,
-                        GyroCandidate* c) {
+                        const PairBic& pair_bic, GyroCandidate* c) {
   if (c->cause != "thermal_lag") return false;
+  // K10 + K20 + K01 together describe a lag's drift (eq. (1) to first order in tau): the lag, one
+  // coefficient and a located tau, must have the lower BIC of the exact likelihood.
+  if (pair_bic() <= c->bic) {
+    c->verdict = "temperature and temperature_gradient together fit as well (BIC)";
+    return true;
+  }
   if (!(ev.parameters.at("lag_vs_none_chi2") > kLagMinTauZ * kLagMinTauZ)) {
     c->verdict = "time constant not significant (the temperature itself)";
     return true;
@@ -2833,6 +2845,13 @@ GyroStep RunGyroStep(const Design& d, const GyroDiscoverOptions& o, const std::v
 
   auto walk_survives = [&](double tau_s) { return WalkBeatsShape(d, o, nm, walk_logs, tau_s); };
   const ScoreNorm norm = MakeScoreNorm(d, o, nm, x_full);
+  auto pair_bic = [&] {
+    std::vector<int> cols;
+    for (int col : {kT1, kT2, kG1}) {
+      if (usable[col]) cols.push_back(col);
+    }
+    return FittedBic(d, o, nm, Assemble(d, cols, {}), static_cast<int>(cols.size()), 0.0);
+  };
   const GyroCandidate* chosen = nullptr;
   std::vector<std::string> tried;
   for (GyroCandidate* c0 : order) {
@@ -2846,7 +2865,7 @@ GyroStep RunGyroStep(const Design& d, const GyroDiscoverOptions& o, const std::v
         continue;
       }
       Evaluation ev = evaluate(*c);
-      if (JudgeCandidate(ev, out.z_min, o, c) && !LagBeatenOnHeldOut(ev, candidates, evaluate, c)) {
+      if (JudgeCandidate(ev, out.z_min, o, c) && !LagBeatenOnHeldOut(ev, candidates, evaluate, pair_bic, c)) {
         chosen = c, out.cause.ev = ev;
       }
     }
@@ -3047,6 +3066,27 @@ void WidenNested(Design* design, const GyroDiscoverOptions& o, const std::vector
   });
 }
 
+// thermal_lag named in a chain is weighed again with the other named causes in the model: a lag found at
+// a step where another cause was still unmodelled (a field harmonic's staircase smoothed by the lag) must
+// still beat the temperature itself (K10, both with K20) by the likelihood ratio, else it is `temperature`.
+void NarrowLag(Design* design, const GyroDiscoverOptions& o, const std::vector<NoiseModel>& nm,
+               std::vector<NamedCause>* named) {
+  const Design& d = *design;
+  const VectorXd yw = WhitenRows(d, nm, d.y);
+  WithOthersInBase(design, *named, [&](int k) {
+    NamedCause& nc = (*named)[k];
+    if (nc.candidate.cause != "thermal_lag") return;
+    const MatrixXd xl = WhitenRows(d, nm, Assemble(d, {kLag, kT2}, {}));
+    const MatrixXd xt = WhitenRows(d, nm, Assemble(d, {kT1, kT2}, {}));
+    const LsFit gl = SolveLs(xl, yw), gt = SolveLs(xt, yw);
+    const double s2 = gl.rss / std::max(1, d.n - static_cast<int>(xl.cols()));
+    const double infl = VarianceInflation(d, yw - xl * gl.beta, o.max_noise_lag);
+    if (!((gt.rss - gl.rss) / (s2 * infl) > kLagMinTauZ * kLagMinTauZ)) {
+      nc.candidate.cause = "temperature", nc.cols = {kT1, kT2};
+    }
+  });
+}
+
 // Stepwise extension (issue 31): step s tests every cause not yet named against the base model extended by
 // the causes named before (their columns in d.base: one GLS of the biases and all of them), names the best
 // as one step always did, and the next step starts from the extended model; it stops when no candidate
@@ -3108,6 +3148,7 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
   if (named.size() > 1) {
     RelocateNamed(&d, o, named.back().nm, &named);
     WidenNested(&d, o, named.back().nm, usable, &named);
+    NarrowLag(&d, o, named.back().nm, &named);
   }
   // 6. The final model's residual (one GLS of the biases + every named cause, under the noise models of
   // the step that named the last one; the walk's when that was rate_random_walk) against its noise model.
