@@ -98,6 +98,7 @@ void NoiseFitOptions::Check() const {
   if (iterations < 1 || iterations > 100) throw InputError("NoiseFitOptions.iterations must be in 1..100");
   if (!(model_error >= 0 && model_error < 1)) throw InputError("NoiseFitOptions.model_error must be in [0, 1)");
   if (!(floor_min_edf >= 0)) throw InputError("NoiseFitOptions.floor_min_edf must be >= 0");
+  if (!(support_min_edf >= 0)) throw InputError("NoiseFitOptions.support_min_edf must be >= 0");
   if (!std::isfinite(term_penalty)) throw InputError("NoiseFitOptions.term_penalty must be finite");
 }
 
@@ -407,18 +408,20 @@ TermSetFit FitTermsIteratively(const AvarSystem& s, const bool enabled[5], doubl
 // whether it is significant.
 void ReportTerm(const AllanCurve& curve, const std::vector<size_t>& idx, const AvarSystem& s,
                 const Eigen::VectorXd& model, const TermSetFit& best, int j, double inflate, double dominance,
-                NoiseTerm* term) {
+                double support_min_edf, NoiseTerm* term) {
   NoiseTerm& t = *term;
   const double c = best.c(j);
   if (c <= 0) return;
   t.value = std::sqrt(c);
   t.sigma = std::sqrt(std::max(0.0, best.cov(j, j) * inflate)) / (2 * t.value);  // delta method on sqrt
   int support = 0;
+  bool any_well_determined = false;
+  for (size_t r = 0; r < idx.size(); ++r) any_well_determined |= curve.edf[idx[r]] >= support_min_edf;
   for (size_t r = 0; r < idx.size(); ++r) {
     const double f = s.a(r, j) * c / model(r);
     t.max_fraction = std::max(t.max_fraction, f);
     if (f >= dominance) {
-      ++support;
+      support += !any_well_determined || curve.edf[idx[r]] >= support_min_edf;
       const double tau = curve.tau_s[idx[r]];
       if (t.tau_min_s == 0 || tau < t.tau_min_s) t.tau_min_s = tau;
       t.tau_max_s = std::max(t.tau_max_s, tau);
@@ -465,7 +468,9 @@ NoiseFit FitNoiseTerms(const AllanCurve& curve, const NoiseFitOptions& options) 
   const double inflate = curve.edf_source == "assumed" ? fit.chi2_per_dof : std::max(1.0, fit.chi2_per_dof);
   fit.points_used = idx.size();
   NoiseTerm* terms[5] = {&fit.quantization, &fit.arw, &fit.bias_instability, &fit.rrw, &fit.rate_ramp};
-  for (int j = 0; j < 5; ++j) ReportTerm(curve, idx, s, model, best, j, inflate, options.dominance, terms[j]);
+  for (int j = 0; j < 5; ++j) {
+    ReportTerm(curve, idx, s, model, best, j, inflate, options.dominance, options.support_min_edf, terms[j]);
+  }
   fit.model_adev.resize(k);
   for (size_t i = 0; i < k; ++i) fit.model_adev[i] = curve.tau_s[i] > 0 ? fit.ModelAdev(curve.tau_s[i]) : 0;
   fit.status = FitStatus::kFitted;

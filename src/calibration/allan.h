@@ -78,7 +78,7 @@ struct NoiseTerm {
   double tau_min_s = 0;      // tau range where this term carries >= `dominance` of the model variance
   double tau_max_s = 0;      //   (both 0 when it dominates nowhere)
   double max_fraction = 0;   // largest share of the model Allan variance this term carries on the curve
-  bool significant = false;  // dominant at two or more points and value > 2 sigma
+  bool significant = false;  // dominant at two or more points (of edf >= support_min_edf) and value > 2 sigma
 };
 
 struct NoiseFitOptions {
@@ -91,7 +91,12 @@ struct NoiseFitOptions {
   int iterations = 6;         // reweighting passes (weights from the model, not the noisy data)
   double model_error = 0.02;  // relative ADEV error floor added to each point's statistical error
   double floor_min_edf = 10;  // the curve's floor (adev_min) is sought among points with this edf
-  double term_penalty = -1;   // chi-squared cost of each term in model selection; < 0 = ln(effective points)
+  // A term is significant only where it dominates two points with at least this edf (when the curve has
+  // any): the last octaves of a log hold a few independent clusters, and a white-noise curve scatters
+  // there by tens of percent (chi^2 with 2-5 dof); counted as support, they made a flicker floor or a
+  // rate random walk out of white noise in 7-13 % of logs (docs/allan.md).
+  double support_min_edf = 10;
+  double term_penalty = -1;  // chi-squared cost of each term in model selection; < 0 = ln(effective points)
   void Check() const;
 };
 

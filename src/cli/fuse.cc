@@ -11,6 +11,7 @@
 #include "cli/command.h"
 #include "core/error.h"
 #include "inertial/fuse_adm.h"
+#include "inertial/unit_inflight.h"
 
 namespace ssiu::cli {
 namespace {
@@ -20,6 +21,8 @@ struct Opts {
   AdmFlags adm;
   FuseOptions fuse;
   bool no_fdi = false;
+  bool calibrate_unit = false;  // in-flight calibration of scale factors and axes (off by default)
+  InflightCalOptions inflight;
   // Noise flags (override --noise and the unit) and whether each was given.
   double arw = 0, bias_instability = 0, rrw = 0;
   bool arw_given = false, bias_instability_given = false, rrw_given = false, init_bias_sigma_given = false;
@@ -65,10 +68,25 @@ void Run(Opts o) {
     throw InputError("--epoch-utc", "--aem/--acm need the UTC of t_s = 0 (a CSV log has no time of day)");
   if (!epoch_utc.empty()) AdmEpoch(epoch_utc, 0.0);  // a bad --epoch-utc is reported before the run
   o.fuse.fdi = !o.no_fdi;
-  FuseResult r = Fuse(log, st, unit, o.fuse);
+  // In-flight calibration first (a batch over the whole log); the fusion then uses the calibrated unit.
+  Json calibration;
+  GyroUnit used = unit;
+  if (o.calibrate_unit) {
+    const InflightCalResult c =
+        CalibrateUnitInFlight(log, st, unit, o.fuse.st_sigma_cross_arcsec, o.fuse.st_sigma_roll_arcsec, o.inflight);
+    calibration = c.ToJson();
+    if (c.ok) used = c.unit;
+    std::cerr << "fuse: unit calibration: " << (c.ok ? "fitted" : c.message) << " (" << c.n_windows
+              << " star windows)\n";
+  }
+  FuseResult r = Fuse(log, st, used, o.fuse);
   r.noise["source"] = noise_source;
   if (!o.noise.empty()) r.noise["noise_file"] = o.noise;
-  if (!o.json.empty()) WriteJsonFile(o.json, r.ToJson());
+  if (!o.json.empty()) {
+    Json j = r.ToJson();
+    if (o.calibrate_unit) j["unit_calibration"] = calibration;
+    WriteJsonFile(o.json, j);
+  }
   if (!o.out.empty()) WriteFusedAttitude(o.out, r);
   if (o.adm.given())
     WriteAdmOutputs(o.adm, FusedAttitudeHistory(r.samples, epoch_utc, r.noise, FuseSensors(st, log, r, o.fuse)));
@@ -122,5 +140,13 @@ SSIU_REGISTER_COMMAND(fuse, [](CLI::App& root) {
   cmd->add_option("--st-sigma-roll-arcsec", o->fuse.st_sigma_roll_arcsec, "Star-tracker roll noise");
   cmd->add_option("--output-every", o->fuse.output_every, "Write every n-th gyro sample");
   cmd->add_flag("--no-fdi", o->no_fdi, "Switch off gyro fault detection and isolation");
+  cmd->add_flag("--calibrate-unit", o->calibrate_unit,
+                "Estimate the gyros' scale factors and axes from the star attitudes first (batch; needs g1..gN and "
+                "turns about three axes), then fuse with them; JSON unit_calibration");
+  cmd->add_option("--calibration-window-s", o->inflight.window_s, "Star-to-star window of --calibrate-unit, s")
+      ->capture_default_str();
+  cmd->add_option("--calibration-bias-block-s", o->inflight.bias_block_s,
+                  "--calibrate-unit: the bias is constant within blocks of this length, s")
+      ->capture_default_str();
   cmd->callback([o] { Run(*o); });
 });

@@ -13,6 +13,7 @@ namespace {
 struct Opts {
   std::string unit, profile = "slew", out;
   double duration_s = 3600;
+  bool duration_given = false;
   uint64_t seed = 1;
 };
 
@@ -20,16 +21,18 @@ void Run(const Opts& o) {
   const GyroUnit unit = o.unit.empty() ? DefaultFourFogUnit() : LoadGyroUnit(o.unit);
   // A profile is a JSON file, or the name of a built-in one with default settings.
   MotionProfile profile;
-  if (o.profile == "static" || o.profile == "slew" || o.profile == "sine" || o.profile == "temperature") {
+  if (o.profile == "static" || o.profile == "slew" || o.profile == "sine" || o.profile == "temperature" ||
+      o.profile == "bench") {
     profile = MotionProfileFromJson(Json{{"type", o.profile}}, o.profile);
   } else {
     profile = LoadMotionProfile(o.profile);
   }
   profile.Check(o.profile, unit.size());  // here, to name the file (SimulateGyro checks it again)
   GyroSimOptions so;
-  so.duration_s = o.duration_s;
+  // A bench campaign lasts as long as its segments unless told otherwise.
+  so.duration_s = profile.type == "bench" && !o.duration_given ? BenchDurationS(profile) : o.duration_s;
   so.seed = o.seed;
-  if (!(o.duration_s > 0) || o.duration_s * unit.rate_hz > 5e7) {
+  if (!(so.duration_s > 0) || so.duration_s * unit.rate_hz > 5e7) {
     throw InputError("simulate gyro", "--duration-s must be positive and give at most 5e7 samples");
   }
   const GyroSimulation sim = SimulateGyro(unit, profile, so);
@@ -50,9 +53,13 @@ SSIU_REGISTER_COMMAND(simulate_gyro, [](CLI::App& root) {
   auto o = std::make_shared<Opts>();
   cmd->add_option("--unit", o->unit, "unit.json (default: four navigation-grade FOGs, 3 orthogonal + 1 skewed)");
   cmd->add_option("--profile", o->profile,
-                  "PROFILE.json, or one of static, slew, sine, temperature (built-in defaults); see docs/inertial.md");
-  cmd->add_option("--duration-s", o->duration_s, "Duration (s)");
+                  "PROFILE.json, or one of static, slew, sine, temperature, bench (built-in defaults; bench: the unit "
+                  "calibration campaign of docs/fog-calibration.md); see docs/inertial.md");
+  cmd->add_option("--duration-s", o->duration_s, "Duration (s); a bench profile: default its segments' total");
   cmd->add_option("--seed", o->seed, "Random seed");
   cmd->add_option("--out", o->out, "Output directory")->required();
-  cmd->callback([o] { Run(*o); });
+  cmd->callback([o, cmd] {
+    o->duration_given = cmd->count("--duration-s") > 0;
+    Run(*o);
+  });
 });

@@ -17,6 +17,7 @@
 #include "core/error.h"
 #include "core/rng.h"
 #include "core/types.h"
+#include "discover/discover_gyro_lag.h"
 #include "discover/discovery_json.h"
 
 namespace ssiu {
@@ -29,8 +30,9 @@ constexpr double kArcsecPerRad = 206264.80624709636;
 
 // Candidate regressor columns (bin means), in this fixed order.
 // kBn..kBh: the logged field (uT); kAbsRef: |ref| * 1e-6, which with kScale splits the scale factor of
-// positive and negative rates.
-enum Col { kT1, kT2, kG1, kMagSin, kMagCos, kBn, kBe, kBh, kMis, kScale, kAbsRef, kDelay, kNumCols };
+// positive and negative rates; kLag: Z1 of the temperature through the first-order lag that thermal_lag's
+// scan located (discover_gyro_lag.h), never in the full model (the noise models stay those of the others).
+enum Col { kT1, kT2, kG1, kMagSin, kMagCos, kBn, kBe, kBh, kMis, kScale, kAbsRef, kDelay, kLag, kNumCols };
 
 struct LogBins {
   double bin_s = 0, temp_span_c = 0;
@@ -46,6 +48,7 @@ struct LogBins {
   // evenly sampled and its bins hold >= 12 samples; its p (over the log's ordinates), frequency, amplitude.
   bool line_tested = false;
   double line_p = 1, line_frequency_hz = 0, line_amplitude_dph = 0, line_power_ratio = 0;
+  std::vector<int> sample_bin;  // per sample of the log: its bin (index into t_s)
 };
 
 // The largest n' <= n whose only prime factors are 2, 3 and 5 (a fast FFT length).
@@ -240,8 +243,10 @@ LogBins MakeLogBins(const GyroBenchLog& log, const GyroDiscoverOptions& o) {
       }
     }
   }
+  std::vector<int> compact(nb, -1);
   for (int k = 0; k < nb; ++k) {
     if (cnt[k] == 0) continue;
+    compact[k] = static_cast<int>(b.t_s.size());
     for (auto& [name, cs] : col_sum) b.column_mean[name].push_back(cs[k] / cnt[k]);
     for (auto& [name, cs] : nl_sum) b.nonlinear_mean[name].push_back(cs[k] / cnt[k]);
     b.t_s.push_back(sum_t[k] / cnt[k]);
@@ -269,6 +274,8 @@ LogBins MakeLogBins(const GyroBenchLog& log, const GyroDiscoverOptions& o) {
     b.x[k][kG1] = z2;
   }
   SpectralLineTest(log, dref, bin_of, nb, &b);
+  b.sample_bin.resize(n);
+  for (size_t i = 0; i < n; ++i) b.sample_bin[i] = compact[bin_of[i]];
   return b;
 }
 
@@ -498,6 +505,10 @@ struct Design {
   // n x (L + k): the per-log bias indicators, then the columns of the causes named at earlier steps of the
   // stepwise extension (DiscoverGyro); every candidate is tested against this base model.
   MatrixXd base;
+  // thermal_lag's located time constant, the scan's independent positions and d(kLag column)/d(tau) (raw).
+  double lag_tau_s = 0;
+  int lag_positions = 0;
+  VectorXd lag_dtau;
 };
 
 // The residual of the base model by ordinary least squares: each log's drift minus its mean while the base
@@ -1650,6 +1661,31 @@ Design BuildDesign(const std::vector<GyroBenchLog>& logs, const GyroDiscoverOpti
   }
   const int l = static_cast<int>(logs.size());
   if (d.n < 40 + l) throw InputError(logs.front().file, "too few bins (" + std::to_string(d.n) + ") for discovery");
+  // thermal_lag's time constant (1 min to 6 h, at most the longest log), when the temperature moves.
+  double temp_span = 0, longest_s = 0;
+  for (int r = 0; r < l; ++r) {
+    temp_span = std::max(temp_span, d.bins[r].temp_span_c);
+    longest_s = std::max(longest_s, logs[r].t_s.back() - logs[r].t_s.front());
+  }
+  d.lag_dtau = VectorXd::Zero(d.n);
+  if (temp_span >= o.min_temp_span_c) {
+    std::vector<LagLog> lag_logs;
+    for (int r = 0; r < l; ++r) {
+      lag_logs.push_back({&logs[r].t_s, &logs[r].temp_c, &d.bins[r].sample_bin, static_cast<int>(d.bins[r].t_s.size()),
+                          &d.bins[r].y_dph});
+    }
+    const ThermalLagScan scan = ScanThermalLag(lag_logs, 60.0, std::min(6 * 3600.0, std::max(120.0, longest_s)));
+    if (scan.ok) {
+      d.lag_tau_s = scan.tau_s;
+      d.lag_positions = scan.positions;
+      for (int r = 0; r < l; ++r) {
+        for (size_t k = 0; k < d.bins[r].t_s.size(); ++k) {
+          d.bins[r].x[k][kLag] = scan.column[r][k];
+          d.lag_dtau(d.offset[r] + static_cast<int>(k)) = scan.d_column_d_tau[r][k];
+        }
+      }
+    }
+  }
   d.cols.resize(d.n, kNumCols);
   d.y.resize(d.n);
   d.base = MatrixXd::Zero(d.n, l);
@@ -1693,7 +1729,7 @@ std::vector<int> UsableColumns(Design* design, const GyroDiscoverOptions& o, std
   // a log whose temperature hardly moves they explain anything with absurd coefficients.
   double temp_span = 0;
   for (const auto& b : d.bins) temp_span = std::max(temp_span, b.temp_span_c);
-  if (temp_span < o.min_temp_span_c) usable[kT1] = usable[kT2] = usable[kG1] = false;
+  if (temp_span < o.min_temp_span_c) usable[kT1] = usable[kT2] = usable[kG1] = usable[kLag] = false;
   // Likewise a logged field component must move: a magnetometer's noise alone gives absurd sensitivities.
   for (int c = 0; c < 3; ++c) {
     double span = 0;
@@ -1715,7 +1751,7 @@ std::vector<int> UsableColumns(Design* design, const GyroDiscoverOptions& o, std
   }
   std::vector<int> full_cols;
   for (int c = 0; c < kNumCols; ++c) {
-    if (usable[c] && c != kMis) full_cols.push_back(c);  // misalignment is nested in the harmonic
+    if (usable[c] && c != kMis && c != kLag) full_cols.push_back(c);  // misalignment is nested in the harmonic
   }
   if (!usable[kMagSin] && usable[kMis]) full_cols.push_back(kMis);
   return full_cols;
@@ -1956,8 +1992,11 @@ std::vector<GyroCandidate> TestCandidates(const Design& d, const GyroDiscoverOpt
     c.dof = static_cast<int>(cols.size());
     c.applicable = !cols.empty();
     if (c.applicable) {
-      score(&c, Assemble(d, cols, {}), cols, 0.0);
-      c.p_value = ChiSquaredSurvival(c.statistic, c.dof);
+      // thermal_lag's time constant was located by a scan: Bonferroni over its positions, which cost in the BIC.
+      const double npos = sp.cause == "thermal_lag" ? std::max(1, d.lag_positions) : 1;
+      if (npos > 1) (*position_cost)[sp.cause] = std::log(npos);
+      score(&c, Assemble(d, cols, {}), cols, npos > 1 ? std::log(npos) : 0.0);
+      c.p_value = std::min(1.0, npos * ChiSquaredSurvival(c.statistic, c.dof));
       c.significant = c.p_value < alpha_each;
     }
     out.push_back(c);
@@ -2141,6 +2180,25 @@ void EvaluateFitted(const Design& d, const GyroDiscoverOptions& o, const std::ve
     par["swing_ratio"] = swing_ratio({{kT1}, {kT2}});
   } else if (cause == "temperature_gradient") {
     est(kG1, scale[kG1], "K01_dph");
+  } else if (cause == "thermal_lag") {
+    // K per 10 C of the lagged temperature (eq. (1)'s K10 for tau -> 0); tau's sigma from the GLS with the
+    // column's derivative in tau added (linearised), as periodic_drift's period.
+    est(kLag, scale[kLag], "K_lag_dph");
+    MatrixXd xd(d.n, fit.x.cols() + 1);
+    xd << fit.x, d.lag_dtau * (g.beta(pos(kLag)) / scale[kLag]);
+    const LsFit gd = SolveLs(WhitenRows(d, nm, xd), WhitenRows(d, nm, d.y));
+    par["tau_s"] = d.lag_tau_s, sig["tau_s"] = std::sqrt(gd.cov_unscaled(fit.x.cols(), fit.x.cols()) * s2);
+    // The lag against none (tau -> 0: the temperature itself), by the likelihood ratio, both with eq. (1)'s
+    // K20: a curvature of the drift in T is not a lag (the linearised sigma of tau is a poor guide near 0,
+    // where the profile is one-sided).
+    MatrixXd x1(d.n, fit.x.cols() + 1), x0;
+    x1 << fit.x, d.cols.col(kT2);
+    x0 = x1;
+    x0.col(pos(kLag)) = d.cols.col(kT1);
+    const LsFit g1 = SolveLs(WhitenRows(d, nm, x1), WhitenRows(d, nm, d.y));
+    const LsFit g0 = SolveLs(WhitenRows(d, nm, x0), WhitenRows(d, nm, d.y));
+    const double s2_1 = g1.rss / std::max(1, d.n - static_cast<int>(x1.cols())) * fit.inflation;
+    par["lag_vs_none_chi2"] = std::max(0.0, (g0.rss - g1.rss) / s2_1);
   } else if (cause == "magnetic_field") {
     // f = e_sin sin(psi) + e_cos cos(psi) = S sin(psi + phi); the logged field's sensitivities.
     if (has(kMagSin) && has(kMagCos)) harmonic(pos(kMagSin), pos(kMagCos), scale[kMagSin], scale[kMagCos], g);
@@ -2210,6 +2268,7 @@ std::string OutOfBounds(const std::string& cause, const std::map<std::string, do
       {"temperature", "K20_dph", 5},
       {"temperature", "swing_ratio", 5},
       {"temperature_gradient", "K01_dph", 5},
+      {"thermal_lag", "K_lag_dph", 5},
       {"magnetic_field", "amplitude_dph", 2},
       {"magnetic_field", "sensitivity_bn_dph_per_ut", 0.1},
       {"magnetic_field", "sensitivity_be_dph_per_ut", 0.1},
@@ -2630,6 +2689,37 @@ struct NamedCause {
   std::vector<NoiseModel> nm, nm_walk;  // the step's noise models (nm_walk: with rate_random_walk's walk)
 };
 
+// thermal_lag is named only when its BIC is below that of temperature and temperature_gradient together,
+// its lag is significant (the likelihood ratio against tau = 0, which is the temperature itself, beyond 3
+// sigma, both with K20) and it predicts the held-out blocks better than temperature and
+// temperature_gradient do (both are eq. (1)'s view of the same drift: a lag's drift on a ramp is K10
+// plus a K01 term). True when refused; the verdict says why.
+constexpr double kLagMinTauZ = 3;
+template <typename Evaluate, typename PairBic>
+bool LagBeatenOnHeldOut(const Evaluation& ev, std::vector<GyroCandidate>& candidates, const Evaluate& evaluate,
+                        const PairBic& pair_bic, GyroCandidate* c) {
+  if (c->cause != "thermal_lag") return false;
+  // K10 + K20 + K01 together describe a lag's drift (eq. (1) to first order in tau): the lag, one
+  // coefficient and a located tau, must have the lower BIC of the exact likelihood.
+  if (pair_bic() <= c->bic) {
+    c->verdict = "temperature and temperature_gradient together fit as well (BIC)";
+    return true;
+  }
+  if (!(ev.parameters.at("lag_vs_none_chi2") > kLagMinTauZ * kLagMinTauZ)) {
+    c->verdict = "time constant not significant (the temperature itself)";
+    return true;
+  }
+  for (GyroCandidate& rival : candidates) {
+    if ((rival.cause != "temperature" && rival.cause != "temperature_gradient") || !rival.applicable) continue;
+    const Evaluation er = evaluate(rival);
+    if (er.cv.rms_after <= ev.cv.rms_after) {
+      c->verdict = "held-out RMS not below " + rival.cause + "'s";
+      return true;
+    }
+  }
+  return false;
+}
+
 // One step: every candidate not yet named against the current base model (d.base), the significant ones
 // in BIC order through the gates; the first that passes is named. alpha and gain_alpha are the step's.
 struct GyroStep {
@@ -2694,6 +2784,7 @@ GyroStep RunGyroStep(const Design& d, const GyroDiscoverOptions& o, const std::v
   for (const CandidateSpec& sp : std::vector<CandidateSpec>{
            {"temperature", "", {kT1, kT2}, {kT1, kT2}},
            {"temperature_gradient", "", {kG1}, {kG1}},
+           {"thermal_lag", "", {kLag}, {kLag}},
            {"magnetic_field", "azimuth_harmonic", {kMagSin, kMagCos}, {kMagSin, kMagCos}},
            {"magnetic_field", "logged_field", {kBn, kBe, kBh}, {}},
            {"misalignment", "", {kMis}, {kMis}},
@@ -2754,6 +2845,13 @@ GyroStep RunGyroStep(const Design& d, const GyroDiscoverOptions& o, const std::v
 
   auto walk_survives = [&](double tau_s) { return WalkBeatsShape(d, o, nm, walk_logs, tau_s); };
   const ScoreNorm norm = MakeScoreNorm(d, o, nm, x_full);
+  auto pair_bic = [&] {
+    std::vector<int> cols;
+    for (int col : {kT1, kT2, kG1}) {
+      if (usable[col]) cols.push_back(col);
+    }
+    return FittedBic(d, o, nm, Assemble(d, cols, {}), static_cast<int>(cols.size()), 0.0);
+  };
   const GyroCandidate* chosen = nullptr;
   std::vector<std::string> tried;
   for (GyroCandidate* c0 : order) {
@@ -2767,7 +2865,9 @@ GyroStep RunGyroStep(const Design& d, const GyroDiscoverOptions& o, const std::v
         continue;
       }
       Evaluation ev = evaluate(*c);
-      if (JudgeCandidate(ev, out.z_min, o, c)) chosen = c, out.cause.ev = ev;
+      if (JudgeCandidate(ev, out.z_min, o, c) && !LagBeatenOnHeldOut(ev, candidates, evaluate, pair_bic, c)) {
+        chosen = c, out.cause.ev = ev;
+      }
     }
     if (chosen) break;
   }
@@ -2841,7 +2941,8 @@ std::vector<std::string> CoefficientNames(const NamedCause& nc) {
                                                    {kMis, "misalignment_arcsec"},
                                                    {kScale, "scale_factor_ppm"},
                                                    {kAbsRef, "abs_ref_ppm"},
-                                                   {kDelay, "delay_s"}};
+                                                   {kDelay, "delay_s"},
+                                                   {kLag, "K_lag_dph"}};
   std::vector<std::string> out;
   for (int c : nc.cols) out.push_back(nc.candidate.cause + "." + kName.at(c));
   if (nc.candidate.cause == "bias_step") out.push_back("bias_step.step_dph");
@@ -2883,7 +2984,8 @@ void JointFit(Design* design, const GyroDiscoverOptions& o, const std::vector<No
       EvaluateFitted(d, o, nm, fit, gc.cause, scale, nc.step_scan, nc.periodic_scan, &ev);
       gc.parameters = ev.parameters, gc.sigmas = ev.sigmas;
     }
-    gc.parameters.erase("swing_ratio");
+    gc.parameters.erase("swing_ratio");  // gate quantities, not parameters of the cause
+    gc.parameters.erase("lag_vs_none_chi2");
     res->causes.push_back(gc);
   });
   // Correlations of the coefficients (columns l.. of the joint fit, in the order the causes entered).
@@ -2964,6 +3066,27 @@ void WidenNested(Design* design, const GyroDiscoverOptions& o, const std::vector
   });
 }
 
+// thermal_lag named in a chain is weighed again with the other named causes in the model: a lag found at
+// a step where another cause was still unmodelled (a field harmonic's staircase smoothed by the lag) must
+// still beat the temperature itself (K10, both with K20) by the likelihood ratio, else it is `temperature`.
+void NarrowLag(Design* design, const GyroDiscoverOptions& o, const std::vector<NoiseModel>& nm,
+               std::vector<NamedCause>* named) {
+  const Design& d = *design;
+  const VectorXd yw = WhitenRows(d, nm, d.y);
+  WithOthersInBase(design, *named, [&](int k) {
+    NamedCause& nc = (*named)[k];
+    if (nc.candidate.cause != "thermal_lag") return;
+    const MatrixXd xl = WhitenRows(d, nm, Assemble(d, {kLag, kT2}, {}));
+    const MatrixXd xt = WhitenRows(d, nm, Assemble(d, {kT1, kT2}, {}));
+    const LsFit gl = SolveLs(xl, yw), gt = SolveLs(xt, yw);
+    const double s2 = gl.rss / std::max(1, d.n - static_cast<int>(xl.cols()));
+    const double infl = VarianceInflation(d, yw - xl * gl.beta, o.max_noise_lag);
+    if (!((gt.rss - gl.rss) / (s2 * infl) > kLagMinTauZ * kLagMinTauZ)) {
+      nc.candidate.cause = "temperature", nc.cols = {kT1, kT2};
+    }
+  });
+}
+
 // Stepwise extension (issue 31): step s tests every cause not yet named against the base model extended by
 // the causes named before (their columns in d.base: one GLS of the biases and all of them), names the best
 // as one step always did, and the next step starts from the extended model; it stops when no candidate
@@ -3013,6 +3136,11 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
     if (cause == "scale_factor" || cause == "scale_factor_asymmetry") {
       excluded.insert({"scale_factor", "scale_factor_asymmetry"});
     }
+    // The temperature causes are one effect seen three ways (eq. (1) and its lag, docs/discrepancy.md).
+    if (cause == "temperature" || cause == "temperature_gradient" || cause == "thermal_lag") {
+      excluded.insert("thermal_lag");
+      if (cause == "thermal_lag") excluded.insert({"temperature", "temperature_gradient"});
+    }
     if (cause == "rate_random_walk") break;
     d.base = BaseWithNamed(d, d.base, {named.back()}, -1);
   }
@@ -3020,6 +3148,7 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
   if (named.size() > 1) {
     RelocateNamed(&d, o, named.back().nm, &named);
     WidenNested(&d, o, named.back().nm, usable, &named);
+    NarrowLag(&d, o, named.back().nm, &named);
   }
   // 6. The final model's residual (one GLS of the biases + every named cause, under the noise models of
   // the step that named the last one; the walk's when that was rate_random_walk) against its noise model.

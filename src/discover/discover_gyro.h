@@ -27,6 +27,9 @@
 //     New in issue 18: bias_step (the located step, formerly reported as `bias`), periodic_drift (a
 //     located sinusoid: GLS periodogram, Bonferroni over independent frequencies),
 //     scale_factor_asymmetry (ref and |ref|), magnetic_field from the logged bn/be/bh columns.
+//     thermal_lag (discover_gyro_lag.h): the temperature through a first-order lag, its time constant
+//     located by a scan; named only when the lag is significant against none and its held-out RMS is
+//     below temperature's and temperature_gradient's.
 //  4b. Gates, in BIC order until one passes: the parameters lie within physical bounds (temperature
 //     and field must move; K, ppm, delay, amplitude limits; no cancelling terms; a walk needs >= 1 h)
 //     and the held-out improvement is significant: z = e.p / sqrt(p' S p) (e held-out base residual,

@@ -30,6 +30,7 @@ void GyroErrorModel::Check(const std::string& what) const {
                                   quantization_arcsec,
                                   scale_factor_ppm,
                                   scale_factor_nonlinearity_ppm_per_dps,
+                                  scale_factor_asymmetry_ppm,
                                   misalignment_arcsec[0],
                                   misalignment_arcsec[1],
                                   time_delay_s};
@@ -56,6 +57,37 @@ GyroAxes GyroUnit::Axes() const {
   GyroAxes h(size(), 3);
   for (int i = 0; i < size(); ++i) h.row(i) = axes_body[i].transpose();
   return h;
+}
+
+Vec3 GyroUnit::SensingAxis(int i) const {
+  const Vec3& a = axes_body[i];
+  Eigen::Index m;
+  a.cwiseAbs().minCoeff(&m);
+  const Vec3 u = a.cross(Vec3::Unit(m)).normalized();
+  const Vec3 v = a.cross(u);
+  const auto& e = gyros[i];
+  return (a + e.misalignment_arcsec[0] * kArcsecToRad * u + e.misalignment_arcsec[1] * kArcsecToRad * v).normalized();
+}
+
+GyroAxes GyroUnit::SensingAxes() const {
+  GyroAxes h(size(), 3);
+  for (int i = 0; i < size(); ++i) h.row(i) = SensingAxis(i).transpose();
+  return h;
+}
+
+void GyroUnit::RemoveCalibratedErrors(GyroVec* g) const {
+  if (!calibrated) return;
+  for (int i = 0; i < size() && i < g->size(); ++i) {
+    const auto& e = gyros[i];
+    const double w = (*g)[i] - e.bias_dph;
+    // The scale terms are 1e-4 at most: evaluating them at the measured rate is exact to 1e-8.
+    const double sf = 1 + 1e-6 * (e.scale_factor_ppm +
+                                  e.scale_factor_asymmetry_ppm * (w > 0   ? 1
+                                                                  : w < 0 ? -1
+                                                                          : 0) +
+                                  e.scale_factor_nonlinearity_ppm_per_dps * std::abs(w) / 3600.0);
+    (*g)[i] = w / sf;
+  }
 }
 
 GyroVec GyroUnit::NoiseArw() const {
@@ -116,6 +148,7 @@ void ApplyErrorModel(const Json& j, GyroErrorModel* m, const std::string& what, 
                                    "quantization_arcsec",
                                    "scale_factor_ppm",
                                    "scale_factor_nonlinearity_ppm_per_dps",
+                                   "scale_factor_asymmetry_ppm",
                                    "misalignment_arcsec",
                                    "time_delay_s",
                                    "thermal_k_dph",
@@ -135,6 +168,7 @@ void ApplyErrorModel(const Json& j, GyroErrorModel* m, const std::string& what, 
   m->scale_factor_ppm = JsonNumberOr(j, "scale_factor_ppm", m->scale_factor_ppm, what);
   m->scale_factor_nonlinearity_ppm_per_dps =
       JsonNumberOr(j, "scale_factor_nonlinearity_ppm_per_dps", m->scale_factor_nonlinearity_ppm_per_dps, what);
+  m->scale_factor_asymmetry_ppm = JsonNumberOr(j, "scale_factor_asymmetry_ppm", m->scale_factor_asymmetry_ppm, what);
   if (j.contains("misalignment_arcsec")) {
     const auto v = JsonNumbers(j, "misalignment_arcsec", -1, what);
     if (v.size() != 2) throw InputError(what, "misalignment_arcsec must have 2 numbers");
@@ -162,12 +196,13 @@ void ApplyErrorModel(const Json& j, GyroErrorModel* m, const std::string& what, 
 
 GyroUnit GyroUnitFromJson(const Json& j, const std::string& file) {
   if (!j.is_object()) throw InputError(file, "unit must be a JSON object");
-  CheckKeys(j, {"rate_hz", "gyros", "default", "comment"}, file);
+  CheckKeys(j, {"rate_hz", "gyros", "default", "comment", "calibrated"}, file);
   if (!j.contains("gyros") || !j["gyros"].is_array()) throw InputError(file, "missing array 'gyros'");
   GyroErrorModel base;
   if (j.contains("default")) ApplyErrorModel(j["default"], &base, file + ": default", false);
   GyroUnit u;
   u.rate_hz = JsonNumberOr(j, "rate_hz", 100.0, file);
+  u.calibrated = JsonBoolOr(j, "calibrated", false, file);
   int i = 0;
   for (const auto& g : j["gyros"]) {
     const std::string what = file + ": gyro " + std::to_string(++i);
@@ -199,6 +234,7 @@ Json GyroUnitToJson(const GyroUnit& unit) {
                      {"quantization_arcsec", m.quantization_arcsec},
                      {"scale_factor_ppm", m.scale_factor_ppm},
                      {"scale_factor_nonlinearity_ppm_per_dps", m.scale_factor_nonlinearity_ppm_per_dps},
+                     {"scale_factor_asymmetry_ppm", m.scale_factor_asymmetry_ppm},
                      {"misalignment_arcsec", {m.misalignment_arcsec[0], m.misalignment_arcsec[1]}},
                      {"time_delay_s", m.time_delay_s},
                      {"thermal_k_dph", m.thermal.k_dph},
@@ -208,7 +244,9 @@ Json GyroUnitToJson(const GyroUnit& unit) {
                      {"magnetic_dph_per_ut",
                       {m.magnetic.along_dph_per_ut, m.magnetic.across_dph_per_ut, m.magnetic.vertical_dph_per_ut}}});
   }
-  return {{"rate_hz", unit.rate_hz}, {"gyros", gyros}};
+  Json j = {{"rate_hz", unit.rate_hz}, {"gyros", gyros}};
+  if (unit.calibrated) j["calibrated"] = true;
+  return j;
 }
 
 GyroUnit LoadGyroUnit(const std::string& path) { return GyroUnitFromJson(ReadJsonFile(path), path); }

@@ -22,7 +22,7 @@ using GyroParity = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMax
 
 // Error model of one single-axis FOG. Every term is switched off by a zero value. Output model
 // (deg/h), after IEEE Std 952-1997 sec. 8 (rate-gyro model equation):
-//   g = (1 + S + N |w|) (a' . w(t - delay)) + b + b_flicker(t) + b_rrw(t) + arw noise
+//   g = (1 + S + A sgn(w) + N |w|) (a' . w(t - delay)) + b + b_flicker(t) + b_rrw(t) + arw noise
 //       + thermal(T, dT/dt) + magnetic(B) [+ quantisation of the integrated angle]
 struct GyroErrorModel {
   double bias_dph = 0.0;                                           // constant (turn-on) bias
@@ -33,6 +33,7 @@ struct GyroErrorModel {
   double quantization_arcsec = 0.0;                                // angle quantum of the output counter
   double scale_factor_ppm = 0.0;
   double scale_factor_nonlinearity_ppm_per_dps = 0.0;  // extra scale factor per deg/s of |rate|
+  double scale_factor_asymmetry_ppm = 0.0;             // + for positive, - for negative rates (IEEE 952 sec. 3)
   double misalignment_arcsec[2] = {0.0, 0.0};          // small tilts of the axis about two normals
   double time_delay_s = 0.0;
   ThermalDriftModel thermal;     // zero-signal drift polynomial (all K = 0: off)
@@ -52,9 +53,23 @@ struct GyroUnit {
   std::vector<Vec3> axes_body;        // unit sensing axes in the body frame
   std::vector<GyroErrorModel> gyros;  // one per axis
   double rate_hz = 100.0;
+  // false (default): the error terms describe a unit (a simulated one's truth) that the processor
+  // does not know; it uses the axes and the noise only. true (a bench calibration's unit.json,
+  // `ssiu fog unit-calibrate`): each gyro's bias_dph and scale factor terms are known and removed
+  // from its output (RemoveCalibratedErrors), and its sensing direction is SensingAxis(i).
+  bool calibrated = false;
 
   int size() const { return static_cast<int>(axes_body.size()); }
   GyroAxes Axes() const;  // N x 3, rows are the sensing axes
+  // Gyro i's axis tilted by its misalignment_arcsec about the normals u = a x e_min, v = a x u
+  // (the direction the simulator uses as the gyro's true sensing axis).
+  Vec3 SensingAxis(int i) const;
+  GyroAxes SensingAxes() const;  // N x 3
+  // The axes the processor solves the rate with: SensingAxes() when calibrated, else Axes().
+  GyroAxes ProcessorAxes() const { return calibrated ? SensingAxes() : Axes(); }
+  // Inverts g = (1 + S + A sgn(w) + N |w|) w + b for w, per gyro, when calibrated (else leaves g):
+  // the processor's view of the calibrated output. Non-finite outputs stay non-finite. Allocates nothing.
+  void RemoveCalibratedErrors(GyroVec* g) const;
   // White-noise standard deviation of each gyro as angle random walk (deg/sqrt(h)); where a gyro's
   // ARW is 0 the smallest nonzero one (or 1) stands in, so that weights stay finite.
   GyroVec NoiseArw() const;

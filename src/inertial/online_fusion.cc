@@ -64,7 +64,7 @@ OnlineFusion::OnlineFusion(const GyroUnit& unit, const FuseOptions& options) : u
   opt_.Check();
   unit_.Check("unit");
   const int n = unit_.size();
-  axes_ = unit_.Axes();
+  axes_ = unit_.ProcessorAxes();
   arw_ = unit_.NoiseArw();
   use_.assign(n, true);
   correction_ = GyroVec::Zero(n);
@@ -475,6 +475,7 @@ GyroSampleStatus OnlineFusion::AddGyro(double t_k, const GyroVec& g_in) {
   have_jump_ = false;
   n_back_ = 0;
   GyroVec g = g_in;
+  unit_.RemoveCalibratedErrors(&g);  // a bench-calibrated unit's known bias and scale factor
   bool partial = false;
   const GyroSampleStatus outputs = CheckOutputs(&g, &partial);
   const bool held = outputs == GyroSampleStatus::kRejectedNonFinite || outputs == GyroSampleStatus::kRejectedOutOfRange;
@@ -502,7 +503,7 @@ GyroSampleStatus OnlineFusion::AddGyro(double t_k, const GyroVec& g_in) {
     }
     return done(outputs);
   }
-  const GyroSampleStatus status = time_reset ? GyroSampleStatus::kAcceptedTimeReset
+  const GyroSampleStatus status = time_reset  ? GyroSampleStatus::kAcceptedTimeReset
                                   : after_gap ? GyroSampleStatus::kAcceptedAfterGap
                                               : outputs;
   g_last_ = g;

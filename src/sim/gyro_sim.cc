@@ -95,12 +95,35 @@ double TemperatureProgramme::RateCPerMin(double t) const {
 }
 
 Vec3 MotionProfile::RateBodyRadS(double t) const {
+  const double lat = latitude_deg * kDegToRad;
   if (type == "static" || type == "temperature") {
-    const double lat = latitude_deg * kDegToRad, az = azimuth_deg * kDegToRad;
+    const double az = azimuth_deg * kDegToRad;
     return kEarthRateRadS * Vec3(std::cos(lat) * std::cos(az), std::cos(lat) * std::sin(az), std::sin(lat));
   }
-  if (type == "slew") return axis_body.normalized() * (rate_dps * kDegToRad);
-  return amplitude_dps * (kDegToRad * std::sin(2 * kPi * t / period_s));  // sine
+  if (type == "bench") {
+    size_t k = 0;
+    double t0 = 0;
+    while (k + 1 < bench.size() && t >= t0 + bench[k].duration_s) t0 += bench[k++].duration_s;
+    const BenchSegment& s = bench[k];
+    // Table frame: z up, x at the table angle from north (local frame north, west, up). The Earth
+    // rate in it, plus the table's own rate about up, then into the body by the mounting.
+    const double theta = (s.table_deg + s.rate_dps * (t - t0)) * kDegToRad;
+    const Vec3 earth_local = kEarthRateRadS * Vec3(std::cos(lat), 0, std::sin(lat));
+    const Vec3 w_table =
+        Eigen::AngleAxisd(-theta, Vec3::UnitZ()) * earth_local + s.rate_dps * kDegToRad * Vec3::UnitZ();
+    const Quat table_from_body = Quat::FromTwoVectors(s.up_body.normalized(), Vec3::UnitZ());
+    return table_from_body.conjugate() * w_table;
+  }
+  if (type == "slew") {
+    if (t < slew_start_s || t >= slew_end_s) return Vec3::Zero();
+    return axis_body.normalized() * (rate_dps * kDegToRad);
+  }
+  Vec3 w;  // sine
+  for (int a = 0; a < 3; ++a) {
+    const double per = periods_s[a] > 0 ? periods_s[a] : period_s;
+    w[a] = amplitude_dps[a] * kDegToRad * std::sin(2 * kPi * t / per);
+  }
+  return w;
 }
 
 bool MotionProfile::InStarOutage(double t) const {
@@ -111,13 +134,26 @@ bool MotionProfile::InStarOutage(double t) const {
 }
 
 void MotionProfile::Check(const std::string& file, int n_gyros) const {
-  if (type != "static" && type != "slew" && type != "sine" && type != "temperature") {
-    throw InputError(file, "type must be static, slew, sine or temperature (got '" + type + "')");
+  if (type != "static" && type != "slew" && type != "sine" && type != "temperature" && type != "bench") {
+    throw InputError(file, "type must be static, slew, sine, temperature or bench (got '" + type + "')");
+  }
+  if (type == "bench" && bench.empty()) throw InputError(file, "bench: a bench profile needs at least one segment");
+  for (const auto& b : bench) {
+    if (!(b.duration_s > 0) || !std::isfinite(b.duration_s))
+      throw InputError(file, "bench: duration_s must be positive");
+    if (!b.up_body.allFinite() || !(b.up_body.norm() > 0)) throw InputError(file, "bench: up must be a nonzero vector");
+    if (!std::isfinite(b.table_deg) || !(std::abs(b.rate_dps) <= 1000)) {
+      throw InputError(file, "bench: table_deg must be finite and |rate_dps| <= 1000");
+    }
+  }
+  if (!(slew_start_s >= 0) || !(slew_end_s > slew_start_s)) {
+    throw InputError(file, "slew: need 0 <= start_s < end_s");
   }
   if (!(std::abs(latitude_deg) <= 90)) throw InputError(file, "latitude_deg must be in [-90, 90]");
   if (type == "slew" && !(axis_body.norm() > 0)) throw InputError(file, "axis must be nonzero");
   if (!std::isfinite(rate_dps) || !amplitude_dps.allFinite()) throw InputError(file, "rates must be finite");
   if (!(period_s > 0)) throw InputError(file, "period_s must be positive");
+  if (!(periods_s.minCoeff() >= 0) || !periods_s.allFinite()) throw InputError(file, "periods_s must be >= 0");
   // Above the gyro rates a star tracker is absurd, and 1e9 Hz ran for hours.
   if (!(st_rate_hz > 0 && st_rate_hz <= 1000)) throw InputError(file, "star_tracker.rate_hz must be in (0, 1000]");
   if (!(st_sigma_cross_arcsec >= 0) || !(st_sigma_roll_arcsec >= 0)) {
@@ -175,10 +211,11 @@ Json GyroFault::ToJson() const {
 
 MotionProfile MotionProfileFromJson(const Json& j, const std::string& file) {
   if (!j.is_object()) throw InputError(file, "profile must be a JSON object");
-  CheckKeys(j,
-            {"type", "latitude_deg", "azimuth_deg", "rate_dps", "period_s", "axis", "amplitude_dps",
-             "magnetic_field_ut", "q0", "temperature", "star_tracker", "faults", "comment"},
-            file);
+  CheckKeys(
+      j,
+      {"type", "latitude_deg", "azimuth_deg", "rate_dps", "period_s", "axis", "amplitude_dps", "magnetic_field_ut",
+       "q0", "temperature", "star_tracker", "faults", "comment", "start_s", "end_s", "bench", "periods_s"},
+      file);
   MotionProfile p;
   if (j.contains("type")) {
     if (!j["type"].is_string()) throw InputError(file, "field 'type' must be a string");
@@ -188,8 +225,30 @@ MotionProfile MotionProfileFromJson(const Json& j, const std::string& file) {
   p.azimuth_deg = JsonNumberOr(j, "azimuth_deg", p.azimuth_deg, file);
   p.rate_dps = JsonNumberOr(j, "rate_dps", p.rate_dps, file);
   p.period_s = JsonNumberOr(j, "period_s", p.period_s, file);
+  p.slew_start_s = JsonNumberOr(j, "start_s", p.slew_start_s, file);
+  if (j.contains("end_s")) p.slew_end_s = JsonNumber(j, "end_s", file);
+  if (p.type == "bench") {
+    const MotionProfile campaign = BenchCampaignProfile();
+    p.bench = campaign.bench;
+    p.temperature = campaign.temperature;
+  }
+  if (j.contains("bench")) {
+    if (!j["bench"].is_array()) throw InputError(file, "field 'bench' must be an array of segments");
+    p.bench.clear();
+    for (const auto& b : j["bench"]) {
+      if (!b.is_object()) throw InputError(file, "bench: each segment must be an object");
+      CheckKeys(b, {"duration_s", "up", "table_deg", "rate_dps"}, file + ": bench");
+      BenchSegment seg;
+      seg.duration_s = JsonNumber(b, "duration_s", file);
+      if (b.contains("up")) seg.up_body = Vec3From(b, "up", file);
+      seg.table_deg = JsonNumberOr(b, "table_deg", 0, file);
+      seg.rate_dps = JsonNumberOr(b, "rate_dps", 0, file);
+      p.bench.push_back(seg);
+    }
+  }
   if (j.contains("axis")) p.axis_body = Vec3From(j, "axis", file);
   if (j.contains("amplitude_dps")) p.amplitude_dps = Vec3From(j, "amplitude_dps", file);
+  if (j.contains("periods_s")) p.periods_s = Vec3From(j, "periods_s", file);
   if (j.contains("magnetic_field_ut")) p.magnetic_field_body_ut = Vec3From(j, "magnetic_field_ut", file);
   if (p.type == "static" || p.type == "temperature") {
     p.q0 = StaticAttitude(p.latitude_deg * kDegToRad, p.azimuth_deg * kDegToRad);
@@ -221,6 +280,29 @@ MotionProfile MotionProfileFromJson(const Json& j, const std::string& file) {
   return p;
 }
 
+MotionProfile BenchCampaignProfile() {
+  MotionProfile p;
+  p.type = "bench";
+  p.latitude_deg = 45.0;
+  const Vec3 ups[6] = {Vec3::UnitX(), -Vec3::UnitX(), Vec3::UnitY(), -Vec3::UnitY(), Vec3::UnitZ(), -Vec3::UnitZ()};
+  for (const Vec3& up : ups) {
+    // Two static positions 180 deg apart: the horizontal Earth rate changes sign, the bias does not.
+    p.bench.push_back({120.0, up, 0.0, 0.0});
+    p.bench.push_back({120.0, up, 180.0, 0.0});
+    // Both signs (asymmetry) at three magnitudes (nonlinearity).
+    for (double r : {2.0, -2.0, 10.0, -10.0, 30.0, -30.0}) p.bench.push_back({60.0, up, 0.0, r});
+  }
+  p.temperature.start_c = 22.0;
+  p.temperature.segments = {{900, 0.06}, {900, 0.0}, {900, -0.04}, {900, 0.02}};
+  return p;
+}
+
+double BenchDurationS(const MotionProfile& p) {
+  double d = 0;
+  for (const auto& b : p.bench) d += b.duration_s;
+  return d;
+}
+
 MotionProfile LoadMotionProfile(const std::string& path) { return MotionProfileFromJson(ReadJsonFile(path), path); }
 
 void GyroSimOptions::Check() const {
@@ -247,9 +329,7 @@ GyroSimulation SimulateGyro(const GyroUnit& unit, const MotionProfile& profile, 
     a.cwiseAbs().minCoeff(&m);
     u[i] = a.cross(Vec3::Unit(m)).normalized();
     v[i] = a.cross(u[i]);
-    const auto& e = unit.gyros[i];
-    axis[i] = (a + e.misalignment_arcsec[0] * kArcsecToRad * u[i] + e.misalignment_arcsec[1] * kArcsecToRad * v[i])
-                  .normalized();
+    axis[i] = unit.SensingAxis(i);
   }
   // Error-process state; the Gauss-Markov processes start stationary.
   std::vector<std::vector<double>> gm(n);
@@ -264,6 +344,7 @@ GyroSimulation SimulateGyro(const GyroUnit& unit, const MotionProfile& profile, 
   sim.q0 = profile.q0.normalized();
   sim.st_sigma_cross_arcsec = profile.st_sigma_cross_arcsec;
   sim.st_sigma_roll_arcsec = profile.st_sigma_roll_arcsec;
+  sim.bench_reference = profile.type == "bench";
   sim.t_s.reserve(k_max);
   sim.gyro_dph.reserve(k_max);
 
@@ -300,8 +381,9 @@ GyroSimulation SimulateGyro(const GyroUnit& unit, const MotionProfile& profile, 
       const auto& e = unit.gyros[i];
       const Vec3 inc = Integrate(profile, ta - e.time_delay_s, tb - e.time_delay_s).integral;
       const double w_dph = axis[i].dot(inc) / h * kRadSToDph;
-      const double sf =
-          1 + 1e-6 * e.scale_factor_ppm + 1e-6 * e.scale_factor_nonlinearity_ppm_per_dps * std::abs(w_dph / 3600.0);
+      const double sign = w_dph > 0 ? 1 : w_dph < 0 ? -1 : 0;
+      const double sf = 1 + 1e-6 * (e.scale_factor_ppm + e.scale_factor_asymmetry_ppm * sign +
+                                    e.scale_factor_nonlinearity_ppm_per_dps * std::abs(w_dph / 3600.0));
       // Slow errors: bias, flicker (Gauss-Markov), rate random walk, temperature, magnetic, faults.
       double err = e.bias_dph;
       const double s = e.GaussMarkovSigmaDph();
@@ -342,6 +424,7 @@ GyroSimulation SimulateGyro(const GyroUnit& unit, const MotionProfile& profile, 
     sim.temp_c.push_back(temp);
     sim.q_true.push_back(q);
     sim.w_true_dph.push_back(profile.RateBodyRadS(tb) * kRadSToDph);
+    sim.w_mean_dph.push_back(Integrate(profile, ta, tb).integral / h * kRadSToDph);
     sim.body_bias_dph.push_back(solver.Solve(slow));
   }
   return sim;
@@ -362,6 +445,13 @@ void WriteGyroSimulation(const std::string& dir, const GyroSimulation& sim, cons
       for (int i = 0; i < n; ++i) c[1 + i].push_back(sim.gyro_dph[k][i]);
     }
     c[n + 1] = sim.temp_c;
+    if (sim.bench_reference) {
+      for (int a = 0; a < 3; ++a) {
+        header.push_back(std::string("ref_") + "xyz"[a] + "_dph");
+        c.emplace_back();
+        for (const Vec3& w : sim.w_mean_dph) c.back().push_back(w[a]);
+      }
+    }
     WriteCsv(dir + "/gyro.csv", header, c);
   }
   auto quats = [](const std::vector<double>& t, const std::vector<Quat>& qs, std::vector<std::vector<double>>* c) {

@@ -109,6 +109,9 @@ struct GyroCaseModel {
   // quadratic scale factor (ppm at 20 deg/s), the azimuth's second harmonic.
   double burst_factor = 1, burst_t0 = 0, burst_len = 0, q2_ppm = 0, az2_amp = 0, az2_phase = 0;
   double trend_dph = 0, warm_dph = 0, warm_tau_s = 1;  // DriftShapeGyroEffects: over the 12 h; at t = 0
+  double lag_k = 0, lag_tau_s = 600;  // thermal_lag: K per 10 C of the lagged temperature, its time constant
+  // A thermal-cycling programme instead of the ramps (thermal_lag's case): 20 C + amplitude sin(2 pi t / period).
+  double cycle_amp_c = 0, cycle_period_s = 3600;
   std::map<int, double> spikes;
 };
 
@@ -132,6 +135,7 @@ inline GyroBenchLog StaticRun(const GyroCaseModel& m, Rng& rng, Rng& rng_x, uint
   // A heater switched on and off at irregular times (20-60 min), logged as `heater_on`.
   std::vector<double> toggles;
   for (double tt = rng_x.Uniform(600, 3600); tt < 43200; tt += rng_x.Uniform(1200, 3600)) toggles.push_back(tt);
+  double temp_lag = 20;  // thermal_lag: the coil's temperature, lagging the logged one (the log starts at 20 C)
   for (int k = 0; k * dt < 43200; ++k) {
     const double t = k * dt;
     // Temperature programme: 20 C, ramp up, hold, ramp down, hold.
@@ -146,6 +150,11 @@ inline GyroBenchLog StaticRun(const GyroCaseModel& m, Rng& rng, Rng& rng_x, uint
       const double dur2 = (top - 18) / -rate2 * 60;
       temp = t2 < dur2 ? top + rate2 * t2 / 60 : 18;
       g = t2 < dur2 ? rate2 : 0;
+    }
+    if (m.cycle_amp_c > 0) {
+      const double wc = 2 * kPi / m.cycle_period_s;
+      temp = 20 + m.cycle_amp_c * std::sin(wc * t);
+      g = m.cycle_amp_c * wc * std::cos(wc * t) * 60;  // C/min
     }
     const double psi = std::fmod(psi0 + 45.0 * std::floor(t / 2700), 360.0) * kDegToRad;
     const double ref = m.omega_h * std::cos(psi) + m.omega_v * 0;  // sensing axis horizontal
@@ -174,6 +183,14 @@ inline GyroBenchLog StaticRun(const GyroCaseModel& m, Rng& rng, Rng& rng_x, uint
     }
     if (m.spikes.count(k)) w += m.spikes.at(k);
     w += m.trend_dph * (t / 43200 - 0.5) + m.warm_dph * std::exp(-t / m.warm_tau_s);
+    if (m.lag_k != 0) {
+      // First-order lag, exact for the programme's piecewise-linear temperature sampled every dt (slope g
+      // C/min over the step): T_lag' = (T - T_lag) / tau.
+      const double e = std::exp(-dt / m.lag_tau_s), s_c_per_s = g / 60;
+      if (k > 0)
+        temp_lag = temp - s_c_per_s * m.lag_tau_s + (temp_lag - (temp - dt * s_c_per_s) + s_c_per_s * m.lag_tau_s) * e;
+      w += m.lag_k * (temp_lag - 20) / 10;
+    }
     log.t_s.push_back(t);
     log.w_dph.push_back(w);
     log.ref_dph.push_back(ref);
@@ -214,6 +231,7 @@ inline GyroBenchLog RateTableRun(const GyroCaseModel& m, Rng& rng) {
     const double z1 = (temp - 20) / 10;
     double w = rate(t - m.delay_s) + m.omega_v;
     w += m.bias + m.k10 * z1 + m.k20 * z1 * z1 + m.sf_ppm * 1e-6 * ref + noise.Next(rng, dt);
+    w += m.lag_k * z1;  // thermal_lag: at a constant temperature the coil has reached it
     w += 0.5 * m.asym_ppm * 1e-6 * std::abs(ref);
     w += m.q2_ppm * 1e-6 * ref * ref / (20 * 3600.0);
     log.t_s.push_back(t);
@@ -264,6 +282,21 @@ inline void DrawHiddenCause(const std::string& cause, Rng& rng, GyroCaseModel& m
   } else if (cause == "magnetic_field_logged") {
     m.k_bh = RandomSign(rng) * rng.Uniform(0.001, 0.003);  // dph per uT of the vertical field
     *truth = {{"sensitivity_bh_dph_per_ut", m.k_bh}};
+  } else if (cause == "thermal_lag" || cause == "thermal_lag_ramp") {
+    // The temperature drift of "temperature" felt through the coil's thermal time constant (5-60 min),
+    // in a thermal-cycling test (+-2-5 C, period 60-120 min: the drift lags the logged temperature by up to
+    // 72 deg of the cycle; a periodic drift at the cycle's period is its rival) or, "thermal_lag_ramp", in
+    // the ramps of the other cases (a short lag there is the temperature itself: few minutes of a
+    // 60-100 min ramp).
+    // K: 0.1-0.3 deg/h per 10 C in the cycling test (a tenth to a quarter of the SSIU paper's K10 = 1.2; a
+    // long lag attenuates the cycle's drift up to 6x), 0.02-0.06 in the ramps (temperature's K10).
+    m.lag_k = RandomSign(rng) * rng.Uniform(0.02, 0.06);
+    m.lag_tau_s = rng.Uniform(5, 60) * 60;
+    if (cause == "thermal_lag") {
+      m.cycle_amp_c = rng.Uniform(2, 5), m.cycle_period_s = rng.Uniform(60, 120) * 60;
+      m.lag_k *= 5;
+    }
+    *truth = {{"K_lag_dph", m.lag_k}, {"tau_s", m.lag_tau_s}};
   } else if (cause == "rate_random_walk") {
     m.rrw = rng.Uniform(0.05, 0.1);  // dph / sqrt(h)
     *truth = {{"K_dph_per_sqrt_h", m.rrw}};
@@ -278,7 +311,11 @@ inline GyroCase MakeGyroCase(const std::vector<std::string>& causes, uint64_t se
   GyroCase c;
   GyroCaseModel m;
   const std::string& cause = causes.front();
-  for (const auto& hidden : causes) c.causes.push_back(hidden == "magnetic_field_logged" ? "magnetic_field" : hidden);
+  for (const auto& hidden : causes) {
+    c.causes.push_back(hidden == "magnetic_field_logged" ? "magnetic_field"
+                       : hidden == "thermal_lag_ramp"    ? "thermal_lag"
+                                                         : hidden);
+  }
   c.cause = c.causes.front();
   // Every effect of the three out-of-vocabulary lists (and the faster telegraph) expects `unexplained`.
   for (const auto* list : {&UnexplainedGyroEffects(), &MoreUnexplainedGyroEffects(), &DriftShapeGyroEffects()}) {

@@ -336,6 +336,25 @@ TEST(DiscoverGyroCli, ChainOfTwoCausesInJsonAndSummary) {
   EXPECT_TRUE(j["causes"][1]["parameters"].contains(b == "bias_step" ? "step_dph" : "period_s"));
 }
 
+// thermal_lag through the command: its time constant and K in the JSON and the summary line.
+TEST(DiscoverGyroCli, ThermalLagInJsonAndSummary) {
+  const auto c = testing::MakeGyroCase("thermal_lag", 9102);
+  const std::string dir = testing::TempDir("discover_gyro_cli_lag");
+  WriteLog(dir + "/static.csv", c.logs[0]);
+  WriteLog(dir + "/rate.csv", c.logs[1]);
+  std::string out;
+  ASSERT_EQ(testing::Run(testing::SsiuProgram() + " discover gyro " + dir + "/static.csv " + dir + "/rate.csv --json " +
+                             dir + "/d.json",
+                         &out),
+            0)
+      << out;
+  const Json j = ReadJsonFile(dir + "/d.json");
+  EXPECT_EQ(j["cause"], "thermal_lag") << j.dump(1);
+  EXPECT_TRUE(j["parameters"].contains("tau_s"));
+  EXPECT_TRUE(j["parameter_sigmas"].contains("K_lag_dph"));
+  EXPECT_THAT(out, ::testing::HasSubstr("tau_s="));
+}
+
 TEST(DiscoverGyroCli, LoggedFieldAndUnknownColumnReachTheAnalysis) {
   const std::string dir = testing::TempDir("discover_gyro_cols");
   for (const std::string variant : {"magnetic_field_logged", "square_wave_column"}) {

@@ -59,6 +59,13 @@ TEST(GyroUnit, JsonRoundTripAndDefaults) {
   EXPECT_EQ(back.gyros[1].thermal.k_dph[4], 0.7);
   EXPECT_EQ(back.gyros[0].magnetic.along_dph_per_ut, 0.01);
   EXPECT_LT((back.axes_body[3] - Vec3(1, 1, 1).normalized()).norm(), 1e-12);
+  EXPECT_FALSE(back.calibrated);
+  // A bench-calibrated unit keeps its flag and its asymmetry.
+  u.calibrated = true;
+  u.gyros[3].scale_factor_asymmetry_ppm = -45;
+  const GyroUnit cal = GyroUnitFromJson(GyroUnitToJson(u), "mem");
+  EXPECT_TRUE(cal.calibrated);
+  EXPECT_EQ(cal.gyros[3].scale_factor_asymmetry_ppm, -45);
   // A "default" block applies to every gyro; per-gyro fields override it.
   const Json j = Json::parse(R"({"default": {"arw_deg_per_sqrt_h": 0.02}, "gyros": [
       {"axis": [1,0,0]}, {"axis": [0,2,0], "arw_deg_per_sqrt_h": 0.03}, {"axis": [0,0,1]}]})");

@@ -57,12 +57,14 @@ inline void WriteStaticStarLog(const std::string& path, double duration_s, uint6
 }
 
 // `with_default`: also fuse each run without --noise (the default unit's noise) for contrast.
-inline NoiseChainScore RunNoiseChain(int runs, const std::string& dir, bool with_default) {
+// `calibration_s`: the calibration log's length (a 30-min one is where `ssiu allan` used to read a
+// flicker floor out of white noise, docs/allan.md).
+inline NoiseChainScore RunNoiseChain(int runs, const std::string& dir, bool with_default, double calibration_s = 7200) {
   constexpr double kArw = 0.01, kRateHz = 10, kDurationS = 1800;
   const double bias[3] = {2.0, -3.0, 1.5};
   NoiseChainScore s;
-  // Calibration: a separate 2 h static log, one Allan report per axis, combined into an array.
-  WriteStaticBodyRateLog(dir + "/cal.csv", kRateHz, 7200, kArw, bias, 999);
+  // Calibration: a separate static log, one Allan report per axis, combined into an array.
+  WriteStaticBodyRateLog(dir + "/cal.csv", kRateHz, calibration_s, kArw, bias, 999);
   Json reports = Json::array();
   for (const char* c : {"wx_dph", "wy_dph", "wz_dph"}) {
     const SsiuResult r = RunSsiu("allan " + dir + "/cal.csv --column " + c + " --json " + dir + "/a.json");

@@ -17,5 +17,14 @@ TEST(FuseNoiseChainMonteCarlo, TwentyRunsWithinOnePointTwoOfTheArwBound) {
   EXPECT_LT(s.nees_mean, 4.17);
 }
 
+// The same from a 30-min calibration log (where a spurious flicker floor used to make the filter forget).
+TEST(FuseNoiseChainMonteCarlo, ShortCalibrationTwentyRunsWithinOnePointTwo) {
+  const testing::NoiseChainScore s =
+      testing::RunNoiseChain(20, testing::TempDir("fuse_noise_chain_short_long"), false, 1800);
+  for (int a = 0; a < 3; ++a) EXPECT_LT(s.bias_rms_dph[a], 1.2 * s.crb_dph) << "axis " << a;
+  EXPECT_GT(s.nees_mean, 2.02);
+  EXPECT_LT(s.nees_mean, 4.17);
+}
+
 }  // namespace
 }  // namespace ssiu

@@ -54,6 +54,30 @@ TEST(GyroSim, StaticBenchSeesEarthRateAndThermalDriftFollowsTheModel) {
   EXPECT_NEAR(s.body_bias_dph.back().norm(), (u.Axes().transpose() * u.Axes()).inverse().col(0).norm() * 1.8, 1e-9);
 }
 
+// The bench profile's reference: a static position sees the Earth's rate only (15.04 deg/h, its
+// vertical part sin(lat) along the up axis), a table rate adds itself along the up axis; gyro.csv's
+// ideal outputs are the reference along each axis.
+TEST(GyroSim, BenchProfileReferenceIsEarthPlusTableRate) {
+  MotionProfile p = BenchCampaignProfile();
+  p.bench = {{100, -Vec3::UnitY(), 30, 0}, {100, Vec3(1, 1, 0), 0, -10}};
+  GyroSimOptions so;
+  so.duration_s = BenchDurationS(p);
+  const GyroUnit unit = IdealUnit(10);
+  const GyroSimulation sim = SimulateGyro(unit, p, so);
+  ASSERT_TRUE(sim.bench_reference);
+  const double earth_dph = kEarthRateRadS * kRadSToDph, lat = p.latitude_deg * kDegToRad;
+  for (size_t k = 0; k < sim.t_s.size(); k += 97) {
+    const Vec3& w = sim.w_mean_dph[k];
+    const bool table = sim.t_s[k] > 100;
+    const Vec3 up = table ? Vec3(1, 1, 0).normalized() : -Vec3::UnitY();
+    if (!table) {
+      EXPECT_NEAR(w.norm(), earth_dph, 1e-9) << k;
+    }
+    EXPECT_NEAR(w.dot(up), earth_dph * std::sin(lat) + (table ? -36000.0 : 0.0), 1e-6) << k;
+    for (int i = 0; i < 4; ++i) EXPECT_NEAR(sim.gyro_dph[k][i], unit.axes_body[i].dot(w), 1e-6) << k;
+  }
+}
+
 TEST(GyroSim, NoiseLevelsMatchTheErrorModel) {
   GyroUnit u = DefaultFourFogUnit();
   u.rate_hz = 100;
