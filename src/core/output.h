@@ -1,4 +1,4 @@
-// Output files that cannot tear: every file ssiu writes goes through these helpers. The data are
+// Output files that cannot tear: every file ssiu writes goes through these functions. The data are
 // written to a temporary beside the target, flushed, checked and fsync'ed, then renamed over the
 // target, so a reader (or a later run) sees either the old file or the complete new one, never a
 // half-written one, and a write error (disk full) is an InputError naming the file (exit 1).

@@ -375,14 +375,14 @@ double LogPoissonSurvival(int k, double lambda) {
     for (int i = 0; i < k; ++i) p += term, term *= lambda / (i + 1);
     return std::log(std::max(1e-300, 1 - p));
   }
-  const double lead = -lambda + k * std::log(lambda) - std::lgamma(k + 1.0);
+  const double leading = -lambda + k * std::log(lambda) - std::lgamma(k + 1.0);
   double s = 1, term = 1;
   for (int i = 1; i < 200; ++i) {
     term *= lambda / (k + i);
     s += term;
     if (term < 1e-16 * s) break;
   }
-  return lead + std::log(s);
+  return leading + std::log(s);
 }
 
 // P(a given pixel is flagged in >= m of the frames) when frame f flags each pixel with probability p[f].

@@ -1,4 +1,4 @@
-// A small PNG plotting helper (OpenCV stays inside plot.cc): axes with ticks and grid, linear or
+// A small PNG plotting module (OpenCV stays inside plot.cc): axes with ticks and grid, linear or
 // log-log scales, lines, markers, error bars, a title, axis labels and a legend. Enough for
 // diagnostic figures such as Allan-deviation curves; not a general plotting library.
 #pragma once
