@@ -406,24 +406,10 @@ const PixelFit& Linearize(const Context& ctx, const std::vector<StarMatch>& ms, 
   return LinearizeInto(ms, cam, r, {ctx.sigma_px, 0}, &ctx.s->fit);
 }
 
-// Gauss-Newton on pixel residuals over a small rotation (sensor frame) and a common scale of fx and fy
-// (the pixel aspect fy/fx is the camera's).
-void RefineFocal(const Context& ctx, const std::vector<StarMatch>& ms, Camera* cam, Mat3* r) {
-  if (ms.size() < 4) return;
-  for (int iter = 0; iter < 4; ++iter) {
-    const PixelFit& f = Linearize(ctx, ms, *cam, *r);
-    const Vec4 dx = f.h.ldlt().solve(f.g);
-    if (!dx.allFinite()) return;
-    cam->ScaleFocal(1 + dx[3]);
-    *r = *r * ExpSo3(dx.head<3>());
-    if (dx.head<3>().norm() < 1e-10 && std::abs(dx[3]) < 1e-10) break;
-  }
-}
-
-// Gauss-Newton on pixel residuals as RefineFocal, over the rotation alone or with the scale; returns
-// the fit's chi-square (centroid sigmas) at its end.
-double PixelChi2(const std::vector<StarMatch>& ms, PixelSigma sigma, PixelFit* fit, bool fit_scale, Camera* cam,
-                 Mat3* r) {
+// Gauss-Newton on pixel residuals over a small rotation (sensor frame), and with fit_scale a common
+// scale of fx and fy (the pixel aspect fy/fx is the camera's); 4 iterations at most.
+void PixelGaussNewton(const std::vector<StarMatch>& ms, PixelSigma sigma, PixelFit* fit, bool fit_scale, Camera* cam,
+                      Mat3* r) {
   for (int iter = 0; iter < 4; ++iter) {
     const PixelFit& f = LinearizeInto(ms, *cam, *r, sigma, fit);
     Vec4 dx = Vec4::Zero();
@@ -431,11 +417,22 @@ double PixelChi2(const std::vector<StarMatch>& ms, PixelSigma sigma, PixelFit* f
       dx = f.h.ldlt().solve(f.g);
     else
       dx.head<3>() = f.h.topLeftCorner<3, 3>().ldlt().solve(f.g.head<3>());
-    if (!dx.allFinite()) break;
+    if (!dx.allFinite()) return;
     cam->ScaleFocal(1 + dx[3]);
     *r = *r * ExpSo3(dx.head<3>());
     if (dx.head<3>().norm() < 1e-10 && std::abs(dx[3]) < 1e-10) break;
   }
+}
+
+// The rotation and the scale, with the workspace's sigmas.
+void RefineFocal(const Context& ctx, const std::vector<StarMatch>& ms, Camera* cam, Mat3* r) {
+  if (ms.size() >= 4) PixelGaussNewton(ms, {ctx.sigma_px, 0}, &ctx.s->fit, true, cam, r);
+}
+
+// PixelGaussNewton, then the fit's chi-square (centroid sigmas) at its end.
+double PixelChi2(const std::vector<StarMatch>& ms, PixelSigma sigma, PixelFit* fit, bool fit_scale, Camera* cam,
+                 Mat3* r) {
+  PixelGaussNewton(ms, sigma, fit, fit_scale, cam, r);
   const PixelFit& f = LinearizeInto(ms, *cam, *r, sigma, fit);
   double chi2 = 0;
   for (size_t i = 0; i < f.e.size(); ++i) chi2 += f.w[i] * f.e[i].squaredNorm();
@@ -844,7 +841,7 @@ void RetestFocalLength(const Camera& camera, const IdentifyOptions& o, Identific
   if (!refit) {
     cam = camera;
     r = id->q_inertial_from_sensor.toRotationMatrix();
-    PixelChi2(ms, sigma, &fit, false, &cam, &r);
+    PixelGaussNewton(ms, sigma, &fit, false, &cam, &r);
   }
   id->focal_length_px = cam.focal_length_px;
   id->focal_length_y_px = cam.FocalYPx();

@@ -287,6 +287,25 @@ void WriteLog(const std::string& path, const GyroBenchLog& log, bool with_ref = 
   WriteCsv(path, header, cols);
 }
 
+// A case's static and rate logs written to a fresh directory and run through `ssiu discover gyro
+// --json`: the exit status, the program's output and (when it succeeded) the JSON.
+struct CliRun {
+  int status = -1;
+  std::string out;
+  Json json;
+};
+CliRun RunDiscoverGyro(const testing::GyroCase& c, const std::string& name) {
+  const std::string dir = testing::TempDir(name);
+  WriteLog(dir + "/static.csv", c.logs[0]);
+  WriteLog(dir + "/rate.csv", c.logs[1]);
+  CliRun r;
+  r.status = testing::Run(
+      testing::SsiuProgram() + " discover gyro " + dir + "/static.csv " + dir + "/rate.csv --json " + dir + "/d.json",
+      &r.out);
+  if (r.status == 0) r.json = ReadJsonFile(dir + "/d.json");
+  return r;
+}
+
 TEST(DiscoverGyroCli, FindsMagneticHarmonicAndWritesJson) {
   // A harmonic with phase near 0 or 180 deg is what an azimuth misalignment produces (nested,
   // indistinguishable in one axis): take a case whose phase is well away from it.
@@ -294,15 +313,9 @@ TEST(DiscoverGyroCli, FindsMagneticHarmonicAndWritesJson) {
   while (std::abs(std::sin(testing::MakeGyroCase("magnetic_field", seed).truth.at("phase_deg") * kDegToRad)) < 0.7)
     ++seed;
   const auto c = testing::MakeGyroCase("magnetic_field", seed);
-  const std::string dir = testing::TempDir("discover_gyro_cli");
-  WriteLog(dir + "/static.csv", c.logs[0]);
-  WriteLog(dir + "/rate.csv", c.logs[1]);
-  std::string out;
-  const int rc = testing::Run(
-      testing::SsiuProgram() + " discover gyro " + dir + "/static.csv " + dir + "/rate.csv --json " + dir + "/d.json",
-      &out);
-  ASSERT_EQ(rc, 0) << out;
-  const Json j = ReadJsonFile(dir + "/d.json");
+  const CliRun run = RunDiscoverGyro(c, "discover_gyro_cli");
+  ASSERT_EQ(run.status, 0) << run.out;
+  const Json& j = run.json;
   ASSERT_EQ(j["cause"], "magnetic_field") << j.dump(1);
   const double amp = j["parameters"]["amplitude_dph"].get<double>();
   EXPECT_NEAR(amp, c.truth.at("amplitude_dph"), 3 * j["parameter_sigmas"]["amplitude_dph"].get<double>());
@@ -317,16 +330,10 @@ TEST(DiscoverGyroCli, FindsMagneticHarmonicAndWritesJson) {
 // lists it, each cause with its parameters.
 TEST(DiscoverGyroCli, ChainOfTwoCausesInJsonAndSummary) {
   const auto c = testing::MakeGyroCase(std::vector<std::string>{"bias_step", "periodic_drift"}, 408159);
-  const std::string dir = testing::TempDir("discover_gyro_cli_chain");
-  WriteLog(dir + "/static.csv", c.logs[0]);
-  WriteLog(dir + "/rate.csv", c.logs[1]);
-  std::string out;
-  ASSERT_EQ(testing::Run(testing::SsiuProgram() + " discover gyro " + dir + "/static.csv " + dir + "/rate.csv --json " +
-                             dir + "/d.json",
-                         &out),
-            0)
-      << out;
-  const Json j = ReadJsonFile(dir + "/d.json");
+  const CliRun run = RunDiscoverGyro(c, "discover_gyro_cli_chain");
+  ASSERT_EQ(run.status, 0) << run.out;
+  const std::string& out = run.out;
+  const Json& j = run.json;
   ASSERT_EQ(j["causes"].size(), 2u) << j.dump(1);
   const std::string a = j["causes"][0]["cause"], b = j["causes"][1]["cause"];
   EXPECT_EQ(j["cause"], a);
@@ -339,16 +346,10 @@ TEST(DiscoverGyroCli, ChainOfTwoCausesInJsonAndSummary) {
 // thermal_lag through the command: its time constant and K in the JSON and the summary line.
 TEST(DiscoverGyroCli, ThermalLagInJsonAndSummary) {
   const auto c = testing::MakeGyroCase("thermal_lag", 9102);
-  const std::string dir = testing::TempDir("discover_gyro_cli_lag");
-  WriteLog(dir + "/static.csv", c.logs[0]);
-  WriteLog(dir + "/rate.csv", c.logs[1]);
-  std::string out;
-  ASSERT_EQ(testing::Run(testing::SsiuProgram() + " discover gyro " + dir + "/static.csv " + dir + "/rate.csv --json " +
-                             dir + "/d.json",
-                         &out),
-            0)
-      << out;
-  const Json j = ReadJsonFile(dir + "/d.json");
+  const CliRun run = RunDiscoverGyro(c, "discover_gyro_cli_lag");
+  ASSERT_EQ(run.status, 0) << run.out;
+  const std::string& out = run.out;
+  const Json& j = run.json;
   EXPECT_EQ(j["cause"], "thermal_lag") << j.dump(1);
   EXPECT_TRUE(j["parameters"].contains("tau_s"));
   EXPECT_TRUE(j["parameter_sigmas"].contains("K_lag_dph"));
