@@ -56,7 +56,8 @@ void BM_FlightMemory(benchmark::State& state) {
   }
   c.catalog_crc32 = blob.crc;
   testing::AllocationCounter n;
-  const SolverCatalog cat = ParseSolverCatalog(blob.bytes.data(), blob.bytes.size(), "blob", /*star_tree=*/false);
+  const SolverCatalog cat = ParseSolverCatalog(blob.bytes.data(), blob.bytes.size(), "blob", /*star_tree=*/false,
+                                               /*in_place=*/true);
   const long catalog_heap = n.Bytes();
   const size_t handle = ssiu_flight_memory_bytes(&c);
   std::vector<Block16> memory(handle / sizeof(Block16) + 1);

@@ -24,6 +24,22 @@ struct CatalogStar {
   double pm_ra_rad_per_yr = 0, pm_dec_rad_per_yr = 0;
 };
 
+// A read-only run of catalog stars: a StarCatalog's or a SolverCatalog's table (any contiguous
+// container of CatalogStar with data() and size()), for functions that only read them.
+class StarSpan {
+ public:
+  template <typename C>
+  StarSpan(const C& c) : data_(c.data()), n_(c.size()) {}  // NOLINT: implicit, as a view
+  const CatalogStar* begin() const { return data_; }
+  const CatalogStar* end() const { return data_ + n_; }
+  size_t size() const { return n_; }
+  const CatalogStar& operator[](size_t i) const { return data_[i]; }
+
+ private:
+  const CatalogStar* data_;
+  size_t n_;
+};
+
 struct StarCatalog {
   std::string source;
   std::vector<CatalogStar> stars;  // sorted brightest first

@@ -201,7 +201,8 @@ ssiu_result ssiu_flight_init(const ssiu_flight_config* config, const void* catal
   ssiu_flight* f = nullptr;
   try {
     auto id = std::make_shared<const ssiu::StarIdentifier>(
-        ssiu::ParseSolverCatalog(catalog_blob, catalog_bytes, "catalog blob", /*star_tree=*/false));
+        ssiu::ParseSolverCatalog(catalog_blob, catalog_bytes, "catalog blob", /*star_tree=*/false,
+                                 /*in_place=*/true));
     // The catalog must serve every head's field of view (ssiu::kCatalogFovTolerance, as the CLI asks).
     for (const auto& h : setup.heads) {
       const double fov_deg = h.camera.FovMaxRad() * ssiu::kRadToDeg;

@@ -33,7 +33,7 @@ std::array<Vec2, 4> MaskTag::Corners() const {
 
 Vec3 Mask::DirectionOf(double x_mm, double y_mm) const { return Vec3(x_mm, y_mm, collimator_focal_mm).normalized(); }
 
-Mask DesignMask(const Camera& camera, const std::vector<CatalogStar>& stars, const Quat& q_design,
+Mask DesignMask(const Camera& camera, StarSpan stars, const Quat& q_design,
                 const MaskOptions& o) {
   o.Check();
   camera.Check();

@@ -82,7 +82,7 @@ struct Mask {
   Vec3 DirectionOf(double x_mm, double y_mm) const;
 };
 
-Mask DesignMask(const Camera& camera, const std::vector<CatalogStar>& stars, const Quat& q_design,
+Mask DesignMask(const Camera& camera, StarSpan stars, const Quat& q_design,
                 const MaskOptions& options);
 
 Json MaskToJson(const Mask& m);

@@ -23,13 +23,17 @@ namespace {
 // at build); a version-1 index still loads, its stored tree skipped.
 // Version 3 adds the sky cells (the star lookup of the flight path), so that a load builds nothing it
 // searches; a version-2 index gets them made at load.
-constexpr int64_t kIndexVersion = 3;
+// Version 4 also stores the two tables version 3 filled at load (each pattern cell's first key, the
+// sky cells' unit vectors) and starts each table on an 8-byte boundary, so that a blob in ROM is
+// searched where it lies (flight/ssiu_flight.h): nothing copied, nothing computed.
+constexpr int64_t kIndexVersion = 4;
+constexpr int64_t kIndexVersionUnaligned = 3;
 constexpr int64_t kIndexVersionWithoutSkyCells = 2;
 constexpr int64_t kIndexVersionWithFlannTree = 1;
 
 // Sky cells of 2 x 2 deg (fewer right-ascension cells towards the poles): a field's cap of ~10 deg
 // visits ~50 cells.
-constexpr int kBands = 90;
+constexpr int kBands = CatalogIndex::kSkyBands;
 constexpr double kBandRad = kPi / kBands;
 
 double DecOf(const Vec3& u) { return std::atan2(u[2], std::hypot(u[0], u[1])); }
@@ -94,7 +98,7 @@ CatalogIndex::CatalogIndex(const SolverCatalog& cat) : stars_(cat.stars.size()) 
 }
 
 void CatalogIndex::BandCells() {
-  band_cell0_.assign(kBands + 1, 0);
+  band_cell0_.fill(0);
   for (int b = 0; b < kBands; ++b) band_cell0_[b + 1] = band_cell0_[b] + CellsInBand(b);
 }
 
@@ -108,23 +112,25 @@ void CatalogIndex::IndexSky(const SolverCatalog& cat) {
                   static_cast<int32_t>(i)};
   }
   std::sort(cell_of.begin(), cell_of.end());
-  cell_begin_.assign(static_cast<size_t>(band_cell0_[kBands]) + 1, 0);
-  cell_star_.resize(stars_);
-  cell_unit_.resize(3 * stars_);
+  std::vector<uint32_t>& begin = cell_begin_.Own();
+  std::vector<int32_t>& star = cell_star_.Own();
+  begin.assign(static_cast<size_t>(band_cell0_[kBands]) + 1, 0);
+  star.resize(stars_);
   for (size_t k = 0; k < stars_; ++k) {
-    ++cell_begin_[cell_of[k].first + 1];
-    cell_star_[k] = cell_of[k].second;
+    ++begin[cell_of[k].first + 1];
+    star[k] = cell_of[k].second;
   }
   CellUnits(cat);
-  for (size_t c = 1; c < cell_begin_.size(); ++c) cell_begin_[c] += cell_begin_[c - 1];
+  for (size_t c = 1; c < begin.size(); ++c) begin[c] += begin[c - 1];
 }
 
 // The cells' unit vectors in cell order (a copy for locality: a lookup reads one run of memory).
 void CatalogIndex::CellUnits(const SolverCatalog& cat) {
-  cell_unit_.resize(3 * stars_);
+  std::vector<double>& unit = cell_unit_.Own();
+  unit.resize(3 * stars_);
   for (size_t k = 0; k < stars_; ++k) {
     const Vec3& u = cat.stars[static_cast<size_t>(cell_star_[k])].unit;
-    std::copy_n(u.data(), 3, &cell_unit_[3 * k]);
+    std::copy_n(u.data(), 3, &unit[3 * k]);
   }
 }
 
@@ -188,60 +194,79 @@ bool CatalogIndex::AnyStarWithin(const Vec3& u, double radius_rad) const {
 }
 
 void CatalogIndex::IndexCells() {
-  cell_start_.assign(static_cast<size_t>(kRatioCells) * kRatioCells + 1, 0);
-  for (size_t cell = 0, k = 0; cell < cell_start_.size(); ++cell) {
+  std::vector<uint32_t>& start = cell_start_.Own();
+  start.assign(static_cast<size_t>(kRatioCells) * kRatioCells + 1, 0);
+  for (size_t cell = 0, k = 0; cell < start.size(); ++cell) {
     while (k < keys_.size() && (keys_[k] >> kLnBits) < cell) ++k;
-    cell_start_[cell] = static_cast<uint32_t>(k);
+    start[cell] = static_cast<uint32_t>(k);
   }
 }
 
 CatalogIndex::~CatalogIndex() = default;
 
-// Layout (every field fixed-width, little-endian): version, triangle count (int64), keys (uint64),
-// triangle per key (int32), star count (int64), sky cell count (int64), each cell's first entry and
-// one past the last (uint32), the stars by cell (int32). The same bytes on every processor.
+// Layout (every field fixed-width, little-endian; each table from an 8-byte boundary of the index,
+// zero bytes between): version, triangle count (int64), keys (uint64), triangle per key (int32), star
+// count (int64), sky cell count (int64), each cell's first entry and one past the last (uint32), the
+// stars by cell (int32), the pattern cell count (int64), each pattern cell's first key and one past
+// the last (uint32), the sky cells' unit vectors (3 doubles a star, in cell order). The same bytes
+// on every processor.
 void CatalogIndex::Write(std::string* out) const {
+  const size_t start = out->size();
   auto put = [&](const void* p, size_t n) { out->append(static_cast<const char*>(p), n); };
+  auto align = [&] { out->resize(start + (out->size() - start + 7) / 8 * 8, '\0'); };
   const int64_t head[2] = {kIndexVersion, static_cast<int64_t>(keys_.size())};
   put(head, sizeof head);
   put(keys_.data(), keys_.size() * sizeof(uint64_t));
   put(triangle_.data(), triangle_.size() * sizeof(int32_t));
-  const int64_t stars = static_cast<int64_t>(stars_);
-  put(&stars, sizeof stars);
-  const int64_t cells = band_cell0_.back();
-  put(&cells, sizeof cells);
+  align();
+  const int64_t counts[2] = {static_cast<int64_t>(stars_), band_cell0_.back()};
+  put(counts, sizeof counts);
   put(cell_begin_.data(), cell_begin_.size() * sizeof(uint32_t));
   put(cell_star_.data(), cell_star_.size() * sizeof(int32_t));
+  align();
+  const int64_t pattern_cells = static_cast<int64_t>(cell_start_.size());
+  put(&pattern_cells, sizeof pattern_cells);
+  put(cell_start_.data(), cell_start_.size() * sizeof(uint32_t));
+  align();
+  put(cell_unit_.data(), cell_unit_.size() * sizeof(double));
 }
 
 CatalogIndex::CatalogIndex(const SolverCatalog& cat, const char* data, size_t bytes, const std::string& path,
-                           bool star_tree)
+                           bool star_tree, bool in_place)
     : stars_(cat.stars.size()) {
   size_t pos = 0;
   auto get = [&](void* p, size_t n) {
-    if (n > bytes - pos) throw InputError(path, "truncated catalog index");
+    if (pos > bytes || n > bytes - pos) throw InputError(path, "truncated catalog index");
     std::memcpy(p, data + pos, n);
     pos += n;
   };
   int64_t head[2];
   get(head, sizeof head);
-  if (head[0] != kIndexVersion && head[0] != kIndexVersionWithoutSkyCells && head[0] != kIndexVersionWithFlannTree)
+  const int64_t version = head[0];
+  if (version < kIndexVersionWithFlannTree || version > kIndexVersion)
     throw InputError(path, "catalog index of another version (rebuild the catalog)");
+  auto align = [&] {
+    if (version == kIndexVersion) pos = (pos + 7) / 8 * 8;
+  };
   if (head[1] != static_cast<int64_t>(cat.triangles.size()))
     throw InputError(path, "catalog index does not fit its triangles");
-  keys_.resize(cat.triangles.size());
-  triangle_.resize(cat.triangles.size());
-  get(keys_.data(), keys_.size() * sizeof(uint64_t));
-  get(triangle_.data(), triangle_.size() * sizeof(int32_t));
-  for (size_t i = 0; i < keys_.size(); ++i) {
-    if ((i > 0 && keys_[i] < keys_[i - 1]) || triangle_[i] < 0 || triangle_[i] >= static_cast<int32_t>(keys_.size()))
+  const size_t n_keys = cat.triangles.size();
+  ReadCatalogTable(data, bytes, &pos, n_keys, in_place, &keys_, path);
+  ReadCatalogTable(data, bytes, &pos, n_keys, in_place, &triangle_, path);
+  // Every table is checked as read, so that no search can step outside one (the blob's CRC, which
+  // meta.json and the flight interface check, vouches for the rest). Read through const references:
+  // a view is never copied.
+  const CatalogArray<uint64_t>& keys = keys_;
+  const CatalogArray<int32_t>& tri = triangle_;
+  for (size_t i = 0; i < n_keys; ++i) {
+    if ((i > 0 && keys[i] < keys[i - 1]) || tri[i] < 0 || tri[i] >= static_cast<int32_t>(n_keys))
       throw InputError(path, "corrupt catalog index (keys unsorted or triangle out of range)");
   }
-  IndexCells();
+  align();
   int64_t stars = 0;
   get(&stars, sizeof stars);
   if (stars != static_cast<int64_t>(stars_)) throw InputError(path, "catalog index does not fit its stars");
-  if (head[0] == kIndexVersionWithFlannTree) {
+  if (version == kIndexVersionWithFlannTree) {
     // The byte count of FLANN's tree, and the tree (not read: its layout depends on the writer's size_t).
     int64_t tree_bytes = 0;
     get(&tree_bytes, sizeof tree_bytes);
@@ -249,25 +274,51 @@ CatalogIndex::CatalogIndex(const SolverCatalog& cat, const char* data, size_t by
       throw InputError(path, "catalog index does not fit its stars");
     pos = bytes;
   }
-  if (head[0] == kIndexVersion) {
-    // The sky cells as stored: checked so that no lookup can read outside them (the blob's CRC, which
-    // meta.json and the flight interface check, vouches for the rest).
+  if (version >= kIndexVersionUnaligned) {
     BandCells();
     int64_t cells = 0;
     get(&cells, sizeof cells);
     if (cells != band_cell0_.back()) throw InputError(path, "catalog index: sky cells of another layout");
-    cell_begin_.resize(static_cast<size_t>(cells) + 1);
-    cell_star_.resize(stars_);
-    get(cell_begin_.data(), cell_begin_.size() * sizeof(uint32_t));
-    get(cell_star_.data(), cell_star_.size() * sizeof(int32_t));
-    bool ok = cell_begin_.front() == 0 && cell_begin_.back() == stars_;
-    for (size_t c = 1; ok && c < cell_begin_.size(); ++c) ok = cell_begin_[c] >= cell_begin_[c - 1];
-    for (size_t k = 0; ok && k < stars_; ++k) ok = cell_star_[k] >= 0 && static_cast<size_t>(cell_star_[k]) < stars_;
+    ReadCatalogTable(data, bytes, &pos, static_cast<size_t>(cells) + 1, in_place, &cell_begin_, path);
+    ReadCatalogTable(data, bytes, &pos, stars_, in_place, &cell_star_, path);
+    const CatalogArray<uint32_t>& begin = cell_begin_;
+    const CatalogArray<int32_t>& star = cell_star_;
+    bool ok = begin.front() == 0 && begin.back() == stars_;
+    for (size_t c = 1; ok && c < begin.size(); ++c) ok = begin[c] >= begin[c - 1];
+    for (size_t k = 0; ok && k < stars_; ++k) ok = star[k] >= 0 && static_cast<size_t>(star[k]) < stars_;
     if (!ok) throw InputError(path, "corrupt catalog index (sky cells)");
-    CellUnits(cat);
+  }
+  if (version == kIndexVersion) {
+    align();
+    int64_t pattern_cells = 0;
+    get(&pattern_cells, sizeof pattern_cells);
+    if (pattern_cells != static_cast<int64_t>(kRatioCells) * kRatioCells + 1)
+      throw InputError(path, "catalog index: pattern cells of another layout");
+    ReadCatalogTable(data, bytes, &pos, static_cast<size_t>(pattern_cells), in_place, &cell_start_, path);
+    // Each cell's run holds exactly its own keys.
+    const CatalogArray<uint32_t>& start = cell_start_;
+    bool ok = start.front() == 0 && start.back() == n_keys;
+    for (size_t c = 0; ok && c + 1 < start.size(); ++c) {
+      ok = start[c + 1] >= start[c] && start[c + 1] <= n_keys;
+      for (uint32_t k = start[c]; ok && k < start[c + 1]; ++k) ok = (keys[k] >> kLnBits) == c;
+    }
+    if (!ok) throw InputError(path, "corrupt catalog index (pattern cells)");
+    align();
+    ReadCatalogTable(data, bytes, &pos, 3 * stars_, in_place, &cell_unit_, path);
+    // The cells' unit vectors are their stars' (to the bit: the lookups must equal the kd-tree's).
+    const CatalogArray<double>& unit = cell_unit_;
+    const CatalogArray<int32_t>& star = cell_star_;
+    for (size_t k = 0; ok && k < stars_; ++k) {
+      const Vec3& u = cat.stars[static_cast<size_t>(star[k])].unit;
+      ok = unit[3 * k] == u[0] && unit[3 * k + 1] == u[1] && unit[3 * k + 2] == u[2];
+    }
+    if (!ok) throw InputError(path, "corrupt catalog index (sky cells' unit vectors)");
+  } else {
+    IndexCells();
+    if (version == kIndexVersionUnaligned) CellUnits(cat);
   }
   if (pos != bytes) throw InputError(path, "catalog index does not fit its stars (bytes after its end)");
-  if (head[0] != kIndexVersion) IndexSky(cat);
+  if (version < kIndexVersionUnaligned) IndexSky(cat);
   if (star_tree && stars_ > 0) {
     tree_ = std::make_unique<StarTree>(Points(&units_, cat));
     tree_->tree.buildIndex();

@@ -8,17 +8,38 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <memory>
 #include <string>
 #include <type_traits>
 #include <vector>
 
+#include "core/error.h"
 #include "core/types.h"
 #include "identify/star_catalog.h"
 
 namespace ssiu {
+
+// Reads n elements of T stored at data + *pos (fixed-width little-endian, as T lies in memory) into
+// `out`: with `in_place` (and the bytes aligned for T) a view of them, else a copy; *pos moves past
+// them. InputError naming `path` when the bytes end first.
+template <typename T>
+void ReadCatalogTable(const char* data, size_t bytes, size_t* pos, size_t n, bool in_place, CatalogArray<T>* out,
+                      const std::string& path) {
+  if (*pos > bytes || n > (bytes - *pos) / sizeof(T)) throw InputError(path, "truncated catalog file");
+  const char* p = data + *pos;
+  if (in_place && reinterpret_cast<uintptr_t>(p) % alignof(T) == 0) {
+    *out = CatalogArray<T>::View(reinterpret_cast<const T*>(p), n);
+  } else {
+    std::vector<T>& v = out->Own();
+    v.resize(n);
+    if (n > 0) std::memcpy(static_cast<void*>(v.data()), p, n * sizeof(T));
+  }
+  *pos += n * sizeof(T);
+}
 
 class CatalogIndex {
  public:
@@ -47,9 +68,10 @@ class CatalogIndex {
   explicit CatalogIndex(const SolverCatalog& cat);
   // Restored from Write's bytes for `cat` (the same stars and triangles); InputError naming `path`
   // when they do not fit it. Without `star_tree` the kd-tree is not built (the flight path searches
-  // the sky cells; the vector StarsWithin then does too).
+  // the sky cells; the vector StarsWithin then does too). With `in_place` the tables are searched
+  // where they lie in `data` (which must outlive the index), nothing copied or computed.
   CatalogIndex(const SolverCatalog& cat, const char* data, size_t bytes, const std::string& path,
-               bool star_tree = true);
+               bool star_tree = true, bool in_place = false);
   ~CatalogIndex();
   CatalogIndex(const CatalogIndex&) = delete;
   CatalogIndex& operator=(const CatalogIndex&) = delete;
@@ -98,11 +120,14 @@ class CatalogIndex {
   size_t StarsWithin(const Vec3& u, double radius_rad, int* out, size_t capacity) const;
   // Whether any catalog star is within radius_rad of u (as StarsWithin; allocates nothing).
   bool AnyStarWithin(const Vec3& u, double radius_rad) const;
-  // Heap bytes of the sky cells.
-  size_t SkyCellBytes() const {
-    return band_cell0_.capacity() * sizeof(int32_t) + cell_begin_.capacity() * sizeof(uint32_t) +
-           cell_star_.capacity() * sizeof(int32_t) + cell_unit_.capacity() * sizeof(double);
+  // Heap bytes of the sky cells (0 when they are searched in place).
+  size_t SkyCellBytes() const { return cell_begin_.HeapBytes() + cell_star_.HeapBytes() + cell_unit_.HeapBytes(); }
+  // Heap bytes of every table (0 when all are searched in place; the kd-tree not counted).
+  size_t HeapBytes() const {
+    return SkyCellBytes() + keys_.HeapBytes() + triangle_.HeapBytes() + cell_start_.HeapBytes();
   }
+  // Sky cells: declination bands of kBandRad, each cut into right-ascension cells about as wide.
+  static constexpr int kSkyBands = 90;
 
  private:
   void IndexCells();
@@ -113,14 +138,14 @@ class CatalogIndex {
   // (a superset of the stars within it), until fn returns false.
   template <typename Fn>
   void ForEachStarNear(const Vec3& u, double radius_rad, Fn&& fn) const;
-  // Sky cells: declination bands of kBandRad, each cut into right-ascension cells about as wide.
-  std::vector<int32_t> band_cell0_;   // first cell of each band; the cell count last
-  std::vector<uint32_t> cell_begin_;  // first entry of each cell in cell_star_; one past the end last
-  std::vector<int32_t> cell_star_;    // star indices by cell, ascending within a cell
-  std::vector<double> cell_unit_;     // their unit vectors (3 each), in the same order
-  std::vector<uint64_t> keys_;        // sorted
-  std::vector<int32_t> triangle_;     // triangle index per key
-  std::vector<uint32_t> cell_start_;  // first key of each (ratio_a, ratio_b) cell; one past the end last
+  // The tables: owned when built, views of the catalog blob when restored in place.
+  std::array<int32_t, kSkyBands + 1> band_cell0_{};  // first cell of each band; the cell count last
+  CatalogArray<uint32_t> cell_begin_;  // first entry of each cell in cell_star_; one past the end last
+  CatalogArray<int32_t> cell_star_;    // star indices by cell, ascending within a cell
+  CatalogArray<double> cell_unit_;     // their unit vectors (3 each), in the same order
+  CatalogArray<uint64_t> keys_;        // sorted
+  CatalogArray<int32_t> triangle_;     // triangle index per key
+  CatalogArray<uint32_t> cell_start_;  // first key of each (ratio_a, ratio_b) cell; one past the end last
   size_t stars_ = 0;
   std::vector<double> units_;  // star unit vectors, the kd-tree's points
   struct StarTree;

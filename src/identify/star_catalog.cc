@@ -32,9 +32,28 @@ namespace {
 
 constexpr double kMasToRad = kArcsecToRad / 1000.0;
 // 2: triangles as vertices only; 3: per-star proper motion (rad/yr) after the magnitude; 4: stars'
-// unit vectors, triangles' features and the search index stored as used (nothing rebuilt at load).
-constexpr char kMagic[8] = {'S', 'S', 'I', 'U', 'C', 'A', 'T', '4'};
+// unit vectors, triangles' features and the search index stored as used (nothing rebuilt at load);
+// 5: every table from an 8-byte boundary, each star a record laid out as CatalogStar is in memory
+// (id, 4 zero bytes, ra, dec, mag, unit vector, proper motion), so that a blob in ROM is searched
+// where it lies (ParseSolverCatalog's in_place).
+constexpr char kMagic[8] = {'S', 'S', 'I', 'U', 'C', 'A', 'T', '5'};
+constexpr char kMagicV4[8] = {'S', 'S', 'I', 'U', 'C', 'A', 'T', '4'};
 constexpr char kMagicV3[8] = {'S', 'S', 'I', 'U', 'C', 'A', 'T', '3'};
+constexpr size_t kStarRecordBytes = 72;
+
+// Whether this processor lays a CatalogStar out as format 5 stores it (little-endian, no other
+// padding): then the stars are viewed in place, else read field by field.
+bool StarRecordIsCatalogStar() {
+  const uint32_t one = 1;
+  unsigned char first = 0;
+  std::memcpy(&first, &one, 1);
+  const CatalogStar s;
+  const char* b = reinterpret_cast<const char*>(&s);
+  auto at = [&](const void* p) { return static_cast<const char*>(p) - b; };
+  return first == 1 && sizeof(CatalogStar) == kStarRecordBytes && alignof(CatalogStar) <= 8 && at(&s.id) == 0 &&
+         at(&s.ra_rad) == 8 && at(&s.dec_rad) == 16 && at(&s.mag) == 24 && at(s.unit.data()) == 32 &&
+         at(s.unit.data() + 2) == 48 && at(&s.pm_ra_rad_per_yr) == 56 && at(&s.pm_dec_rad_per_yr) == 64;
+}
 
 bool FileExists(const std::string& p) {
   struct stat st;
@@ -408,10 +427,13 @@ std::string SolverCatalogBytes(const SolverCatalog& cat) {
   const int64_t slen = static_cast<int64_t>(cat.source.size());
   put(&slen, 8);
   put(cat.source.data(), cat.source.size());
+  const char zeros[8] = {0};
+  put(zeros, (8 - cat.source.size() % 8) % 8);
   for (const auto& s : cat.stars) {
-    const double d[8] = {s.ra_rad,  s.dec_rad, s.mag,    s.pm_ra_rad_per_yr, s.pm_dec_rad_per_yr,
-                         s.unit[0], s.unit[1], s.unit[2]};
+    const double d[8] = {s.ra_rad,   s.dec_rad,  s.mag,           s.unit[0],
+                         s.unit[1], s.unit[2], s.pm_ra_rad_per_yr, s.pm_dec_rad_per_yr};
     put(&s.id, sizeof s.id);
+    put(zeros, 4);
     put(d, sizeof d);
   }
   for (const auto& t : cat.triangles) {
@@ -517,19 +539,22 @@ CatalogDirState CheckCatalogDirKeep(const std::string& dir, std::string* why, st
   return CatalogDirState::kOk;
 }
 
-// Parses catalog.bin's bytes (format 4, or 3 whose features and index are recomputed) as a fixed-FOV
-// catalog (the smallest FOV of a range catalog is in meta.json).
-SolverCatalog ParseCatalogBytes(const char* data, size_t size, const std::string& path, bool star_tree = true) {
+// Parses catalog.bin's bytes (format 5 or 4, or 3 whose features and index are recomputed) as a
+// fixed-FOV catalog (the smallest FOV of a range catalog is in meta.json). With `in_place` the tables
+// of a format-5 blob are viewed where they lie (the bytes must outlive the catalog), else copied.
+SolverCatalog ParseCatalogBytes(const char* data, size_t size, const std::string& path, bool star_tree = true,
+                                bool in_place = false) {
   size_t pos = 0;
   auto get = [&](void* p, size_t n) {
-    if (n > size - pos) throw InputError(path, "truncated catalog file");
+    if (pos > size || n > size - pos) throw InputError(path, "truncated catalog file");
     std::memcpy(p, data + pos, n);
     pos += n;
   };
   char magic[8];
   get(magic, 8);
-  const bool v3 = std::memcmp(magic, kMagicV3, 8) == 0;
-  if (!v3 && std::memcmp(magic, kMagic, 8) != 0) throw InputError(path, "not an ssiu catalog (bad magic)");
+  const bool v3 = std::memcmp(magic, kMagicV3, 8) == 0, v4 = std::memcmp(magic, kMagicV4, 8) == 0;
+  if (!v3 && !v4 && std::memcmp(magic, kMagic, 8) != 0) throw InputError(path, "not an ssiu catalog (bad magic)");
+  const bool v5 = !v3 && !v4;
   SolverCatalog cat;
   double hdr[5];
   get(hdr, sizeof hdr);
@@ -546,37 +571,54 @@ SolverCatalog ParseCatalogBytes(const char* data, size_t size, const std::string
   get(cat.source.data(), cat.source.size());
   cat.num_pattern_stars = static_cast<int>(counts[2]);
   cat.pattern_neighbours = static_cast<int>(counts[3]);
-  cat.stars.resize(static_cast<size_t>(counts[0]));
-  for (auto& s : cat.stars) {
-    double d[8];
-    get(&s.id, sizeof s.id);
-    get(d, (v3 ? 5 : 8) * sizeof(double));
-    s.ra_rad = d[0], s.dec_rad = d[1], s.mag = d[2], s.pm_ra_rad_per_yr = d[3], s.pm_dec_rad_per_yr = d[4];
-    s.unit = v3 ? UnitFromRaDec(s.ra_rad, s.dec_rad) : Vec3(d[5], d[6], d[7]);
-  }
-  cat.triangles.resize(static_cast<size_t>(counts[1]));
-  for (auto& t : cat.triangles) {
-    get(t.v.data(), sizeof t.v);
-    for (int k = 0; k < 3; ++k)
-      if (t.v[k] < 0 || t.v[k] >= static_cast<int>(cat.stars.size())) throw InputError(path, "corrupt triangle index");
-    if (!v3) {
-      float f[3];
-      get(f, sizeof f);
-      t.longest_rad = f[0], t.ratio_a = f[1], t.ratio_b = f[2];
-      if (!(t.longest_rad > 0)) throw InputError(path, "corrupt triangle index (degenerate triangle)");
-      continue;
+  const size_t n_stars = static_cast<size_t>(counts[0]), n_triangles = static_cast<size_t>(counts[1]);
+  if (v5) pos = (pos + 7) / 8 * 8;
+  if (v5 && StarRecordIsCatalogStar()) {
+    ReadCatalogTable(data, size, &pos, n_stars, in_place, &cat.stars, path);
+  } else {
+    std::vector<CatalogStar>& stars = cat.stars.Own();
+    stars.resize(n_stars);
+    for (auto& s : stars) {
+      double d[8];
+      get(&s.id, sizeof s.id);
+      if (v5) get(d, 4);  // the record's padding
+      get(d, (v3 ? 5 : 8) * sizeof(double));
+      s.ra_rad = d[0], s.dec_rad = d[1], s.mag = d[2];
+      if (v5) {
+        s.unit = Vec3(d[3], d[4], d[5]), s.pm_ra_rad_per_yr = d[6], s.pm_dec_rad_per_yr = d[7];
+      } else {
+        s.pm_ra_rad_per_yr = d[3], s.pm_dec_rad_per_yr = d[4];
+        s.unit = v3 ? UnitFromRaDec(s.ra_rad, s.dec_rad) : Vec3(d[5], d[6], d[7]);
+      }
     }
+  }
+  const int n = static_cast<int>(n_stars);
+  if (!v3) {
+    ReadCatalogTable(data, size, &pos, n_triangles, in_place, &cat.triangles, path);
+    for (const CatalogTriangle& t : cat.triangles) {
+      for (int k = 0; k < 3; ++k)
+        if (t.v[k] < 0 || t.v[k] >= n) throw InputError(path, "corrupt triangle index");
+      if (!(t.longest_rad > 0)) throw InputError(path, "corrupt triangle index (degenerate triangle)");
+    }
+  } else {
     // Format 3: features from the stars (vertices are stored ordered by the side opposite them).
-    const Vec3 &a = cat.stars[t.v[0]].unit, &b = cat.stars[t.v[1]].unit, &c = cat.stars[t.v[2]].unit;
-    const double s0 = std::acos(std::min(1.0, b.dot(c))), s1 = std::acos(std::min(1.0, a.dot(c))),
-                 s2 = std::acos(std::min(1.0, a.dot(b)));
-    if (!(s2 > 0)) throw InputError(path, "corrupt triangle index (degenerate triangle)");
-    t.longest_rad = static_cast<float>(s2);
-    t.ratio_a = static_cast<float>(s0 / s2);
-    t.ratio_b = static_cast<float>(s1 / s2);
+    std::vector<CatalogTriangle>& triangles = cat.triangles.Own();
+    triangles.resize(n_triangles);
+    for (auto& t : triangles) {
+      get(t.v.data(), sizeof t.v);
+      for (int k = 0; k < 3; ++k)
+        if (t.v[k] < 0 || t.v[k] >= n) throw InputError(path, "corrupt triangle index");
+      const Vec3 &a = cat.stars[t.v[0]].unit, &b = cat.stars[t.v[1]].unit, &c = cat.stars[t.v[2]].unit;
+      const double s0 = std::acos(std::min(1.0, b.dot(c))), s1 = std::acos(std::min(1.0, a.dot(c))),
+                   s2 = std::acos(std::min(1.0, a.dot(b)));
+      if (!(s2 > 0)) throw InputError(path, "corrupt triangle index (degenerate triangle)");
+      t.longest_rad = static_cast<float>(s2);
+      t.ratio_a = static_cast<float>(s0 / s2);
+      t.ratio_b = static_cast<float>(s1 / s2);
+    }
   }
   cat.index = v3 ? std::make_shared<const CatalogIndex>(cat)
-                 : std::make_shared<const CatalogIndex>(cat, data + pos, size - pos, path, star_tree);
+                 : std::make_shared<const CatalogIndex>(cat, data + pos, size - pos, path, star_tree, in_place);
   return cat;
 }
 
@@ -606,9 +648,10 @@ CatalogDirState CheckCatalogDir(const std::string& dir, std::string* why) {
   return CheckCatalogDirKeep(dir, why, &bin, &meta);
 }
 
-SolverCatalog ParseSolverCatalog(const void* data, size_t bytes, const std::string& name, bool star_tree) {
+SolverCatalog ParseSolverCatalog(const void* data, size_t bytes, const std::string& name, bool star_tree,
+                                 bool in_place) {
   if (data == nullptr) throw InputError(name, "no catalog data");
-  return ParseCatalogBytes(static_cast<const char*>(data), bytes, name, star_tree);
+  return ParseCatalogBytes(static_cast<const char*>(data), bytes, name, star_tree, in_place);
 }
 
 SolverCatalog LoadSolverCatalog(const std::string& dir) {
@@ -640,7 +683,7 @@ SolverCatalog LoadOrBuildCatalog(const std::string& source_path, const CatalogBu
   for (char& c : base)
     if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
   char key[256];
-  std::snprintf(key, sizeof key, "%s_fov%.2f_mag%.2f_ep%.1f_dbl%.1f_p%d_s%.0f_k%d_b%d_v5", base.c_str(), o.fov_deg,
+  std::snprintf(key, sizeof key, "%s_fov%.2f_mag%.2f_ep%.1f_dbl%.1f_p%d_s%.0f_k%d_b%d_v6", base.c_str(), o.fov_deg,
                 o.mag_max, o.epoch_year, o.double_star_arcsec, o.pattern_stars_per_fov, o.stars_per_fov,
                 o.pattern_neighbours, o.pattern_bright_neighbours);
   std::string dir_key = key;

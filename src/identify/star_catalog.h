@@ -12,6 +12,7 @@
 
 #include <array>
 #include <cstdint>
+#include <initializer_list>
 #include <memory>
 #include <string>
 #include <vector>
@@ -58,6 +59,61 @@ struct CatalogTriangle {
 
 class CatalogIndex;  // identify/catalog_index.h
 
+// A catalog table that owns its elements, or views them where they lie (a catalog blob in ROM or
+// mapped storage, docs/flight.md "Catalog"): the flight path searches the blob's tables in place,
+// with nothing copied. Reads are a const array's; writes go through Own(), which copies a view first,
+// so that a builder or a test that changes a loaded catalog never writes into the blob. A view's
+// bytes must outlive it and its copies.
+template <typename T>
+class CatalogArray {
+ public:
+  CatalogArray() = default;
+  CatalogArray(std::initializer_list<T> v) : own_(v) {}
+  CatalogArray& operator=(std::vector<T> v) {
+    own_ = std::move(v);
+    view_ = nullptr, n_ = 0;
+    return *this;
+  }
+  static CatalogArray View(const T* data, size_t n) {
+    CatalogArray a;
+    a.view_ = data, a.n_ = n;
+    return a;
+  }
+  bool IsView() const { return view_ != nullptr; }
+
+  size_t size() const { return view_ ? n_ : own_.size(); }
+  bool empty() const { return size() == 0; }
+  const T* data() const { return view_ ? view_ : own_.data(); }
+  const T* begin() const { return data(); }
+  const T* end() const { return data() + size(); }
+  const T& operator[](size_t i) const { return data()[i]; }
+  const T& front() const { return data()[0]; }
+  const T& back() const { return data()[size() - 1]; }
+  // Bytes this table holds on the heap (0 for a view).
+  size_t HeapBytes() const { return own_.capacity() * sizeof(T); }
+
+  // Writes, through Own() alone (a view is copied into owned storage first): element access is
+  // read-only, so that no read of a view copies it.
+  std::vector<T>& Own() {
+    if (view_) {
+      own_.assign(view_, view_ + n_);
+      view_ = nullptr, n_ = 0;
+    }
+    return own_;
+  }
+  void push_back(const T& v) { Own().push_back(v); }
+  void resize(size_t n) { Own().resize(n); }
+  void reserve(size_t n) { Own().reserve(n); }
+  void assign(size_t n, const T& v) { Own().assign(n, v); }
+  void clear() { Own().clear(); }
+  size_t capacity() const { return view_ ? n_ : own_.capacity(); }
+
+ private:
+  std::vector<T> own_;
+  const T* view_ = nullptr;
+  size_t n_ = 0;
+};
+
 struct SolverCatalog {
   std::string source;
   double epoch_year = 2000.0;
@@ -65,8 +121,8 @@ struct SolverCatalog {
   double fov_min_deg = 0;  // smallest (= fov_deg for a fixed FOV; meta.json `fov_min_deg`)
   double mag_max = 0;
   double double_star_arcsec = 0;
-  std::vector<CatalogStar> stars;  // brightest first, positions at epoch_year
-  std::vector<CatalogTriangle> triangles;
+  CatalogArray<CatalogStar> stars;  // brightest first, positions at epoch_year
+  CatalogArray<CatalogTriangle> triangles;
   int num_pattern_stars = 0;
   int pattern_neighbours = 0;  // CatalogBuildOptions::pattern_neighbours the index was built with
   double build_time_s = 0;
@@ -129,8 +185,12 @@ std::string SolverCatalogBytes(const SolverCatalog& catalog);
 // triangles and stored index are read without rebuilding anything. InputError naming `name` when the
 // bytes are not a whole catalog (the CRC is meta.json's; flight/ssiu_flight.h checks it).
 // Without `star_tree` the stars' kd-tree is not built (the flight path's lookups use the stored sky
-// cells): nothing is built that a search needs, the parts are read as stored.
-SolverCatalog ParseSolverCatalog(const void* data, size_t bytes, const std::string& name, bool star_tree = true);
+// cells): nothing is built that a search needs, the parts are read as stored. With `in_place` the
+// tables of a format-5 blob (8-byte aligned) are searched where they lie, nothing copied: the bytes
+// must then outlive the catalog and every copy of it (an older format, or an unaligned blob, is
+// copied as without it).
+SolverCatalog ParseSolverCatalog(const void* data, size_t bytes, const std::string& name, bool star_tree = true,
+                                 bool in_place = false);
 
 enum class CatalogDirState { kAbsent, kIncomplete, kDamaged, kOk };
 // Checks a catalog directory against its meta.json without parsing it; `why` says what is wrong.

@@ -7,7 +7,12 @@
 // calls counted are ones that did their work.
 #include <gtest/gtest.h>
 
+#include <sys/mman.h>
+#include <unistd.h>
+
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <vector>
 
 #include "core/attitude.h"
@@ -159,6 +164,84 @@ TEST(FlightAllocation, NoHeapAndNoExceptionAfterInitOverAMissionWithOutageAndFau
   EXPECT_EQ(state.allocations, 0);
   EXPECT_EQ(frames.exceptions + gyro.exceptions + state.exceptions, 0);
   ssiu_flight_shutdown(f);
+}
+
+// The catalog blob is searched where it lies (docs/flight.md "Catalog"). Placed in read-only pages,
+// as in ROM (a write into it would fault), init takes no heap for it: an init that must copy the same
+// bytes (one byte off 8-byte alignment) takes at least 95% of the blob more. Both handles give the
+// same statuses, matches and attitudes, frame by frame.
+TEST(FlightAllocation, CatalogBlobIsSearchedWhereItLies) {
+  MissionConfig config = DefaultMissionConfig();
+  config.duration_s = 8;
+  config.score_after_s = 0;
+  config.frame_rate_hz = 1;
+  config.seed = 5;
+  config = WithUnitKnowledge(config);
+  const MissionData data = SimulateMission(config);
+  const std::string blob = SolverCatalogBytes(MakeIdentifierForCamera("", config.heads[0].camera, 0.0).catalog());
+  const size_t page = static_cast<size_t>(sysconf(_SC_PAGESIZE)), rom_bytes = (blob.size() + page - 1) / page * page;
+  void* rom = mmap(nullptr, rom_bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+  ASSERT_NE(rom, MAP_FAILED);
+  std::memcpy(rom, blob.data(), blob.size());
+  ASSERT_EQ(mprotect(rom, rom_bytes, PROT_READ), 0);
+  std::vector<char> shifted(blob.size() + 8);
+  char* unaligned = shifted.data() + (8 - reinterpret_cast<uintptr_t>(shifted.data()) % 8) % 8 + 1;
+  std::memcpy(unaligned, blob.data(), blob.size());
+
+  ssiu_flight_config c =
+      FlightConfigFor(config.heads, config.unit, config.processor, config.start_utc, config.velocity_kms);
+  c.catalog_crc32 = Crc32(blob.data(), blob.size());
+  const size_t need = ssiu_flight_memory_bytes(&c);
+  std::vector<Block16> memory_a(need / sizeof(Block16) + 1), memory_b(need / sizeof(Block16) + 1);
+  ssiu_flight *a = nullptr, *b = nullptr;
+  testing::AllocationCounter n;
+  ASSERT_EQ(ssiu_flight_init(&c, rom, blob.size(), memory_a.data(), memory_a.size() * sizeof(Block16), &a), SSIU_OK)
+      << reinterpret_cast<const char*>(memory_a.data());
+  const long in_place_bytes = n.Bytes();
+  n.Reset();
+  ASSERT_EQ(ssiu_flight_init(&c, unaligned, blob.size(), memory_b.data(), memory_b.size() * sizeof(Block16), &b),
+            SSIU_OK)
+      << reinterpret_cast<const char*>(memory_b.data());
+  const long copied_bytes = n.Bytes();
+  std::printf("heap at init: blob in place %ld bytes, copied %ld bytes (blob %zu bytes)\n", in_place_bytes,
+              copied_bytes, blob.size());
+  EXPECT_GT(static_cast<double>(copied_bytes - in_place_bytes), 0.95 * static_cast<double>(blob.size()));
+
+  std::vector<Image16> images(config.heads.size());
+  std::vector<ssiu_frame> views(config.heads.size());
+  const GyroSimulation& g = data.gyro;
+  size_t fi = 0;
+  int solved = 0;
+  for (size_t k = 0; k < g.t_s.size(); ++k) {
+    for (; fi < data.frame_t_s.size() && data.frame_t_s[fi] < g.t_s[k] - 1e-9; ++fi) {
+      for (size_t h = 0; h < config.heads.size(); ++h) {
+        images[h] = SimulateMissionFrame(config, data, testing::Bsc(), static_cast<int>(fi), static_cast<int>(h)).image;
+        views[h] = ssiu_frame{images[h].pixels.data(), images[h].width, images[h].height, 0};
+      }
+      ssiu_frame_report ra, rb;
+      ASSERT_EQ(ssiu_flight_frames(a, data.frame_t_s[fi], views.data(), c.n_heads, &ra), SSIU_OK);
+      ASSERT_EQ(ssiu_flight_frames(b, data.frame_t_s[fi], views.data(), c.n_heads, &rb), SSIU_OK);
+      EXPECT_EQ(ra.status, rb.status) << fi;
+      solved += ra.status == SSIU_SOLVE_SOLVED;
+      for (int h = 0; h < c.n_heads; ++h) {
+        EXPECT_EQ(ra.heads[h].matches, rb.heads[h].matches) << fi;
+        for (int i = 0; i < 4; ++i) EXPECT_EQ(ra.heads[h].q_inertial_from_sensor[i], rb.heads[h].q_inertial_from_sensor[i]);
+      }
+    }
+    double sample[SSIU_FLIGHT_MAX_GYROS];
+    for (int i = 0; i < c.n_gyros; ++i) sample[i] = g.gyro_dph[k][i];
+    ASSERT_EQ(ssiu_flight_gyro(a, g.t_s[k], sample, c.n_gyros, nullptr), SSIU_OK);
+    ASSERT_EQ(ssiu_flight_gyro(b, g.t_s[k], sample, c.n_gyros, nullptr), SSIU_OK);
+  }
+  EXPECT_GE(fi, 8u);  // the frames before the last gyro sample
+  EXPECT_EQ(solved, static_cast<int>(fi));
+  ssiu_state sa, sb;
+  ASSERT_EQ(ssiu_flight_state(a, &sa), SSIU_OK);
+  ASSERT_EQ(ssiu_flight_state(b, &sb), SSIU_OK);
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(sa.q_inertial_from_body[i], sb.q_inertial_from_body[i]);
+  ssiu_flight_shutdown(a);
+  ssiu_flight_shutdown(b);
+  munmap(rom, rom_bytes);
 }
 
 }  // namespace

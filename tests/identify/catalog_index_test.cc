@@ -52,8 +52,46 @@ std::string ReadCatalogBin(const std::string& dir) {
 }
 
 // Where the index starts in catalog.bin: after the header, the stars and the triangles.
+size_t Align8(size_t n) { return (n + 7) / 8 * 8; }
 size_t IndexOffset(const SolverCatalog& c) {
-  return 8 + 5 * 8 + 5 * 8 + c.source.size() + c.stars.size() * 68 + c.triangles.size() * 24;
+  return Align8(8 + 5 * 8 + 5 * 8 + c.source.size()) + c.stars.size() * 72 + c.triangles.size() * 24;
+}
+
+// Where each table of the index (version 4) starts, in catalog.bin; `cells` the sky cells' count.
+struct IndexLayout {
+  size_t at, keys, triangle, star_count, cell_begin, cell_star, pattern_cells, cell_start, cell_unit, end;
+};
+IndexLayout LayoutOf(const SolverCatalog& c, size_t cells) {
+  IndexLayout l;
+  const size_t n = c.triangles.size(), stars = c.stars.size();
+  l.at = IndexOffset(c);
+  l.keys = l.at + 16;
+  l.triangle = l.keys + 8 * n;
+  l.star_count = Align8(l.triangle + 4 * n);
+  l.cell_begin = l.star_count + 16;  // the star and sky cell counts
+  l.cell_star = l.cell_begin + 4 * (cells + 1);
+  l.pattern_cells = Align8(l.cell_star + 4 * stars);
+  l.cell_start = l.pattern_cells + 8;
+  l.cell_unit = Align8(l.cell_start + 4 * (CatalogIndex::kRatioCells * CatalogIndex::kRatioCells + 1));
+  l.end = l.cell_unit + 24 * stars;
+  return l;
+}
+size_t SkyCells(const std::string& bin, const SolverCatalog& c) {
+  int64_t cells = 0;
+  std::memcpy(&cells, bin.data() + LayoutOf(c, 0).star_count + 8, 8);
+  return static_cast<size_t>(cells);
+}
+
+// An index of an older version (1 or 2: keys, triangle order and star count, unaligned) in front of
+// `good`'s stars and triangles.
+std::string OlderIndex(const std::string& good, const SolverCatalog& c, int64_t version) {
+  const IndexLayout l = LayoutOf(c, 0);
+  std::string out = good.substr(0, l.keys);
+  std::memcpy(out.data() + l.at, &version, 8);
+  out += good.substr(l.keys, 12 * c.triangles.size());
+  const int64_t stars = static_cast<int64_t>(c.stars.size());
+  out.append(reinterpret_cast<const char*>(&stars), 8);
+  return out;
 }
 
 // catalog.bin of format 3 (before issue 17): header, per star id + ra, dec, mag, pm_ra, pm_dec,
@@ -202,23 +240,44 @@ TEST(CatalogIndex, StoredIndexThatDoesNotFitIsRefused) {
   std::memcpy(bad.data() + at, &other_version, 8);
   WriteCatalogDir(dir, bad, built.fov_deg);
   EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("catalog index of another version"));
-  bad = good.substr(0, good.size() - 4);  // the star count cut short (size and CRC made to agree)
+  const IndexLayout l = LayoutOf(built, SkyCells(good, built));
+  ASSERT_EQ(good.size(), l.end);
+  bad = good.substr(0, good.size() - 4);  // the last table cut short (size and CRC made to agree)
   WriteCatalogDir(dir, bad, built.fov_deg);
-  EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("truncated catalog index"));
+  EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("truncated catalog"));
   bad = good + std::string(8, '\0');  // bytes after the index's end
   WriteCatalogDir(dir, bad, built.fov_deg);
   EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("does not fit its stars"));
   bad = good;  // another star count
-  const size_t stars_at = at + 16 + built.triangles.size() * 12;
   const int64_t stars = static_cast<int64_t>(built.stars.size()) + 1;
-  std::memcpy(bad.data() + stars_at, &stars, 8);
+  std::memcpy(bad.data() + l.star_count, &stars, 8);
   WriteCatalogDir(dir, bad, built.fov_deg);
   EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("does not fit its stars"));
   bad = good;  // a star of the sky cells out of range (the last entry)
   const int32_t no_star = static_cast<int32_t>(built.stars.size());
-  std::memcpy(bad.data() + good.size() - 4, &no_star, 4);
+  std::memcpy(bad.data() + l.cell_star + 4 * (built.stars.size() - 1), &no_star, 4);
   WriteCatalogDir(dir, bad, built.fov_deg);
   EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("sky cells"));
+  // A pattern cell's run moved by one key: a key outside its cell.
+  bad = good;
+  uint32_t start = 0;
+  size_t cell = 1;
+  for (;; ++cell) {  // the first cell after a non-empty one
+    uint32_t prev = 0;
+    std::memcpy(&prev, good.data() + l.cell_start + 4 * (cell - 1), 4);
+    std::memcpy(&start, good.data() + l.cell_start + 4 * cell, 4);
+    if (start > prev) break;
+  }
+  --start;
+  std::memcpy(bad.data() + l.cell_start + 4 * cell, &start, 4);
+  WriteCatalogDir(dir, bad, built.fov_deg);
+  EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("pattern cells"));
+  // A sky cell's unit vector that is not its star's.
+  bad = good;
+  const double off = 0.5;
+  std::memcpy(bad.data() + l.cell_unit + 8, &off, 8);
+  WriteCatalogDir(dir, bad, built.fov_deg);
+  EXPECT_THAT(testing::ErrorOf([&] { LoadSolverCatalog(dir); }), HasSubstr("unit vectors"));
   // Two keys swapped: no longer sorted.
   bad = good;
   std::memcpy(bad.data() + at + 16, good.data() + at + 24, 8);
@@ -240,17 +299,11 @@ TEST(CatalogIndex, VersionOneIndexLoadsWithItsStoredTreeSkipped) {
   const std::string dir = testing::TempDir("catalog_index_v1");
   SaveSolverCatalog(built, dir);
   const std::string good = ReadCatalogBin(dir);
-  const size_t at = IndexOffset(built);
-  const size_t v2_end = at + 16 + built.triangles.size() * 12 + 8;
-  ASSERT_GT(good.size(), v2_end + 8);
-  int64_t cells = 0;
-  std::memcpy(&cells, good.data() + v2_end, 8);
-  EXPECT_GT(cells, 10000);  // 2 x 2 deg over the sphere
-  ASSERT_EQ(good.size(), v2_end + 8 + (static_cast<size_t>(cells) + 1) * 4 + built.stars.size() * 4);
+  const size_t cells = SkyCells(good, built);
+  EXPECT_GT(cells, 10000u);  // 2 x 2 deg over the sphere
+  ASSERT_EQ(good.size(), LayoutOf(built, cells).end);
   {
-    std::string v2 = good.substr(0, v2_end);
-    const int64_t version = 2;
-    std::memcpy(v2.data() + at, &version, 8);
+    const std::string v2 = OlderIndex(good, built, 2);
     WriteCatalogDir(dir, v2, built.fov_deg);
     const SolverCatalog back = LoadSolverCatalog(dir);
     const Vec3 u = back.stars[3].unit;
@@ -269,9 +322,9 @@ TEST(CatalogIndex, VersionOneIndexLoadsWithItsStoredTreeSkipped) {
     const Vec3 u = built.stars[static_cast<size_t>(k * 37) % built.stars.size()].unit;
     EXPECT_EQ(lean.index->StarsWithin(u, 0.12), built.index->StarsWithin(u, 0.12));
   }
-  std::string v1 = good.substr(0, v2_end);
+  std::string v1 = OlderIndex(good, built, 1);
+  const size_t v2_end = v1.size();
   const int64_t version = 1, tree_bytes = 1000;
-  std::memcpy(v1.data() + at, &version, 8);
   v1.append(reinterpret_cast<const char*>(&tree_bytes), 8);
   v1.append(static_cast<size_t>(tree_bytes), '\xff');
   WriteCatalogDir(dir, v1, built.fov_deg);
