@@ -1,12 +1,24 @@
 #!/usr/bin/env bash
 # Idempotent set-up of a fresh Debian machine (run as root): packages, catalogs, build.
-# Usage: scripts/setup.sh [build-dir] [cmake args...]
+# Usage: scripts/setup.sh [--all] [build-dir] [cmake args...]
+# Without --all (the README's first command): the packages that configure and build ssiu, and only the
+# `ssiu` program built (with the module it loads, libssiu_opencv.so). With --all (scripts/test.sh): also
+# the test tools (clang, valgrind, pytest, dask, xmllint), every target built (tests, benchmarks, Python
+# module) and the Python module installed. Both configure the build directory the same way, so either
+# builds on what the other built and neither reconfigures it.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+all=0
+if [ "${1:-}" = "--all" ]; then
+  all=1
+  shift
+fi
 PKGS="build-essential cmake ninja-build pkg-config libopencv-dev libpng-dev libtiff-dev libturbojpeg0-dev libeigen3-dev libflann-dev \
 libapriltag-dev libboost-dev libcfitsio-dev libdeflate-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev nlohmann-json3-dev liberfa-dev xplanet \
-python3-dev python3-pybind11 python3-numpy python3-pytest python3-dask python3-distributed \
-clang libclang-rt-dev valgrind libxml2-utils"
+python3-dev python3-pybind11"
+if [ "$all" = 1 ]; then
+  PKGS="$PKGS python3-numpy python3-pytest python3-dask python3-distributed clang libclang-rt-dev valgrind libxml2-utils"
+fi
 missing=""
 # With foreign architectures added (scripts/cross-test.sh), a name installed for both is ambiguous to
 # dpkg: ask for the native one then.
@@ -28,8 +40,12 @@ if [ ! -s /usr/share/kstars/stars.dat ]; then
 fi
 BUILD=${1:-build}; shift || true
 cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release "$@" >/dev/null
-cmake --build "$BUILD" -j"$(nproc)"
-# The Python module (docs/python.md) into Debian's python3, when this build made it (not the sanitizer build).
-if ls "$BUILD"/python/ssiu/_ssiu*.so >/dev/null 2>&1; then
-  cmake --install "$BUILD" --component python >/dev/null
+if [ "$all" = 1 ]; then
+  cmake --build "$BUILD" -j"$(nproc)"
+  # The Python module (docs/python.md) into Debian's python3, when this build made it (not the sanitizer build).
+  if ls "$BUILD"/python/ssiu/_ssiu*.so >/dev/null 2>&1; then
+    cmake --install "$BUILD" --component python >/dev/null
+  fi
+else
+  cmake --build "$BUILD" -j"$(nproc)" --target ssiu
 fi

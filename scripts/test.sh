@@ -5,12 +5,12 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 jobs=$(nproc)
-bash scripts/setup.sh build
+bash scripts/setup.sh --all build
 ctest --test-dir build --output-on-failure -j"$jobs" -LE long
 if [ "${SSIU_SKIP_ASAN:-0}" != "1" ]; then
   # clang: its UBSan also checks out-of-range double-to-int conversions (float-cast-overflow), which
   # GCC's lacks. -O1 -g1: sanitizer builds of the template-heavy files (FLANN, Eigen) compile faster.
-  bash scripts/setup.sh build-asan -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
+  bash scripts/setup.sh --all build-asan -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
     -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1" \
     -DSSIU_SANITIZE=ON -DSSIU_BUILD_BENCH=OFF -DSSIU_BUILD_LONGTESTS=OFF
   ASAN_OPTIONS=detect_leaks=1:abort_on_error=0 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \

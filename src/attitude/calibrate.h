@@ -11,6 +11,7 @@
 
 #include <Eigen/Dense>
 #include <map>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -61,6 +62,7 @@ enum class CalibrationStatus { kCalibrated, kNotCalibrated };
 inline const char* CalibrationStatusName(CalibrationStatus s) {
   return s == CalibrationStatus::kCalibrated ? "calibrated" : "not_calibrated";
 }
+inline std::ostream& operator<<(std::ostream& os, CalibrationStatus v) { return os << CalibrationStatusName(v); }
 
 struct CameraCalibration {
   CalibrationStatus status = CalibrationStatus::kNotCalibrated;

@@ -9,6 +9,7 @@
 // spacecraft attitude", J. Astronaut. Sci. 37(1), eq. 53).
 #pragma once
 
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -69,9 +70,14 @@ struct MultiHeadOptions {
 // How the fusion treated a head: fused, left out as inconsistent (solved, but disagreeing with the
 // fused heads), or neither (not solved: its JSON "use" is then its own solve status, e.g. no_match).
 enum class HeadUse { kUsed, kInconsistent, kOwnStatus };
-// "used", "inconsistent", or SolveStatusName(own) for kOwnStatus.
+// "used", "inconsistent", "own_status".
+inline const char* HeadUseName(HeadUse u) {
+  return u == HeadUse::kUsed ? "used" : u == HeadUse::kInconsistent ? "inconsistent" : "own_status";
+}
+inline std::ostream& operator<<(std::ostream& os, HeadUse v) { return os << HeadUseName(v); }
+// The JSON's "use": HeadUseName(u), or SolveStatusName(own) for kOwnStatus.
 inline const char* HeadUseName(HeadUse u, SolveStatus own) {
-  return u == HeadUse::kUsed ? "used" : u == HeadUse::kInconsistent ? "inconsistent" : SolveStatusName(own);
+  return u == HeadUse::kOwnStatus ? SolveStatusName(own) : HeadUseName(u);
 }
 
 struct MultiHeadSolution {

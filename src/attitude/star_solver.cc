@@ -15,19 +15,6 @@
 namespace ssiu {
 namespace {
 
-const char* SearchStopName(SearchStop s) {
-  switch (s) {
-    case SearchStop::kNone: return "none";
-    case SearchStop::kAccepted: return "accepted";
-    case SearchStop::kExhausted: return "exhausted";
-    case SearchStop::kHypothesisBudget: return "hypothesis_budget";
-    case SearchStop::kPatternBudget: return "pattern_budget";
-    case SearchStop::kTimeout: return "timeout";
-  }
-  return "none";
-}
-
-
 using Clock = std::chrono::steady_clock;
 double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 

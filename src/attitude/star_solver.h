@@ -7,6 +7,7 @@
 #pragma once
 
 #include <map>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -50,6 +51,7 @@ struct SolveOptions {
 // How a frame was identified: lost in space, or by tracking from a predicted attitude (JSON "mode").
 enum class SolveMode { kLostInSpace, kTracking };
 inline const char* SolveModeName(SolveMode m) { return m == SolveMode::kTracking ? "tracking" : "lost_in_space"; }
+inline std::ostream& operator<<(std::ostream& os, SolveMode v) { return os << SolveModeName(v); }
 
 struct SolveResult {
   SolveStatus status = SolveStatus::kTooFewStars;

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstddef>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -23,6 +24,7 @@ enum class AllanNoise {
   kRandomWalkRate,  // [random-walk FM] avar ~ tau^+1, rate random walk (and, for edf, rate ramp)
 };
 const char* AllanNoiseName(AllanNoise noise);
+inline std::ostream& operator<<(std::ostream& os, AllanNoise v) { return os << AllanNoiseName(v); }
 
 struct AllanOptions {
   int points_per_decade = 10;  // density of the log-spaced tau grid (averaging factors m are integers)

@@ -3,6 +3,7 @@
 // Everything read is converted to rad/s; every error on input is an InputError naming file and field.
 #pragma once
 
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -13,6 +14,7 @@ namespace ssiu {
 
 enum class RateUnit { kRadPerS, kDegPerS, kDegPerH };
 const char* RateUnitName(RateUnit unit);  // "rad/s", "deg/s", "deg/h"
+inline std::ostream& operator<<(std::ostream& os, RateUnit v) { return os << RateUnitName(v); }
 double RateUnitToRadPerS(RateUnit unit);  // a value in `unit` times this is in rad/s
 // Unit from a column name's suffix (_dph, _dps, _rps, _rad_s, _deg_s, _deg_h); false if none.
 bool RateUnitFromName(const std::string& column, RateUnit* unit);

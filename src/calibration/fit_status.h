@@ -2,6 +2,8 @@
 // Bad input throws InputError; a fit that ran says how it ended here (JSON: FitStatusName).
 #pragma once
 
+#include <ostream>
+
 namespace ssiu {
 
 enum class FitStatus {
@@ -10,5 +12,6 @@ enum class FitStatus {
 };
 
 inline const char* FitStatusName(FitStatus s) { return s == FitStatus::kFitted ? "fitted" : "too_few_points"; }
+inline std::ostream& operator<<(std::ostream& os, FitStatus v) { return os << FitStatusName(v); }
 
 }  // namespace ssiu

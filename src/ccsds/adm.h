@@ -16,6 +16,7 @@
 #pragma once
 
 #include <optional>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -24,6 +25,8 @@
 namespace ssiu {
 
 enum class AdmMessage { kAem, kAcm };
+inline const char* AdmMessageName(AdmMessage m) { return m == AdmMessage::kAem ? "AEM" : "ACM"; }
+inline std::ostream& operator<<(std::ostream& os, AdmMessage v) { return os << AdmMessageName(v); }
 
 // One attitude at t_s (seconds after AttitudeHistory::epoch_utc).
 struct AdmState {

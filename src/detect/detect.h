@@ -20,6 +20,7 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -66,10 +67,12 @@ struct StarDetection {
 
 enum class RejectReason { kHotPixel, kDeadPixel, kDefectMap, kCosmicRay, kStreak, kExtended };
 const char* RejectReasonName(RejectReason r);  // "hot_pixel", "dead_pixel", ...
+inline std::ostream& operator<<(std::ostream& os, RejectReason v) { return os << RejectReasonName(v); }
 
 // The finer reason of some rejections (Rejection::detail as a code).
 enum class RejectDetail { kNone, kOnSource, kBlendedPair, kSaturatedExtended, kElongated };
 const char* RejectDetailName(RejectDetail d);  // "", "on_source", "blended_pair", ...
+inline std::ostream& operator<<(std::ostream& os, RejectDetail v) { return os << RejectDetailName(v); }
 
 struct Rejection {
   double x_px = 0, y_px = 0;
@@ -148,6 +151,7 @@ enum class DetectStatus {
   kSmearCameraSize,   // smear.camera not the image's size
 };
 const char* DetectStatusName(DetectStatus s);  // "ok", "bad_options", ...
+inline std::ostream& operator<<(std::ostream& os, DetectStatus v) { return os << DetectStatusName(v); }
 
 // Every buffer Detect needs, reserved at construction for `limits` (allocates only there).
 class DetectWorkspace {

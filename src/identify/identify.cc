@@ -65,6 +65,24 @@ struct PixelFit {
 
 }  // namespace
 
+const char* SearchStopName(SearchStop s) {
+  switch (s) {
+    case SearchStop::kNone:
+      return "none";
+    case SearchStop::kAccepted:
+      return "accepted";
+    case SearchStop::kExhausted:
+      return "exhausted";
+    case SearchStop::kHypothesisBudget:
+      return "hypothesis_budget";
+    case SearchStop::kPatternBudget:
+      return "pattern_budget";
+    case SearchStop::kTimeout:
+      return "timeout";
+  }
+  return "none";
+}
+
 // Every buffer of a call, sized on construction (K centroids, S stars in a field, P pattern centroids):
 // a call only clears and refills them. `grow` (the by-value forms): no sizes, the buffers grow as needed.
 struct IdentifyWorkspace::Scratch {

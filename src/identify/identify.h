@@ -28,6 +28,7 @@
 #include <cstddef>
 #include <map>
 #include <memory>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -121,6 +122,8 @@ enum class SearchStop {
   kPatternBudget,     // max_patterns reached
   kTimeout,           // timeout_ms of CPU time reached (the one outcome that depends on the processor)
 };
+const char* SearchStopName(SearchStop s);  // "none", "accepted", "exhausted", "hypothesis_budget", ...
+inline std::ostream& operator<<(std::ostream& os, SearchStop v) { return os << SearchStopName(v); }
 
 struct StarMatch {
   int centroid = -1;  // index into the input centroids

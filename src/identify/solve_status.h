@@ -3,6 +3,8 @@
 // SolveStatusName's, used only at the edges.
 #pragma once
 
+#include <ostream>
+
 namespace ssiu {
 
 enum class SolveStatus {
@@ -29,5 +31,6 @@ inline const char* SolveStatusName(SolveStatus s) {
   }
   return "no_match";  // not reached
 }
+inline std::ostream& operator<<(std::ostream& os, SolveStatus v) { return os << SolveStatusName(v); }
 
 }  // namespace ssiu

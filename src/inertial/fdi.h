@@ -20,6 +20,7 @@
 #pragma once
 
 #include <limits>
+#include <ostream>
 #include <string>
 #include <utility>
 #include <vector>
@@ -58,6 +59,7 @@ enum class FaultStatus {
   kUnresolved,  // "unresolved": could not be isolated (still watched)
 };
 const char* FaultStatusName(FaultStatus s);
+inline std::ostream& operator<<(std::ostream& os, FaultStatus v) { return os << FaultStatusName(v); }
 
 struct FaultEvent {
   int gyro = 0;          // 1-based; 0 while not isolated

@@ -5,6 +5,7 @@
 
 #include <map>
 #include <optional>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -108,12 +109,14 @@ struct FuseOptions {
 // the maximum, and the CSV status_code is the enumerator's value (0 ok, 1 degraded, 2 failed).
 enum class FusionStatus { kOk = 0, kDegraded = 1, kFailed = 2 };
 const char* FusionStatusName(FusionStatus s);  // "ok", "degraded", "failed"
+inline std::ostream& operator<<(std::ostream& os, FusionStatus v) { return os << FusionStatusName(v); }
 
 // A whole fusion run: "fused" (the attitude trustworthy throughout), "degraded" or "failed" (some of
 // the time: see status_s and each sample's status; online_fusion.h), or "no_star_data" (nothing to
 // start from).
 enum class FuseStatus { kFused, kDegraded, kFailed, kNoStarData };
 const char* FuseStatusName(FuseStatus s);
+inline std::ostream& operator<<(std::ostream& os, FuseStatus v) { return os << FuseStatusName(v); }
 
 struct FusedSample {
   double t_s = 0;

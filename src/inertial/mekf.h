@@ -7,6 +7,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <ostream>
 
 #include "core/types.h"
 
@@ -43,6 +44,7 @@ enum class UpdateStatus {
   kRejectedTimeJump,  // "rejected_time_jump": too far beyond the filter's time, not (yet) confirmed
 };
 const char* UpdateStatusName(UpdateStatus s);
+inline std::ostream& operator<<(std::ostream& os, UpdateStatus v) { return os << UpdateStatusName(v); }
 
 struct MekfUpdate {
   UpdateStatus status = UpdateStatus::kRejectedGate;

@@ -16,6 +16,7 @@
 #pragma once
 
 #include <array>
+#include <ostream>
 #include <utility>
 #include <vector>
 
@@ -47,6 +48,7 @@ enum class GyroSampleStatus {
 };
 constexpr int kGyroSampleStatusCount = 11;
 const char* GyroSampleStatusName(GyroSampleStatus s);
+inline std::ostream& operator<<(std::ostream& os, GyroSampleStatus v) { return os << GyroSampleStatusName(v); }
 inline bool GyroSampleUsed(GyroSampleStatus s) {
   return s == GyroSampleStatus::kAccepted || s == GyroSampleStatus::kAcceptedPartial ||
          s == GyroSampleStatus::kAcceptedAfterGap || s == GyroSampleStatus::kAcceptedTimeReset;
@@ -60,6 +62,7 @@ enum class RestartReason {
   kTimeReset,  // "time_reset": the gyro stream's time went back (GyroSampleStatus::kAcceptedTimeReset)
 };
 const char* RestartReasonName(RestartReason r);
+inline std::ostream& operator<<(std::ostream& os, RestartReason v) { return os << RestartReasonName(v); }
 
 class OnlineFusion {
  public:
