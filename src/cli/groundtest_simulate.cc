@@ -1,6 +1,7 @@
 // `ssiu groundtest simulate`: the virtual test stand (groundtest/virtual_stand.h): tracker frames of
 // the mask through the collimator, aux-camera photos of the fiducials, noisy encoder angles, truth;
-// with --solve also the tracker's attitudes (detect -> identify -> QUEST) as computed.csv.
+// with --solve also the tracker's attitudes (detect -> identify -> QUEST) as computed.csv; --slew makes
+// the pictures a slow slew across the field (the sequence of `ssiu performance`).
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -39,6 +40,8 @@ SSIU_REGISTER_COMMAND(groundtest_simulate, [](CLI::App& root) {
   cmd->add_option("--positions", o->sim.positions, "Stand positions (pictures)")->capture_default_str();
   cmd->add_option("--step-s", o->sim.step_s, "Time between pictures")->capture_default_str();
   cmd->add_option("--max-angle-deg", o->sim.max_angle_deg, "Stand az/el spread")->capture_default_str();
+  cmd->add_flag("--slew", o->sim.slew,
+                "A slow slew: az from -max to +max (el half that) in even steps, no roll (for ssiu performance)");
   cmd->add_option("--misalignment-arcmin", o->mis, "Hidden stand-to-tracker misalignment x,y,z (sensor axes)")
       ->expected(3)
       ->delimiter(',');
@@ -84,6 +87,16 @@ SSIU_REGISTER_COMMAND(groundtest_simulate, [](CLI::App& root) {
     Json cam = CameraToJson(m.camera);
     WriteJsonFile(o->out + "/camera.json", cam);
     WriteJsonFile(o->out + "/truth.json", s.TruthJson(m));
+    // What an ideal tracker reports at each picture, as conventions.md's attitude CSV (a reference for
+    // `ssiu performance` or `groundtest compare`).
+    std::vector<AttitudeSample> truth;
+    for (const auto& p : s.pictures) {
+      AttitudeSample t;
+      t.t_s = p.t_s;
+      t.q = p.q_true;
+      truth.push_back(t);
+    }
+    WriteAttitudeCsv(o->out + "/truth.csv", truth);
     int solved = 0;
     if (o->solve) {
       const StarIdentifier id = MakeIdentifierForCamera(o->catalog, m.camera, 0.0);

@@ -87,7 +87,11 @@ StandSimulation SimulateStand(const Mask& m, const StandSimOptions& o, uint64_t 
   for (int i = 0; i < o.positions; ++i) {
     StandPicture p;
     p.t_s = i * o.step_s;
-    if (i > 0) {  // the first picture at the stand's zero
+    if (o.slew) {
+      const double f = o.positions > 1 ? 2.0 * i / (o.positions - 1) - 1 : 0.0;  // -1 .. 1
+      p.az_deg = f * o.max_angle_deg;
+      p.el_deg = 0.5 * f * o.max_angle_deg;
+    } else if (i > 0) {  // the first picture at the stand's zero
       p.az_deg = rng.Uniform(-o.max_angle_deg, o.max_angle_deg);
       p.el_deg = rng.Uniform(-o.max_angle_deg, o.max_angle_deg);
       p.rot_deg = rng.Uniform(-3 * o.max_angle_deg, 3 * o.max_angle_deg);

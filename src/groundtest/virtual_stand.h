@@ -77,6 +77,10 @@ struct StandSimOptions {
   int positions = 6;                                // stand positions (pictures)
   double step_s = 60.0;                             // time between pictures
   double max_angle_deg = 1.5;                       // stand az/el spread (uniform within +/-), roll up to 3x that
+  // A slow slew instead of random positions: the stand steps evenly from (-max, -max/2) to (+max,
+  // +max/2) deg in az/el, no roll, so that the mask's stars cross the field (the sequence of
+  // `ssiu performance`, ECSS-E-ST-60-20C's FOV and pixel spatial errors: docs/standards.md).
+  bool slew = false;
   Vec3 misalignment_arcmin = Vec3(3.0, -2.0, 4.0);  // hidden q_mis rotation vector (sensor axes)
   double encoder_sigma_arcsec = 2.0;                // encoder read-out noise per axis
   double plate_shift_mm = 0.05;                     // plate displacement in its holder (x, y), fixed

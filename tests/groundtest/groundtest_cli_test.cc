@@ -1,5 +1,6 @@
 // `ssiu groundtest mask | simulate | reference | compare` end to end, and bad input -> exit 1.
 #include <algorithm>
+#include <cmath>
 #include <fstream>
 #include <utility>
 #include <vector>
@@ -28,6 +29,39 @@ class GroundtestCli : public ::testing::Test {
   int Ssiu(const std::string& args) { return testing::Run(testing::SsiuProgram() + " " + args, &out_); }
   std::string dir_, out_;
 };
+
+// A slow slew on the stand (`--slew`): the pictures step evenly across the field, every one solves,
+// and `ssiu performance` reads the sequence against the stand's truth (truth.csv, what an ideal
+// tracker reports): the tracker's errors at the level its pixel scale allows (59 arcsec/px at
+// f = 3510 px: a twentieth of a pixel a star, ~60 stars).
+TEST_F(GroundtestCli, SlewSequenceFeedsThePerformanceReport) {
+  const std::string sim = dir_ + "/slew";
+  ASSERT_EQ(Ssiu("groundtest simulate --mask " + dir_ + "/mask/mask.json --slew --positions 64 --max-angle-deg 6 "
+                 "--step-s 10 --seed 3 --solve --catalog " + dir_ + "/cat --out " + sim),
+            0)
+      << out_;
+  const Json t = ReadJsonFile(sim + "/truth.json");
+  ASSERT_EQ(t["pictures"].size(), 64u);
+  for (size_t i = 0; i < 64; ++i) {
+    const double f = 2.0 * static_cast<double>(i) / 63 - 1;
+    EXPECT_NEAR(t["pictures"][i]["az_deg"].get<double>(), 6 * f, 1e-9);
+    EXPECT_NEAR(t["pictures"][i]["el_deg"].get<double>(), 3 * f, 1e-9);
+    EXPECT_EQ(t["pictures"][i]["rot_deg"].get<double>(), 0.0);
+  }
+  const CsvTable computed = ReadCsv(sim + "/computed.csv");
+  EXPECT_EQ(computed.rows(), 64u);
+  ASSERT_EQ(Ssiu("performance --measured " + sim + "/computed.csv --reference " + sim + "/truth.csv --camera " + sim +
+                 "/camera.json --json " + dir_ + "/perf.json"),
+            0)
+      << out_;
+  const Json p = ReadJsonFile(dir_ + "/perf.json");
+  for (int k = 0; k < 2; ++k) {
+    EXPECT_LT(std::abs(p["bias_arcsec"][k].get<double>()), 1.0) << k;
+    EXPECT_LT(p["total_sigma_arcsec"][k].get<double>(), 2.0) << k;
+    EXPECT_GT(p["total_sigma_arcsec"][k].get<double>(), 0.0) << k;
+  }
+  EXPECT_LT(p["total_sigma_arcsec"][2].get<double>(), 20.0);
+}
 
 TEST_F(GroundtestCli, MaskSimulateReferenceCompareRecoverTheMisalignment) {
   const Json mask = ReadJsonFile(dir_ + "/mask/mask.json");
