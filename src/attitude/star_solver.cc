@@ -28,6 +28,7 @@ void Finish(const StarIdentifier& id, const SkyCorrections& sky, SolveResult* r,
   r->catalog_epoch_year = id.catalog().epoch_year;
   ApplySkyCorrections(id, sky, &r->identification);
   if (sky.active() && camera && lost_in_space) RetestFocalLength(*camera, *lost_in_space, &r->identification);
+  if (camera && lost_in_space) RetestPrincipalPoint(*camera, *lost_in_space, &r->identification);
   r->status = r->identification.status;
   r->message = r->identification.message;
   for (const auto& [k, v] : r->identification.timing_ms) r->timing_ms[k] = v;
@@ -186,6 +187,12 @@ Json SolveResultToJson(const SolveResult& r) {
   // A fixed focal length the stars rejected and that was refitted (docs/identify.md, "Focal length").
   j["focal_length_refined"] = ok && r.identification.focal_length_refined;
   j["focal_length_p_value"] = NumOrNull(ok ? r.identification.focal_length_p_value : nan);
+  const bool pp = ok && r.identification.principal_point_refined;
+  j["principal_point_refined"] = pp;
+  j["principal_point_p_value"] = NumOrNull(ok ? r.identification.principal_point_p_value : nan);
+  j["cx_px"] = NumOrNull(pp ? r.identification.cx_px : nan);
+  j["cy_px"] = NumOrNull(pp ? r.identification.cy_px : nan);
+  j["principal_point_sigma_px"] = NumOrNull(pp ? r.identification.principal_point_sigma_px : nan);
   j["outliers_rejected"] = r.identification.outliers_rejected;
   j["false_match_probability"] = r.identification.false_match_probability;
   j["photometric_factor"] = r.identification.photometric_factor;

@@ -54,6 +54,10 @@ void AddSolverFlags(CLI::App* cmd, Opts* o) {
                   "Lost in space with a fixed focal length: refit it with the attitude when the stars reject the "
                   "camera's at this p-value (F-test; 0 = keep the camera's)")
       ->capture_default_str();
+  cmd->add_option("--refine-principal-p", o->solve.identify.refine_principal_p,
+                  "And the principal point, with 12+ stars across the field, at this p-value (F-test of (cx, cy); "
+                  "0 = keep the camera's)")
+      ->capture_default_str();
   cmd->add_flag_callback(
       "--no-photometry", [o] { o->solve.identify.use_photometry = false; },
       "Lost in space: leave the centroids' fluxes out of the chance probability (geometry only)");

@@ -492,6 +492,79 @@ double ScaleFitP(const std::vector<StarMatch>& ms, PixelSigma sigma, PixelFit* f
   return StudentTwoSidedTail(std::sqrt((chi2_0 - chi2_1) / (chi2_1 / nu)), nu);
 }
 
+// Whether the matches lie across the field: at least 2 in each quadrant about the principal point (a
+// principal point is told from a turn of the attitude only by the perspective of stars on all sides).
+bool AcrossTheField(const std::vector<StarMatch>& ms, const Camera& cam) {
+  int q[4] = {0, 0, 0, 0};
+  for (const auto& m : ms) ++q[(m.x_px >= cam.cx_px ? 1 : 0) + (m.y_px >= cam.cy_px ? 2 : 0)];
+  return *std::min_element(q, q + 4) >= 2;
+}
+
+// The F-test of the principal point: Gauss-Newton on pixel residuals over [rotation, (scale when
+// fit_scale), cx, cy] against the fit without (cx, cy); F = (drop / 2) / (chi2_1 / nu) with
+// nu = 2n - k, whose tail for 2 numerator degrees of freedom is (1 + 2F/nu)^(-nu/2) (Abramowitz &
+// Stegun 26.6.4 with nu1 = 2). On success *cam and *r are the wider fit's and *sigma_px its (cx, cy)
+// 1-sigma; 1 when the wider fit does not lower chi2.
+double PrincipalPointP(const std::vector<StarMatch>& ms, PixelSigma sigma, bool fit_scale, Camera* cam, Mat3* r,
+                       Vec2* sigma_px) {
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
+  using Mat6 = Eigen::Matrix<double, 6, 6>;
+  PixelFit fit;
+  Camera c0 = *cam;
+  Mat3 r0 = *r;
+  const double chi2_0 = PixelChi2(ms, sigma, &fit, fit_scale, &c0, &r0);
+  const int k = fit_scale ? 6 : 5;
+  auto residual = [&](const StarMatch& m, const Camera& c, const Mat3& rot, const Vec6& x, Vec2* out) {
+    Camera c2 = c;
+    c2.ScaleFocal(1 + x[3]);
+    c2.cx_px += x[4], c2.cy_px += x[5];
+    const auto p = c2.Project((rot * ExpSo3(x.head<3>())).transpose() * m.r_inertial);
+    if (!p) return false;
+    *out = Vec2(m.x_px, m.y_px) - *p;
+    return true;
+  };
+  const double step[6] = {1e-7, 1e-7, 1e-7, 1e-7, 1e-4, 1e-4};
+  Camera c = c0;
+  Mat3 rot = r0;
+  Mat6 h;
+  double chi2_1 = 0;
+  for (int iter = 0; iter <= 5; ++iter) {
+    h.setZero();
+    Vec6 g = Vec6::Zero();
+    chi2_1 = 0;
+    for (const auto& m : ms) {
+      Vec2 e0;
+      if (!residual(m, c, rot, Vec6::Zero(), &e0)) continue;
+      Eigen::Matrix<double, 2, 6> j;
+      for (int q = 0; q < 6; ++q) {
+        Vec6 dx = Vec6::Zero();
+        dx[q] = step[q];
+        Vec2 e1;
+        if (!residual(m, c, rot, dx, &e1)) e1 = e0;
+        j.col(q) = -(e1 - e0) / step[q];
+      }
+      const double w = 1.0 / std::pow(sigma.Of(m), 2);
+      h += w * j.transpose() * j;
+      g += w * j.transpose() * e0;
+      chi2_1 += w * e0.squaredNorm();
+    }
+    if (!fit_scale) h.row(3).setZero(), h.col(3).setZero(), h(3, 3) = 1, g[3] = 0;
+    if (iter == 5) break;  // the last pass only evaluates
+    const Vec6 dx = h.ldlt().solve(g);
+    if (!dx.allFinite()) return 1.0;
+    c.ScaleFocal(1 + dx[3]);
+    c.cx_px += dx[4], c.cy_px += dx[5];
+    rot = rot * ExpSo3(dx.head<3>());
+  }
+  const int nu = 2 * static_cast<int>(ms.size()) - k;
+  if (nu < 1 || !(chi2_1 > 0) || !(chi2_0 > chi2_1)) return 1.0;
+  const Mat6 cov = h.ldlt().solve(Mat6::Identity());
+  *sigma_px = Vec2(std::sqrt(std::max(0.0, cov(4, 4))), std::sqrt(std::max(0.0, cov(5, 5))));
+  *cam = c, *r = rot;
+  const double f = ((chi2_0 - chi2_1) / 2) / (chi2_1 / nu);
+  return std::pow(1 + 2 * f / nu, -0.5 * nu);
+}
+
 // The harmonic number H_T = sum_{k <= T} 1/k: summed below 10^4, else ln T + gamma + 1/(2T) - 1/(12T^2)
 // (Abramowitz & Stegun 6.3.18; the next term, 1/(120 T^4), is below 1e-17 there).
 double Harmonic(double t) {
@@ -843,6 +916,18 @@ double ChanceProbability(int n_trials, int n_cat, double radius_px, const Camera
 
 }  // namespace
 
+// A refit camera and attitude made the solution's: the matches' sensor directions, sigmas and
+// residuals, and the attitude.
+static void UseCameraFit(const Camera& cam, const Mat3& r, PixelSigma sigma, Identification* id) {
+  for (auto& m : id->matches) {
+    m.b_sensor = cam.Unproject(Vec2(m.x_px, m.y_px));
+    m.sigma_rad = sigma.Of(m) / cam.FocalMeanPx();
+    m.residual_rad = Angle(r * m.b_sensor, m.r_inertial);
+  }
+  id->q_inertial_from_sensor = Quat(r).normalized();
+  if (id->q_inertial_from_sensor.w() < 0) id->q_inertial_from_sensor.coeffs() *= -1;
+}
+
 void RetestFocalLength(const Camera& camera, const IdentifyOptions& o, Identification* id) {
   if (id->status != SolveStatus::kSolved || o.FocalSearched() || !(o.refine_focal_p > 0)) return;
   std::vector<StarMatch>& ms = id->matches;
@@ -870,18 +955,35 @@ void RetestFocalLength(const Camera& camera, const IdentifyOptions& o, Identific
     const double var = LinearizeInto(ms, cam, r, sigma, &fit).h.ldlt().solve(Vec4::UnitW())[3];
     id->focal_length_sigma_px = var > 0 ? std::sqrt(var) * cam.focal_length_px : std::nan("");
   }
-  for (auto& m : ms) {
-    m.b_sensor = cam.Unproject(Vec2(m.x_px, m.y_px));
-    m.sigma_rad = sigma.Of(m) / cam.FocalMeanPx();
-    m.residual_rad = Angle(r * m.b_sensor, m.r_inertial);
-  }
-  id->q_inertial_from_sensor = Quat(r).normalized();
-  if (id->q_inertial_from_sensor.w() < 0) id->q_inertial_from_sensor.coeffs() *= -1;
+  UseCameraFit(cam, r, sigma, id);
+}
+
+void RetestPrincipalPoint(const Camera& camera, const IdentifyOptions& o, Identification* id) {
+  id->principal_point_refined = false;
+  id->cx_px = id->cy_px = id->principal_point_sigma_px = id->principal_point_p_value = std::nan("");
+  std::vector<StarMatch>& ms = id->matches;
+  if (id->status != SolveStatus::kSolved || o.FocalSearched() || !(o.refine_focal_p > 0) ||
+      !(o.refine_principal_p > 0) || static_cast<int>(ms.size()) < o.refine_principal_min_matches)
+    return;
+  Camera cam = FittedCamera(camera, *id);
+  if (!AcrossTheField(ms, cam)) return;
+  const PixelSigma sigma{nullptr, cam.FocalMeanPx()};  // what sigma_rad was made with
+  Mat3 r = id->q_inertial_from_sensor.toRotationMatrix();
+  Vec2 sigma_px = Vec2::Zero();
+  id->principal_point_p_value = PrincipalPointP(ms, sigma, id->focal_length_refined, &cam, &r, &sigma_px);
+  if (!(id->principal_point_p_value < o.refine_principal_p)) return;
+  id->principal_point_refined = true;
+  id->cx_px = cam.cx_px, id->cy_px = cam.cy_px;
+  id->principal_point_sigma_px = std::hypot(sigma_px[0], sigma_px[1]);
+  id->focal_length_px = cam.focal_length_px;
+  id->focal_length_y_px = cam.FocalYPx();
+  UseCameraFit(cam, r, sigma, id);
 }
 
 Camera FittedCamera(Camera camera, const Identification& id) {
   if (id.focal_length_px > 0 && std::isfinite(id.focal_length_px))
     camera.ScaleFocal(id.focal_length_px / camera.focal_length_px);
+  if (id.principal_point_refined) camera.cx_px = id.cx_px, camera.cy_px = id.cy_px;
   return camera;
 }
 
@@ -899,6 +1001,8 @@ void IdentifyOptions::Check() const {
     bad("fov_range_deg", "must be MIN,MAX with 0.5 < MIN < MAX < 90 deg");
   if (FovRange() && fov_tolerance_pct > 0) bad("fov_range_deg", "and fov_tolerance_pct exclude each other");
   if (!(refine_focal_p >= 0 && refine_focal_p < 1)) bad("refine_focal_p", "must be in [0, 1)");
+  if (!(refine_principal_p >= 0 && refine_principal_p < 1)) bad("refine_principal_p", "must be in [0, 1)");
+  if (refine_principal_min_matches < 4) bad("refine_principal_min_matches", "must be >= 4");
   if (!(detect_limit_margin_mag >= 0 && detect_limit_margin_mag <= 20))
     bad("detect_limit_margin_mag", "must be in [0, 20]");
   if (refine_focal_min_matches < 4) bad("refine_focal_min_matches", "must be >= 4");

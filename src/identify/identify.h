@@ -108,6 +108,13 @@ struct IdentifyOptions {
   // (tracking, the flight core: a calibrated camera, whose focal length should not wander frame to frame).
   double refine_focal_p = 1e-3;
   int refine_focal_min_matches = 4;
+  // And the principal point, where the stars can tell it from a turn of the attitude: with at least
+  // refine_principal_min_matches matches, at least 2 in each quadrant of the image, (cx, cy) is fitted
+  // with the attitude (and the scale, when refined) when the F-test of those two extra parameters
+  // gives p < refine_principal_p (docs/identify.md, "Focal length"). 0 = keep the camera's (and so
+  // does refine_focal_p = 0: a calibrated camera keeps all its numbers).
+  double refine_principal_p = 1e-3;
+  int refine_principal_min_matches = 12;
   void Check() const;  // throws InputError naming the field
   bool FovRange() const { return fov_max_deg > 0; }
   bool FocalSearched() const { return fov_tolerance_pct > 0 || FovRange(); }
@@ -149,6 +156,11 @@ struct Identification {
   // focal_length_fitted is then true too. The scale test's p-value (NaN when not tested).
   bool focal_length_refined = false;
   double focal_length_p_value = std::nan("");
+  // The principal point refitted (IdentifyOptions::refine_principal_p): its value and 1-sigma, and the
+  // test's p-value (NaN when not tested: too few stars, or not across the field).
+  bool principal_point_refined = false;
+  double cx_px = std::nan(""), cy_px = std::nan(""), principal_point_sigma_px = std::nan("");
+  double principal_point_p_value = std::nan("");
   int outliers_rejected = 0;         // refined matches left out as inconsistent with the others
   double false_match_probability = 1.0;
   // The photometric factor in false_match_probability (2 / (1 + E), docs/identify.md step 5); 1 = not used.
@@ -218,6 +230,11 @@ Camera FittedCamera(Camera camera, const Identification& id);
 // matches themselves are kept. Does nothing unless id was solved with a fixed focal length and
 // refine_focal_p > 0.
 void RetestFocalLength(const Camera& camera, const IdentifyOptions& options, Identification* id);
+// The principal point's test (IdentifyOptions::refine_principal_p) on a solved fixed-focal `id`, after
+// the focal length's: where it is significant, (cx, cy) with its sigma and p-value, the focal length
+// (refitted with it when it was refined), the matches' b_sensor, sigma_rad, residual_rad and the
+// attitude are updated; the p-value is NaN when not tested. `camera` is the one given to Identify.
+void RetestPrincipalPoint(const Camera& camera, const IdentifyOptions& options, Identification* id);
 
 class StarIdentifier {
  public:

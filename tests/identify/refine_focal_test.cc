@@ -20,6 +20,15 @@ using testing::Bsc166;
 using testing::MakeSyntheticFrame;
 using testing::SyntheticOptions;
 
+// A synthetic frame seen with `truth` at a random attitude (*q, from `seed`), identified with `given`.
+Identification SolveSynthetic(const StarIdentifier& id, const Camera& truth, const Camera& given,
+                              const IdentifyOptions& io, uint64_t seed, Quat* q) {
+  Rng rng(seed);
+  *q = QuatFromUniform(rng.Uniform(), rng.Uniform(), rng.Uniform());
+  const auto f = MakeSyntheticFrame(id.catalog(), truth, *q, SyntheticOptions{}, &rng);
+  return id.Identify(f.centroids, given, io);
+}
+
 TEST(RefineFocal, AFewTenthsOfAPercentAreAbsorbed) {
   const StarIdentifier& id = Bsc166();
   const Camera truth = MakeCamera(1024, 1024, 16.6);
@@ -70,10 +79,8 @@ TEST(RefineFocal, ARightCameraKeepsItsNumbersAndThePValuesAreUniform) {
   io.systematic_px = 0;
   int solved = 0, refined = 0, below_5pct = 0, below_half = 0;
   for (int i = 0; i < 200; ++i) {
-    Rng rng(9100 + i);
-    const Quat q = QuatFromUniform(rng.Uniform(), rng.Uniform(), rng.Uniform());
-    const auto f = MakeSyntheticFrame(id.catalog(), cam, q, SyntheticOptions{}, &rng);
-    const Identification r = id.Identify(f.centroids, cam, io);
+    Quat q;
+    const Identification r = SolveSynthetic(id, cam, cam, io, 9100 + i, &q);
     if (r.status != SolveStatus::kSolved) continue;
     ++solved;
     ASSERT_TRUE(std::isfinite(r.focal_length_p_value));
@@ -116,6 +123,57 @@ TEST(RefineFocal, OffKeepsTheFocalLengthAndTrackingNeverRefits) {
   IdentifyOptions bad;
   bad.refine_focal_p = 1;
   EXPECT_THROW(bad.Check(), InputError);
+}
+
+// The principal point (IdentifyOptions::refine_principal_p): a camera.json whose principal point is
+// the image centre while the lens's is 30 px away is refitted from one frame's stars (within 3 sigma
+// of the truth, the attitude closer to the truth than with the centre kept); with the right camera the
+// test's p-values are those of a test (about 5% below 0.05) and none falls below the threshold.
+TEST(RefinePrincipalPoint, ThirtyPixelsOffCentreAreFoundAndARightCameraKeepsItsOwn) {
+  const StarIdentifier& id = Bsc166();
+  Camera truth = MakeCamera(1024, 1024, 16.6);
+  truth.cx_px += 24, truth.cy_px -= 18;
+  const Camera given = MakeCamera(1024, 1024, 16.6);
+  IdentifyOptions io;
+  io.systematic_px = 0;
+  int tested = 0, refined = 0, within_3_sigma = 0, better = 0;
+  for (int i = 0; i < 12; ++i) {
+    Quat q;
+    Identification r = SolveSynthetic(id, truth, given, io, 5300 + i, &q);
+    if (r.status != SolveStatus::kSolved) continue;
+    const double before_arcsec = SplitAttitudeError(r.q_inertial_from_sensor, q).cross_rad * kRadToArcsec;
+    RetestPrincipalPoint(given, io, &r);
+    if (!std::isfinite(r.principal_point_p_value)) continue;  // too few stars, or not across the field
+    ++tested;
+    if (!r.principal_point_refined) continue;
+    ++refined;
+    const double err_px = std::hypot(r.cx_px - truth.cx_px, r.cy_px - truth.cy_px);
+    within_3_sigma += err_px < 3 * r.principal_point_sigma_px;
+    better += SplitAttitudeError(r.q_inertial_from_sensor, q).cross_rad * kRadToArcsec < before_arcsec;
+    EXPECT_EQ(FittedCamera(given, r).cx_px, r.cx_px);
+  }
+  std::printf("principal point 30 px off: tested %d, refined %d, within 3 sigma %d, attitude better %d\n", tested,
+              refined, within_3_sigma, better);
+  EXPECT_GE(tested, 9);
+  EXPECT_GE(refined, tested - 1);
+  EXPECT_GE(within_3_sigma, refined - 1);
+  EXPECT_GE(better, refined - 1);
+
+  int right_tested = 0, right_refined = 0, below_5pct = 0;
+  for (int i = 0; i < 60; ++i) {
+    Quat q;
+    Identification r = SolveSynthetic(id, given, given, io, 6100 + i, &q);
+    if (r.status != SolveStatus::kSolved) continue;
+    RetestPrincipalPoint(given, io, &r);
+    if (!std::isfinite(r.principal_point_p_value)) continue;
+    ++right_tested;
+    right_refined += r.principal_point_refined;
+    below_5pct += r.principal_point_p_value < 0.05;
+  }
+  std::printf("right camera: tested %d, refined %d, p < 0.05 in %d\n", right_tested, right_refined, below_5pct);
+  EXPECT_GE(right_tested, 40);
+  EXPECT_EQ(right_refined, 0);
+  EXPECT_LE(below_5pct, 8);  // binomial(50, 0.05): P(> 8) ~ 0.3%
 }
 
 }  // namespace
