@@ -32,15 +32,15 @@ TEST(DiscoverGyroMultiLong, TwoCausesTogether) {
   EXPECT_GE(s.params_within_3_sigma, 0.95 * s.params_checked);
 }
 
-// A second draw of the same 60 cases (seed base 737373): the seeds above are those the stepwise
-// extension's fixes were measured on, these are not. Measured 44/60 both named and a wrong cause 12/60
-// (docs/discrepancy.md: thermal_lag for the temperature, its gradient or a step 5, misalignment for a field
-// harmonic 3 more, rate_random_walk 3, temperature for a step 1); the bounds hold these figures against
-// regression.
+// A second draw of the same 60 cases (seed base 737373): the first draw is the one the stepwise extension's
+// first fixes were measured on. Measured 48/60 both named and a wrong cause 8/60 (44/60 and 12/60 before the
+// walk and lag chains of RunChain, which this draw showed); docs/discrepancy.md: thermal_lag 3, misalignment
+// for a field harmonic 3 more, rate_random_walk 1, temperature for a step 1. The bounds hold these figures
+// against regression.
 TEST(DiscoverGyroMultiLong, TwoCausesFreshSeeds) {
   const auto s = RunPairs(737373);
-  EXPECT_GE(s.all_named, 0.7 * s.cases);
-  EXPECT_LE(s.wrong, 0.25 * s.cases);
+  EXPECT_GE(s.all_named, 0.75 * s.cases);
+  EXPECT_LE(s.wrong, 0.15 * s.cases);
   EXPECT_GE(s.params_within_3_sigma, 0.95 * s.params_checked);
 }
 
