@@ -53,7 +53,10 @@
 //  7. Stepwise extension (issue 31): the named cause's columns join the base model and steps 1-5 are redone
 //     against it (one GLS of the biases + every cause named so far), each step at alpha 2^-s (step s from 0),
 //     until no candidate passes; with two causes a shape in time must beat a candidate together with its best
-//     partner, and a walk ranked first goes last when two deterministic candidates beat it in BIC. With
+//     partner, and a walk ranked first goes last when two deterministic candidates beat it in BIC. A step
+//     that names rate_random_walk or thermal_lag (each can stand for other causes) is weighed against the
+//     chain run again from there without it, by the exact-likelihood BIC of the two chains' models; the
+//     chain without it is kept unless it is worse by more than 2 (Kass & Raftery 1995's bare mention). With
 //     several named, the step and the sinusoid are located again and a nested cause (misalignment,
 //     scale_factor) is weighed against its wider partner in the final model. The residual test (4c) then
 //     runs on the final joint model. `cause` stays the first named; `causes` lists the chain with the joint

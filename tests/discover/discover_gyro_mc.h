@@ -155,7 +155,8 @@ inline void ScoreGyroMulti(const GyroCase& c, const GyroDiscovery& d, bool verbo
               << d.residual.p_value << " " << d.residual.finding << "\n";
     for (size_t k = 0; k < d.later_steps.size() + 1; ++k) {
       for (const auto& cand : k == 0 ? d.candidates : d.later_steps[k - 1]) {
-        if (!cand.applicable || !cand.significant) continue;
+        // the first step: its significant candidates; later ones: every candidate (how near a weak cause came)
+        if (!cand.applicable || (!cand.significant && k == 0)) continue;
         std::cout << "   step " << k + 1 << " " << cand.cause << " p " << cand.p_value;
         if (cand.evaluated) std::cout << " gain " << cand.gain << " z " << cand.gain_z << " " << cand.verdict;
         std::cout << "\n";
