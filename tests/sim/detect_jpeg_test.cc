@@ -4,10 +4,12 @@
 // about 1.8 ADU, as the GranaSAT frames) written losslessly (PNG) and as JPEG at several qualities by
 // an independent encoder (OpenCV's libjpeg-turbo), detected the same way and scored against the truth,
 // with the block-aware noise estimate on and off.
+#include <algorithm>
 #include <cstdio>
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/attitude.h"
+#include "attitude/star_solver.h"
 #include "core/image.h"
 #include "detect/detect.h"
 #include "sim/detection_score.h"
@@ -92,6 +94,46 @@ TEST(DetectJpeg, BlockArtefactsAreSeenAndNotTakenForStars) {
         EXPECT_LE(2 * on.false_detections, s.jpeg[k][0].false_detections) << kQualities[k];
         EXPECT_GE(on.recall_snr10(), s.jpeg[k][0].recall_snr10() - 0.05) << kQualities[k];
       }
+    }
+  }
+}
+
+// The solver on heavily compressed frames (qualities 75 and 50, where the detector still passes
+// tens to hundreds of block patterns as faint stars): the pipeline's default solve (detect ->
+// identify lost in space -> QUEST) of each frame, scored against the simulator's attitude. A wrong
+// attitude would be a false match; too many false detections would be a no_match.
+TEST(DetectJpeg, LowQualityFramesStillSolveRightOrSayNoMatch) {
+  const Camera cam = MakeCamera(1024, 768, 20.0);
+  const StarIdentifier id = MakeIdentifierForCamera("", cam, 0.0);
+  FrameSimOptions so;
+  so.bit_depth = 8;
+  so.gain_e_per_adu = 8, so.bias_adu = 10, so.read_noise_e = 10;
+  so.cosmic_rays = 0;
+  const std::string dir = testing::TempDir("solve_jpeg");
+  for (const int hot : {0, 40}) {
+    so.hot_pixels = hot;
+    for (const int quality : {75, 50}) {
+      int solved = 0, wrong = 0;
+      double worst_arcsec = 0;
+      for (int f = 0; f < 4; ++f) {
+        const Quat q = RandomAttitude(950 + f);
+        const SimulatedFrame sf = SimulateFrame(cam, testing::Bsc(), q, so, 950 + f);
+        cv::Mat m(sf.image.height, sf.image.width, CV_8UC1);
+        for (int y = 0; y < m.rows; ++y)
+          for (int x = 0; x < m.cols; ++x) m.at<uchar>(y, x) = static_cast<uchar>(std::min<int>(255, sf.image.at(x, y)));
+        ASSERT_TRUE(cv::imwrite(dir + "/f.jpg", m, {cv::IMWRITE_JPEG_QUALITY, quality}));
+        const SolveResult r = SolveFrame(id, ReadFrame(dir + "/f.jpg").image.view(), cam, SolveOptions{});
+        if (r.status != SolveStatus::kSolved) continue;
+        ++solved;
+        const double err = SplitAttitudeError(r.attitude.q_inertial_from_sensor, q).cross_rad * kRadToArcsec;
+        worst_arcsec = std::max(worst_arcsec, err);
+        wrong += err > 60;
+      }
+      std::printf("JPEG q %d, %d hot pixels: solved %d of 4, wrong %d, worst cross-boresight %.1f arcsec\n", quality,
+                  hot, solved, wrong, worst_arcsec);
+      EXPECT_EQ(wrong, 0) << quality << " " << hot;
+      EXPECT_GE(solved, 3) << quality << " " << hot;
+      EXPECT_LT(worst_arcsec, 10.0) << quality << " " << hot;  // 59 arcsec/px, hundreds of stars
     }
   }
 }
