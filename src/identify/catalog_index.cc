@@ -318,7 +318,7 @@ CatalogIndex::CatalogIndex(const SolverCatalog& cat, const char* data, size_t by
     if (version == kIndexVersionUnaligned) CellUnits(cat);
   }
   if (pos != bytes) throw InputError(path, "catalog index does not fit its stars (bytes after its end)");
-  if (version < kIndexVersionUnaligned) IndexSky(cat);
+  if (version <= kIndexVersionWithoutSkyCells) IndexSky(cat);
   if (star_tree && stars_ > 0) {
     tree_ = std::make_unique<StarTree>(Points(&units_, cat));
     tree_->tree.buildIndex();
