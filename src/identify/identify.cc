@@ -13,9 +13,12 @@
 
 #include "core/error.h"
 #include "identify/catalog_index.h"
+#include "identify/identify_internal.h"
 #include "identify/wahba_svd.h"
 
 namespace ssiu {
+
+using namespace identify_internal;  // NOLINT: the stage's own helpers
 
 namespace {
 
@@ -31,13 +34,7 @@ double ThreadCpuMs() {
   return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
 }
 
-double Angle(const Vec3& a, const Vec3& b) { return std::atan2(a.cross(b).norm(), a.dot(b)); }
 
-Mat3 ExpSo3(const Vec3& w) {
-  const double t = w.norm();
-  if (t < 1e-12) return Mat3::Identity();
-  return Eigen::AngleAxisd(t, w / t).toRotationMatrix();
-}
 
 // A catalog star predicted in the image (pixel; squared test radius where the test uses one).
 struct Pred {
@@ -51,17 +48,6 @@ struct Cand {
   int c, p;
 };
 
-// Pixel residuals (centroid - prediction) of the matches under (cam, r) and their Jacobians over
-// x = (small rotation in the sensor frame, r -> r Exp(x[0..2]); common scale of fx and fy, 1 + x[3]),
-// numerical, with the weights 1 / sigma_px^2 and the normal equations H = sum w J^T J, g = sum w J^T e.
-struct PixelFit {
-  std::vector<Eigen::Matrix<double, 2, 4>> j;
-  std::vector<Vec2> e;
-  std::vector<double> w;
-  std::vector<char> ok;  // projected (a star behind the camera has no residual)
-  Eigen::Matrix4d h = Eigen::Matrix4d::Zero();
-  Vec4 g = Vec4::Zero();
-};
 
 }  // namespace
 
@@ -370,306 +356,18 @@ Mat3 SvdFromMatches(const Context& ctx, const std::vector<StarMatch>& ms) {
   return SolveWahbaSvd(pairs.data(), pairs.size()).toRotationMatrix();
 }
 
-// Each match's position sigma (px): the workspace's by centroid, or from the match's own sigma_rad.
-struct PixelSigma {
-  const double* by_centroid = nullptr;
-  double focal_px = 0;  // with by_centroid null: sigma_rad * focal_px
-  double Of(const StarMatch& m) const { return by_centroid ? by_centroid[m.centroid] : m.sigma_rad * focal_px; }
-};
-
-// The pixel fit (PixelFit) of the matches, in *fit.
-const PixelFit& LinearizeInto(const std::vector<StarMatch>& ms, const Camera& cam, const Mat3& r, PixelSigma sigma,
-                              PixelFit* fit) {
-  PixelFit& f = *fit;
-  f.j.clear();
-  f.e.clear();
-  f.w.clear();
-  f.ok.clear();
-  f.h.setZero();
-  f.g.setZero();
-  auto residual = [&](const StarMatch& m, const Vec4& x, Vec2* out) {
-    Camera c2 = cam;
-    c2.ScaleFocal(1 + x[3]);
-    const auto p = c2.Project((r * ExpSo3(x.head<3>())).transpose() * m.r_inertial);
-    if (!p) return false;
-    *out = Vec2(m.x_px, m.y_px) - *p;
-    return true;
-  };
-  for (const auto& m : ms) {
-    Vec2 e0 = Vec2::Zero();
-    Eigen::Matrix<double, 2, 4> j = Eigen::Matrix<double, 2, 4>::Zero();
-    const bool ok = residual(m, Vec4::Zero(), &e0);
-    if (ok) {
-      for (int k = 0; k < 4; ++k) {
-        Vec4 dx = Vec4::Zero();
-        dx[k] = 1e-7;
-        Vec2 e1;
-        if (!residual(m, dx, &e1)) e1 = e0;
-        j.col(k) = -(e1 - e0) / 1e-7;  // of the prediction
-      }
-    }
-    const double w = ok ? 1.0 / std::pow(sigma.Of(m), 2) : 0.0;
-    f.j.push_back(j);
-    f.e.push_back(e0);
-    f.w.push_back(w);
-    f.ok.push_back(ok);
-    f.h += w * j.transpose() * j;
-    f.g += w * j.transpose() * e0;
-  }
-  return f;
-}
 
 // The pixel fit of the matches with the workspace's sigmas, in ctx.s->fit.
 const PixelFit& Linearize(const Context& ctx, const std::vector<StarMatch>& ms, const Camera& cam, const Mat3& r) {
   return LinearizeInto(ms, cam, r, {ctx.sigma_px, 0}, &ctx.s->fit);
 }
 
-// Gauss-Newton on pixel residuals over a small rotation (sensor frame), and with fit_scale a common
-// scale of fx and fy (the pixel aspect fy/fx is the camera's); 4 iterations at most.
-void PixelGaussNewton(const std::vector<StarMatch>& ms, PixelSigma sigma, PixelFit* fit, bool fit_scale, Camera* cam,
-                      Mat3* r) {
-  for (int iter = 0; iter < 4; ++iter) {
-    const PixelFit& f = LinearizeInto(ms, *cam, *r, sigma, fit);
-    Vec4 dx = Vec4::Zero();
-    if (fit_scale)
-      dx = f.h.ldlt().solve(f.g);
-    else
-      dx.head<3>() = f.h.topLeftCorner<3, 3>().ldlt().solve(f.g.head<3>());
-    if (!dx.allFinite()) return;
-    cam->ScaleFocal(1 + dx[3]);
-    *r = *r * ExpSo3(dx.head<3>());
-    if (dx.head<3>().norm() < 1e-10 && std::abs(dx[3]) < 1e-10) break;
-  }
-}
 
 // The rotation and the scale, with the workspace's sigmas.
 void RefineFocal(const Context& ctx, const std::vector<StarMatch>& ms, Camera* cam, Mat3* r) {
   if (ms.size() >= 4) PixelGaussNewton(ms, {ctx.sigma_px, 0}, &ctx.s->fit, true, cam, r);
 }
 
-// PixelGaussNewton, then the fit's chi-square (centroid sigmas) at its end.
-double PixelChi2(const std::vector<StarMatch>& ms, PixelSigma sigma, PixelFit* fit, bool fit_scale, Camera* cam,
-                 Mat3* r) {
-  PixelGaussNewton(ms, sigma, fit, fit_scale, cam, r);
-  const PixelFit& f = LinearizeInto(ms, *cam, *r, sigma, fit);
-  double chi2 = 0;
-  for (size_t i = 0; i < f.e.size(); ++i) chi2 += f.w[i] * f.e[i].squaredNorm();
-  return chi2;
-}
-
-// Two-sided tail P(|T| >= t) of Student's t with nu degrees of freedom (integer nu >= 1), by the finite
-// series of Abramowitz & Stegun 26.7.3-26.7.4 for A(t|nu) = 1 - P: theta = atan(t / sqrt(nu)).
-double StudentTwoSidedTail(double t, int nu) {
-  if (!(t > 0) || nu < 1) return 1.0;
-  const double th = std::atan(t / std::sqrt(static_cast<double>(nu)));
-  const double c2 = std::cos(th) * std::cos(th), sn = std::sin(th);
-  double a;
-  if (nu % 2 == 1) {
-    double term = std::cos(th), sum = nu > 1 ? term : 0.0;
-    for (int k = 3; k <= nu - 2; k += 2) sum += (term *= c2 * (k - 1) / k);
-    a = 2 / kPi * (th + sn * sum);
-  } else {
-    double term = 1, sum = 1;
-    for (int k = 2; k <= nu - 2; k += 2) sum += (term *= c2 * (k - 1) / k);
-    a = sn * sum;
-  }
-  return std::clamp(1 - a, 0.0, 1.0);
-}
-
-// Whether the matches ask for another focal length than the camera's (a fixed-focal solve, issue 27):
-// the pixel fit with the rotation alone against the rotation and a common scale of fx and fy, by the
-// F-test of the extra parameter, F = (chi2_0 - chi2_1) / (chi2_1 / nu), nu = 2n - 4, which does not
-// depend on the centroid sigmas' scale (a camera whose distortion is unmodelled inflates every
-// residual alike). F(1, nu) is t(nu)^2, so p = P(|T| >= sqrt(F)). The scale fit is left in *cam, *r.
-double ScaleFitP(const std::vector<StarMatch>& ms, PixelSigma sigma, PixelFit* fit, Camera* cam, Mat3* r) {
-  const int n = static_cast<int>(ms.size());
-  Camera c0 = *cam;
-  Mat3 r0 = *r;
-  const double chi2_0 = PixelChi2(ms, sigma, fit, false, &c0, &r0);
-  const double chi2_1 = PixelChi2(ms, sigma, fit, true, cam, r);
-  const int nu = 2 * n - 4;
-  if (nu < 1 || !(chi2_1 > 0) || !(chi2_0 > chi2_1)) return 1.0;
-  return StudentTwoSidedTail(std::sqrt((chi2_0 - chi2_1) / (chi2_1 / nu)), nu);
-}
-
-// Whether the matches lie across the field: at least 2 in each quadrant about the principal point (a
-// principal point is told from a turn of the attitude only by the perspective of stars on all sides).
-bool AcrossTheField(const std::vector<StarMatch>& ms, const Camera& cam) {
-  int q[4] = {0, 0, 0, 0};
-  for (const auto& m : ms) ++q[(m.x_px >= cam.cx_px ? 1 : 0) + (m.y_px >= cam.cy_px ? 2 : 0)];
-  return *std::min_element(q, q + 4) >= 2;
-}
-
-// The F-test of the principal point: Gauss-Newton on pixel residuals over [rotation, (scale when
-// fit_scale), cx, cy] against the fit without (cx, cy); F = (drop / 2) / (chi2_1 / nu) with
-// nu = 2n - k, whose tail for 2 numerator degrees of freedom is (1 + 2F/nu)^(-nu/2) (Abramowitz &
-// Stegun 26.6.4 with nu1 = 2). On success *cam and *r are the wider fit's and *sigma_px its (cx, cy)
-// 1-sigma; 1 when the wider fit does not lower chi2.
-double PrincipalPointP(const std::vector<StarMatch>& ms, PixelSigma sigma, bool fit_scale, Camera* cam, Mat3* r,
-                       Vec2* sigma_px) {
-  using Vec6 = Eigen::Matrix<double, 6, 1>;
-  using Mat6 = Eigen::Matrix<double, 6, 6>;
-  PixelFit fit;
-  Camera c0 = *cam;
-  Mat3 r0 = *r;
-  const double chi2_0 = PixelChi2(ms, sigma, &fit, fit_scale, &c0, &r0);
-  const int k = fit_scale ? 6 : 5;
-  auto residual = [&](const StarMatch& m, const Camera& c, const Mat3& rot, const Vec6& x, Vec2* out) {
-    Camera c2 = c;
-    c2.ScaleFocal(1 + x[3]);
-    c2.cx_px += x[4], c2.cy_px += x[5];
-    const auto p = c2.Project((rot * ExpSo3(x.head<3>())).transpose() * m.r_inertial);
-    if (!p) return false;
-    *out = Vec2(m.x_px, m.y_px) - *p;
-    return true;
-  };
-  const double step[6] = {1e-7, 1e-7, 1e-7, 1e-7, 1e-4, 1e-4};
-  Camera c = c0;
-  Mat3 rot = r0;
-  Mat6 h;
-  double chi2_1 = 0;
-  for (int iter = 0; iter <= 5; ++iter) {
-    h.setZero();
-    Vec6 g = Vec6::Zero();
-    chi2_1 = 0;
-    for (const auto& m : ms) {
-      Vec2 e0;
-      if (!residual(m, c, rot, Vec6::Zero(), &e0)) continue;
-      Eigen::Matrix<double, 2, 6> j;
-      for (int q = 0; q < 6; ++q) {
-        Vec6 dx = Vec6::Zero();
-        dx[q] = step[q];
-        Vec2 e1;
-        if (!residual(m, c, rot, dx, &e1)) e1 = e0;
-        j.col(q) = -(e1 - e0) / step[q];
-      }
-      const double w = 1.0 / std::pow(sigma.Of(m), 2);
-      h += w * j.transpose() * j;
-      g += w * j.transpose() * e0;
-      chi2_1 += w * e0.squaredNorm();
-    }
-    if (!fit_scale) h.row(3).setZero(), h.col(3).setZero(), h(3, 3) = 1, g[3] = 0;
-    if (iter == 5) break;  // the last pass only evaluates
-    const Vec6 dx = h.ldlt().solve(g);
-    if (!dx.allFinite()) return 1.0;
-    c.ScaleFocal(1 + dx[3]);
-    c.cx_px += dx[4], c.cy_px += dx[5];
-    rot = rot * ExpSo3(dx.head<3>());
-  }
-  const int nu = 2 * static_cast<int>(ms.size()) - k;
-  if (nu < 1 || !(chi2_1 > 0) || !(chi2_0 > chi2_1)) return 1.0;
-  const Mat6 cov = h.ldlt().solve(Mat6::Identity());
-  *sigma_px = Vec2(std::sqrt(std::max(0.0, cov(4, 4))), std::sqrt(std::max(0.0, cov(5, 5))));
-  *cam = c, *r = rot;
-  const double f = ((chi2_0 - chi2_1) / 2) / (chi2_1 / nu);
-  return std::pow(1 + 2 * f / nu, -0.5 * nu);
-}
-
-// The harmonic number H_T = sum_{k <= T} 1/k: summed below 10^4, else ln T + gamma + 1/(2T) - 1/(12T^2)
-// (Abramowitz & Stegun 6.3.18; the next term, 1/(120 T^4), is below 1e-17 there).
-double Harmonic(double t) {
-  if (t < 1e4) {
-    double h = 0;
-    for (double k = t; k >= 1; --k) h += 1 / k;  // smallest terms first
-    return h;
-  }
-  return std::log(t) + 0.57721566490153286 + 1 / (2 * t) - 1 / (12 * t * t);
-}
-
-// The triangle's photometric p-value. The search takes triangles brightest first: every triangle whose
-// faintest vertex is the c-th brightest centroid comes before those of the (c+1)-th (step 1), and the
-// geometry alone (positions, independent of the fluxes under a chance match) picks which two of the
-// c - 1 brighter ones join it and which vertex each becomes. So under the null hypothesis the
-// triangle's fluxes are, given its faintest, a uniformly drawn ordered triple of the T = 3 (c-1)(c-2)
-// that hold the faintest and two of the brighter, and p = the share of those whose zero points
-// z = ln f + 0.4 ln(10) V against the triangle's magnitudes scatter (sum of squares about their mean,
-// which unlike the range has no ties between triples) no more than the triangle's own. ln_brighter:
-// the c - 1 brighter centroids' ln fluxes, sorted ascending (the triangle's other two among them).
-// Counted in O(c log c): with the faintest at one vertex and a brighter one at another, the z that
-// keep the sum of squares <= q at the third form the interval (z_i + z_j) / 2 +- sqrt(1.5 q - 0.75
-// (z_i - z_j)^2), one range of the sorted list. Returns p and T.
-std::pair<double, double> TriangleZeroPointP(const double* pair_flux, const double* pair_mag,
-                                             const std::vector<double>& ln_brighter) {
-  const double k_mag = 0.4 * std::log(10.0);
-  double z[3], c[3];
-  int faintest = 0;
-  for (int i = 0; i < 3; ++i) {
-    c[i] = k_mag * pair_mag[i];
-    z[i] = std::log(pair_flux[i]) + c[i];
-    if (pair_flux[i] < pair_flux[faintest]) faintest = i;
-  }
-  const double mean = (z[0] + z[1] + z[2]) / 3;
-  const double q = ((z[0] - mean) * (z[0] - mean) + (z[1] - mean) * (z[1] - mean) + (z[2] - mean) * (z[2] - mean)) *
-                       (1 + 1e-9) +
-                   1e-15;  // the triangle's own triple always counts
-  const double x_faint = std::log(pair_flux[faintest]);
-  const auto begin = ln_brighter.begin(), end = ln_brighter.end();
-  double count = 0;
-  for (int p = 0; p < 3; ++p) {  // the faintest at vertex p, a brighter one at q, the third at r
-    const int q_v = (p + 1) % 3, r_v = (p + 2) % 3;
-    const double zp = x_faint + c[p];
-    for (auto b = begin; b != end; ++b) {
-      const double zq = *b + c[q_v];
-      const double h2 = 1.5 * q - 0.75 * (zp - zq) * (zp - zq);
-      if (h2 < 0) continue;
-      const double mid = 0.5 * (zp + zq) - c[r_v], half = std::sqrt(h2);
-      const auto first = std::lower_bound(begin, end, mid - half);
-      const auto last = std::upper_bound(first, end, mid + half);
-      count += static_cast<double>(last - first) - (b >= first && b < last);  // distinct from the one at q
-    }
-  }
-  const double n = static_cast<double>(ln_brighter.size());
-  const double t = 3 * n * (n - 1);
-  return {t > 0 ? std::clamp(count / t, 0.0, 1.0) : 1.0, t};
-}
-
-// PhotometricEvidence over n pairs and n_other other fluxes, with scratch vectors for the zero points.
-double PhotometricEvidenceOf(const double* pair_flux, const double* pair_mag, size_t n, const double* other_flux,
-                             size_t n_other, std::vector<double>* zp, std::vector<double>* z) {
-  // The triangle: e = 1 / (p H_T), T = 3 (c-1)(c-2) ordered triples (TriangleZeroPointP): p is
-  // (super-)uniform on {1/T, ..., 1}, so E[1/p] <= H_T and the mean of e is at most 1. The brighter
-  // ones: the verification centroids at least as bright as the triangle's faintest, less that vertex.
-  z->clear();
-  const double f_min = std::min({pair_flux[0], pair_flux[1], pair_flux[2]});
-  bool skipped = false;  // the faintest vertex itself (once, should another flux equal it)
-  for (size_t i = 0; i < n; ++i) {
-    if (i < 3 && !skipped && pair_flux[i] == f_min) {
-      skipped = true;
-      continue;
-    }
-    if (pair_flux[i] >= f_min) z->push_back(std::log(pair_flux[i]));
-  }
-  for (size_t i = 0; i < n_other; ++i)
-    if (other_flux[i] >= f_min) z->push_back(std::log(other_flux[i]));
-  std::sort(z->begin(), z->end());
-  const auto [p_tri, t_tri] = TriangleZeroPointP(pair_flux, pair_mag, *z);
-  double e = t_tri > 0 ? 1.0 / (p_tri * Harmonic(t_tri)) : 1.0;
-  const double k_mag = 0.4 * std::log(10.0);
-  zp->clear();  // ln f + 0.4 ln(10) V of the pairs so far: the zero point
-  for (int i = 0; i < 3; ++i) zp->push_back(std::log(pair_flux[i]) + k_mag * pair_mag[i]);
-  for (size_t i = 3; i < n; ++i) {
-    z->assign(zp->begin(), zp->end());
-    std::sort(z->begin(), z->end());
-    const size_t h = z->size() / 2;
-    const double ln_k = z->size() % 2 ? (*z)[h] : 0.5 * ((*z)[h - 1] + (*z)[h]);
-    const double pred = ln_k - k_mag * pair_mag[i];
-    const double d = std::abs(std::log(pair_flux[i]) - pred);
-    // The pool: this match and the later ones, and the centroids in no pair (K counts ties in).
-    int pool = 0, within = 0;
-    auto count = [&](double f) { ++pool, within += std::abs(std::log(f) - pred) <= d; };
-    for (size_t q = i; q < n; ++q) count(pair_flux[q]);
-    for (size_t q = 0; q < n_other; ++q) count(other_flux[q]);
-    double h_n = 0, s_n = 0;
-    for (int k = 1; k <= pool; ++k) h_n += 1.0 / k, s_n += 1.0 / (static_cast<double>(k) * k);
-    const double kk = std::max(1, within);
-    // The mean of two calibrators, each of mean 1 for K uniform on {1..N}: 1 / (p H_N) and the steeper
-    // N / (K^2 S_N), S_N = sum 1/k^2 (~N / 1.64 for K = 1 instead of N / H_N, ~N / 4.3 at N = 40; it
-    // falls faster with K, so the mean keeps most of the harmonic one's value for noisy fluxes).
-    e *= 0.5 * (pool / (kk * h_n) + pool / (kk * kk * s_n));
-    zp->push_back(std::log(pair_flux[i]) + k_mag * pair_mag[i]);
-  }
-  return e;
-}
 
 // Photometric evidence (docs/identify.md, step 5). Under the null hypothesis (a chance match) the
 // fluxes are independent of the positions, so given the positions (which alone chose the hypothesis
@@ -916,76 +614,6 @@ double ChanceProbability(int n_trials, int n_cat, double radius_px, const Camera
 
 }  // namespace
 
-// A refit camera and attitude made the solution's: the matches' sensor directions, sigmas and
-// residuals, and the attitude.
-static void UseCameraFit(const Camera& cam, const Mat3& r, PixelSigma sigma, Identification* id) {
-  for (auto& m : id->matches) {
-    m.b_sensor = cam.Unproject(Vec2(m.x_px, m.y_px));
-    m.sigma_rad = sigma.Of(m) / cam.FocalMeanPx();
-    m.residual_rad = Angle(r * m.b_sensor, m.r_inertial);
-  }
-  id->q_inertial_from_sensor = Quat(r).normalized();
-  if (id->q_inertial_from_sensor.w() < 0) id->q_inertial_from_sensor.coeffs() *= -1;
-}
-
-void RetestFocalLength(const Camera& camera, const IdentifyOptions& o, Identification* id) {
-  if (id->status != SolveStatus::kSolved || o.FocalSearched() || !(o.refine_focal_p > 0)) return;
-  std::vector<StarMatch>& ms = id->matches;
-  const PixelSigma sigma{nullptr, FittedCamera(camera, *id).FocalMeanPx()};  // what sigma_rad was made with
-  Camera cam = camera;
-  Mat3 r = id->q_inertial_from_sensor.toRotationMatrix();
-  PixelFit fit;
-  double p = std::nan("");
-  bool refit = false;
-  if (static_cast<int>(ms.size()) >= o.refine_focal_min_matches) {
-    p = ScaleFitP(ms, sigma, &fit, &cam, &r);
-    refit = p < o.refine_focal_p;
-  }
-  if (!refit) {
-    cam = camera;
-    r = id->q_inertial_from_sensor.toRotationMatrix();
-    PixelGaussNewton(ms, sigma, &fit, false, &cam, &r);
-  }
-  id->focal_length_px = cam.focal_length_px;
-  id->focal_length_y_px = cam.FocalYPx();
-  id->focal_length_fitted = id->focal_length_refined = refit;
-  id->focal_length_p_value = p;
-  id->focal_length_sigma_px = 0;
-  if (refit) {
-    const double var = LinearizeInto(ms, cam, r, sigma, &fit).h.ldlt().solve(Vec4::UnitW())[3];
-    id->focal_length_sigma_px = var > 0 ? std::sqrt(var) * cam.focal_length_px : std::nan("");
-  }
-  UseCameraFit(cam, r, sigma, id);
-}
-
-void RetestPrincipalPoint(const Camera& camera, const IdentifyOptions& o, Identification* id) {
-  id->principal_point_refined = false;
-  id->cx_px = id->cy_px = id->principal_point_sigma_px = id->principal_point_p_value = std::nan("");
-  std::vector<StarMatch>& ms = id->matches;
-  if (id->status != SolveStatus::kSolved || o.FocalSearched() || !(o.refine_focal_p > 0) ||
-      !(o.refine_principal_p > 0) || static_cast<int>(ms.size()) < o.refine_principal_min_matches)
-    return;
-  Camera cam = FittedCamera(camera, *id);
-  if (!AcrossTheField(ms, cam)) return;
-  const PixelSigma sigma{nullptr, cam.FocalMeanPx()};  // what sigma_rad was made with
-  Mat3 r = id->q_inertial_from_sensor.toRotationMatrix();
-  Vec2 sigma_px = Vec2::Zero();
-  id->principal_point_p_value = PrincipalPointP(ms, sigma, id->focal_length_refined, &cam, &r, &sigma_px);
-  if (!(id->principal_point_p_value < o.refine_principal_p)) return;
-  id->principal_point_refined = true;
-  id->cx_px = cam.cx_px, id->cy_px = cam.cy_px;
-  id->principal_point_sigma_px = std::hypot(sigma_px[0], sigma_px[1]);
-  id->focal_length_px = cam.focal_length_px;
-  id->focal_length_y_px = cam.FocalYPx();
-  UseCameraFit(cam, r, sigma, id);
-}
-
-Camera FittedCamera(Camera camera, const Identification& id) {
-  if (id.focal_length_px > 0 && std::isfinite(id.focal_length_px))
-    camera.ScaleFocal(id.focal_length_px / camera.focal_length_px);
-  if (id.principal_point_refined) camera.cx_px = id.cx_px, camera.cy_px = id.cy_px;
-  return camera;
-}
 
 void IdentifyOptions::Check() const {
   auto bad = [](const std::string& f, const std::string& w) { throw InputError("identify options", f + " " + w); };
@@ -1015,14 +643,6 @@ void IdentifyOptions::Check() const {
   if (!(timeout_ms >= 0 && timeout_ms <= 3.6e6)) bad("timeout_ms", "must be in [0, 3600000] (0 = no limit)");
 }
 
-double PhotometricEvidence(const std::vector<double>& pair_flux, const std::vector<double>& pair_mag,
-                           const std::vector<double>& other_flux) {
-  if (pair_flux.size() < 3 || pair_flux.size() != pair_mag.size())
-    throw InputError("photometry", "need >= 3 pairs with a magnitude each");
-  std::vector<double> zp, z;
-  return PhotometricEvidenceOf(pair_flux.data(), pair_mag.data(), pair_flux.size(), other_flux.data(),
-                               other_flux.size(), &zp, &z);
-}
 
 double BinomialTail(int n, double p, int k) {
   if (k <= 0) return 1.0;
