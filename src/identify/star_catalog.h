@@ -79,7 +79,6 @@ class CatalogArray {
     a.view_ = data, a.n_ = n;
     return a;
   }
-  bool IsView() const { return view_ != nullptr; }
 
   size_t size() const { return view_ ? n_ : own_.size(); }
   bool empty() const { return size() == 0; }
@@ -106,7 +105,6 @@ class CatalogArray {
   void reserve(size_t n) { Own().reserve(n); }
   void assign(size_t n, const T& v) { Own().assign(n, v); }
   void clear() { Own().clear(); }
-  size_t capacity() const { return view_ ? n_ : own_.capacity(); }
 
  private:
   std::vector<T> own_;
