@@ -14,12 +14,12 @@ T MedianOf(T* v, size_t n) {
   return v[m];
 }
 template <typename T>
-T MedianOf(std::vector<T>& v) {
+T MedianOf(ScratchVec<T>& v) {
   return MedianOf(v.data(), v.size());
 }
 
 // 3x3 median over the tile grid (edges use the available neighbours), into *out (resized to g's size).
-void MedianFilterGrid(const std::vector<float>& g, int nx, int ny, std::vector<float>* out) {
+void MedianFilterGrid(const ScratchVec<float>& g, int nx, int ny, ScratchVec<float>* out) {
   out->resize(g.size());
   std::array<float, 9> nb;
   for (int j = 0; j < ny; ++j) {
@@ -46,7 +46,7 @@ struct MedianMad {
   int32_t median = 0, mad = 0;
 };
 
-MedianMad MedianAndMad(const std::vector<int32_t>& s, std::vector<int32_t>* scratch, std::vector<int32_t>* hist) {
+MedianMad MedianAndMad(const ScratchVec<int32_t>& s, ScratchVec<int32_t>* scratch, ScratchVec<int32_t>* hist) {
   MedianMad out;
   const size_t n = s.size();
   const size_t m = n / 2;
@@ -110,7 +110,7 @@ MedianMad MedianAndMad(const std::vector<int32_t>& s, std::vector<int32_t>* scra
 // Robust sigma of integer samples: 1.4826 MAD, or for data quantised near one count (where the
 // MAD is 0, 1 or 2 counts and says little) the standard deviation of the samples within
 // +-5 sigma of the median.
-float RobustSigma(const std::vector<int32_t>& s, const MedianMad& mm) {
+float RobustSigma(const ScratchVec<int32_t>& s, const MedianMad& mm) {
   const float mad = static_cast<float>(mm.mad);
   const float sigma_mad = 1.4826f * mad;
   if (mad > 2) return sigma_mad;
@@ -132,7 +132,7 @@ float RobustSigma(const std::vector<int32_t>& s, const MedianMad& mm) {
 // coefficients quantised to zero) and others textured, a distribution with a narrow core and wide shoulders whose MAD understates the
 // spread that reaches the threshold. Stars sit in the upper tail only, so the lower one measures the
 // shoulders: (median - 10 % quantile) / 1.2816 is sigma for Gaussian noise.
-float LowerTailSigma(const std::vector<int32_t>& s, double median, std::vector<int32_t>* scratch) {
+float LowerTailSigma(const ScratchVec<int32_t>& s, double median, ScratchVec<int32_t>* scratch) {
   scratch->assign(s.begin(), s.end());
   const size_t k = scratch->size() / 10;
   std::nth_element(scratch->begin(), scratch->begin() + static_cast<std::ptrdiff_t>(k), scratch->end());
@@ -218,7 +218,7 @@ void EstimateBackground(const ImageView& img, int tile_px, int box_half, Backgro
   // Subsample about 256 pixels of each tile (median to ~0.08 sigma; the 3x3 grid median then
   // averages neighbouring tiles).
   const int step = std::max(1, static_cast<int>(std::sqrt(double(g.tile) * g.tile / 256.0)));
-  std::vector<int32_t>&s = sc->samples, &bs = sc->box_samples, &scratch = sc->select, &hist = sc->hist;
+  ScratchVec<int32_t>&s = sc->samples, &bs = sc->box_samples, &scratch = sc->select, &hist = sc->hist;
   for (int ty = 0; ty < g.ny; ++ty) {
     for (int tx = 0; tx < g.nx; ++tx) {
       const int x0 = tx * g.tile, y0 = ty * g.tile;
@@ -261,8 +261,8 @@ void EstimateBackground(const ImageView& img, int tile_px, int box_half, Backgro
       g.box_sigma[ty * g.nx + tx] = box_sig;
     }
   }
-  std::vector<float>& tmp = sc->grid;
-  for (std::vector<float>* v : {&g.level, &g.sigma, &g.box_sigma}) {
+  ScratchVec<float>& tmp = sc->grid;
+  for (ScratchVec<float>* v : {&g.level, &g.sigma, &g.box_sigma}) {
     MedianFilterGrid(*v, g.nx, g.ny, &tmp);
     v->swap(tmp);  // both hold a grid's capacity
   }
@@ -272,7 +272,7 @@ void EstimateBackground(const ImageView& img, int tile_px, int box_half, Backgro
   g.median_sigma = MedianOf(tmp);
 }
 
-double BackgroundGrid::Interp(const std::vector<float>& v, double x, double y) const {
+double BackgroundGrid::Interp(const ScratchVec<float>& v, double x, double y) const {
   // Tile centres sit at (i + 0.5) * tile - 0.5; clamp outside the outermost centres.
   const double fx = std::clamp((x + 0.5) / tile - 0.5, 0.0, nx - 1.0);
   const double fy = std::clamp((y + 0.5) / tile - 0.5, 0.0, ny - 1.0);
@@ -284,11 +284,11 @@ double BackgroundGrid::Interp(const std::vector<float>& v, double x, double y) c
   return top * (1 - ay) + bot * ay;
 }
 
-void BackgroundGrid::RowLevels(int y, std::vector<float>* out, double k_sigma, double scale) const {
+void BackgroundGrid::RowLevels(int y, ScratchVec<float>* out, double k_sigma, double scale) const {
   RowCombination(y, out, scale, k_sigma * scale, sigma);
 }
 
-void BackgroundGrid::BoxThresholdAtCentres(double k, std::vector<float>* rows) const {
+void BackgroundGrid::BoxThresholdAtCentres(double k, ScratchVec<float>* rows) const {
   const double nbox = 2 * box_half + 1;
   rows->resize(static_cast<size_t>(ny) * width);
   for (int j = 0; j < ny; ++j)
@@ -302,13 +302,13 @@ void BackgroundGrid::CentreRowsOf(int y, int* j0, int* j1, float* ay) const {
   *ay = static_cast<float>(fy - *j0);
 }
 
-void BackgroundGrid::RowCombination(int y, std::vector<float>* out, double a, double b,
-                                    const std::vector<float>& second) const {
+void BackgroundGrid::RowCombination(int y, ScratchVec<float>* out, double a, double b,
+                                    const ScratchVec<float>& second) const {
   RowCombinationAt((y + 0.5) / tile - 0.5, out->data(), a, b, second);
 }
 
 void BackgroundGrid::RowCombinationAt(double fy_in, float* o, double a, double b,
-                                      const std::vector<float>& second) const {
+                                      const ScratchVec<float>& second) const {
   const double fy = std::clamp(fy_in, 0.0, ny - 1.0);
   const int j0 = std::min(static_cast<int>(fy), ny - 1), j1 = std::min(j0 + 1, ny - 1);
   const double ay = fy - j0;

@@ -24,7 +24,7 @@ DefectMap BuildDefectMap(const std::vector<ImageView>& frames, const DefectMapOp
   // Votes per pixel: a defect stands out from the local background in most frames (a star or a
   // cosmic ray does so in one frame only; with a single median frame, one vote decides).
   std::vector<uint16_t> hot(static_cast<size_t>(w) * h, 0), dead(hot.size(), 0);
-  std::vector<float> hi(w), lo(w);
+  ScratchVec<float> hi(w), lo(w);
   for (const auto& f : frames) {
     const BackgroundGrid bg = EstimateBackground(f, o.tile_px);
     for (int y = 0; y < h; ++y) {

@@ -29,8 +29,8 @@ struct Caps {
 
 // Appends x unless `v` already holds `cap` entries; then sets `bit` in *clamped instead: a list never
 // grows past its limit (nor allocates, when reserved for it).
-template <class T>
-bool PushCapped(std::vector<T>* v, size_t cap, const T& x, unsigned bit, unsigned* clamped) {
+template <class V, class T>
+bool PushCapped(V* v, size_t cap, const T& x, unsigned bit, unsigned* clamped) {
   if (v->size() >= cap) {
     *clamped |= bit;
     return false;
@@ -56,7 +56,7 @@ struct Run {
   int label;
 };
 
-int FindRoot(std::vector<int>& parent, int i) {
+int FindRoot(ScratchVec<int>& parent, int i) {
   while (parent[i] != i) {
     parent[i] = parent[parent[i]];
     i = parent[i];
@@ -74,9 +74,9 @@ struct Blob {
 
 // The runs and their blobs: the runs of blob b are runs[blob_runs[b.run_begin .. b.run_end)].
 struct BlobSet {
-  const std::vector<Run>& runs;
-  const std::vector<Blob>& blobs;
-  const std::vector<int>& blob_runs;
+  const ScratchVec<Run>& runs;
+  const ScratchVec<Blob>& blobs;
+  const ScratchVec<int>& blob_runs;
   const Run& RunOf(int q) const { return runs[blob_runs[q]]; }
 };
 
@@ -116,6 +116,7 @@ double DiagonalRatio(double s) {
 // fit leaves out (defect-map pixels, dead pixels, single-pixel spikes).
 class PixelMask {
  public:
+  explicit PixelMask(std::pmr::memory_resource* mr = std::pmr::get_default_resource()) : bits_(mr) {}
   void Reserve(int w, int h) { bits_.reserve((static_cast<size_t>(w) * h + 63) / 64); }
   void Reset(int w, int h) {
     w_ = w;
@@ -133,7 +134,7 @@ class PixelMask {
 
  private:
   int w_ = 0;
-  std::vector<uint64_t> bits_;
+  ScratchVec<uint64_t> bits_;
 };
 
 // A local maximum of the 3x3-summed image inside a blob.
@@ -146,8 +147,9 @@ struct Peak {
 
 // Peaks stored blob by blob: those of blob b are peaks[first[b] .. first[b + 1]).
 struct BlobPeaks {
-  std::vector<Peak> peaks;
-  std::vector<size_t> first;
+  explicit BlobPeaks(std::pmr::memory_resource* mr = std::pmr::get_default_resource()) : peaks(mr), first(mr) {}
+  ScratchVec<Peak> peaks;
+  ScratchVec<size_t> first;
 };
 
 // A peak with its PSF fit and the figures the classification needs.
@@ -161,7 +163,7 @@ struct Candidate {
 
 // Step 0: defect-map pixels repaired (median of good neighbours) in a working copy so that they
 // make no detections and do not bias the background; the fit leaves them out.
-ImageView RepairDefects(const ImageView& view, const DefectMap& defects, std::vector<uint16_t>* repaired) {
+ImageView RepairDefects(const ImageView& view, const DefectMap& defects, ScratchVec<uint16_t>* repaired) {
   const int w = view.width, h = view.height;
   repaired->resize(static_cast<size_t>(w) * h);
   for (int y = 0; y < h; ++y) std::copy(view.row(y), view.row(y) + w, &(*repaired)[static_cast<size_t>(y) * w]);
@@ -189,23 +191,25 @@ ImageView RepairDefects(const ImageView& view, const DefectMap& defects, std::ve
 // noise, as runs of pixels above it; and the dead pixels (raw pixels far below their background;
 // `view` is the raw frame, `img` the repaired one).
 struct ThresholdBuffers {
-  std::vector<int32_t> colsum;
-  std::vector<float> low_row, thr_centres;
-  std::vector<uint8_t> above;
+  explicit ThresholdBuffers(std::pmr::memory_resource* mr = std::pmr::get_default_resource())
+      : colsum(mr), low_row(mr), thr_centres(mr), above(mr) {}
+  ScratchVec<int32_t> colsum;
+  ScratchVec<float> low_row, thr_centres;
+  ScratchVec<uint8_t> above;
 };
 
 void ThresholdRuns(const ImageView& img, const ImageView& view, const BackgroundGrid& bg, const DetectOptions& opt,
-                   int half, const DefectMap* defects, const Caps& caps, ThresholdBuffers* tb, std::vector<Run>* runs,
-                   std::vector<std::pair<int, int>>* dead_pixels, unsigned* clamped) {
+                   int half, const DefectMap* defects, const Caps& caps, ThresholdBuffers* tb, ScratchVec<Run>* runs,
+                   ScratchVec<std::pair<int, int>>* dead_pixels, unsigned* clamped) {
   const int w = img.width, h = img.height, box = 2 * half + 1;
   // A row whose minimum is above the highest "dead" level of any tile needs no per-pixel test.
   double dead_level_max = -1e300;
   for (size_t k = 0; k < bg.level.size(); ++k) {
     dead_level_max = std::max(dead_level_max, double(bg.level[k]) - opt.dead_sigma * bg.sigma[k]);
   }
-  std::vector<int32_t>& colsum = tb->colsum;
-  std::vector<float>&low_row = tb->low_row, &thr_centres = tb->thr_centres;
-  std::vector<uint8_t>& above = tb->above;
+  ScratchVec<int32_t>& colsum = tb->colsum;
+  ScratchVec<float>&low_row = tb->low_row, &thr_centres = tb->thr_centres;
+  ScratchVec<uint8_t>& above = tb->above;
   colsum.assign(static_cast<size_t>(w), 0);
   low_row.resize(static_cast<size_t>(w));
   above.assign(static_cast<size_t>(w) + 1, 0);
@@ -252,13 +256,15 @@ void ThresholdRuns(const ImageView& img, const ImageView& view, const Background
 // Step 3: connected blobs of runs (8-connectivity), union-find over runs of adjacent rows; each
 // blob's runs listed in blob_runs in run order. Runs beyond caps.blobs blobs join none.
 struct BlobBuffers {
-  std::vector<int> parent, blob_of, blob_runs;
-  std::vector<Blob> blobs;
+  explicit BlobBuffers(std::pmr::memory_resource* mr = std::pmr::get_default_resource())
+      : parent(mr), blob_of(mr), blob_runs(mr), blobs(mr) {}
+  ScratchVec<int> parent, blob_of, blob_runs;
+  ScratchVec<Blob> blobs;
 };
 
-void ConnectBlobs(const std::vector<Run>& runs, const Caps& caps, BlobBuffers* bb, unsigned* clamped) {
-  std::vector<int>& parent = bb->parent;
-  std::vector<Blob>& blobs = bb->blobs;
+void ConnectBlobs(const ScratchVec<Run>& runs, const Caps& caps, BlobBuffers* bb, unsigned* clamped) {
+  ScratchVec<int>& parent = bb->parent;
+  ScratchVec<Blob>& blobs = bb->blobs;
   parent.resize(runs.size());
   std::iota(parent.begin(), parent.end(), 0);
   size_t prev_begin = 0, prev_end = 0, i = 0;
@@ -282,7 +288,7 @@ void ConnectBlobs(const std::vector<Run>& runs, const Caps& caps, BlobBuffers* b
   }
   blobs.clear();
   // blob_of[root]: the blob of each root run (-1: none).
-  std::vector<int>& blob_of = bb->blob_of;
+  ScratchVec<int>& blob_of = bb->blob_of;
   blob_of.assign(runs.size(), -1);
   for (size_t k = 0; k < runs.size(); ++k) {
     const int root = FindRoot(parent, static_cast<int>(k));
@@ -310,7 +316,7 @@ void ConnectBlobs(const std::vector<Run>& runs, const Caps& caps, BlobBuffers* b
     b.run_begin = b.run_end = offset;
     offset += n;
   }
-  std::vector<int>& blob_runs = bb->blob_runs;
+  ScratchVec<int>& blob_runs = bb->blob_runs;
   blob_runs.resize(static_cast<size_t>(offset));
   for (size_t k = 0; k < runs.size(); ++k) {
     const int bi = blob_of[FindRoot(parent, static_cast<int>(k))];
@@ -323,12 +329,13 @@ void ConnectBlobs(const std::vector<Run>& runs, const Caps& caps, BlobBuffers* b
 // ten times. A blob whose box exceeds the grid's room (kMaxPx) has its sums computed where read
 // (the same integers).
 struct ScoreGrid {
+  explicit ScoreGrid(std::pmr::memory_resource* mr = std::pmr::get_default_resource()) : v(mr), hs(mr) {}
   static constexpr size_t kMaxPx = 128 * 128;
   const ImageView* img = nullptr;
   bool grow = false;  // the buffers grow to any blob (Detect's one-call form)
   bool direct = false;
   int x0 = 0, y0 = 0, gw = 0, gh = 0;
-  std::vector<int32_t> v, hs;
+  ScratchVec<int32_t> v, hs;
   void Reserve() {
     v.reserve(kMaxPx);
     hs.reserve(2 * kMaxPx);  // gw (gh + 2) <= 5/3 gw gh, as gh >= 3
@@ -374,7 +381,7 @@ struct ScoreGrid {
 
 // The local maxima of the 3x3 sum over the blob's pixels, brightest first, into *local (at most cap).
 void LocalMaxima(const ScoreGrid& grid, const BlobSet& bs, const Blob& b, double level9, size_t bi, size_t cap,
-                 std::vector<Peak>* local, unsigned* clamped) {
+                 ScratchVec<Peak>* local, unsigned* clamped) {
   local->clear();
   for (int q = b.run_begin; q < b.run_end; ++q) {
     const Run& r = bs.RunOf(q);
@@ -402,16 +409,17 @@ void LocalMaxima(const ScoreGrid& grid, const BlobSet& bs, const Blob& b, double
 // separates them from every brighter peak (so a star beside another star or a hot pixel is not
 // lost), each moved to the brightest raw pixel next to it.
 struct PeakBuffers {
+  explicit PeakBuffers(std::pmr::memory_resource* mr = std::pmr::get_default_resource()) : grid(mr), local(mr), kept(mr) {}
   ScoreGrid grid;
-  std::vector<Peak> local, kept;
+  ScratchVec<Peak> local, kept;
 };
 constexpr size_t kMaxPeaksPerBlob = 12;
 
-void FindPeaks(const ImageView& img, const BackgroundGrid& bg, std::vector<Blob>& blobs, const BlobSet& bs,
+void FindPeaks(const ImageView& img, const BackgroundGrid& bg, ScratchVec<Blob>& blobs, const BlobSet& bs,
                const Caps& caps, PeakBuffers* pb, BlobPeaks* out, unsigned* clamped) {
   const int w = img.width, h = img.height;
   ScoreGrid& grid = pb->grid;
-  std::vector<Peak>& kept = pb->kept;
+  ScratchVec<Peak>& kept = pb->kept;
   out->peaks.clear();
   out->first.assign(blobs.size() + 1, 0);
   for (size_t bi = 0; bi < blobs.size(); ++bi) {
@@ -482,18 +490,19 @@ void FindPeaks(const ImageView& img, const BackgroundGrid& bg, std::vector<Blob>
 
 // Per-peak figures of step 5a.
 struct PeakShape {
-  std::vector<uint8_t> is_spike;
-  std::vector<double> dir_ratio, peak_above;
+  explicit PeakShape(std::pmr::memory_resource* mr = std::pmr::get_default_resource()) : is_spike(mr), dir_ratio(mr), peak_above(mr) {}
+  ScratchVec<uint8_t> is_spike;
+  ScratchVec<double> dir_ratio, peak_above;
 };
 
 // Step 5a: single-pixel spikes found first (and masked), so that the fits of stars beside them
 // leave them out. A hot pixel on top of a source is masked and the peak moved off it.
 void ClassifySpikes(const ImageView& img, const BackgroundGrid& bg, const DetectOptions& opt, const Caps& caps,
-                    bool diagnostics, BlobPeaks* bp, PixelMask* bad, PeakShape* shape, std::vector<Rejection>* rejected,
+                    bool diagnostics, BlobPeaks* bp, PixelMask* bad, PeakShape* shape, ScratchVec<Rejection>* rejected,
                     unsigned* clamped) {
   const int w = img.width, h = img.height;
   const double sat = opt.saturation_adu;
-  std::vector<Peak>& peaks = bp->peaks;
+  ScratchVec<Peak>& peaks = bp->peaks;
   PeakShape& ps = *shape;
   ps.is_spike.assign(peaks.size(), 0);
   ps.dir_ratio.assign(peaks.size(), 1.0);
@@ -571,8 +580,9 @@ void ClassifySpikes(const ImageView& img, const BackgroundGrid& bg, const Detect
 // frame full of faint structure the rest could not enter the output anyway, and each fit costs tens
 // of microseconds. `view` (the raw frame) counts saturated pixels.
 struct FitBuffers {
-  std::vector<size_t> order;
-  std::vector<Candidate> cands;
+  explicit FitBuffers(std::pmr::memory_resource* mr = std::pmr::get_default_resource()) : order(mr), cands(mr), scratch(mr) {}
+  ScratchVec<size_t> order;
+  ScratchVec<Candidate> cands;
   PsfFitScratch scratch;
 };
 
@@ -582,11 +592,11 @@ void FitCandidates(const ImageView& img, const ImageView& view, const Background
                    int max_half_px, FitBuffers* fb, unsigned* clamped) {
   const int w = img.width, h = img.height;
   const double sat = opt.saturation_adu;
-  const std::vector<Peak>& peaks = bp.peaks;
+  const ScratchVec<Peak>& peaks = bp.peaks;
   const int fit_r =
       std::max(3, static_cast<int>(std::ceil(2.5 * psf_guess)));  // +-2.5 sigma holds the position information
-  std::vector<size_t>& order = fb->order;
-  std::vector<Candidate>& cands = fb->cands;
+  ScratchVec<size_t>& order = fb->order;
+  ScratchVec<Candidate>& cands = fb->cands;
   order.clear();
   cands.clear();
   for (size_t pi = 0; pi < peaks.size(); ++pi) {
@@ -637,10 +647,10 @@ void FitCandidates(const ImageView& img, const ImageView& view, const Background
 
 // Step 5c: the frame's PSF width, the median fitted sigma of the brightest unsaturated, isolated
 // sources that are not single-pixel sharp (or as given).
-double FramePsfSigma(const std::vector<Candidate>& cands, const std::vector<Peak>& peaks, double given_px,
-                     double psf_guess, std::vector<std::pair<double, double>>* bright_buffer) {
+double FramePsfSigma(const ScratchVec<Candidate>& cands, const ScratchVec<Peak>& peaks, double given_px,
+                     double psf_guess, ScratchVec<std::pair<double, double>>* bright_buffer) {
   if (given_px > 0) return given_px;
-  std::vector<std::pair<double, double>>& bright = *bright_buffer;  // (peak above background, sigma)
+  ScratchVec<std::pair<double, double>>& bright = *bright_buffer;  // (peak above background, sigma)
   bright.clear();
   for (const Candidate& c : cands) {
     if (c.fit.ok && c.nsat == 0 && c.fit.snr > 15 && c.min_dir_ratio > 0.02 && peaks[c.peak].nearest_px > 8 &&
@@ -704,8 +714,8 @@ bool Interferer(const Candidate& c, const Peak& pk, const Blob& b, const BlobSet
 // Step 6: dead pixels and defect-map pixels that would otherwise have looked like sources, up to
 // a cap on the report's length.
 void ReportDefects(const ImageView& view, const BackgroundGrid& bg, const DetectOptions& opt,
-                   const std::vector<std::pair<int, int>>& dead_pixels, const DefectMap* defects, const Caps& caps,
-                   std::vector<Rejection>* rejected, unsigned* clamped) {
+                   const ScratchVec<std::pair<int, int>>& dead_pixels, const DefectMap* defects, const Caps& caps,
+                   ScratchVec<Rejection>* rejected, unsigned* clamped) {
   constexpr size_t kMaxReported = 2000;
   for (const auto& [x, y] : dead_pixels) {
     if (rejected->size() >= kMaxReported) break;
@@ -791,25 +801,29 @@ void DetectLimits::Check() const {
 }
 
 struct DetectWorkspace::Buffers {
+  explicit Buffers(std::pmr::memory_resource* mr)
+      : bg_scratch(mr), bg(mr), repaired(mr), threshold(mr), runs(mr), dead_pixels(mr), blobs(mr), peak_search(mr),
+        peaks(mr), bad(mr), shape(mr), fits(mr), bright(mr), blob_reported(mr), stars(mr) {}
   BackgroundScratch bg_scratch;
   BackgroundGrid bg;
-  std::vector<uint16_t> repaired;
+  ScratchVec<uint16_t> repaired;
   ThresholdBuffers threshold;
-  std::vector<Run> runs;
-  std::vector<std::pair<int, int>> dead_pixels;
+  ScratchVec<Run> runs;
+  ScratchVec<std::pair<int, int>> dead_pixels;
   BlobBuffers blobs;
   PeakBuffers peak_search;
   BlobPeaks peaks;
   PixelMask bad;
   PeakShape shape;
   FitBuffers fits;
-  std::vector<std::pair<double, double>> bright;
-  std::vector<uint8_t> blob_reported;
-  std::vector<StarDetection> stars;  // before the brightest are kept
+  ScratchVec<std::pair<double, double>> bright;
+  ScratchVec<uint8_t> blob_reported;
+  ScratchVec<StarDetection> stars;  // before the brightest are kept
 };
 
-DetectWorkspace::DetectWorkspace(const DetectLimits& limits) : limits_(limits), b_(std::make_unique<Buffers>()) {
+DetectWorkspace::DetectWorkspace(const DetectLimits& limits, std::pmr::memory_resource* mr) : limits_(limits) {
   limits_.Check();
+  b_ = MakeInResource<Buffers>(mr, mr);
   const DetectLimits& l = limits_;
   Buffers& b = *b_;
   const size_t w = static_cast<size_t>(l.max_width), h = static_cast<size_t>(l.max_height);
@@ -860,11 +874,11 @@ void DetectWorkspace::Reserve(Detections* out) const {
 
 namespace {
 template <class T>
-size_t CapacityBytes(const std::vector<T>& v) {
+size_t CapacityBytes(const ScratchVec<T>& v) {
   return v.capacity() * sizeof(T);
 }
 template <class T, class... More>
-size_t CapacityBytes(const std::vector<T>& v, const More&... more) {
+size_t CapacityBytes(const ScratchVec<T>& v, const More&... more) {
   return CapacityBytes(v) + CapacityBytes(more...);
 }
 }  // namespace
@@ -945,8 +959,8 @@ DetectStatus Detect(const ImageView& view, const DetectOptions& opt, const Defec
 
   // 2. Threshold the box sum on its own measured local noise.
   t0 = now();
-  std::vector<Run>& runs = bu.runs;
-  std::vector<std::pair<int, int>>& dead_pixels = bu.dead_pixels;
+  ScratchVec<Run>& runs = bu.runs;
+  ScratchVec<std::pair<int, int>>& dead_pixels = bu.dead_pixels;
   runs.clear();
   dead_pixels.clear();
   ThresholdRuns(img, view, bg, opt, half, known, caps, &bu.threshold, &runs, &dead_pixels, clamped);
@@ -955,7 +969,7 @@ DetectStatus Detect(const ImageView& view, const DetectOptions& opt, const Defec
   // 3. Connected blobs.
   t0 = now();
   ConnectBlobs(runs, caps, &bu.blobs, clamped);
-  std::vector<Blob>& blobs = bu.blobs.blobs;
+  ScratchVec<Blob>& blobs = bu.blobs.blobs;
   const BlobSet bs{runs, blobs, bu.blobs.blob_runs};
   if (diag) out->timing_ms["blobs"] = MsSince(t0);
 
@@ -980,13 +994,13 @@ DetectStatus Detect(const ImageView& view, const DetectOptions& opt, const Defec
   const size_t max_fits = 3 * static_cast<size_t>(max_stars);
   const int max_half_px = lim.grow ? 0 : (lim.max_fit_window_px - 1) / 2;
   FitCandidates(img, view, bg, opt, psf_guess, bp, ps, bad, max_fits, max_half_px, &bu.fits, clamped);
-  const std::vector<Candidate>& cands = bu.fits.cands;
+  const ScratchVec<Candidate>& cands = bu.fits.cands;
   const double psf = FramePsfSigma(cands, bp.peaks, opt.psf_sigma_px, psf_guess, &bu.bright);
   out->psf_sigma_px = psf;
   const double sharp_ratio = std::clamp(0.45 * DiagonalRatio(psf), 0.02, 0.3);
-  std::vector<uint8_t>& blob_reported = bu.blob_reported;  // one track/streak rejection per blob
+  ScratchVec<uint8_t>& blob_reported = bu.blob_reported;  // one track/streak rejection per blob
   blob_reported.assign(blobs.size(), 0);
-  std::vector<StarDetection>& stars = bu.stars;  // at most one per candidate
+  ScratchVec<StarDetection>& stars = bu.stars;  // at most one per candidate
   stars.clear();
   for (const Candidate& c : cands) {
     const Peak& pk = bp.peaks[c.peak];

@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "core/arena.h"
 #include "core/image.h"
 #include "detect/smear.h"
 
@@ -102,8 +103,9 @@ struct Detections {
   double block_artefact_ratio = 1;
   bool block_artefacts = false;
   double psf_sigma_px = 0;           // PSF sigma used (estimated or given)
-  std::vector<StarDetection> stars;  // brightest first
-  std::vector<Rejection> rejected;
+  // (ScratchVec: the flight core keeps its lists in the caller's memory, core/arena.h.)
+  ScratchVec<StarDetection> stars;  // brightest first
+  ScratchVec<Rejection> rejected;
   std::map<std::string, double> timing_ms;  // filled only with DetectLimits::diagnostics
   unsigned clamped = 0;                     // DetectClamp bits: the limits this call reached
 };
@@ -156,7 +158,10 @@ inline std::ostream& operator<<(std::ostream& os, DetectStatus v) { return os <<
 // Every buffer Detect needs, reserved at construction for `limits` (allocates only there).
 class DetectWorkspace {
  public:
-  explicit DetectWorkspace(const DetectLimits& limits);  // limits.Check() (throws InputError)
+  // limits.Check() (throws InputError). Every buffer comes from `mr` (the heap by default; the flight
+  // core's arena, core/arena.h).
+  explicit DetectWorkspace(const DetectLimits& limits,
+                           std::pmr::memory_resource* mr = std::pmr::get_default_resource());
   ~DetectWorkspace();
   DetectWorkspace(DetectWorkspace&&) noexcept;
   DetectWorkspace& operator=(DetectWorkspace&&) noexcept;
@@ -171,7 +176,7 @@ class DetectWorkspace {
 
  private:
   DetectLimits limits_;
-  std::unique_ptr<Buffers> b_;
+  ResourcePtr<Buffers> b_;
   friend DetectStatus Detect(const ImageView&, const DetectOptions&, const DefectMap*, DetectWorkspace*,
                              Detections*);
 };

@@ -113,7 +113,7 @@ void PsfSmearModel::Compute(int x0, int nx, int y0, int ny, double cx, double cy
 
 void PsfFitScratch::Reserve(int side_px) {
   const size_t n = static_cast<size_t>(side_px), npix = n * n;
-  for (std::vector<double>* b : {&v, &w_cur, &w_new, &sm.f, &sm.dx, &sm.dy, &sm.ds}) b->reserve(npix);
+  for (ScratchVec<double>* b : {&v, &w_cur, &w_new, &sm.f, &sm.dx, &sm.dy, &sm.ds}) b->reserve(npix);
   use.reserve(npix);
   for (PsfProfile* p : {&fx, &fy, &sm.px, &sm.py}) {
     p->f.reserve(n);
@@ -532,9 +532,9 @@ class PsfFitter {
   double smear_len_ = 0;
   int rx_ = 0, ry_ = 0, x0_ = 0, x1_ = 0, y0_ = 0, y1_ = 0, nx_ = 0, ny_ = 0;
   // Window pixels, their use and weights, and the model: the scratch's buffers.
-  std::vector<double>& v_;
-  std::vector<uint8_t>& use_;
-  std::vector<double>&w_cur_, &w_new_;  // pixel weights at the current iterate and the trial
+  ScratchVec<double>& v_;
+  ScratchVec<uint8_t>& use_;
+  ScratchVec<double>&w_cur_, &w_new_;  // pixel weights at the current iterate and the trial
   PsfProfile &fx_, &fy_;
   PsfSmearModel& sm_;
   double inv_gain_ = 0;

@@ -6,6 +6,7 @@
 #include <functional>
 #include <vector>
 
+#include "core/arena.h"
 #include "core/image.h"
 
 namespace ssiu {
@@ -53,13 +54,16 @@ class PixelTest {
 
 // Pixel-integrated 1-D Gaussian of one axis and its derivatives (psf_fit.cc).
 struct PsfProfile {
-  std::vector<double> f, dc, ds;
+  explicit PsfProfile(std::pmr::memory_resource* mr = std::pmr::get_default_resource()) : f(mr), dc(mr), ds(mr) {}
+  ScratchVec<double> f, dc, ds;
   void Compute(int i0, int n, double c, double s);
 };
 
 // The Gaussian averaged along the smear segment, every window pixel (psf_fit.cc).
 struct PsfSmearModel {
-  std::vector<double> f, dx, dy, ds;
+  explicit PsfSmearModel(std::pmr::memory_resource* mr = std::pmr::get_default_resource())
+      : f(mr), dx(mr), dy(mr), ds(mr), px(mr), py(mr) {}
+  ScratchVec<double> f, dx, dy, ds;
   PsfProfile px, py;
   void Compute(int x0, int nx, int y0, int ny, double cx, double cy, double s, double sdx, double sdy);
 };
@@ -67,8 +71,10 @@ struct PsfSmearModel {
 // The buffers of one fit, reused from fit to fit: reserved for windows up to side x side pixels, a
 // fit with PsfFitOptions::max_half_px <= (side - 1) / 2 allocates nothing.
 struct PsfFitScratch {
-  std::vector<double> v, w_cur, w_new;
-  std::vector<uint8_t> use;
+  explicit PsfFitScratch(std::pmr::memory_resource* mr = std::pmr::get_default_resource())
+      : v(mr), w_cur(mr), w_new(mr), use(mr), fx(mr), fy(mr), sm(mr) {}
+  ScratchVec<double> v, w_cur, w_new;
+  ScratchVec<uint8_t> use;
   PsfProfile fx, fy;
   PsfSmearModel sm;
   void Reserve(int side_px);

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "core/arena.h"
 #include "core/output.h"
 #include "flight/flight_config.h"
 #include "identify/star_catalog.h"
@@ -109,6 +110,9 @@ int32_t UpdateCode(ssiu::UpdateStatus s) {
 struct ssiu_flight {
   uint64_t magic = kMagic;  // first: Live() reads it raw
   ssiu_flight_config config{};
+  // The workspaces' block: the caller's memory after the handle (declared before the processor, so
+  // that it outlives it).
+  ssiu::Arena arena;
   std::shared_ptr<const ssiu::StarIdentifier> identifier;
   std::optional<ssiu::UnitProcessor> processor;
   // Made at init and reused, so that the calls allocate nothing.
@@ -118,11 +122,16 @@ struct ssiu_flight {
   int64_t gyro_samples = 0, frame_sets = 0, frame_sets_solved = 0;
   char error[256] = {0};
 
+  ssiu_flight(void* block, size_t bytes) : arena(block, bytes) {}
   bool Fail(const char* what) {
     CopyText(what, error, sizeof error);
     return false;
   }
 };
+
+// The caller's memory: the handle, then the workspaces' arena (aligned as ssiu::Arena asks).
+static constexpr size_t kHandleBytes =
+    (sizeof(ssiu_flight) + ssiu::Arena::kBlockAlign - 1) / ssiu::Arena::kBlockAlign * ssiu::Arena::kBlockAlign;
 
 extern "C" {
 
@@ -165,8 +174,13 @@ ssiu_result ssiu_flight_check_config(const ssiu_flight_config* config) {
 }
 
 size_t ssiu_flight_memory_bytes(const ssiu_flight_config* config) {
-  if (ssiu_flight_check_config(config) != SSIU_OK) return 0;
-  return sizeof(ssiu_flight);
+  if (config == nullptr) return 0;
+  try {
+    const ssiu::FlightSetup setup = ssiu::FlightSetupFrom(*config);
+    return kHandleBytes + ssiu::UnitProcessor::WorkspaceBytes(setup.heads, setup.unit, setup.options);
+  } catch (const std::exception&) {
+    return 0;
+  }
 }
 
 ssiu_result ssiu_flight_init(const ssiu_flight_config* config, const void* catalog_blob, size_t catalog_bytes,
@@ -182,8 +196,7 @@ ssiu_result ssiu_flight_init(const ssiu_flight_config* config, const void* catal
     CopyText(e.what(), why, memory_bytes);
     return SSIU_ERR_CONFIG;
   }
-  if (memory_bytes < sizeof(ssiu_flight) ||
-      reinterpret_cast<uintptr_t>(memory) % alignof(ssiu_flight) != 0) {
+  if (memory_bytes < kHandleBytes || reinterpret_cast<uintptr_t>(memory) % ssiu::Arena::kBlockAlign != 0) {
     CopyText("memory: smaller than ssiu_flight_memory_bytes() or not aligned", why, memory_bytes);
     return SSIU_ERR_MEMORY;
   }
@@ -211,16 +224,21 @@ ssiu_result ssiu_flight_init(const ssiu_flight_config* config, const void* catal
         return SSIU_ERR_CATALOG;
       }
     }
-    f = new (memory) ssiu_flight();
+    f = new (memory) ssiu_flight(static_cast<unsigned char*>(memory) + kHandleBytes, memory_bytes - kHandleBytes);
     f->config = *config;
     f->identifier = id;
     std::vector<std::shared_ptr<const ssiu::StarIdentifier>> ids(setup.heads.size(), id);
-    f->processor.emplace(setup.heads, ids, setup.unit, setup.options);
+    f->processor.emplace(setup.heads, ids, setup.unit, setup.options, &f->arena);
     f->views.resize(setup.heads.size());
     // The reused report and state get their room here (a result per head, the gyros in use), so that
     // the first real calls allocate nothing either.
     f->report.heads.reserve(setup.heads.size());
     f->processor->Attitude(&f->attitude, false);
+  } catch (const std::bad_alloc&) {
+    // The workspaces did not fit the caller's block (nothing else here is that large).
+    if (f != nullptr) f->~ssiu_flight();
+    CopyText("memory: smaller than ssiu_flight_memory_bytes()", why, memory_bytes);
+    return SSIU_ERR_MEMORY;
   } catch (const std::exception& e) {
     if (f != nullptr) f->~ssiu_flight();
     CopyText((std::string("init: ") + e.what()).c_str(), why, memory_bytes);

@@ -6,7 +6,7 @@
  *
  *   ssiu_flight_config cfg;
  *   ssiu_flight_default_config(&cfg);               // the default two-head unit; change what differs
- *   size_t need = ssiu_flight_memory_bytes(&cfg);   // the handle's own memory
+ *   size_t need = ssiu_flight_memory_bytes(&cfg);   // the handle and every workspace
  *   ssiu_flight* f = NULL;
  *   if (ssiu_flight_init(&cfg, catalog_blob, catalog_bytes, memory, need, &f) != SSIU_OK) ...
  *   ssiu_flight_gyro(f, t_s, g_dph, 4, &gyro_status);                 // every gyro sample
@@ -196,9 +196,15 @@ ssiu_result ssiu_flight_parse_config(const char* text, size_t bytes, ssiu_flight
                                      size_t why_bytes);
 /* SSIU_OK or SSIU_ERR_CONFIG (ssiu_flight_init's failure text names the field). */
 ssiu_result ssiu_flight_check_config(const ssiu_flight_config* config);
-/* Bytes of memory the handle needs for `config` (0 for a bad config). */
+/* Bytes of memory the handle needs for `config` (0 for a bad config): the handle and every workspace
+ * (detection, identification, the fusion's fault monitors and histories), which init places in the
+ * memory given instead of the heap. Measured by making the workspaces once on the heap and freeing
+ * them: a start-up call, not for the rate group; it depends only on the configuration (and the
+ * target: 32- and 64-bit builds differ), so a target without a heap can size a static block from
+ * the same call made on the ground for the same build. */
 size_t ssiu_flight_memory_bytes(const ssiu_flight_config* config);
-/* Starts a handle in `memory` (at least ssiu_flight_memory_bytes(), aligned to 16 bytes), with the
+/* Starts a handle in `memory` (at least ssiu_flight_memory_bytes(), aligned to 16 bytes; less is
+ * SSIU_ERR_MEMORY), with the
  * catalog blob (catalog.bin of `ssiu catalog build`) read-only in memory or ROM; config.catalog_crc32
  * must be its CRC-32 (meta.json's catalog_bin_crc32): a blob that differs is refused before it is
  * read. On failure `memory` holds the reason as a NUL-terminated string. */

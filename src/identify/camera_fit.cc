@@ -13,7 +13,7 @@ namespace ssiu {
 namespace identify_internal {
 
 // The pixel fit (PixelFit) of the matches, in *fit.
-const PixelFit& LinearizeInto(const std::vector<StarMatch>& ms, const Camera& cam, const Mat3& r, PixelSigma sigma,
+const PixelFit& LinearizeInto(const ScratchVec<StarMatch>& ms, const Camera& cam, const Mat3& r, PixelSigma sigma,
                               PixelFit* fit) {
   PixelFit& f = *fit;
   f.j.clear();
@@ -56,7 +56,7 @@ const PixelFit& LinearizeInto(const std::vector<StarMatch>& ms, const Camera& ca
 
 // Gauss-Newton on pixel residuals over a small rotation (sensor frame), and with fit_scale a common
 // scale of fx and fy (the pixel aspect fy/fx is the camera's); 4 iterations at most.
-void PixelGaussNewton(const std::vector<StarMatch>& ms, PixelSigma sigma, PixelFit* fit, bool fit_scale, Camera* cam,
+void PixelGaussNewton(const ScratchVec<StarMatch>& ms, PixelSigma sigma, PixelFit* fit, bool fit_scale, Camera* cam,
                       Mat3* r) {
   for (int iter = 0; iter < 4; ++iter) {
     const PixelFit& f = LinearizeInto(ms, *cam, *r, sigma, fit);
@@ -73,7 +73,7 @@ void PixelGaussNewton(const std::vector<StarMatch>& ms, PixelSigma sigma, PixelF
 }
 
 // PixelGaussNewton, then the fit's chi-square (centroid sigmas) at its end.
-double PixelChi2(const std::vector<StarMatch>& ms, PixelSigma sigma, PixelFit* fit, bool fit_scale, Camera* cam,
+double PixelChi2(const ScratchVec<StarMatch>& ms, PixelSigma sigma, PixelFit* fit, bool fit_scale, Camera* cam,
                  Mat3* r) {
   PixelGaussNewton(ms, sigma, fit, fit_scale, cam, r);
   const PixelFit& f = LinearizeInto(ms, *cam, *r, sigma, fit);
@@ -106,7 +106,7 @@ double StudentTwoSidedTail(double t, int nu) {
 // F-test of the extra parameter, F = (chi2_0 - chi2_1) / (chi2_1 / nu), nu = 2n - 4, which does not
 // depend on the centroid sigmas' scale (a camera whose distortion is unmodelled inflates every
 // residual alike). F(1, nu) is t(nu)^2, so p = P(|T| >= sqrt(F)). The scale fit is left in *cam, *r.
-double ScaleFitP(const std::vector<StarMatch>& ms, PixelSigma sigma, PixelFit* fit, Camera* cam, Mat3* r) {
+double ScaleFitP(const ScratchVec<StarMatch>& ms, PixelSigma sigma, PixelFit* fit, Camera* cam, Mat3* r) {
   const int n = static_cast<int>(ms.size());
   Camera c0 = *cam;
   Mat3 r0 = *r;
@@ -119,7 +119,7 @@ double ScaleFitP(const std::vector<StarMatch>& ms, PixelSigma sigma, PixelFit* f
 
 // Whether the matches lie across the field: at least 2 in each quadrant about the principal point (a
 // principal point is told from a turn of the attitude only by the perspective of stars on all sides).
-bool AcrossTheField(const std::vector<StarMatch>& ms, const Camera& cam) {
+bool AcrossTheField(const ScratchVec<StarMatch>& ms, const Camera& cam) {
   int q[4] = {0, 0, 0, 0};
   for (const auto& m : ms) ++q[(m.x_px >= cam.cx_px ? 1 : 0) + (m.y_px >= cam.cy_px ? 2 : 0)];
   return *std::min_element(q, q + 4) >= 2;
@@ -130,7 +130,7 @@ bool AcrossTheField(const std::vector<StarMatch>& ms, const Camera& cam) {
 // nu = 2n - k, whose tail for 2 numerator degrees of freedom is (1 + 2F/nu)^(-nu/2) (Abramowitz &
 // Stegun 26.6.4 with nu1 = 2). On success *cam and *r are the wider fit's and *sigma_px its (cx, cy)
 // 1-sigma; 1 when the wider fit does not lower chi2.
-double PrincipalPointP(const std::vector<StarMatch>& ms, PixelSigma sigma, bool fit_scale, Camera* cam, Mat3* r,
+double PrincipalPointP(const ScratchVec<StarMatch>& ms, PixelSigma sigma, bool fit_scale, Camera* cam, Mat3* r,
                        Vec2* sigma_px) {
   using Vec6 = Eigen::Matrix<double, 6, 1>;
   using Mat6 = Eigen::Matrix<double, 6, 6>;
@@ -208,7 +208,7 @@ static void UseCameraFit(const Camera& cam, const Mat3& r, PixelSigma sigma, Ide
 
 void RetestFocalLength(const Camera& camera, const IdentifyOptions& o, Identification* id) {
   if (id->status != SolveStatus::kSolved || o.FocalSearched() || !(o.refine_focal_p > 0)) return;
-  std::vector<StarMatch>& ms = id->matches;
+  ScratchVec<StarMatch>& ms = id->matches;
   const PixelSigma sigma{nullptr, FittedCamera(camera, *id).FocalMeanPx()};  // what sigma_rad was made with
   Camera cam = camera;
   Mat3 r = id->q_inertial_from_sensor.toRotationMatrix();
@@ -239,7 +239,7 @@ void RetestFocalLength(const Camera& camera, const IdentifyOptions& o, Identific
 void RetestPrincipalPoint(const Camera& camera, const IdentifyOptions& o, Identification* id) {
   id->principal_point_refined = false;
   id->cx_px = id->cy_px = id->principal_point_sigma_px = id->principal_point_p_value = std::nan("");
-  std::vector<StarMatch>& ms = id->matches;
+  ScratchVec<StarMatch>& ms = id->matches;
   if (id->status != SolveStatus::kSolved || o.FocalSearched() || !(o.refine_focal_p > 0) ||
       !(o.refine_principal_p > 0) || static_cast<int>(ms.size()) < o.refine_principal_min_matches)
     return;

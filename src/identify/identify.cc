@@ -74,30 +74,38 @@ const char* SearchStopName(SearchStop s) {
 struct IdentifyWorkspace::Scratch {
   bool grow = false;
   size_t max_centroids = 0, max_stars = 0, max_pattern = 0, max_verify = 0;
-  std::vector<Centroid> centroids;  // the usable centroids, in input order
-  std::vector<int> input_index;     // their indices in the input
-  std::vector<int> order;           // brightest first
-  std::vector<double> sigma_px, median;
-  std::vector<Vec3> unit;   // pattern centroids' directions
-  std::vector<double> ang;  // and their angles (P x P)
-  std::vector<int> near;    // catalog stars about the field
-  std::vector<Pred> pred;
-  std::vector<Cand> cands;  // K x S
-  std::vector<char> used_c, used_p, excluded;
-  std::vector<StarMatch> test, cur, next, kept;  // matches: a test's, the refined ones, scratch
-  std::vector<int> test_extras;
-  std::vector<VectorPair> pairs;
+  ScratchVec<Centroid> centroids;  // the usable centroids, in input order
+  ScratchVec<int> input_index;     // their indices in the input
+  ScratchVec<int> order;           // brightest first
+  ScratchVec<double> sigma_px, median;
+  ScratchVec<Vec3> unit;   // pattern centroids' directions
+  ScratchVec<double> ang;  // and their angles (P x P)
+  ScratchVec<int> near;    // catalog stars about the field
+  ScratchVec<Pred> pred;
+  ScratchVec<Cand> cands;  // K x S
+  ScratchVec<char> used_c, used_p, excluded;
+  ScratchVec<StarMatch> test, cur, next, kept;  // matches: a test's, the refined ones, scratch
+  ScratchVec<int> test_extras;
+  ScratchVec<VectorPair> pairs;
   PixelFit fit;
-  std::vector<Vec2> resid;
-  std::vector<double> flux, mag, other, zp, z;  // photometry
-  std::vector<char> used;
+  ScratchVec<Vec2> resid;
+  ScratchVec<double> flux, mag, other, zp, z;  // photometry
+  ScratchVec<char> used;
 
-  Scratch(size_t k, size_t s, size_t p, size_t v, bool grow_as_needed)
-      : grow(grow_as_needed), max_centroids(k), max_stars(s), max_pattern(p), max_verify(std::min(k, v)) {
+  Scratch(size_t k, size_t s, size_t p, size_t v, bool grow_as_needed, std::pmr::memory_resource* mr)
+      : grow(grow_as_needed),
+        max_centroids(k),
+        max_stars(s),
+        max_pattern(p),
+        max_verify(std::min(k, v)),
+        centroids(mr), input_index(mr), order(mr), sigma_px(mr), median(mr), unit(mr), ang(mr), near(mr), pred(mr),
+        cands(mr), used_c(mr), used_p(mr), excluded(mr), test(mr), cur(mr), next(mr), kept(mr), test_extras(mr),
+        pairs(mr), fit(mr), resid(mr), flux(mr), mag(mr), other(mr), zp(mr), z(mr), used(mr) {
     if (grow) return;
     for (auto* v : {&input_index, &order, &test_extras}) v->reserve(k);
-    for (auto* v : {&sigma_px, &median, &flux, &mag, &other, &zp, &z, &fit.w}) v->reserve(k);
+    for (auto* v : {&sigma_px, &median, &flux, &mag, &other, &zp, &z}) v->reserve(k);
     for (auto* v : {&used_c, &excluded, &used, &fit.ok}) v->reserve(k);
+    fit.w.reserve(k);
     for (auto* v : {&test, &cur, &next, &kept}) v->reserve(k);
     centroids.reserve(k);
     pairs.reserve(k);
@@ -112,16 +120,17 @@ struct IdentifyWorkspace::Scratch {
     cands.reserve(max_verify * s);  // only the verification centroids are paired with stars
   }
 
-  template <typename T>
-  static size_t Held(const std::vector<T>& v) {
-    return v.capacity() * sizeof(T);
+  template <class V>
+  static size_t Held(const V& v) {
+    return v.capacity() * sizeof(typename V::value_type);
   }
   size_t Bytes() const {
     size_t b = sizeof(*this) + Held(centroids) + Held(unit) + Held(ang) + Held(pred) + Held(cands) + Held(pairs) +
                Held(fit.j) + Held(fit.e) + Held(resid);
     for (const auto* v : {&input_index, &order, &near, &test_extras}) b += Held(*v);
-    for (const auto* v : {&sigma_px, &median, &flux, &mag, &other, &zp, &z, &fit.w}) b += Held(*v);
-    for (const auto* v : {&used_c, &used_p, &excluded, &used, &fit.ok}) b += Held(*v);
+    for (const auto* v : {&sigma_px, &median, &flux, &mag, &other, &zp, &z}) b += Held(*v);
+    b += Held(fit.w) + Held(fit.ok);
+    for (const auto* v : {&used_c, &used_p, &excluded, &used}) b += Held(*v);
     for (const auto* v : {&test, &cur, &next, &kept}) b += Held(*v);
     return b;
   }
@@ -153,7 +162,7 @@ struct Context {
 // Catalog stars within radius_rad of u into ctx.s->near, brightest first; more than the workspace
 // holds: the brightest, flagged in the report.
 void StarsNear(const Context& ctx, const Vec3& u, double radius_rad) {
-  std::vector<int>& near = ctx.s->near;
+  auto& near = ctx.s->near;
   const size_t cap = ctx.s->grow ? std::max<size_t>(near.capacity(), 64) : ctx.s->max_stars;
   near.resize(cap);
   size_t n = ctx.index->StarsWithin(u, radius_rad, near.data(), cap);
@@ -186,18 +195,18 @@ StarMatch MakeMatch(const Context& ctx, const Camera& cam, int ci, int star) {
 // the first ctx.m centroids to them one-to-one, nearest pairs first, within radius_px, into *out.
 // Centroids flagged in `excluded` (rejected as outliers of this hypothesis) are left out. Returns
 // the number of catalog stars predicted in the image.
-int Verify(const Context& ctx, const Camera& cam, const Mat3& r, double radius_px, const std::vector<char>* excluded,
-           std::vector<StarMatch>* out) {
+int Verify(const Context& ctx, const Camera& cam, const Mat3& r, double radius_px, const ScratchVec<char>* excluded,
+           ScratchVec<StarMatch>* out) {
   Scratch& s = *ctx.s;
   StarsNear(ctx, r.col(2), cam.FovDiagRad() / 2 * 1.05 + 0.002);
-  std::vector<Pred>& proj = s.pred;
+  auto& proj = s.pred;
   proj.clear();
   const Mat3 rt = r.transpose();
   for (int st : s.near) {
     const auto p = cam.Project(rt * ctx.cat->stars[st].unit);
     if (p && cam.InImage(*p)) proj.push_back({*p, st, 0.0});
   }
-  std::vector<Cand>& cands = s.cands;
+  auto& cands = s.cands;
   cands.clear();
   const double r2 = radius_px * radius_px;
   for (int i = 0; i < ctx.m; ++i) {
@@ -270,7 +279,7 @@ HypothesisTest TestHypothesis(const Context& ctx, const IdentifyOptions& o, cons
   const Centroid* c = ctx.c;
   const TriangleSpread spread = SpreadOf(ctx, tri_c);
   StarsNear(ctx, r.col(2), cam.FovDiagRad() / 2 * 1.05 + 0.002);
-  std::vector<Pred>& pred = sc.pred;
+  auto& pred = sc.pred;
   pred.clear();
   const Mat3 rt = r.transpose();
   // The triangle's photometric zero point (median of ln f + 0.4 ln(10) V over its vertices): a star
@@ -303,7 +312,7 @@ HypothesisTest TestHypothesis(const Context& ctx, const IdentifyOptions& o, cons
   }
   h.n_cat = n_in_image + 3;
   h.p_hit = std::min(1.0, area_hit / (static_cast<double>(cam.width) * cam.height));
-  std::vector<Cand>& cands = sc.cands;  // key: squared distance over squared radius
+  auto& cands = sc.cands;  // key: squared distance over squared radius
   cands.clear();
   for (int i = 0; i < ctx.m; ++i) {
     const int ci = ctx.order[i];
@@ -349,8 +358,8 @@ bool AnyBrightCentroidNearAStar(const Context& ctx, const IdentifyOptions& o, co
   return false;
 }
 
-Mat3 SvdFromMatches(const Context& ctx, const std::vector<StarMatch>& ms) {
-  std::vector<VectorPair>& pairs = ctx.s->pairs;
+Mat3 SvdFromMatches(const Context& ctx, const ScratchVec<StarMatch>& ms) {
+  auto& pairs = ctx.s->pairs;
   pairs.clear();
   for (const auto& m : ms) pairs.push_back({m.b_sensor, m.r_inertial, 1.0 / (m.sigma_rad * m.sigma_rad)});
   return SolveWahbaSvd(pairs.data(), pairs.size()).toRotationMatrix();
@@ -358,13 +367,13 @@ Mat3 SvdFromMatches(const Context& ctx, const std::vector<StarMatch>& ms) {
 
 
 // The pixel fit of the matches with the workspace's sigmas, in ctx.s->fit.
-const PixelFit& Linearize(const Context& ctx, const std::vector<StarMatch>& ms, const Camera& cam, const Mat3& r) {
+const PixelFit& Linearize(const Context& ctx, const ScratchVec<StarMatch>& ms, const Camera& cam, const Mat3& r) {
   return LinearizeInto(ms, cam, r, {ctx.sigma_px, 0}, &ctx.s->fit);
 }
 
 
 // The rotation and the scale, with the workspace's sigmas.
-void RefineFocal(const Context& ctx, const std::vector<StarMatch>& ms, Camera* cam, Mat3* r) {
+void RefineFocal(const Context& ctx, const ScratchVec<StarMatch>& ms, Camera* cam, Mat3* r) {
   if (ms.size() >= 4) PixelGaussNewton(ms, {ctx.sigma_px, 0}, &ctx.s->fit, true, cam, r);
 }
 
@@ -389,7 +398,7 @@ void RefineFocal(const Context& ctx, const std::vector<StarMatch>& ms, Camera* c
 // star) to a factor 2. Returned: 2 / (1 + E), the factor on the geometric p-value. With p_g valid and
 // E's null distribution not depending on the positions, P(p_g * 2 / (1 + E) <= x) <= x E[(1 + E) / 2] = x.
 // `ms`: the triangle's three pairs first, then the extra matches in the order they were tested.
-double PhotometricFactor(const Context& ctx, const std::vector<StarMatch>& ms) {
+double PhotometricFactor(const Context& ctx, const ScratchVec<StarMatch>& ms) {
   if (!ctx.photometry || ms.size() < 3) return 1.0;
   Scratch& s = *ctx.s;
   const Centroid* c = ctx.c;
@@ -417,7 +426,7 @@ double PhotometricFactor(const Context& ctx, const std::vector<StarMatch>& ms) {
 // rotation, and the scale when the focal length is fitted. Returns the index into ms, or -1 when
 // every d_i / s^2 <= outlier_sigmas^2 (or too few degrees of freedom are left to tell). A match whose
 // removal leaves a direction of the fit undetermined cannot be tested.
-int WorstOutlier(const Context& ctx, const IdentifyOptions& o, const std::vector<StarMatch>& ms, const Camera& cam,
+int WorstOutlier(const Context& ctx, const IdentifyOptions& o, const ScratchVec<StarMatch>& ms, const Camera& cam,
                  const Mat3& r, bool fit_scale) {
   const int np = fit_scale ? 4 : 3;
   const int dof_without = 2 * (static_cast<int>(ms.size()) - 1) - np;
@@ -430,7 +439,7 @@ int WorstOutlier(const Context& ctx, const IdentifyOptions& o, const std::vector
   const Eigen::LDLT<MatP> ldlt(h);
   const VecP dx = ldlt.solve(f.g.head(np));  // to the linearised optimum (r may be an SVD fit)
   if (!dx.allFinite()) return -1;
-  std::vector<Vec2>& e = ctx.s->resid;
+  auto& e = ctx.s->resid;
   e.assign(ms.size(), Vec2::Zero());
   double chi2 = 0;
   for (size_t i = 0; i < ms.size(); ++i) {
@@ -478,7 +487,7 @@ struct Refined {
 // Fit the attitude (and the focal length when it is uncertain) to the matches in ctx.s->cur (n_cat
 // catalog stars predicted) and re-match, twice; the matches are refined in place.
 Refined Refine(const Context& ctx, Camera cam, Mat3 r, int n_cat,
-               const std::vector<char>* excluded, bool fit_scale) {
+               const ScratchVec<char>* excluded, bool fit_scale) {
   Scratch& s = *ctx.s;
   for (int pass = 0; pass < 3; ++pass) {
     if (fit_scale) {
@@ -507,7 +516,7 @@ bool Usable(const Centroid& c) {
 // The usable centroids (finite position and flux, sigma >= 0) into the workspace in input order, at
 // most max_centroids: then the brightest (ties: the first). Counts and flags go to *out.
 void TakeCentroids(const Centroid* c, size_t n, Scratch* s, Identification* out) {
-  std::vector<int>& kept = s->input_index;
+  auto& kept = s->input_index;
   kept.clear();
   // Brighter first, then earlier: the order MakeContext sorts by.
   auto before = [c](int a, int b) { return c[a].flux > c[b].flux || (c[a].flux == c[b].flux && a < b); };
@@ -546,7 +555,7 @@ Context MakeContext(const StarIdentifier* id, const CatalogIndex* index, Scratch
   ctx.index = index;
   ctx.s = s;
   ctx.report = report;
-  const std::vector<Centroid>& c = s->centroids;
+  const auto& c = s->centroids;
   ctx.c = c.data();
   ctx.n = static_cast<int>(c.size());
   // Brightest first, ties in input order (a stable sort, without its buffer).
@@ -594,7 +603,7 @@ void CheckCentroids(const std::vector<Centroid>& c) {
 
 // *out emptied for a new call, keeping the room of its matches and message.
 void Reset(Identification* out) {
-  std::vector<StarMatch> matches = std::move(out->matches);
+  ScratchVec<StarMatch> matches = std::move(out->matches);
   std::string message = std::move(out->message);
   std::map<std::string, double> timing = std::move(out->timing_ms);
   matches.clear();
@@ -709,14 +718,14 @@ bool SearchedCamera(const Camera& camera_in, const IdentifyOptions& o, const Sol
 
 // Angles between the k_pat brightest centroids (row-major k_pat x k_pat, in ctx.s->ang), once: a deep
 // search forms each pair's side in many triangles.
-const std::vector<double>& PatternAngles(const Context& ctx, const Camera& camera, int k_pat) {
-  std::vector<Vec3>& u = ctx.s->unit;
+const ScratchVec<double>& PatternAngles(const Context& ctx, const Camera& camera, int k_pat) {
+  auto& u = ctx.s->unit;
   u.resize(k_pat);
   for (int i = 0; i < k_pat; ++i) {
     const Centroid& c = ctx.c[ctx.order[i]];
     u[i] = camera.Unproject(Vec2(c.x_px, c.y_px));
   }
-  std::vector<double>& ang = ctx.s->ang;
+  auto& ang = ctx.s->ang;
   ang.assign(static_cast<size_t>(k_pat) * k_pat, 0.0);
   for (int i = 0; i < k_pat; ++i)
     for (int j = i + 1; j < k_pat; ++j) ang[i * k_pat + j] = ang[j * k_pat + i] = Angle(u[i], u[j]);
@@ -790,13 +799,13 @@ bool FinishHypothesis(const Context& ctx, const IdentifyOptions& o, const Camera
                       const HypothesisTest& ht, const ChanceTerms& ct, bool focal_searched, bool diagnostics,
                       Identification* out) {
   Scratch& s = *ctx.s;
-  const std::vector<StarMatch>& ht_matches = s.test;  // the test's: the triangle's three, then the extras
+  const ScratchVec<StarMatch>& ht_matches = s.test;  // the test's: the triangle's three, then the extras
   s.test_extras.clear();  // centroids of the test's extra matches (its evidence)
   for (size_t i = 3; i < ht_matches.size(); ++i) s.test_extras.push_back(ht_matches[i].centroid);
   s.cur.assign(ht_matches.begin(), ht_matches.end());
   bool fit_scale = focal_searched;
   Refined rf = Refine(ctx, cam, rot, ht.n_cat, nullptr, fit_scale);
-  std::vector<char>& excluded = s.excluded;
+  auto& excluded = s.excluded;
   excluded.assign(ctx.n, 0);
   int rejected = 0, lost_evidence = 0;
   auto leave_out_outliers = [&] {
@@ -870,7 +879,7 @@ bool FinishHypothesis(const Context& ctx, const IdentifyOptions& o, const Camera
 }  // namespace
 
 IdentifyWorkspace::IdentifyWorkspace(int max_centroids, int max_stars_in_field, int max_pattern_centroids,
-                                     int max_verify_centroids) {
+                                     int max_verify_centroids, std::pmr::memory_resource* mr) {
   auto bad = [](const std::string& f, const std::string& w) { throw InputError("identify workspace", f + " " + w); };
   if (max_centroids < 1 || max_centroids > 100000) bad("max_centroids", "must be in [1, 100000]");
   if (max_stars_in_field < 1 || max_stars_in_field > 1000000) bad("max_stars_in_field", "must be in [1, 1000000]");
@@ -878,10 +887,12 @@ IdentifyWorkspace::IdentifyWorkspace(int max_centroids, int max_stars_in_field, 
   if (max_verify_centroids < 3 || max_verify_centroids > 100000) bad("max_verify_centroids", "must be in [3, 100000]");
   if (static_cast<double>(std::min(max_centroids, max_verify_centroids)) * max_stars_in_field * sizeof(Cand) > 1e9)
     bad("max_verify_centroids x max_stars_in_field", "needs more than 1 GB of match candidates");
-  s_ = std::make_unique<Scratch>(max_centroids, max_stars_in_field, max_pattern_centroids, max_verify_centroids, false);
+  s_ = MakeInResource<Scratch>(mr, max_centroids, max_stars_in_field, max_pattern_centroids, max_verify_centroids, false,
+                              mr);
 }
 
-IdentifyWorkspace::IdentifyWorkspace() : s_(std::make_unique<Scratch>(0, 0, 0, 0, true)) {}
+IdentifyWorkspace::IdentifyWorkspace()
+    : s_(MakeInResource<Scratch>(std::pmr::get_default_resource(), 0, 0, 0, 0, true, std::pmr::get_default_resource())) {}
 IdentifyWorkspace::~IdentifyWorkspace() = default;
 IdentifyWorkspace::IdentifyWorkspace(IdentifyWorkspace&&) noexcept = default;
 IdentifyWorkspace& IdentifyWorkspace::operator=(IdentifyWorkspace&&) noexcept = default;
@@ -963,7 +974,7 @@ SolveStatus StarIdentifier::Identify(const Centroid* centroids, size_t n_centroi
     k_pat = static_cast<int>(sc.max_pattern);
     out->centroids_clamped = true;
   }
-  const std::vector<double>& ang = PatternAngles(ctx, camera, k_pat);
+  const auto& ang = PatternAngles(ctx, camera, k_pat);
   // Side tolerances hold along both axes; angles are at the nominal focal length (the side checks
   // against the catalog, in true angles, are then looser by the scale at most).
   const double f = camera.FocalMinPx();

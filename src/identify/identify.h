@@ -32,6 +32,7 @@
 #include <string>
 #include <vector>
 
+#include "core/arena.h"
 #include "core/camera.h"
 #include "core/types.h"
 #include "identify/solve_status.h"
@@ -165,7 +166,7 @@ struct Identification {
   double false_match_probability = 1.0;
   // The photometric factor in false_match_probability (2 / (1 + E), docs/identify.md step 5); 1 = not used.
   double photometric_factor = 1.0;
-  std::vector<StarMatch> matches;
+  ScratchVec<StarMatch> matches;  // (ScratchVec: the flight core's in the caller's memory, core/arena.h)
   int hypotheses = 0;  // hypotheses counted against max_hypotheses (the accepted one's index h when solved)
   int patterns = 0;    // centroid triangles looked up in the pattern index (against max_patterns)
   SearchStop stop = SearchStop::kNone;
@@ -193,8 +194,9 @@ struct IdentifyWorkspace {
   // [1, 1000000], max_pattern_centroids in [3, 1000]).
   // max_verify_centroids: room for IdentifyOptions::verify_centroids (more: that many used, flagged
   // centroids_clamped); the match candidates take min(max_centroids, it) x max_stars_in_field x 16 bytes.
+  // Every buffer comes from `mr` (the heap by default; the flight core's arena, core/arena.h).
   IdentifyWorkspace(int max_centroids, int max_stars_in_field, int max_pattern_centroids = 100,
-                    int max_verify_centroids = 150);
+                    int max_verify_centroids = 150, std::pmr::memory_resource* mr = std::pmr::get_default_resource());
   ~IdentifyWorkspace();
   IdentifyWorkspace(IdentifyWorkspace&&) noexcept;
   IdentifyWorkspace& operator=(IdentifyWorkspace&&) noexcept;
@@ -215,7 +217,7 @@ struct IdentifyWorkspace {
  private:
   friend class StarIdentifier;
   IdentifyWorkspace();  // the by-value forms': no sizes, buffers that grow as needed
-  std::unique_ptr<Scratch> s_;
+  ResourcePtr<Scratch> s_;
 };
 
 // `camera` with the focal lengths that `id` used (fitted when the focal length is searched); the aspect is kept.

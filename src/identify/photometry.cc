@@ -36,7 +36,7 @@ double Harmonic(double t) {
 // keep the sum of squares <= q at the third form the interval (z_i + z_j) / 2 +- sqrt(1.5 q - 0.75
 // (z_i - z_j)^2), one range of the sorted list. Returns p and T.
 std::pair<double, double> TriangleZeroPointP(const double* pair_flux, const double* pair_mag,
-                                             const std::vector<double>& ln_brighter) {
+                                             const ScratchVec<double>& ln_brighter) {
   const double k_mag = 0.4 * std::log(10.0);
   double z[3], c[3];
   int faintest = 0;
@@ -72,7 +72,7 @@ std::pair<double, double> TriangleZeroPointP(const double* pair_flux, const doub
 
 // PhotometricEvidence over n pairs and n_other other fluxes, with scratch vectors for the zero points.
 double PhotometricEvidenceOf(const double* pair_flux, const double* pair_mag, size_t n, const double* other_flux,
-                             size_t n_other, std::vector<double>* zp, std::vector<double>* z) {
+                             size_t n_other, ScratchVec<double>* zp, ScratchVec<double>* z) {
   // The triangle: e = 1 / (p H_T), T = 3 (c-1)(c-2) ordered triples (TriangleZeroPointP): p is
   // (super-)uniform on {1/T, ..., 1}, so E[1/p] <= H_T and the mean of e is at most 1. The brighter
   // ones: the verification centroids at least as bright as the triangle's faintest, less that vertex.
@@ -124,7 +124,7 @@ double PhotometricEvidence(const std::vector<double>& pair_flux, const std::vect
                            const std::vector<double>& other_flux) {
   if (pair_flux.size() < 3 || pair_flux.size() != pair_mag.size())
     throw InputError("photometry", "need >= 3 pairs with a magnitude each");
-  std::vector<double> zp, z;
+  ScratchVec<double> zp, z;
   return identify_internal::PhotometricEvidenceOf(pair_flux.data(), pair_mag.data(), pair_flux.size(),
                                                   other_flux.data(), other_flux.size(), &zp, &z);
 }

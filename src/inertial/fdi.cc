@@ -81,7 +81,8 @@ Json FaultEvent::ToJson() const {
 }
 
 ParityMonitor::ParityMonitor(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& sigma_dph, double dt_s,
-                             const FdiOptions& options) {
+                             const FdiOptions& options, std::pmr::memory_resource* mr)
+    : ParityMonitor(mr) {
   Reset(axes, use, sigma_dph, dt_s, options);
 }
 
@@ -89,12 +90,13 @@ void ParityMonitor::Reset(const GyroAxes& axes, const std::vector<bool>& use, co
                           const FdiOptions& options) {
   // Every member back to its initial value, the buffers kept (their capacity is the point: after the
   // first construction a reset on the per-sample path allocates nothing).
-  std::vector<GyroVec> ring = std::move(ring_), short_ring = std::move(short_ring_);
-  std::vector<std::pair<double, GyroVec>> hist = std::move(hist_);
-  std::vector<int> hyp_gyro = std::move(hyp_gyro_);
-  std::vector<GyroVec> hyp_w = std::move(hyp_w_);
-  std::vector<double> hyp_k = std::move(hyp_k_), hyp_h = std::move(hyp_h_), s = std::move(s_),
-                      s_zero_t = std::move(s_zero_t_);
+  // (A move keeps a buffer's memory resource, and so does the assignment of a fresh monitor.)
+  ScratchVec<GyroVec> ring = std::move(ring_), short_ring = std::move(short_ring_);
+  ScratchVec<std::pair<double, GyroVec>> hist = std::move(hist_);
+  ScratchVec<int> hyp_gyro = std::move(hyp_gyro_);
+  ScratchVec<GyroVec> hyp_w = std::move(hyp_w_);
+  ScratchVec<double> hyp_k = std::move(hyp_k_), hyp_h = std::move(hyp_h_), s = std::move(s_),
+                     s_zero_t = std::move(s_zero_t_);
   *this = ParityMonitor();
   ring_ = std::move(ring);
   short_ring_ = std::move(short_ring);
@@ -314,13 +316,14 @@ GyroVec ParityMonitor::StepEstimate(double* age_s) const {
 }
 
 StarRateIsolator::StarRateIsolator(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& correction_dph,
-                                   int max_points) {
+                                   int max_points, std::pmr::memory_resource* mr)
+    : StarRateIsolator(mr) {
   points_.resize(static_cast<size_t>(std::max(1, max_points)));
   Reset(axes, use, correction_dph);
 }
 
 void StarRateIsolator::Reset(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& correction_dph) {
-  std::vector<Point> points = std::move(points_);
+  ScratchVec<Point> points = std::move(points_);
   std::vector<bool> use_kept = std::move(use_);
   *this = StarRateIsolator();
   points_ = std::move(points);

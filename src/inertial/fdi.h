@@ -25,6 +25,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/arena.h"
 #include "core/json.h"
 #include "inertial/gyro_unit.h"
 
@@ -81,10 +82,13 @@ struct FaultEvent {
 // Short-window parity mean against a tracked baseline.
 class ParityMonitor {
  public:
-  ParityMonitor() = default;
+  // The buffers come from `mr` (the heap by default; the flight core's arena, core/arena.h).
+  explicit ParityMonitor(std::pmr::memory_resource* mr = std::pmr::get_default_resource())
+      : ring_(mr), hyp_gyro_(mr), hyp_w_(mr), hyp_k_(mr), hyp_h_(mr), s_(mr), s_zero_t_(mr), hist_(mr),
+        short_ring_(mr) {}
   // `use`: gyros in service; `sigma_dph`: per-sample white noise of each gyro (deg/h).
   ParityMonitor(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& sigma_dph, double dt_s,
-                const FdiOptions& options);
+                const FdiOptions& options, std::pmr::memory_resource* mr = std::pmr::get_default_resource());
   // Starts over as a monitor of `use` (after an isolation), in the buffers it already has: with the
   // same dt_s and options as at construction it allocates nothing.
   void Reset(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& sigma_dph, double dt_s,
@@ -134,7 +138,7 @@ class ParityMonitor {
   GyroParity cov_window_inv_;  // inverse covariance of a window mean
   int window_n_ = 1;
   double dt_ = 0.01;
-  std::vector<GyroVec> ring_;
+  ScratchVec<GyroVec> ring_;
   int ring_pos_ = 0, ring_count_ = 0;
   GyroVec sum_, baseline_, jump_;
   double t_first_ = 0;
@@ -145,19 +149,19 @@ class ParityMonitor {
   GyroVec warm_mean_;     // running mean and sum of squared deviations of the warm-up parity, for C
   GyroParity warm_m2_;    // (Welford 1962: no store of the samples)
   GyroParity c_inv_;      // inverse noise covariance of one parity sample
-  std::vector<int> hyp_gyro_;          // gyro of each mean hypothesis
-  std::vector<GyroVec> hyp_w_;         // f * C^-1 d_i (signed)
-  std::vector<double> hyp_k_;          // f^2 d_i' C^-1 d_i / 2
-  std::vector<double> hyp_h_;          // threshold of each
-  std::vector<double> s_, s_zero_t_;   // statistics and the time each last sat at zero
+  ScratchVec<int> hyp_gyro_;          // gyro of each mean hypothesis
+  ScratchVec<GyroVec> hyp_w_;         // f * C^-1 d_i (signed)
+  ScratchVec<double> hyp_k_;          // f^2 d_i' C^-1 d_i / 2
+  ScratchVec<double> hyp_h_;          // threshold of each
+  ScratchVec<double> s_, s_zero_t_;   // statistics and the time each last sat at zero
   double s_noise_ = 0, noise_zero_t_ = 0, h_ = 0;
   std::string alarm_test_;
   GyroVec inherited_;
   bool has_inherited_ = false;
   double onset_s_ = 0;
-  std::vector<std::pair<double, GyroVec>> hist_;  // (t, e) over the last hist_n_ samples
+  ScratchVec<std::pair<double, GyroVec>> hist_;  // (t, e) over the last hist_n_ samples
   int hist_pos_ = 0, hist_n_ = 1;
-  std::vector<GyroVec> short_ring_;
+  ScratchVec<GyroVec> short_ring_;
   int short_pos_ = 0, short_n_ = 1, short_count_ = 0;
   GyroVec short_sum_, short_mean_;
   double short_sigma_ = 0;
@@ -175,10 +179,10 @@ struct FaultFit {
 // consecutive star samples; residual = gyro angle - axis . star rotation.
 class StarRateIsolator {
  public:
-  StarRateIsolator() = default;
+  explicit StarRateIsolator(std::pmr::memory_resource* mr = std::pmr::get_default_resource()) : points_(mr) {}
   // Keeps at most max_points star samples (the oldest go first; FitFault then sees less history).
   StarRateIsolator(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& correction_dph,
-                   int max_points = kDefaultMaxPoints);
+                   int max_points = kDefaultMaxPoints, std::pmr::memory_resource* mr = std::pmr::get_default_resource());
   static constexpr int kDefaultMaxPoints = 4096;
   // Starts over (a new fault) in the storage it has: allocates nothing when `use` has the size it had.
   void Reset(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& correction_dph);
@@ -226,7 +230,7 @@ class StarRateIsolator {
     Mat3 r_body;
   };
   const Point& point(int k) const { return points_[(first_point_ + k) % points_.size()]; }
-  std::vector<Point> points_;  // ring of max_points: n_points_ from first_point_ on
+  ScratchVec<Point> points_;  // ring of max_points: n_points_ from first_point_ on
   int first_point_ = 0, n_points_ = 0;
   long n_dropped_ = 0;
   GyroVec chain_angle_rad_;

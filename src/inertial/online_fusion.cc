@@ -60,7 +60,8 @@ const char* RestartReasonName(RestartReason r) {
   return "none";
 }
 
-OnlineFusion::OnlineFusion(const GyroUnit& unit, const FuseOptions& options) : unit_(unit), opt_(options) {
+OnlineFusion::OnlineFusion(const GyroUnit& unit, const FuseOptions& options, std::pmr::memory_resource* mr)
+    : unit_(unit), opt_(options), monitor_(mr), isolator_(mr), tracker_(mr), bias_history_(mr) {
   opt_.Check();
   unit_.Check("unit");
   const int n = unit_.size();
@@ -74,10 +75,10 @@ OnlineFusion::OnlineFusion(const GyroUnit& unit, const FuseOptions& options) : u
   dt_nominal_ = 1.0 / unit_.rate_hz;
   sample_sigma_dph_ = arw_ * (60.0 / std::sqrt(dt_nominal_));  // deg/sqrt(h) -> deg/h per sample
   fdi_on_ = opt_.fdi && n >= 4;
-  if (fdi_on_) monitor_ = ParityMonitor(axes_, use_, sample_sigma_dph_, dt_nominal_, opt_.fdi_options);
+  if (fdi_on_) monitor_ = ParityMonitor(axes_, use_, sample_sigma_dph_, dt_nominal_, opt_.fdi_options, mr);
   // Everything the per-sample calls may need, allocated now (online_fusion.h "Flight rules").
   use_scratch_ = use_;
-  isolator_ = StarRateIsolator(axes_, use_, correction_, opt_.policy.max_star_samples_kept);
+  isolator_ = StarRateIsolator(axes_, use_, correction_, opt_.policy.max_star_samples_kept, mr);
   tracker_ = isolator_;
   const size_t n_events = static_cast<size_t>(opt_.policy.max_fault_events);
   faults_.reserve(n_events);

@@ -67,8 +67,10 @@ inline std::ostream& operator<<(std::ostream& os, RestartReason v) { return os <
 class OnlineFusion {
  public:
   // Raw gyro outputs of `unit` (its size, axes and noise figures; the sample interval is
-  // 1 / unit.rate_hz). InputError for a bad unit or bad options.
-  OnlineFusion(const GyroUnit& unit, const FuseOptions& options);
+  // 1 / unit.rate_hz). InputError for a bad unit or bad options. The fault monitors' and the bias
+  // history's buffers come from `mr` (the heap by default; the flight core's arena, core/arena.h).
+  OnlineFusion(const GyroUnit& unit, const FuseOptions& options,
+               std::pmr::memory_resource* mr = std::pmr::get_default_resource());
 
   // One gyro sample: the mean outputs (deg/h) over (t_prev, t_s]. Kept as the latest rate but not
   // propagated before the first attitude measurement (nothing to start from) and when not later than
@@ -180,7 +182,7 @@ class OnlineFusion {
   double t_last_accepted_ = 0;
   double t_settled_ = -1;  // degraded until then after an isolation (the filter re-converging)
   // (t, bias rad/s), one per accepted update: a ring of policy.bias_history_max, n_bias_ from bias_first_.
-  std::vector<std::pair<double, Vec3>> bias_history_;
+  ScratchVec<std::pair<double, Vec3>> bias_history_;
   size_t bias_first_ = 0, n_bias_ = 0;
   const std::pair<double, Vec3>& bias_entry(size_t k) const {
     return bias_history_[(bias_first_ + k) % bias_history_.size()];

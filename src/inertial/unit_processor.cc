@@ -55,7 +55,42 @@ class Stopwatch {
   Clock::time_point t0_;
 };
 
+// The per-frame outputs in `mr` with the room a call may fill: the detection lists and each head's
+// matches (the processor's, made after its workspaces).
+void ReserveOutputs(const DetectWorkspace& detect, const IdentifyWorkspace& identify, std::pmr::memory_resource* mr,
+                    Detections* detections, std::vector<Identification>* ids) {
+  UseResource(&detections->stars, mr);
+  UseResource(&detections->rejected, mr);
+  detect.Reserve(detections);
+  for (auto& id : *ids) {
+    UseResource(&id.matches, mr);
+    identify.Reserve(&id);
+  }
+}
+
+IdentifyWorkspace MakeIdentifyWorkspace(const UnitProcessorOptions& o, std::pmr::memory_resource* mr) {
+  return IdentifyWorkspace(std::max(1, o.solve.detect.max_stars), std::max(1, o.max_stars_in_field),
+                           std::clamp(o.solve.identify.pattern_centroids, 3, 1000),
+                           std::clamp(o.solve.identify.verify_centroids, 3, 100000), mr);
+}
+
 }  // namespace
+
+size_t UnitProcessor::WorkspaceBytes(const std::vector<OpticalHead>& heads, const GyroUnit& unit,
+                                     const UnitProcessorOptions& options) {
+  options.Check();
+  // The constructor's order (the members' declaration order), so that the alignment gaps are the same.
+  Arena meter = Arena::Meter();
+  {
+    const DetectWorkspace detect(ProcessorDetectLimits(heads, options), &meter);
+    const IdentifyWorkspace identify = MakeIdentifyWorkspace(options, &meter);
+    const OnlineFusion fusion(unit, options.fuse, &meter);
+    Detections detections;
+    std::vector<Identification> ids(heads.size());
+    ReserveOutputs(detect, identify, &meter, &detections, &ids);
+  }
+  return meter.used();
+}
 
 void UnitProcessorOptions::Check() const {
   solve.Check();
@@ -76,15 +111,13 @@ void UnitProcessorOptions::Check() const {
 
 UnitProcessor::UnitProcessor(std::vector<OpticalHead> heads,
                              std::vector<std::shared_ptr<const StarIdentifier>> identifiers, const GyroUnit& unit,
-                             const UnitProcessorOptions& options)
+                             const UnitProcessorOptions& options, std::pmr::memory_resource* mr)
     : heads_(std::move(heads)),
       ids_(std::move(identifiers)),
-      detect_ws_(ProcessorDetectLimits(heads_, options)),
-      identify_ws_(std::max(1, options.solve.detect.max_stars), std::max(1, options.max_stars_in_field),
-                   std::clamp(options.solve.identify.pattern_centroids, 3, 1000),
-                   std::clamp(options.solve.identify.verify_centroids, 3, 100000)),
+      detect_ws_(ProcessorDetectLimits(heads_, options), mr),
+      identify_ws_(MakeIdentifyWorkspace(options, mr)),
       options_(options),
-      fusion_(unit, options.fuse) {
+      fusion_(unit, options.fuse, mr) {
   options_.Check();
   if (heads_.empty() || heads_.size() > static_cast<size_t>(kMaxHeads)) {
     throw InputError("heads", "the unit has 1 to 3 optical heads, not " + std::to_string(heads_.size()));
@@ -97,9 +130,8 @@ UnitProcessor::UnitProcessor(std::vector<OpticalHead> heads,
     mounts_.push_back(heads_[h].q_body_from_sensor);
   }
   ids_scratch_.resize(heads_.size());
-  detect_ws_.Reserve(&detections_);
+  ReserveOutputs(detect_ws_, identify_ws_, mr, &detections_, &ids_scratch_);
   identify_ws_.diagnostics = options_.diagnostics;
-  for (auto& id : ids_scratch_) identify_ws_.Reserve(&id);
   centroids_.reserve(static_cast<size_t>(detect_ws_.limits().max_detections));
 }
 

@@ -116,8 +116,16 @@ class UnitProcessor {
  public:
   // One identifier per head (heads with the same camera may share one). InputError for 0 or more than
   // 3 heads, a missing identifier, a bad camera, unit or options.
+  // The workspaces (detection, identification, the fusion's fault monitors and histories: nearly all
+  // the memory) come from `mr`: the heap by default, the caller's block in the flight core (an Arena,
+  // core/arena.h; WorkspaceBytes says how large).
   UnitProcessor(std::vector<OpticalHead> heads, std::vector<std::shared_ptr<const StarIdentifier>> identifiers,
-                const GyroUnit& unit, const UnitProcessorOptions& options);
+                const GyroUnit& unit, const UnitProcessorOptions& options,
+                std::pmr::memory_resource* mr = std::pmr::get_default_resource());
+  // Bytes of an Arena that holds the workspaces of a processor made with these arguments (measured by
+  // making them once on the heap: for start-up, not the rate group). InputError as the constructor.
+  static size_t WorkspaceBytes(const std::vector<OpticalHead>& heads, const GyroUnit& unit,
+                               const UnitProcessorOptions& options);
 
   // A gyro sample: the outputs g1..gN (deg/h), mean over (t_prev, t_s], in time order. What became of
   // it is the status (OnlineFusion::AddGyro); allocates nothing.

@@ -20,6 +20,7 @@
 #include "flight/flight_config.h"
 #include "flight/ssiu_flight.h"
 #include "identify/star_catalog.h"
+#include "inertial/unit_processor.h"
 #include "sim/mission.h"
 #include "testing/alloc_count.h"
 #include "testing/testing.h"
@@ -242,6 +243,59 @@ TEST(FlightAllocation, CatalogBlobIsSearchedWhereItLies) {
   ssiu_flight_shutdown(a);
   ssiu_flight_shutdown(b);
   munmap(rom, rom_bytes);
+}
+
+// The workspaces (detection, identification, the fusion's fault monitors: nearly all the memory) are
+// placed in the caller's block, whose size ssiu_flight_memory_bytes gives exactly: a block 16 bytes
+// short is refused (SSIU_ERR_MEMORY, the handle's text names it) and the heap at init is a small part
+// of what the same processor takes when made on the heap. (The C handle gives the C++ processor's
+// answers: FlightInterface.SameAnswersAsTheProcessorAndNearTheTruth.)
+TEST(FlightAllocation, WorkspacesLiveInTheCallersMemory) {
+  MissionConfig config = WithUnitKnowledge(DefaultMissionConfig());
+  const std::string blob = SolverCatalogBytes(MakeIdentifierForCamera("", config.heads[0].camera, 0.0).catalog());
+  ssiu_flight_config c =
+      FlightConfigFor(config.heads, config.unit, config.processor, config.start_utc, config.velocity_kms);
+  c.catalog_crc32 = Crc32(blob.data(), blob.size());
+  const FlightSetup setup = FlightSetupFrom(c);
+  const auto id = std::make_shared<const StarIdentifier>(
+      ParseSolverCatalog(blob.data(), blob.size(), "blob", /*star_tree=*/false, /*in_place=*/true));
+  testing::AllocationCounter n;
+  long processor_heap = 0;
+  {
+    const UnitProcessor p(setup.heads, std::vector<std::shared_ptr<const StarIdentifier>>(setup.heads.size(), id),
+                          setup.unit, setup.options);
+    processor_heap = n.Bytes();
+  }
+  const size_t need = ssiu_flight_memory_bytes(&c);
+  ASSERT_GT(need, 0u);
+  std::vector<Block16> memory(need / sizeof(Block16) + 1);
+  ssiu_flight* f = nullptr;
+  EXPECT_EQ(ssiu_flight_init(&c, blob.data(), blob.size(), memory.data(), need - 16, &f), SSIU_ERR_MEMORY);
+  EXPECT_EQ(f, nullptr);
+  EXPECT_NE(std::strstr(reinterpret_cast<const char*>(memory.data()), "memory"), nullptr)
+      << reinterpret_cast<const char*>(memory.data());
+  n.Reset();
+  ASSERT_EQ(ssiu_flight_init(&c, blob.data(), blob.size(), memory.data(), need, &f), SSIU_OK)
+      << reinterpret_cast<const char*>(memory.data());
+  const long init_heap = n.Bytes();
+  std::printf("caller's block %zu bytes; heap at init %ld bytes in %ld allocations; the processor on the heap %ld bytes\n",
+              need, init_heap, n.Count(), processor_heap);
+  EXPECT_GT(static_cast<double>(need), 0.8 * static_cast<double>(processor_heap));
+  EXPECT_LT(static_cast<double>(init_heap), 0.01 * static_cast<double>(processor_heap));
+  // It runs: a lost-in-space frame set of a simulated sky solves on both heads.
+  const MissionData data = SimulateMission(config);
+  std::vector<Image16> images(config.heads.size());
+  std::vector<ssiu_frame> views(config.heads.size());
+  for (size_t h = 0; h < config.heads.size(); ++h) {
+    images[h] = SimulateMissionFrame(config, data, testing::Bsc(), 0, static_cast<int>(h)).image;
+    views[h] = ssiu_frame{images[h].pixels.data(), images[h].width, images[h].height, 0};
+  }
+  ssiu_frame_report r;
+  n.Reset();
+  ASSERT_EQ(ssiu_flight_frames(f, data.frame_t_s[0], views.data(), c.n_heads, &r), SSIU_OK);
+  EXPECT_EQ(n.Count(), 0);
+  EXPECT_EQ(r.heads_solved, c.n_heads);
+  ssiu_flight_shutdown(f);
 }
 
 }  // namespace

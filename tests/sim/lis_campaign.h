@@ -49,7 +49,7 @@ inline bool IsWrong(const SolveResult& r, const Quat& truth) {
 }
 
 // Matches whose catalog star is the scene's truth for that centroid.
-inline int RightMatches(const SimulatedScene& s, const std::vector<StarMatch>& matches) {
+inline int RightMatches(const SimulatedScene& s, const ScratchVec<StarMatch>& matches) {
   int n = 0;
   for (const auto& m : matches) n += s.star_id[m.centroid] == m.star_id;
   return n;
