@@ -642,6 +642,20 @@ SolverCatalog ParseCatalog(const MappedFile& bin, const Json& meta, const std::s
 
 }  // namespace
 
+const char* CatalogDirStateName(CatalogDirState s) {
+  switch (s) {
+    case CatalogDirState::kAbsent:
+      return "absent";
+    case CatalogDirState::kIncomplete:
+      return "incomplete";
+    case CatalogDirState::kDamaged:
+      return "damaged";
+    case CatalogDirState::kOk:
+      return "ok";
+  }
+  return "absent";
+}
+
 CatalogDirState CheckCatalogDir(const std::string& dir, std::string* why) {
   std::unique_ptr<MappedFile> bin;
   Json meta;

@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <initializer_list>
 #include <memory>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -191,6 +192,8 @@ SolverCatalog ParseSolverCatalog(const void* data, size_t bytes, const std::stri
                                  bool in_place = false);
 
 enum class CatalogDirState { kAbsent, kIncomplete, kDamaged, kOk };
+const char* CatalogDirStateName(CatalogDirState s);  // "absent", "incomplete", "damaged", "ok"
+inline std::ostream& operator<<(std::ostream& os, CatalogDirState v) { return os << CatalogDirStateName(v); }
 // Checks a catalog directory against its meta.json without parsing it; `why` says what is wrong.
 CatalogDirState CheckCatalogDir(const std::string& dir, std::string* why = nullptr);
 

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <map>
 #include <memory>
@@ -82,7 +83,12 @@ inline CampaignStats RunCampaign(int n_frames, uint64_t seed0) {
     }
     ++st.solved;
     const Quat qe = r.attitude.q_inertial_from_sensor;
-    if (AttitudeErrorRad(qe, q) * kRadToArcsec > 60) ++st.wrong;
+    if (const double err_arcsec = AttitudeErrorRad(qe, q) * kRadToArcsec; err_arcsec > 60) {
+      ++st.wrong;
+      std::printf("wrong: seed %llu, %.1f deg, %.0f arcsec off, %zu matches, focal length refined %d\n",
+                  static_cast<unsigned long long>(seed), fov, err_arcsec, r.identification.matches.size(),
+                  static_cast<int>(r.identification.focal_length_refined));
+    }
     if (fov == 16.6) st.cross_arcsec_166.push_back(SplitAttitudeError(qe, q).cross_rad * kRadToArcsec);
     Quat d = q.conjugate() * qe;
     if (d.w() < 0) d.coeffs() = -d.coeffs();

@@ -5,6 +5,7 @@
 
 #include "identify/identify.h"
 #include "identify/solve_status.h"
+#include "identify/star_catalog.h"
 
 namespace ssiu {
 namespace {
@@ -19,6 +20,14 @@ TEST(StatusPrintTest, SolveStatusPrintsItsName) {
 TEST(StatusPrintTest, SearchStopPrintsItsName) {
   EXPECT_EQ(::testing::PrintToString(SearchStop::kHypothesisBudget), "hypothesis_budget");
   EXPECT_EQ(::testing::PrintToString(SearchStop::kNone), "none");
+}
+
+TEST(StatusPrintTest, CatalogDirStatePrintsItsName) {
+  EXPECT_EQ(::testing::PrintToString(CatalogDirState::kIncomplete), "incomplete");
+  for (CatalogDirState s :
+       {CatalogDirState::kAbsent, CatalogDirState::kIncomplete, CatalogDirState::kDamaged, CatalogDirState::kOk})
+    EXPECT_EQ(::testing::PrintToString(s), CatalogDirStateName(s));
+  EXPECT_NONFATAL_FAILURE(EXPECT_EQ(CatalogDirState::kDamaged, CatalogDirState::kOk), "damaged");
 }
 
 TEST(StatusPrintTest, FailureMessageNamesBothStatuses) {

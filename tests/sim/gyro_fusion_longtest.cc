@@ -31,7 +31,7 @@ McSummary RunMonteCarlo(double bias_instability_dph) {
     sc.seed = 1000 + r;
     sc.bias_instability_dph = bias_instability_dph;
     const auto s = testing::RunFusionScenario(sc, 1800.0);
-    EXPECT_EQ(s.fused.status, FuseStatus::kFused);
+    EXPECT_EQ(s.fused.status, FuseStatus::kFused) << "seed " << sc.seed;
     const size_t k30 = static_cast<size_t>(1800 * sc.rate_hz) - 1;
     for (int a = 0; a < 3; ++a) {
       const double e = s.fused.samples[k30].bias_dph[a] - s.sim.body_bias_dph[k30][a];
