@@ -199,6 +199,10 @@ AttitudeSolution SolveAttitude(const Identification& id) {
     out.covariance_rad2 = AttitudeInformationOf(EachOf(id), true).inverse();
     SetSigmas(&out);
   }
+  if (id.principal_point_refined && out.status == SolveStatus::kSolved) {
+    out.covariance_rad2 += id.principal_point_attitude_cov_rad2;
+    SetSigmas(&out);
+  }
   return out;
 }
 

@@ -409,7 +409,8 @@ void LocalMaxima(const ScoreGrid& grid, const BlobSet& bs, const Blob& b, double
 // separates them from every brighter peak (so a star beside another star or a hot pixel is not
 // lost), each moved to the brightest raw pixel next to it.
 struct PeakBuffers {
-  explicit PeakBuffers(std::pmr::memory_resource* mr = std::pmr::get_default_resource()) : grid(mr), local(mr), kept(mr) {}
+  explicit PeakBuffers(std::pmr::memory_resource* mr = std::pmr::get_default_resource())
+      : grid(mr), local(mr), kept(mr) {}
   ScoreGrid grid;
   ScratchVec<Peak> local, kept;
 };
@@ -490,7 +491,8 @@ void FindPeaks(const ImageView& img, const BackgroundGrid& bg, ScratchVec<Blob>&
 
 // Per-peak figures of step 5a.
 struct PeakShape {
-  explicit PeakShape(std::pmr::memory_resource* mr = std::pmr::get_default_resource()) : is_spike(mr), dir_ratio(mr), peak_above(mr) {}
+  explicit PeakShape(std::pmr::memory_resource* mr = std::pmr::get_default_resource())
+      : is_spike(mr), dir_ratio(mr), peak_above(mr) {}
   ScratchVec<uint8_t> is_spike;
   ScratchVec<double> dir_ratio, peak_above;
 };
@@ -580,7 +582,8 @@ void ClassifySpikes(const ImageView& img, const BackgroundGrid& bg, const Detect
 // frame full of faint structure the rest could not enter the output anyway, and each fit costs tens
 // of microseconds. `view` (the raw frame) counts saturated pixels.
 struct FitBuffers {
-  explicit FitBuffers(std::pmr::memory_resource* mr = std::pmr::get_default_resource()) : order(mr), cands(mr), scratch(mr) {}
+  explicit FitBuffers(std::pmr::memory_resource* mr = std::pmr::get_default_resource())
+      : order(mr), cands(mr), scratch(mr) {}
   ScratchVec<size_t> order;
   ScratchVec<Candidate> cands;
   PsfFitScratch scratch;
@@ -802,8 +805,21 @@ void DetectLimits::Check() const {
 
 struct DetectWorkspace::Buffers {
   explicit Buffers(std::pmr::memory_resource* mr)
-      : bg_scratch(mr), bg(mr), repaired(mr), threshold(mr), runs(mr), dead_pixels(mr), blobs(mr), peak_search(mr),
-        peaks(mr), bad(mr), shape(mr), fits(mr), bright(mr), blob_reported(mr), stars(mr) {}
+      : bg_scratch(mr),
+        bg(mr),
+        repaired(mr),
+        threshold(mr),
+        runs(mr),
+        dead_pixels(mr),
+        blobs(mr),
+        peak_search(mr),
+        peaks(mr),
+        bad(mr),
+        shape(mr),
+        fits(mr),
+        bright(mr),
+        blob_reported(mr),
+        stars(mr) {}
   BackgroundScratch bg_scratch;
   BackgroundGrid bg;
   ScratchVec<uint16_t> repaired;

@@ -128,10 +128,14 @@ bool AcrossTheField(const ScratchVec<StarMatch>& ms, const Camera& cam) {
 // The F-test of the principal point: Gauss-Newton on pixel residuals over [rotation, (scale when
 // fit_scale), cx, cy] against the fit without (cx, cy); F = (drop / 2) / (chi2_1 / nu) with
 // nu = 2n - k, whose tail for 2 numerator degrees of freedom is (1 + 2F/nu)^(-nu/2) (Abramowitz &
-// Stegun 26.6.4 with nu1 = 2). On success *cam and *r are the wider fit's and *sigma_px its (cx, cy)
-// 1-sigma; 1 when the wider fit does not lower chi2.
+// Stegun 26.6.4 with nu1 = 2). On success *cam and *r are the wider fit's, *sigma_px its (cx, cy)
+// 1-sigma and *attitude_cov_rad2 what (cx, cy) add to the attitude's covariance (sensor axes): the
+// joint fit's attitude block less the one with (cx, cy) held, a Schur complement, so positive
+// semi-definite. A shift of the principal point is nearly a rotation about the cross-boresight axes
+// (a pixel is 1/f rad), which only the perspective of a wide field tells apart: this term is most
+// of the cross-boresight uncertainty after a refit. 1 when the wider fit does not lower chi2.
 double PrincipalPointP(const ScratchVec<StarMatch>& ms, PixelSigma sigma, bool fit_scale, Camera* cam, Mat3* r,
-                       Vec2* sigma_px) {
+                       Vec2* sigma_px, Mat3* attitude_cov_rad2) {
   using Vec6 = Eigen::Matrix<double, 6, 1>;
   using Mat6 = Eigen::Matrix<double, 6, 6>;
   PixelFit fit;
@@ -185,6 +189,8 @@ double PrincipalPointP(const ScratchVec<StarMatch>& ms, PixelSigma sigma, bool f
   if (nu < 1 || !(chi2_1 > 0) || !(chi2_0 > chi2_1)) return 1.0;
   const Mat6 cov = h.ldlt().solve(Mat6::Identity());
   *sigma_px = Vec2(std::sqrt(std::max(0.0, cov(4, 4))), std::sqrt(std::max(0.0, cov(5, 5))));
+  const Eigen::Matrix4d held = h.topLeftCorner<4, 4>().ldlt().solve(Eigen::Matrix4d::Identity());
+  *attitude_cov_rad2 = cov.topLeftCorner<3, 3>() - held.topLeftCorner<3, 3>();
   *cam = c, *r = rot;
   const double f = ((chi2_0 - chi2_1) / 2) / (chi2_1 / nu);
   return std::pow(1 + 2 * f / nu, -0.5 * nu);
@@ -238,6 +244,7 @@ void RetestFocalLength(const Camera& camera, const IdentifyOptions& o, Identific
 
 void RetestPrincipalPoint(const Camera& camera, const IdentifyOptions& o, Identification* id) {
   id->principal_point_refined = false;
+  id->principal_point_attitude_cov_rad2.setZero();
   id->cx_px = id->cy_px = id->principal_point_sigma_px = id->principal_point_p_value = std::nan("");
   ScratchVec<StarMatch>& ms = id->matches;
   if (id->status != SolveStatus::kSolved || o.FocalSearched() || !(o.refine_focal_p > 0) ||
@@ -248,9 +255,12 @@ void RetestPrincipalPoint(const Camera& camera, const IdentifyOptions& o, Identi
   const PixelSigma sigma{nullptr, cam.FocalMeanPx()};  // what sigma_rad was made with
   Mat3 r = id->q_inertial_from_sensor.toRotationMatrix();
   Vec2 sigma_px = Vec2::Zero();
-  id->principal_point_p_value = PrincipalPointP(ms, sigma, id->focal_length_refined, &cam, &r, &sigma_px);
+  Mat3 attitude_cov = Mat3::Zero();
+  id->principal_point_p_value =
+      PrincipalPointP(ms, sigma, id->focal_length_refined, &cam, &r, &sigma_px, &attitude_cov);
   if (!(id->principal_point_p_value < o.refine_principal_p)) return;
   id->principal_point_refined = true;
+  id->principal_point_attitude_cov_rad2 = 0.5 * (attitude_cov + attitude_cov.transpose());
   id->cx_px = cam.cx_px, id->cy_px = cam.cy_px;
   id->principal_point_sigma_px = std::hypot(sigma_px[0], sigma_px[1]);
   id->focal_length_px = cam.focal_length_px;

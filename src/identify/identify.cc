@@ -98,9 +98,33 @@ struct IdentifyWorkspace::Scratch {
         max_stars(s),
         max_pattern(p),
         max_verify(std::min(k, v)),
-        centroids(mr), input_index(mr), order(mr), sigma_px(mr), median(mr), unit(mr), ang(mr), near(mr), pred(mr),
-        cands(mr), used_c(mr), used_p(mr), excluded(mr), test(mr), cur(mr), next(mr), kept(mr), test_extras(mr),
-        pairs(mr), fit(mr), resid(mr), flux(mr), mag(mr), other(mr), zp(mr), z(mr), used(mr) {
+        centroids(mr),
+        input_index(mr),
+        order(mr),
+        sigma_px(mr),
+        median(mr),
+        unit(mr),
+        ang(mr),
+        near(mr),
+        pred(mr),
+        cands(mr),
+        used_c(mr),
+        used_p(mr),
+        excluded(mr),
+        test(mr),
+        cur(mr),
+        next(mr),
+        kept(mr),
+        test_extras(mr),
+        pairs(mr),
+        fit(mr),
+        resid(mr),
+        flux(mr),
+        mag(mr),
+        other(mr),
+        zp(mr),
+        z(mr),
+        used(mr) {
     if (grow) return;
     for (auto* v : {&input_index, &order, &test_extras}) v->reserve(k);
     for (auto* v : {&sigma_px, &median, &flux, &mag, &other, &zp, &z}) v->reserve(k);
@@ -365,18 +389,15 @@ Mat3 SvdFromMatches(const Context& ctx, const ScratchVec<StarMatch>& ms) {
   return SolveWahbaSvd(pairs.data(), pairs.size()).toRotationMatrix();
 }
 
-
 // The pixel fit of the matches with the workspace's sigmas, in ctx.s->fit.
 const PixelFit& Linearize(const Context& ctx, const ScratchVec<StarMatch>& ms, const Camera& cam, const Mat3& r) {
   return LinearizeInto(ms, cam, r, {ctx.sigma_px, 0}, &ctx.s->fit);
 }
 
-
 // The rotation and the scale, with the workspace's sigmas.
 void RefineFocal(const Context& ctx, const ScratchVec<StarMatch>& ms, Camera* cam, Mat3* r) {
   if (ms.size() >= 4) PixelGaussNewton(ms, {ctx.sigma_px, 0}, &ctx.s->fit, true, cam, r);
 }
-
 
 // Photometric evidence (docs/identify.md, step 5). Under the null hypothesis (a chance match) the
 // fluxes are independent of the positions, so given the positions (which alone chose the hypothesis
@@ -486,8 +507,7 @@ struct Refined {
 
 // Fit the attitude (and the focal length when it is uncertain) to the matches in ctx.s->cur (n_cat
 // catalog stars predicted) and re-match, twice; the matches are refined in place.
-Refined Refine(const Context& ctx, Camera cam, Mat3 r, int n_cat,
-               const ScratchVec<char>* excluded, bool fit_scale) {
+Refined Refine(const Context& ctx, Camera cam, Mat3 r, int n_cat, const ScratchVec<char>* excluded, bool fit_scale) {
   Scratch& s = *ctx.s;
   for (int pass = 0; pass < 3; ++pass) {
     if (fit_scale) {
@@ -887,12 +907,13 @@ IdentifyWorkspace::IdentifyWorkspace(int max_centroids, int max_stars_in_field, 
   if (max_verify_centroids < 3 || max_verify_centroids > 100000) bad("max_verify_centroids", "must be in [3, 100000]");
   if (static_cast<double>(std::min(max_centroids, max_verify_centroids)) * max_stars_in_field * sizeof(Cand) > 1e9)
     bad("max_verify_centroids x max_stars_in_field", "needs more than 1 GB of match candidates");
-  s_ = MakeInResource<Scratch>(mr, max_centroids, max_stars_in_field, max_pattern_centroids, max_verify_centroids, false,
-                              mr);
+  s_ = MakeInResource<Scratch>(mr, max_centroids, max_stars_in_field, max_pattern_centroids, max_verify_centroids,
+                               false, mr);
 }
 
 IdentifyWorkspace::IdentifyWorkspace()
-    : s_(MakeInResource<Scratch>(std::pmr::get_default_resource(), 0, 0, 0, 0, true, std::pmr::get_default_resource())) {}
+    : s_(MakeInResource<Scratch>(std::pmr::get_default_resource(), 0, 0, 0, 0, true,
+                                 std::pmr::get_default_resource())) {}
 IdentifyWorkspace::~IdentifyWorkspace() = default;
 IdentifyWorkspace::IdentifyWorkspace(IdentifyWorkspace&&) noexcept = default;
 IdentifyWorkspace& IdentifyWorkspace::operator=(IdentifyWorkspace&&) noexcept = default;

@@ -114,7 +114,7 @@ struct IdentifyOptions {
   // with the attitude (and the scale, when refined) when the F-test of those two extra parameters
   // gives p < refine_principal_p (docs/identify.md, "Focal length"). 0 = keep the camera's (and so
   // does refine_focal_p = 0: a calibrated camera keeps all its numbers).
-  double refine_principal_p = 1e-3;
+  double refine_principal_p = 1e-5;
   int refine_principal_min_matches = 12;
   void Check() const;  // throws InputError naming the field
   bool FovRange() const { return fov_max_deg > 0; }
@@ -162,6 +162,10 @@ struct Identification {
   bool principal_point_refined = false;
   double cx_px = std::nan(""), cy_px = std::nan(""), principal_point_sigma_px = std::nan("");
   double principal_point_p_value = std::nan("");
+  // What the refitted principal point's uncertainty adds to the attitude's covariance (rad^2, sensor
+  // axes; zero unless refined): SolveAttitude adds it, since the stars that placed the principal
+  // point also placed the boresight.
+  Mat3 principal_point_attitude_cov_rad2 = Mat3::Zero();
   int outliers_rejected = 0;         // refined matches left out as inconsistent with the others
   double false_match_probability = 1.0;
   // The photometric factor in false_match_probability (2 / (1 + E), docs/identify.md step 5); 1 = not used.

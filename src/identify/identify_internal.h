@@ -57,7 +57,7 @@ double ScaleFitP(const ScratchVec<StarMatch>& ms, PixelSigma sigma, PixelFit* fi
 bool AcrossTheField(const ScratchVec<StarMatch>& ms, const Camera& cam);
 // The principal point's F-test p-value; on success the wider fit in *cam, *r and its (cx, cy) sigmas.
 double PrincipalPointP(const ScratchVec<StarMatch>& ms, PixelSigma sigma, bool fit_scale, Camera* cam, Mat3* r,
-                       Vec2* sigma_px);
+                       Vec2* sigma_px, Mat3* attitude_cov_rad2);
 
 // The harmonic number H_T.
 double Harmonic(double t);

@@ -84,7 +84,14 @@ class ParityMonitor {
  public:
   // The buffers come from `mr` (the heap by default; the flight core's arena, core/arena.h).
   explicit ParityMonitor(std::pmr::memory_resource* mr = std::pmr::get_default_resource())
-      : ring_(mr), hyp_gyro_(mr), hyp_w_(mr), hyp_k_(mr), hyp_h_(mr), s_(mr), s_zero_t_(mr), hist_(mr),
+      : ring_(mr),
+        hyp_gyro_(mr),
+        hyp_w_(mr),
+        hyp_k_(mr),
+        hyp_h_(mr),
+        s_(mr),
+        s_zero_t_(mr),
+        hist_(mr),
         short_ring_(mr) {}
   // `use`: gyros in service; `sigma_dph`: per-sample white noise of each gyro (deg/h).
   ParityMonitor(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& sigma_dph, double dt_s,
@@ -149,11 +156,11 @@ class ParityMonitor {
   GyroVec warm_mean_;     // running mean and sum of squared deviations of the warm-up parity, for C
   GyroParity warm_m2_;    // (Welford 1962: no store of the samples)
   GyroParity c_inv_;      // inverse noise covariance of one parity sample
-  ScratchVec<int> hyp_gyro_;          // gyro of each mean hypothesis
-  ScratchVec<GyroVec> hyp_w_;         // f * C^-1 d_i (signed)
-  ScratchVec<double> hyp_k_;          // f^2 d_i' C^-1 d_i / 2
-  ScratchVec<double> hyp_h_;          // threshold of each
-  ScratchVec<double> s_, s_zero_t_;   // statistics and the time each last sat at zero
+  ScratchVec<int> hyp_gyro_;         // gyro of each mean hypothesis
+  ScratchVec<GyroVec> hyp_w_;        // f * C^-1 d_i (signed)
+  ScratchVec<double> hyp_k_;         // f^2 d_i' C^-1 d_i / 2
+  ScratchVec<double> hyp_h_;         // threshold of each
+  ScratchVec<double> s_, s_zero_t_;  // statistics and the time each last sat at zero
   double s_noise_ = 0, noise_zero_t_ = 0, h_ = 0;
   std::string alarm_test_;
   GyroVec inherited_;
@@ -182,7 +189,8 @@ class StarRateIsolator {
   explicit StarRateIsolator(std::pmr::memory_resource* mr = std::pmr::get_default_resource()) : points_(mr) {}
   // Keeps at most max_points star samples (the oldest go first; FitFault then sees less history).
   StarRateIsolator(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& correction_dph,
-                   int max_points = kDefaultMaxPoints, std::pmr::memory_resource* mr = std::pmr::get_default_resource());
+                   int max_points = kDefaultMaxPoints,
+                   std::pmr::memory_resource* mr = std::pmr::get_default_resource());
   static constexpr int kDefaultMaxPoints = 4096;
   // Starts over (a new fault) in the storage it has: allocates nothing when `use` has the size it had.
   void Reset(const GyroAxes& axes, const std::vector<bool>& use, const GyroVec& correction_dph);

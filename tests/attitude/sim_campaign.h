@@ -85,9 +85,13 @@ inline CampaignStats RunCampaign(int n_frames, uint64_t seed0) {
     const Quat qe = r.attitude.q_inertial_from_sensor;
     if (const double err_arcsec = AttitudeErrorRad(qe, q) * kRadToArcsec; err_arcsec > 60) {
       ++st.wrong;
-      std::printf("wrong: seed %llu, %.1f deg, %.0f arcsec off, %zu matches, focal length refined %d\n",
-                  static_cast<unsigned long long>(seed), fov, err_arcsec, r.identification.matches.size(),
-                  static_cast<int>(r.identification.focal_length_refined));
+      std::printf(
+          "wrong: seed %llu, %.1f deg, %.0f arcsec off, %zu matches, focal length refined %d, principal point refined "
+          "%d (%.1f, %.1f px; p %.2g)\n",
+          static_cast<unsigned long long>(seed), fov, err_arcsec, r.identification.matches.size(),
+          static_cast<int>(r.identification.focal_length_refined),
+          static_cast<int>(r.identification.principal_point_refined), r.identification.cx_px, r.identification.cy_px,
+          r.identification.principal_point_p_value);
     }
     if (fov == 16.6) st.cross_arcsec_166.push_back(SplitAttitudeError(qe, q).cross_rad * kRadToArcsec);
     Quat d = q.conjugate() * qe;

@@ -6,7 +6,6 @@
 // tag, a frame of the wrong size). The answers are checked against the simulator's truth, so the
 // calls counted are ones that did their work.
 #include <gtest/gtest.h>
-
 #include <sys/mman.h>
 #include <unistd.h>
 
@@ -278,8 +277,9 @@ TEST(FlightAllocation, WorkspacesLiveInTheCallersMemory) {
   ASSERT_EQ(ssiu_flight_init(&c, blob.data(), blob.size(), memory.data(), need, &f), SSIU_OK)
       << reinterpret_cast<const char*>(memory.data());
   const long init_heap = n.Bytes();
-  std::printf("caller's block %zu bytes; heap at init %ld bytes in %ld allocations; the processor on the heap %ld bytes\n",
-              need, init_heap, n.Count(), processor_heap);
+  std::printf(
+      "caller's block %zu bytes; heap at init %ld bytes in %ld allocations; the processor on the heap %ld bytes\n",
+      need, init_heap, n.Count(), processor_heap);
   EXPECT_GT(static_cast<double>(need), 0.8 * static_cast<double>(processor_heap));
   EXPECT_LT(static_cast<double>(init_heap), 0.01 * static_cast<double>(processor_heap));
   // It runs: a lost-in-space frame set of a simulated sky solves on both heads.
