@@ -30,6 +30,9 @@ void FdiOptions::Check() const {
   pos(isolation_min_s, "isolation_min_s");
   pos(isolation_sigma, "isolation_sigma");
   pos(compensation_window_s, "compensation_window_s");
+  if (!(baseline_margin_sigma >= 0) || !std::isfinite(baseline_margin_sigma)) {
+    throw InputError("fdi options", "baseline_margin_sigma must be >= 0");
+  }
   if (!(noise_ratio > 1) || !std::isfinite(noise_ratio)) throw InputError("fdi options", "noise_ratio must be > 1");
 }
 
@@ -95,7 +98,7 @@ void ParityMonitor::Reset(const GyroAxes& axes, const std::vector<bool>& use, co
   ScratchVec<std::pair<double, GyroVec>> hist = std::move(hist_);
   ScratchVec<int> hyp_gyro = std::move(hyp_gyro_);
   ScratchVec<GyroVec> hyp_w = std::move(hyp_w_);
-  ScratchVec<double> hyp_k = std::move(hyp_k_), hyp_h = std::move(hyp_h_), s = std::move(s_),
+  ScratchVec<double> hyp_k = std::move(hyp_k_), hyp_m = std::move(hyp_m_), hyp_h = std::move(hyp_h_), s = std::move(s_),
                      s_zero_t = std::move(s_zero_t_);
   *this = ParityMonitor();
   ring_ = std::move(ring);
@@ -104,6 +107,7 @@ void ParityMonitor::Reset(const GyroAxes& axes, const std::vector<bool>& use, co
   hyp_gyro_ = std::move(hyp_gyro);
   hyp_w_ = std::move(hyp_w);
   hyp_k_ = std::move(hyp_k);
+  hyp_m_ = std::move(hyp_m);
   hyp_h_ = std::move(hyp_h);
   s_ = std::move(s);
   s_zero_t_ = std::move(s_zero_t);
@@ -113,6 +117,7 @@ void ParityMonitor::Reset(const GyroAxes& axes, const std::vector<bool>& use, co
   hyp_gyro_.clear();
   hyp_w_.clear();
   hyp_k_.clear();
+  hyp_m_.clear();
   hyp_h_.clear();
   s_.clear();
   s_zero_t_.clear();
@@ -143,7 +148,7 @@ void ParityMonitor::Reset(const GyroAxes& axes, const std::vector<bool>& use, co
   for (int i = 0; i < axes.rows(); ++i) {
     if (use[i]) hyp_gyro_.push_back(i);
   }
-  for (auto* v : {&hyp_k_, &hyp_h_, &s_, &s_zero_t_}) v->reserve(2 * kMaxGyros);
+  for (auto* v : {&hyp_k_, &hyp_m_, &hyp_h_, &s_, &s_zero_t_}) v->reserve(2 * kMaxGyros);
   hyp_w_.reserve(2 * kMaxGyros);
   const int n_tests = 2 * static_cast<int>(hyp_gyro_.size()) + 1;
   h_ = CusumThreshold(n_tests, 1.0 / dt_s, options.false_alarm_per_h);
@@ -190,7 +195,9 @@ bool ParityMonitor::Feed(double t_s, const GyroVec& g_dph) {
   }
   if (cusum) return true;
   // Track slow drift of the gyros' biases (first-order low-pass of the parity).
-  baseline_ += (p - baseline_) * (dt_ / opt_.baseline_tau_s);
+  const double a = dt_ / opt_.baseline_tau_s;
+  baseline_ += (p - baseline_) * a;
+  base_var_ = (1 - a) * (1 - a) * base_var_ + a * a;
   return false;
 }
 
@@ -218,6 +225,8 @@ void ParityMonitor::StartCusum(double t_s) {
   const GyroParity c_model = GyroParity(cov_window_inv_.inverse()) * window_n_;
   for (int i = 0; i < m; ++i) c(i, i) = std::max(c(i, i), 0.1 * c_model(i, i));
   if (has_inherited_) baseline_ = v_ * inherited_;
+  // The warm-up mean's error (an inherited baseline is taken as no better than one).
+  base_var_ = 1.0 / static_cast<double>(std::max<long>(1, warm_n_));
   c_inv_ = c.inverse();
   short_sigma_ = std::sqrt(c.diagonal().maxCoeff() / short_n_);
   const int n_tests = 2 * static_cast<int>(hyp_gyro_.size()) + 1;
@@ -230,6 +239,7 @@ void ParityMonitor::StartCusum(double t_s) {
       const double f = sign * opt_.cusum_fault_dph;
       hyp_w_.push_back(f * (c_inv_ * d));
       hyp_k_.push_back(0.5 * f * f * dd);
+      hyp_m_.push_back(opt_.baseline_margin_sigma * std::abs(f) * std::sqrt(dd));
       hyp_h_.push_back(CusumThresholdGaussian(arl, opt_.cusum_fault_dph * std::sqrt(dd)));
     }
   }
@@ -244,9 +254,15 @@ bool ParityMonitor::FeedCusum(double t_s, const GyroVec& e) {
   hist_[hist_pos_] = {t_s, e};
   hist_pos_ = (hist_pos_ + 1) % hist_n_;
   // Page's recursion S = max(0, S + llr) on each log-likelihood ratio (Basseville & Nikiforov eq. 2.2.11).
+  // The residual is taken from an estimated baseline whose error eps ~ N(0, base_var_ C) biases every
+  // increment by w_j' eps (1 sigma |f| sqrt(d' C^-1 d base_var_)): the thresholds assume a known mean,
+  // and a baseline 2-3 sigma off multiplies the false-alarm rate by 10^2-10^4, so the allowance covers
+  // baseline_margin_sigma of it (at 30 s about 0.5-0.8 of the allowance, a tenth after the baseline has
+  // tracked for 2 tau).
+  const double base_sigma = std::sqrt(base_var_);
   int fired = -1;
   for (size_t j = 0; j < s_.size(); ++j) {
-    s_[j] = std::max(0.0, s_[j] + hyp_w_[j].dot(e) - hyp_k_[j]);
+    s_[j] = std::max(0.0, s_[j] + hyp_w_[j].dot(e) - hyp_k_[j] - hyp_m_[j] * base_sigma);
     if (s_[j] == 0) s_zero_t_[j] = t_s;
     if (s_[j] > hyp_h_[j] && (fired < 0 || s_[j] - hyp_h_[j] > s_[fired] - hyp_h_[fired])) fired = static_cast<int>(j);
   }

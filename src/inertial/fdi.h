@@ -44,6 +44,9 @@ struct FdiOptions {
   double false_alarm_per_h = 1e-3;     // target false-alarm rate of the CUSUM tests (per hour of data)
   double cusum_fault_dph = 2.0;        // fault size each mean CUSUM is tuned for (smaller ones take longer)
   double noise_ratio = 4.0;            // parity noise variance growth the noise-burst CUSUM is tuned for
+  // The baseline is an estimate (30 s of noise at first): each mean CUSUM's allowance is raised by this
+  // many sigmas of the log-likelihood drift its error makes, so that the false-alarm rate holds.
+  double baseline_margin_sigma = 3.0;
   double isolation_min_s = 3.0;        // star coverage before a star-rate isolation may be decided
   double isolation_sigma = 5.0;        // and the residual must exceed this many of its noise sigmas
   // A faulty gyro that must stay in use (no spare) is compensated by a step + ramp fitted to its
@@ -88,6 +91,7 @@ class ParityMonitor {
         hyp_gyro_(mr),
         hyp_w_(mr),
         hyp_k_(mr),
+        hyp_m_(mr),
         hyp_h_(mr),
         s_(mr),
         s_zero_t_(mr),
@@ -159,9 +163,14 @@ class ParityMonitor {
   ScratchVec<int> hyp_gyro_;         // gyro of each mean hypothesis
   ScratchVec<GyroVec> hyp_w_;        // f * C^-1 d_i (signed)
   ScratchVec<double> hyp_k_;         // f^2 d_i' C^-1 d_i / 2
+  ScratchVec<double> hyp_m_;         // baseline_margin_sigma |f| sqrt(d_i' C^-1 d_i)
   ScratchVec<double> hyp_h_;         // threshold of each
   ScratchVec<double> s_, s_zero_t_;  // statistics and the time each last sat at zero
   double s_noise_ = 0, noise_zero_t_ = 0, h_ = 0;
+  // Variance of the baseline's error as a fraction of C: 1 / (warm-up samples), then as the low-pass
+  // tracks it (Jones, Champ & Rigdon 2004: a CUSUM on an estimated mean alarms far more often than its
+  // known-mean design says).
+  double base_var_ = 1;
   std::string alarm_test_;
   GyroVec inherited_;
   bool has_inherited_ = false;

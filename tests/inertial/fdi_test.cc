@@ -76,6 +76,9 @@ TEST(Fdi, OptionsCheck) {
   o = FdiOptions{};
   o.isolation_ratio = 0.5;
   EXPECT_THROW(o.Check(), InputError);
+  o = FdiOptions{};
+  o.baseline_margin_sigma = -1;
+  EXPECT_THROW(o.Check(), InputError);
 }
 
 }  // namespace
@@ -107,6 +110,9 @@ TEST(Fdi, CusumFalseAlarmRateIsBelowItsTarget) {
   o.false_alarm_per_h = 36;
   o.warmup_s = 2;
   o.threshold_sigma = 50;  // the window test out of the way
+  // The thresholds' own calibration, on a baseline taken as known (the 2 s warm-ups' baselines are far
+  // off, and the default margin for that error would hide the thresholds behind it).
+  o.baseline_margin_sigma = 0;
   const double hours = 1.0;
   double t_used = 0, m_h = 0;
   int alarms = 0;
@@ -130,8 +136,10 @@ TEST(Fdi, CusumFalseAlarmRateIsBelowItsTarget) {
 // and fits a ramp of the right slope on that gyro's parity column; a noise burst is told apart.
 TEST(Fdi, CusumCatchesASlowRampAndANoiseBurst) {
   const GyroUnit u = DefaultFourFogUnit();
+  FdiOptions o;
+  o.threshold_sigma = 50;  // the CUSUM's own time: the window test (a second later at most) out of the way
   for (int gi = 0; gi < 4; ++gi) {
-    ParityMonitor m(u.Axes(), std::vector<bool>(4, true), GyroVec::Constant(4, 6.0), 0.01, FdiOptions{});
+    ParityMonitor m(u.Axes(), std::vector<bool>(4, true), GyroVec::Constant(4, 6.0), 0.01, o);
     const double t =
         FirstAlarm(&m, 40 + gi, 400, [gi](double t, int i) { return i == gi && t > 100 ? (t - 100) : 0.0; });
     ASSERT_GT(t, 100) << gi;
