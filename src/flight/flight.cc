@@ -378,4 +378,26 @@ void ssiu_flight_shutdown(ssiu_flight* f) {
 
 const char* ssiu_flight_last_error(const ssiu_flight* f) { return Live(f) ? f->error : ""; }
 
+const char* ssiu_flight_result_name(ssiu_result r) {
+  switch (r) {
+    case SSIU_OK:
+      return "ok";
+    case SSIU_ERR_NULL:
+      return "err_null";
+    case SSIU_ERR_CONFIG:
+      return "err_config";
+    case SSIU_ERR_CATALOG:
+      return "err_catalog";
+    case SSIU_ERR_MEMORY:
+      return "err_memory";
+    case SSIU_ERR_NOT_INITIALISED:
+      return "err_not_initialised";
+    case SSIU_ERR_ARGUMENT:
+      return "err_argument";
+    case SSIU_ERR_INTERNAL:
+      return "err_internal";
+  }
+  return "unknown";
+}
+
 }  // extern "C"

@@ -222,6 +222,9 @@ ssiu_result ssiu_flight_state(const ssiu_flight* f, ssiu_state* state);
 void ssiu_flight_shutdown(ssiu_flight* f);
 /* What the last failed call of this handle said ("" when none, or for no handle): never NULL. */
 const char* ssiu_flight_last_error(const ssiu_flight* f);
+/* A result's name for events and logs: "ok", "err_null", "err_config", "err_catalog", "err_memory",
+ * "err_not_initialised", "err_argument", "err_internal"; "unknown" for any other value. Never NULL. */
+const char* ssiu_flight_result_name(ssiu_result r);
 
 #ifdef __cplusplus
 }

@@ -17,6 +17,7 @@
 #include "core/attitude.h"
 #include "core/output.h"
 #include "flight/flight_config.h"
+#include "flight/flight_print.h"
 #include "flight/ssiu_flight.h"
 #include "identify/star_catalog.h"
 #include "inertial/unit_processor.h"

@@ -6,11 +6,14 @@
 
 #include <cmath>
 #include <cstring>
+#include <set>
+#include <string>
 #include <vector>
 
 #include "core/attitude.h"
 #include "core/output.h"
 #include "flight/flight_config.h"
+#include "flight/flight_print.h"
 #include "identify/star_catalog.h"
 #include "sim/mission.h"
 #include "testing/testing.h"
@@ -132,6 +135,19 @@ double FinalErrorArcsec(const Data& d, const ssiu_state& s) {
   for (size_t k = 0; k < d.data.gyro.t_s.size(); ++k)
     if (std::abs(d.data.gyro.t_s[k] - s.t_s) < std::abs(d.data.gyro.t_s[best] - s.t_s)) best = k;
   return AttitudeErrorRad(QuatOf(s.q_inertial_from_body), d.data.gyro.q_true[best]) * kRadToArcsec;
+}
+
+// Every result has its own name (events and logs), which gtest prints on a failure.
+TEST(FlightInterface, ResultsHaveNames) {
+  std::set<std::string> names;
+  for (int r = SSIU_OK; r <= SSIU_ERR_INTERNAL; ++r) {
+    const std::string name = ssiu_flight_result_name(static_cast<ssiu_result>(r));
+    EXPECT_NE(name, "unknown") << r;
+    names.insert(name);
+  }
+  EXPECT_EQ(names.size(), static_cast<size_t>(SSIU_ERR_INTERNAL + 1));
+  EXPECT_EQ(::testing::PrintToString(SSIU_ERR_MEMORY), "err_memory");
+  EXPECT_STREQ(ssiu_flight_result_name(static_cast<ssiu_result>(99)), "unknown");
 }
 
 // The C interface gives what the C++ processor gives on the same inputs, and both are near the truth.
