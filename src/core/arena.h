@@ -32,10 +32,8 @@ class Arena final : public std::pmr::memory_resource {
   static Arena Meter() { return Arena(nullptr, 0); }
   Arena(const Arena&) = delete;
   Arena& operator=(const Arena&) = delete;
-  Arena(Arena&& o) noexcept : block_(o.block_), size_(o.size_), used_(o.used_) {}
 
   size_t used() const { return used_; }
-  size_t size() const { return size_; }
   bool measuring() const { return block_ == nullptr; }
 
  private:

@@ -2,6 +2,8 @@
 // lives in the caller's memory; nothing crosses the interface but plain structs and statuses (every
 // C++ exception stops here and becomes SSIU_ERR_INTERNAL, with the handle unchanged where the call
 // failed before it changed anything).
+#include "flight/ssiu_flight.h"
+
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -14,7 +16,6 @@
 #include "core/arena.h"
 #include "core/output.h"
 #include "flight/flight_config.h"
-#include "flight/ssiu_flight.h"
 #include "identify/star_catalog.h"
 #include "inertial/unit_processor.h"
 
