@@ -278,7 +278,11 @@ def fog_unit(out):
 def inflight(out):
     w = find(r"(\d+/\d+) within 3 sigma", out)
     n, c = find(r"outage error RMS nominal ([\d.]+) arcsec, calibrated ([\d.]+)", out)
-    return f"within 3 sigma {w}; outage error {float(n):.0f} -> {float(c):.0f} arcsec ({float(n) / float(c):.0f}x)"
+    ow = find(r"online: (\d+/\d+) within 3 sigma", out)
+    on, oc = find(r"outage error RMS without ([\d.]+) arcsec, with ([\d.]+)", out)
+    return (f"within 3 sigma {w}; outage error {float(n):.0f} -> {float(c):.0f} arcsec ({float(n) / float(c):.0f}x); "
+            f"processor: within 3 sigma {ow}, outage error {float(on):.0f} -> {float(oc):.0f} arcsec "
+            f"({float(on) / float(oc):.1f}x)")
 
 
 def allan(out):

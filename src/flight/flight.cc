@@ -26,7 +26,13 @@
 namespace {
 
 constexpr uint64_t kMagic = 0x53534955464c5431ULL;  // "SSIUFLT1"
-constexpr int32_t kInterfaceVersion = 2;
+constexpr int32_t kInterfaceVersion = 3;
+static_assert(SSIU_UNIT_CAL_OFF == static_cast<int>(ssiu::UnitCalStatus::kOff) &&
+                  SSIU_UNIT_CAL_ACCUMULATING == static_cast<int>(ssiu::UnitCalStatus::kAccumulating) &&
+                  SSIU_UNIT_CAL_NOT_OBSERVABLE == static_cast<int>(ssiu::UnitCalStatus::kNotObservable) &&
+                  SSIU_UNIT_CAL_ESTIMATED == static_cast<int>(ssiu::UnitCalStatus::kEstimated) &&
+                  SSIU_UNIT_CAL_APPLIED == static_cast<int>(ssiu::UnitCalStatus::kApplied),
+              "ssiu_unit_cal_status follows UnitCalStatus");
 
 void CopyText(const char* text, char* out, size_t bytes) {
   if (bytes == 0) return;
@@ -367,6 +373,17 @@ ssiu_result ssiu_flight_state(const ssiu_flight* f, ssiu_state* s) {
   s->frame_sets = f->frame_sets;
   s->frame_sets_solved = f->frame_sets_solved;
   s->frame_sets_refused = a.frames_refused;
+  const ssiu::UnitCalState& uc = a.unit_calibration;
+  s->unit_cal_status = static_cast<int32_t>(uc.status);
+  s->unit_cal_windows = uc.n_windows;
+  for (int g = 0; g < uc.n_gyros && g < SSIU_FLIGHT_MAX_GYROS; ++g) {
+    s->scale_factor_ppm[g] = uc.scale_factor_ppm[g];
+    s->scale_factor_sigma_ppm[g] = uc.scale_factor_sigma_ppm[g];
+    for (int k = 0; k < 2; ++k) {
+      s->misalignment_arcsec[g][k] = uc.misalignment_arcsec[g][k];
+      s->misalignment_sigma_arcsec[g][k] = uc.misalignment_sigma_arcsec[g][k];
+    }
+  }
   return SSIU_OK;
 }
 

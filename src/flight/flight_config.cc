@@ -42,7 +42,8 @@ std::vector<Field> Fields(ssiu_flight_config* c) {
                           {"track_search_radius_px", Kind::kDouble, &c->track_search_radius_px, 1},
                           {"epoch_utc", Kind::kText, c->epoch_utc, 1},
                           {"velocity_kms", Kind::kDouble, c->velocity_kms, 3},
-                          {"catalog_crc32", Kind::kUint, &c->catalog_crc32, 1}};
+                          {"catalog_crc32", Kind::kUint, &c->catalog_crc32, 1},
+                          {"calibrate_unit", Kind::kInt, &c->calibrate_unit, 1}};
   for (int h = 0; h < SSIU_FLIGHT_MAX_HEADS; ++h) {
     ssiu_head_config& x = c->heads[h];
     const std::string p = "head" + std::to_string(h + 1) + ".";
@@ -120,6 +121,7 @@ ssiu_flight_config FlightConfigFor(const std::vector<OpticalHead>& heads, const 
   c.exposure_s = o.solve.detect.smear.exposure_s;
   c.systematic_px = o.solve.identify.systematic_px;
   c.track_search_radius_px = o.solve.track_search_radius_px;
+  c.calibrate_unit = o.fuse.calibrate_unit ? 1 : 0;
   std::memset(c.epoch_utc, 0, sizeof c.epoch_utc);
   std::memcpy(c.epoch_utc, epoch_utc.data(), epoch_utc.size());
   for (int k = 0; k < 3; ++k) c.velocity_kms[k] = velocity_kms[k];
@@ -182,6 +184,9 @@ FlightSetup FlightSetupFrom(const ssiu_flight_config& c) {
   o.solve.detect.smear.exposure_s = c.exposure_s;
   o.solve.identify.systematic_px = c.systematic_px;
   o.solve.track_search_radius_px = c.track_search_radius_px;
+  if (c.calibrate_unit != 0 && c.calibrate_unit != 1) throw InputError(src, "calibrate_unit must be 0 or 1");
+  if (c.calibrate_unit == 1 && c.n_gyros < 4) throw InputError(src, "calibrate_unit needs 4 or more gyros");
+  o.fuse.calibrate_unit = c.calibrate_unit == 1;
   if (std::memchr(c.epoch_utc, 0, sizeof c.epoch_utc) == nullptr)
     throw InputError(src, "epoch_utc must be NUL-terminated");
   const std::string epoch(c.epoch_utc);

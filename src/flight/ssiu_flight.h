@@ -87,6 +87,15 @@ typedef enum {
 /* The fused attitude's trust (conventions: 0 ok, 1 degraded, 2 failed). */
 typedef enum { SSIU_STATUS_OK = 0, SSIU_STATUS_DEGRADED = 1, SSIU_STATUS_FAILED = 2 } ssiu_status;
 
+/* The in-flight calibration of the unit's scale factors and axis tilts (config calibrate_unit). */
+typedef enum {
+  SSIU_UNIT_CAL_OFF = 0,            /* not asked for */
+  SSIU_UNIT_CAL_ACCUMULATING = 1,   /* fewer star windows than terms so far */
+  SSIU_UNIT_CAL_NOT_OBSERVABLE = 2, /* the body has not yet turned about three independent axes */
+  SSIU_UNIT_CAL_ESTIMATED = 3,      /* estimated, not applied */
+  SSIU_UNIT_CAL_APPLIED = 4         /* the gyro outputs are corrected by the estimate */
+} ssiu_unit_cal_status;
+
 typedef struct {
   int32_t width_px, height_px;
   double focal_length_px;   /* fx */
@@ -130,6 +139,10 @@ typedef struct {
   double velocity_kms[3]; /* spacecraft velocity relative to the Earth, ICRS (for aberration) */
   /* The catalog blob's CRC-32 (meta.json catalog_bin_crc32), required: checked at init. */
   uint32_t catalog_crc32;
+  /* 1: estimate the unit's scale factors and axis tilts from the star attitudes and correct the gyro
+   * outputs by them (4+ gyros; fixed memory and work, docs/inertial.md "In-flight calibration");
+   * 0 (the default): the unit as configured. */
+  int32_t calibrate_unit;
 } ssiu_flight_config;
 
 typedef struct {
@@ -179,6 +192,13 @@ typedef struct {
   int32_t restarts;        /* restarts so far (a non-finite state, a gyro gap, a clock reset) */
   /* Counts of inputs since init. */
   int64_t gyro_samples, gyro_rejected, gyro_partial, frame_sets, frame_sets_solved, frame_sets_refused;
+  /* The in-flight unit calibration (config calibrate_unit): ssiu_unit_cal_status, the star windows it
+   * used, and per gyro (0-based, n_gyros of them; zero until estimated) the scale factor correction (ppm)
+   * and the axis' two tilts about its normals (arcsec), with their 1-sigma. */
+  int32_t unit_cal_status;
+  int32_t unit_cal_windows;
+  double scale_factor_ppm[SSIU_FLIGHT_MAX_GYROS], scale_factor_sigma_ppm[SSIU_FLIGHT_MAX_GYROS];
+  double misalignment_arcsec[SSIU_FLIGHT_MAX_GYROS][2], misalignment_sigma_arcsec[SSIU_FLIGHT_MAX_GYROS][2];
 } ssiu_state;
 
 typedef struct ssiu_flight ssiu_flight;

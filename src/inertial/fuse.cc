@@ -144,6 +144,7 @@ void FuseOptions::Check() const {
   if (output_every < 1) throw InputError("fuse options", "output_every must be >= 1");
   fdi_options.Check();
   policy.Check();
+  calibration.Check();
 }
 
 const char* FusionStatusName(FusionStatus s) {

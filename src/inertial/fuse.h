@@ -14,6 +14,7 @@
 #include "inertial/fdi.h"
 #include "inertial/gyro_unit.h"
 #include "inertial/mekf.h"
+#include "inertial/unit_calibrator.h"
 
 namespace ssiu {
 
@@ -101,6 +102,18 @@ struct FuseOptions {
   FdiOptions fdi_options;
   FusionPolicy policy;   // rejection, gap, status and history policies
   int output_every = 1;  // write every n-th gyro sample
+  // OnlineFusion (the unit's processor): estimate the unit's scale factors and axis tilts from the
+  // star attitudes as it goes (unit_calibrator.h, 4+ gyros) and correct the gyro outputs by them once
+  // the windows determine every term (the estimate is the posterior mean under calibration's prior).
+  // Off by default: the flight core's budget is set without it. The batch Fuse() leaves this to
+  // CalibrateUnitInFlight (`ssiu fuse --calibrate-unit`).
+  bool calibrate_unit = false;
+  InflightCalOptions calibration = [] {
+    InflightCalOptions c;
+    c.prior_scale_factor_sigma_ppm = 300;
+    c.prior_misalignment_sigma_arcsec = 300;
+    return c;
+  }();
 
   void Check() const;
 };

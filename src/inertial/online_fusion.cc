@@ -86,6 +86,49 @@ OnlineFusion::OnlineFusion(const GyroUnit& unit, const FuseOptions& options, std
   spare_residuals_.resize(n_events + 2);
   for (auto& r : spare_residuals_) r.reserve(kMaxGyros);
   bias_history_.resize(static_cast<size_t>(opt_.policy.bias_history_max));
+  cal_on_ = opt_.calibrate_unit && n >= 4;
+  cal_m_ = GyroParity::Identity(n, n);
+  if (cal_on_) {
+    cal_ = InflightCalibrator(unit_, opt_.calibration);
+    cal_state_ = cal_.Estimate();
+  }
+}
+
+void OnlineFusion::FeedCalibration(double t, const GyroVec& g, GyroSampleStatus status) {
+  if (!cal_on_) return;
+  // Every sample with all outputs usable, whatever the fault monitors say: before it is calibrated a
+  // unit's own scale factors and tilts raise them in a slew (5 arcmin at 1 deg/s is 5 deg/h of parity),
+  // and a calibration that stopped at their alarm would never converge where it is needed. A real
+  // fault inside a bias block is taken for calibration error (chi2_per_dof shows it).
+  if (status == GyroSampleStatus::kAccepted) {
+    cal_.AddGyro(t, g);
+  } else {
+    cal_.BreakWindow();
+  }
+}
+
+void OnlineFusion::RefreshCalibration() {
+  const UnitCalState s = cal_.Estimate();
+  if (s.status != UnitCalStatus::kEstimated) {
+    if (!cal_applied_) cal_state_ = s;
+    return;
+  }
+  cal_state_ = s;
+  // Applied from the first estimate on (the posterior mean: where the windows say little it stays near
+  // the unit as it is), each later one replacing it. The outputs are
+  // corrected to first order: g = (H + E) w + ... gives H w = g - E P g (P the all-gyro rate solver).
+  GyroAxes e(s.n_gyros, 3);
+  for (int i = 0; i < s.n_gyros; ++i) {
+    const Vec3 a = axes_.row(i).transpose();
+    Vec3 u, v;
+    AxisNormals(a, &u, &v);
+    e.row(i) = (1e-6 * s.scale_factor_ppm[i] * a +
+                kArcsecToRad * (s.misalignment_arcsec[i][0] * u + s.misalignment_arcsec[i][1] * v))
+                   .transpose();
+  }
+  cal_m_ = GyroParity::Identity(s.n_gyros, s.n_gyros) - e * cal_.rate_solver();
+  cal_applied_ = true;
+  cal_state_.status = UnitCalStatus::kApplied;
 }
 
 void OnlineFusion::SetSolver() {
@@ -494,6 +537,7 @@ GyroSampleStatus OnlineFusion::AddGyro(double t_k, const GyroVec& g_in) {
     // No rate from this sample: the last one is held over its interval (the filter's process noise
     // grows as usual); the star-rate chains break (the gyro angle over it is unknown).
     last_partial_ = true;
+    if (cal_on_) cal_.BreakWindow();
     if (initialised_ && !restart_pending_ && t_k > t_cur_) {
       isolator_.BreakChain();
       tracker_.BreakChain();
@@ -507,6 +551,9 @@ GyroSampleStatus OnlineFusion::AddGyro(double t_k, const GyroVec& g_in) {
   const GyroSampleStatus status = time_reset  ? GyroSampleStatus::kAcceptedTimeReset
                                   : after_gap ? GyroSampleStatus::kAcceptedAfterGap
                                               : outputs;
+  FeedCalibration(t_k, g, status);
+  // The applied unit calibration, before the rate, the fault monitors and the filter see the outputs.
+  if (cal_applied_) g = cal_m_ * g;
   g_last_ = g;
   last_partial_ = partial;
   // A tracked fault's compensation at the middle of this sample's interval.
@@ -557,6 +604,13 @@ GyroSampleStatus OnlineFusion::AddGyro(double t_k, const GyroVec& g_in) {
 }
 
 MekfUpdate OnlineFusion::AddAttitude(double t_j, const Quat& q_in, const Mat3& r_body) {
+  const MekfUpdate u = AddAttitudeChecked(t_j, q_in, r_body);
+  // The calibration takes the fixes the filter took (a gated one may be an outlier).
+  if (cal_on_ && u.accepted && cal_.AddFix(t_j, q_in, r_body)) RefreshCalibration();
+  return u;
+}
+
+MekfUpdate OnlineFusion::AddAttitudeChecked(double t_j, const Quat& q_in, const Mat3& r_body) {
   MekfUpdate u;
   // A measurement the filter cannot use changes nothing.
   const double qn = q_in.coeffs().allFinite() ? q_in.norm() : 0;

@@ -117,6 +117,9 @@ class OnlineFusion {
   const std::vector<bool>& gyros_in_use_mask() const { return use_; }  // 0-based, allocation-free
   // The body rate of the last usable gyro sample (rad/s, bias not removed; gyros in use, faults compensated).
   const Vec3& last_rate_rad_s() const { return w_last_; }
+  // The in-flight calibration of the unit (FuseOptions::calibrate_unit; status "off" without it):
+  // refreshed at every star window it closes.
+  const UnitCalState& unit_calibration() const { return cal_state_; }
   // Samples of each GyroSampleStatus, and single outputs found unusable (NaN/inf, out of range).
   long n_gyro_status(GyroSampleStatus s) const { return n_status_[static_cast<size_t>(s)]; }
   long n_outputs_non_finite() const { return n_out_nonfinite_; }
@@ -153,6 +156,10 @@ class OnlineFusion {
   void Compensate(int gi, double t, const Vec3& b_before);
   void RefitTrackedFault(double t);
   Vec3 RateDph(const GyroVec& g) const { return solver_.Solve(g - correction_ - dyn_); }
+  // A sample the calibration takes (every output usable) or that breaks its window.
+  void FeedCalibration(double t_s, const GyroVec& g, GyroSampleStatus status);
+  void RefreshCalibration();
+  MekfUpdate AddAttitudeChecked(double t_s, const Quat& q_inertial_from_body, const Mat3& r_body);
 
   GyroUnit unit_;
   FuseOptions opt_;
@@ -188,6 +195,12 @@ class OnlineFusion {
     return bias_history_[(bias_first_ + k) % bias_history_.size()];
   }
   std::vector<std::vector<double>> spare_residuals_;  // reserved residual_dph buffers for new events
+
+  // In-flight unit calibration (FuseOptions::calibrate_unit).
+  bool cal_on_ = false, cal_applied_ = false;
+  InflightCalibrator cal_;
+  UnitCalState cal_state_;
+  GyroParity cal_m_;  // N x N: the outputs' correction once applied (I - E P)
 
   Mekf filter_;
   bool initialised_ = false;

@@ -333,6 +333,7 @@ void UnitProcessor::Attitude(UnitAttitude* out, bool with_faults) const {
   }
   a.gyro_samples_partial = fusion_.n_gyro_status(GyroSampleStatus::kAcceptedPartial);
   a.frames_refused = frames_refused_;
+  a.unit_calibration = fusion_.unit_calibration();
 }
 
 }  // namespace ssiu

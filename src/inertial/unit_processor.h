@@ -110,6 +110,9 @@ struct UnitAttitude {
   long gyro_samples_refused = 0;  // gyro samples not used (every rejected_* status)
   long gyro_samples_partial = 0;  // used with an output dropped
   long frames_refused = 0;        // frame sets with a bad_frame head or refused as a whole
+  // The in-flight calibration of the unit's scale factors and tilts (options.fuse.calibrate_unit;
+  // status "off" without it).
+  UnitCalState unit_calibration;
 };
 
 class UnitProcessor {

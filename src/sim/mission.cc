@@ -173,7 +173,7 @@ MissionConfig MissionConfigFromJson(const Json& j, const std::string& file) {
     CheckKeys(p,
               {"threshold_sigma", "systematic_px", "track_search_radius_px", "nis_gate", "init_bias_sigma_dph",
                "bias_drift_floor_dph_per_sqrt_h", "fdi", "solution_sigma_scale", "solution_sigma_floor_arcsec",
-               "correlated_fraction"},
+               "correlated_fraction", "calibrate_unit"},
               what);
     UnitProcessorOptions& o = c.processor;
     o.solve.identify.systematic_px = JsonNumberOr(p, "systematic_px", o.solve.identify.systematic_px, what);
@@ -187,6 +187,7 @@ MissionConfig MissionConfigFromJson(const Json& j, const std::string& file) {
     o.solution_sigma_floor_arcsec = JsonNumberOr(p, "solution_sigma_floor_arcsec", o.solution_sigma_floor_arcsec, what);
     o.correlated_fraction = JsonNumberOr(p, "correlated_fraction", o.correlated_fraction, what);
     o.fuse.fdi = JsonBoolOr(p, "fdi", o.fuse.fdi, what);
+    o.fuse.calibrate_unit = JsonBoolOr(p, "calibrate_unit", o.fuse.calibrate_unit, what);
   }
   c.Check(file);
   return c;
@@ -231,7 +232,8 @@ Json MissionConfigToJson(const MissionConfig& c) {
             {"fdi", o.fuse.fdi},
             {"solution_sigma_scale", o.solution_sigma_scale},
             {"solution_sigma_floor_arcsec", o.solution_sigma_floor_arcsec},
-            {"correlated_fraction", o.correlated_fraction}}}};
+            {"correlated_fraction", o.correlated_fraction},
+            {"calibrate_unit", o.fuse.calibrate_unit}}}};
 }
 
 MissionData SimulateMission(const MissionConfig& config) {
@@ -669,6 +671,12 @@ std::string MissionResult::Text() const {
     }
     s += "  gyros in use " + in_use + "\n";
   }
+  const UnitCalState& uc = final_state.unit_calibration;
+  if (uc.status != UnitCalStatus::kOff) {
+    std::snprintf(b, sizeof b, "  unit calibration: %s, %d star windows, worst combination sigma %.1f\n",
+                  UnitCalStatusName(uc.status), uc.n_windows, uc.worst_combination_sigma);
+    s += b;
+  }
   s += std::string("  status: ") + FusionStatusName(status);
   for (const auto& [k, v] : status_s)
     s += ", " + k + " " + std::to_string(v).substr(0, std::to_string(v).find('.') + 2) + " s";
@@ -709,34 +717,38 @@ Json MissionResult::ToJson() const {
   const auto qt = ToWxyz(q_truth_final);
   Vec3 sigma;
   for (int i = 0; i < 3; ++i) sigma[i] = std::sqrt(final_state.covariance_rad2(i, i)) * kRadToArcsec;
-  return {{"status", frames_solved > 0 ? FusionStatusName(status) : "no_star_solution"},
-          {"status_s", status_s},
-          {"frames", frames},
-          {"frames_solved", frames_solved},
-          {"heads", hs},
-          {"star_solution_error", StatsJson(star_only)},
-          {"fused_error", fused_json},
-          {"final",
-           {{"t_s", final_state.t_s},
-            {"q", {q[0], q[1], q[2], q[3]}},
-            {"sigma_body_arcsec", V3(sigma)},
-            {"q_truth", {qt[0], qt[1], qt[2], qt[3]}},
-            {"error_arcsec", AttitudeErrorRad(final_state.q_inertial_from_body, q_truth_final) * kRadToArcsec}}},
-          {"bias",
-           {{"estimate_dph", V3(bias_dph)},
-            {"truth_dph", V3(bias_truth_dph)},
-            {"sigma_dph", V3(bias_sigma_dph)},
-            {"error_dph", bias_error_end_dph},
-            {"error_at_first_fix_dph", bias_error_start_dph}}},
-          {"faults", faults},
-          {"gyros_in_use", final_state.gyros_in_use},
-          {"filter", {{"updates", updates}, {"rejected", rejected}}},
-          {"timing",
-           {{"frame_ms_mean", frame_ms_mean},
-            {"frame_ms_max", frame_ms_max},
-            {"gyro_sample_us_mean", gyro_us_mean},
-            {"process_s", process_s},
-            {"simulate_s", simulate_s}}}};
+  Json out = {{"status", frames_solved > 0 ? FusionStatusName(status) : "no_star_solution"},
+              {"status_s", status_s},
+              {"frames", frames},
+              {"frames_solved", frames_solved},
+              {"heads", hs},
+              {"star_solution_error", StatsJson(star_only)},
+              {"fused_error", fused_json},
+              {"final",
+               {{"t_s", final_state.t_s},
+                {"q", {q[0], q[1], q[2], q[3]}},
+                {"sigma_body_arcsec", V3(sigma)},
+                {"q_truth", {qt[0], qt[1], qt[2], qt[3]}},
+                {"error_arcsec", AttitudeErrorRad(final_state.q_inertial_from_body, q_truth_final) * kRadToArcsec}}},
+              {"bias",
+               {{"estimate_dph", V3(bias_dph)},
+                {"truth_dph", V3(bias_truth_dph)},
+                {"sigma_dph", V3(bias_sigma_dph)},
+                {"error_dph", bias_error_end_dph},
+                {"error_at_first_fix_dph", bias_error_start_dph}}},
+              {"faults", faults},
+              {"gyros_in_use", final_state.gyros_in_use},
+              {"filter", {{"updates", updates}, {"rejected", rejected}}},
+              {"timing",
+               {{"frame_ms_mean", frame_ms_mean},
+                {"frame_ms_max", frame_ms_max},
+                {"gyro_sample_us_mean", gyro_us_mean},
+                {"process_s", process_s},
+                {"simulate_s", simulate_s}}}};
+  if (final_state.unit_calibration.status != UnitCalStatus::kOff) {
+    out["unit_calibration"] = UnitCalStateToJson(final_state.unit_calibration);
+  }
+  return out;
 }
 
 }  // namespace ssiu

@@ -58,6 +58,26 @@ TEST_F(RunCli, TinyMissionWritesTheFigures) {
   for (const char* f : {"attitude.csv", "frames.csv", "gyro.csv", "truth.csv", "head1_first.png"}) {
     EXPECT_TRUE(std::filesystem::exists(Path("out/") + f)) << f;
   }
+  EXPECT_FALSE(j.contains("unit_calibration"));  // off by default
+}
+
+// processor.calibrate_unit: the JSON and the text carry the in-flight unit calibration's state (a
+// 30 s slew about one axis: too little for the 12 terms, so not yet estimated), and the config echoes it.
+TEST_F(RunCli, CalibrateUnitIsReported) {
+  Write("ssiu.json", Config(R"(, "duration_s": 30, "frame_rate_hz": 0.5, "processor": {"calibrate_unit": true})"));
+  const auto r = testing::RunSsiu("run --config " + Path("ssiu.json") + " --json " + Path("out.json"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("unit calibration: "));
+  const Json j = ReadJsonFile(Path("out.json"));
+  ASSERT_TRUE(j.contains("unit_calibration")) << j.dump();
+  const Json& c = j["unit_calibration"];
+  EXPECT_TRUE(c["status"] == "accumulating" || c["status"] == "not_observable") << c.dump();
+  EXPECT_GT(c["n_windows"].get<int>(), 0) << c.dump();
+  EXPECT_TRUE(j["config"]["processor"]["calibrate_unit"].get<bool>());
+  Write("bad.json", Config(R"(, "duration_s": 30, "frame_rate_hz": 0.5, "processor": {"calibrate_unit": 1})"));
+  const auto bad = testing::RunSsiu("run --config " + Path("bad.json"));
+  EXPECT_EQ(bad.status, 1) << bad.output;
+  EXPECT_THAT(bad.output, HasSubstr("calibrate_unit"));
 }
 
 TEST_F(RunCli, PrintConfigWritesTheBuiltInDefault) {

@@ -198,6 +198,30 @@ TEST(FlightInterface, SameAnswersAsTheProcessorAndNearTheTruth) {
   EXPECT_EQ(reports.back().heads[0].lost_in_space, 0);
   for (const auto& r : reports) EXPECT_EQ(r.heads_solved, 2);
   EXPECT_LT(FinalErrorArcsec(d, s), 5.0);
+  EXPECT_EQ(s.unit_cal_status, SSIU_UNIT_CAL_OFF);  // off by default
+}
+
+// calibrate_unit 1: the state carries the in-flight unit calibration as the processor reports it
+// (UnitAttitude::unit_calibration), and the attitude stays near the truth.
+TEST(FlightInterface, UnitCalibrationIsInTheState) {
+  const Data& d = TheData();
+  ssiu_flight_config c = ConfigFor(d);
+  c.calibrate_unit = 1;
+  Handle h(c, d.blob);
+  ASSERT_EQ(h.rc, SSIU_OK) << h.why();
+  Replay(d, h.f, [](size_t, double*, std::vector<double>*) {});
+  ssiu_state s;
+  ASSERT_EQ(ssiu_flight_state(h.f, &s), SSIU_OK);
+  ASSERT_TRUE(s.valid);
+  EXPECT_NE(s.unit_cal_status, SSIU_UNIT_CAL_OFF);
+  EXPECT_GT(s.unit_cal_windows, 0);
+  if (s.unit_cal_status >= SSIU_UNIT_CAL_ESTIMATED) {
+    for (int g = 0; g < 4; ++g) EXPECT_GT(s.scale_factor_sigma_ppm[g], 0) << g;
+  }
+  EXPECT_LT(FinalErrorArcsec(d, s), 5.0);
+  c.calibrate_unit = 2;
+  Handle bad(c, d.blob);
+  EXPECT_EQ(bad.rc, SSIU_ERR_CONFIG);
 }
 
 // A NaN or infinite output on one gyro (the other three give the rate), NaN on all of them (the last

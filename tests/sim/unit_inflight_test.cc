@@ -16,6 +16,11 @@ TEST(UnitInflight, ScaleFactorsAndAxesWithinThreeSigmaAndOutageErrorShrinks) {
   EXPECT_GE(s.within_3sigma, s.parameters - 1) << s.Describe();  // at most one of 24 outside 3 sigma
   EXPECT_LT(s.MeanNees(), 3 + 3 * std::sqrt(6.0 / 8)) << s.Describe();
   EXPECT_GT(std::sqrt(s.nominal2), 3 * std::sqrt(s.calibrated2)) << s.Describe();
+  // The processor's recursive estimator over the same logs (FuseOptions::calibrate_unit).
+  EXPECT_EQ(s.online_applied, 2) << s.Describe();
+  ASSERT_EQ(s.online_parameters, 24) << s.Describe();
+  EXPECT_GE(s.online_within_3sigma, s.online_parameters - 1) << s.Describe();
+  EXPECT_GT(std::sqrt(s.online_nominal2), 3 * std::sqrt(s.online_calibrated2)) << s.Describe();
 }
 
 // Without noise the linearised model must give the simulator's errors back to their second-order
