@@ -147,6 +147,13 @@ TEST(FlightInterface, ResultsHaveNames) {
   }
   EXPECT_EQ(names.size(), static_cast<size_t>(SSIU_ERR_INTERNAL + 1));
   EXPECT_EQ(::testing::PrintToString(SSIU_ERR_MEMORY), "err_memory");
+  // The statuses print as their enumerators (the last of each, and one in the middle).
+  EXPECT_EQ(::testing::PrintToString(SSIU_GYRO_ACCEPTED_TIME_RESET), "SSIU_GYRO_ACCEPTED_TIME_RESET");
+  EXPECT_EQ(::testing::PrintToString(SSIU_GYRO_PARTIAL), "SSIU_GYRO_PARTIAL");
+  EXPECT_EQ(::testing::PrintToString(SSIU_SOLVE_BAD_FRAME), "SSIU_SOLVE_BAD_FRAME");
+  EXPECT_EQ(::testing::PrintToString(SSIU_UPDATE_NONE), "SSIU_UPDATE_NONE");
+  EXPECT_EQ(::testing::PrintToString(SSIU_STATUS_FAILED), "SSIU_STATUS_FAILED");
+  EXPECT_EQ(::testing::PrintToString(SSIU_UNIT_CAL_APPLIED), "SSIU_UNIT_CAL_APPLIED");
 }
 
 // The C interface gives what the C++ processor gives on the same inputs, and both are near the truth.
