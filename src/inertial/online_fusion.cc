@@ -87,7 +87,7 @@ OnlineFusion::OnlineFusion(const GyroUnit& unit, const FuseOptions& options, std
   for (auto& r : spare_residuals_) r.reserve(kMaxGyros);
   bias_history_.resize(static_cast<size_t>(opt_.policy.bias_history_max));
   cal_on_ = opt_.calibrate_unit && n >= 4;
-  cal_m_ = GyroParity::Identity(n, n);
+  cal_e_ = GyroAxes::Zero(n, 3);
   if (cal_on_) {
     cal_ = InflightCalibrator(unit_, opt_.calibration);
     cal_state_ = cal_.Estimate();
@@ -116,8 +116,9 @@ void OnlineFusion::RefreshCalibration() {
   cal_state_ = s;
   // Applied from the first estimate on (the posterior mean: where the windows say little it stays near
   // the unit as it is), each later one replacing it. The outputs are
-  // corrected to first order: g = (H + E) w + ... gives H w = g - E P g (P the all-gyro rate solver).
-  GyroAxes e(s.n_gyros, 3);
+  // corrected to first order: g = (H + E) w + ... gives H w = g - E P g, P the rate solver of the gyros
+  // in use (an isolated gyro's fault does not leak into the others' corrections).
+  GyroAxes& e = cal_e_;
   for (int i = 0; i < s.n_gyros; ++i) {
     const Vec3 a = axes_.row(i).transpose();
     Vec3 u, v;
@@ -126,7 +127,6 @@ void OnlineFusion::RefreshCalibration() {
                 kArcsecToRad * (s.misalignment_arcsec[i][0] * u + s.misalignment_arcsec[i][1] * v))
                    .transpose();
   }
-  cal_m_ = GyroParity::Identity(s.n_gyros, s.n_gyros) - e * cal_.rate_solver();
   cal_applied_ = true;
   cal_state_.status = UnitCalStatus::kApplied;
 }
@@ -553,7 +553,7 @@ GyroSampleStatus OnlineFusion::AddGyro(double t_k, const GyroVec& g_in) {
                                               : outputs;
   FeedCalibration(t_k, g, status);
   // The applied unit calibration, before the rate, the fault monitors and the filter see the outputs.
-  if (cal_applied_) g = cal_m_ * g;
+  if (cal_applied_) g -= cal_e_ * (solver_.Pinv() * g);
   g_last_ = g;
   last_partial_ = partial;
   // A tracked fault's compensation at the middle of this sample's interval.

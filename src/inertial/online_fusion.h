@@ -200,7 +200,7 @@ class OnlineFusion {
   bool cal_on_ = false, cal_applied_ = false;
   InflightCalibrator cal_;
   UnitCalState cal_state_;
-  GyroParity cal_m_;  // N x N: the outputs' correction once applied (I - E P)
+  GyroAxes cal_e_;  // N x 3: each gyro's scale factor along its axis and tilts along its normals (E)
 
   Mekf filter_;
   bool initialised_ = false;

@@ -106,7 +106,6 @@ class InflightCalibrator {
   // (scale factor ppm, tilts arcsec per gyro).
   UnitCalState Estimate(ParMat* cov = nullptr) const;
   int n_gyros() const { return n_; }
-  const GyroPinv& rate_solver() const { return p_; }  // the all-gyro rate solver it propagates with
 
  private:
   void Accumulate(const GyroVec& g_rad_s, const Vec3& w_rad_s, double dt_s);
