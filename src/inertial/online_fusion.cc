@@ -118,15 +118,7 @@ void OnlineFusion::RefreshCalibration() {
   // the unit as it is), each later one replacing it. The outputs are
   // corrected to first order: g = (H + E) w + ... gives H w = g - E P g, P the rate solver of the gyros
   // in use (an isolated gyro's fault does not leak into the others' corrections).
-  GyroAxes& e = cal_e_;
-  for (int i = 0; i < s.n_gyros; ++i) {
-    const Vec3 a = axes_.row(i).transpose();
-    Vec3 u, v;
-    AxisNormals(a, &u, &v);
-    e.row(i) = (1e-6 * s.scale_factor_ppm[i] * a +
-                kArcsecToRad * (s.misalignment_arcsec[i][0] * u + s.misalignment_arcsec[i][1] * v))
-                   .transpose();
-  }
+  for (int i = 0; i < s.n_gyros; ++i) cal_e_.row(i) = cal_.OutputError(s, i).transpose();
   cal_applied_ = true;
   cal_state_.status = UnitCalStatus::kApplied;
 }

@@ -228,7 +228,7 @@ void InflightCalibrator::EliminateBiases(ParMat* info, ParVec* eta, double* yy) 
   eta->tail(n_).setZero();
 }
 
-UnitCalState InflightCalibrator::Estimate(ParMat* cov_out) const {
+UnitCalState InflightCalibrator::Estimate() const {
   UnitCalState s;
   s.n_gyros = n_;
   s.n_windows = n_windows_;
@@ -272,8 +272,12 @@ UnitCalState InflightCalibrator::Estimate(ParMat* cov_out) const {
     }
   }
   s.status = UnitCalStatus::kEstimated;
-  if (cov_out) *cov_out = cov;
   return s;
+}
+
+Vec3 InflightCalibrator::OutputError(const UnitCalState& s, int i) const {
+  return kPpm * s.scale_factor_ppm[i] * h_.row(i).transpose() +
+         kArcsecToRad * (s.misalignment_arcsec[i][0] * u_[i] + s.misalignment_arcsec[i][1] * w_[i]);
 }
 
 }  // namespace ssiu

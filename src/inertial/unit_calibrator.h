@@ -102,9 +102,11 @@ class InflightCalibrator {
   bool AddFix(double t_s, const Quat& q_inertial_from_body, const Mat3& cov_body_rad2);
 
   // The estimate from everything so far (a copy of the information is reduced: the state is unchanged).
-  // Status accumulating, not_observable or estimated; with `cov` the 3N x 3N covariance of the terms
-  // (scale factor ppm, tilts arcsec per gyro).
-  UnitCalState Estimate(ParMat* cov = nullptr) const;
+  // Status accumulating, not_observable or estimated.
+  UnitCalState Estimate() const;
+  // Gyro i's output error per unit body rate under estimate s, e_i = S n + mu u + nu v (the model of
+  // the module comment, dimensionless): the row of E in g = (H + E) w + ...
+  Vec3 OutputError(const UnitCalState& s, int i) const;
   int n_gyros() const { return n_; }
 
  private:
