@@ -12,6 +12,8 @@ using SetupFn = std::function<void(CLI::App& root)>;
 
 // Registers a subcommand's setup function (called once when the program starts).
 bool RegisterCommand(const std::string& name, SetupFn setup);
+// Calls every registered setup function on `root` (in name order).
+void SetUpCommands(CLI::App& root);
 
 // The subcommand `name` of `parent`, created with `description` if it does not exist yet
 // (so that `simulate frame` and `simulate gyro` can live in different files).

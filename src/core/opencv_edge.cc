@@ -1,11 +1,12 @@
 #include "core/opencv_edge.h"
 
 #include <dlfcn.h>
-#include <unistd.h>
 
 #include <cstdlib>
 #include <stdexcept>
 #include <string>
+
+#include "core/lazy_library.h"
 
 namespace ssiu {
 namespace {
@@ -14,19 +15,11 @@ constexpr char kModule[] = "libssiu_opencv.so";
 constexpr char kLookup[] = "ssiu_opencv_edge";  // extern "C" void* (const char* name), the module's table
 using Lookup = void* (*)(const char*);
 
-std::string ExecutableDir() {
-  char buf[4096];
-  const ssize_t n = ::readlink("/proc/self/exe", buf, sizeof buf - 1);
-  if (n <= 0) return "";
-  const std::string exe(buf, static_cast<size_t>(n));
-  return exe.substr(0, exe.find_last_of('/') + 1);
-}
-
 Lookup Load() {
   std::string tried;
   const char* env = std::getenv("SSIU_OPENCV_EDGE");
   for (const std::string& path :
-       {std::string(env && *env ? env : ""), ExecutableDir() + kModule, std::string(SSIU_OPENCV_EDGE_PATH)}) {
+       {std::string(env && *env ? env : ""), internal::ExecutableDir() + kModule, std::string(SSIU_OPENCV_EDGE_PATH)}) {
     if (path.empty()) continue;
     if (void* lib = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL)) {  // kept loaded until exit
       if (auto fn = reinterpret_cast<Lookup>(dlsym(lib, kLookup))) return fn;

@@ -2,7 +2,9 @@
 // module libssiu_opencv.so (core/opencv_edge.h), and libtiff only for a TIFF (core/lazy_library.h); the
 // common path (--help, detect, solve of a PNG) loads none of them, and a solve with --overlay loads the
 // module and OpenCV and writes an overlay.
+#include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <opencv2/imgcodecs.hpp>
 
 #include "testing/testing.h"
@@ -39,6 +41,7 @@ TEST(StartupCli, CommonPathLoadsNoOpenCvAndAnOverlayLoadsItOnUse) {
   EXPECT_EQ(status, 0) << out;
   EXPECT_THAT(out, Not(HasSubstr("libopencv")));
   EXPECT_THAT(out, Not(HasSubstr("libssiu_opencv")));
+  EXPECT_THAT(out, Not(HasSubstr("libssiu_tools")));
   EXPECT_THAT(out, Not(HasSubstr("libtiff")));
   out = LoadedBy(solve + " --overlay " + d + "/o.png", &status);
   EXPECT_EQ(status, 0) << out;
@@ -48,6 +51,40 @@ TEST(StartupCli, CommonPathLoadsNoOpenCvAndAnOverlayLoadsItOnUse) {
   ASSERT_FALSE(o.empty());
   EXPECT_EQ(o.cols, 1024);
   EXPECT_EQ(o.channels(), 3);
+}
+
+// The tool commands are the module libssiu_tools.so (cli/tools_module.h): loaded for one of its
+// commands or the whole help, not for the program's own commands; without it, the program's own
+// commands still run and a tool command is refused on one line that names the module.
+TEST(StartupCli, ToolCommandsLoadTheirModuleOnlyWhenCalled) {
+  int status = -1;
+  std::string out = LoadedBy("--help", &status);
+  EXPECT_EQ(status, 0);
+  EXPECT_THAT(out, HasSubstr("libssiu_tools.so"));
+  EXPECT_THAT(out, HasSubstr("discover"));
+  EXPECT_THAT(out, HasSubstr("groundtest"));
+  out = LoadedBy("run --help", &status);
+  EXPECT_EQ(status, 0);
+  EXPECT_THAT(out, HasSubstr("calling init: "));
+  EXPECT_THAT(out, Not(HasSubstr("libssiu_tools")));
+  out = LoadedBy("simulate performance --help", &status);
+  EXPECT_EQ(status, 0);
+  EXPECT_THAT(out, HasSubstr("libssiu_tools.so"));
+
+  const std::string d = testing::TempDir("startup_tools");
+  const std::string none = "SSIU_TOOLS_MODULE=" + d + "/none.so ";
+  std::string o;
+  status = testing::Run(none + testing::SsiuProgram() + " discover gyro x.csv 2>&1", &o);
+  EXPECT_EQ(status, 1) << o;
+  EXPECT_THAT(o, HasSubstr("no libssiu_tools.so"));
+  EXPECT_EQ(std::count(o.begin(), o.end(), '\n'), 1) << o;
+  status = testing::Run(none + testing::SsiuProgram() + " simulate gyro --help 2>&1", &o);
+  EXPECT_EQ(status, 0) << o;
+  std::ofstream(d + "/text.so") << "not a module\n";
+  status =
+      testing::Run("SSIU_TOOLS_MODULE=" + d + "/text.so " + testing::SsiuProgram() + " fog thermal x.csv 2>&1", &o);
+  EXPECT_EQ(status, 2) << o;
+  EXPECT_THAT(o, HasSubstr("cannot load " + d + "/text.so"));
 }
 
 }  // namespace
