@@ -2,7 +2,8 @@
 # Idempotent set-up of a fresh Debian machine (run as root): packages, catalogs, build.
 # Usage: scripts/setup.sh [--all] [build-dir] [cmake args...]
 # Without --all (the README's first command): the packages that configure and build ssiu, and only the
-# `ssiu` program built (with the module it loads, libssiu_opencv.so). With --all (scripts/test.sh): also
+# `ssiu` program built (not the modules it loads on use, libssiu_tools.so with the tool commands and
+# libssiu_opencv.so, which draws; docs/design.md "The program"). With --all (scripts/test.sh): also
 # the test tools (clang, valgrind, pytest, dask, xmllint), every target built (tests, benchmarks, Python
 # module) and the Python module installed. Both configure the build directory the same way, so either
 # builds on what the other built and neither reconfigures it.
