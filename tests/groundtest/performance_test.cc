@@ -91,6 +91,9 @@ void RunCase(const Case& c) {
 }
 
 TEST(Performance, EachContributionAloneIsRecoveredAndTheOthersStaySmall) {
+  if (testing::kUnderSanitizer)
+    GTEST_SKIP() << "five full simulations (146 s under the sanitizers); the same simulation and split run there "
+                    "in Performance.AllContributionsTogetherAreEachRecovered";
   RunCase({"bias", {true, false, false, false, false}});
   RunCase({"distortion", {false, true, false, false, false}});
   RunCase({"intra-pixel", {false, false, true, false, false}});

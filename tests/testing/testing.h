@@ -8,10 +8,25 @@
 #include <functional>
 #include <string>
 
+// True in the AddressSanitizer builds (scripts/test.sh), where the heaviest simulations run 5-10x slower:
+// a few tests run a smaller case there, or leave to a lighter test the code both run.
+#if defined(__SANITIZE_ADDRESS__)
+#define SSIU_TESTING_UNDER_SANITIZER 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define SSIU_TESTING_UNDER_SANITIZER 1
+#endif
+#endif
+#ifndef SSIU_TESTING_UNDER_SANITIZER
+#define SSIU_TESTING_UNDER_SANITIZER 0
+#endif
+
 #include "core/attitude.h"
 #include "core/catalog.h"
 
 namespace ssiu::testing {
+
+inline constexpr bool kUnderSanitizer = SSIU_TESTING_UNDER_SANITIZER != 0;
 
 // ../shared ($SSIU_SHARED_DIR, else the path CMake was configured with); empty when absent.
 std::string SharedDir();
