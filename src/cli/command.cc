@@ -25,10 +25,15 @@ void SetUpCommands(CLI::App& root) {
   for (auto& [name, setup] : Registry()) setup(root);
 }
 
-CLI::App* GetOrAddSubcommand(CLI::App& parent, const std::string& name, const std::string& description) {
+CLI::App* FindSubcommand(CLI::App& parent, const std::string& name) {
   for (CLI::App* sub : parent.get_subcommands([](CLI::App*) { return true; })) {
     if (sub->get_name() == name) return sub;
   }
+  return nullptr;
+}
+
+CLI::App* GetOrAddSubcommand(CLI::App& parent, const std::string& name, const std::string& description) {
+  if (CLI::App* sub = FindSubcommand(parent, name)) return sub;
   CLI::App* sub = parent.add_subcommand(name, description);
   sub->require_subcommand(1);
   return sub;

@@ -15,6 +15,8 @@ bool RegisterCommand(const std::string& name, SetupFn setup);
 // Calls every registered setup function on `root` (in name order).
 void SetUpCommands(CLI::App& root);
 
+// The subcommand `name` of `parent`, or nullptr.
+CLI::App* FindSubcommand(CLI::App& parent, const std::string& name);
 // The subcommand `name` of `parent`, created with `description` if it does not exist yet
 // (so that `simulate frame` and `simulate gyro` can live in different files).
 CLI::App* GetOrAddSubcommand(CLI::App& parent, const std::string& name, const std::string& description);

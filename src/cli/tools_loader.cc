@@ -4,6 +4,7 @@
 
 #include <cstdlib>
 
+#include "cli/command.h"
 #include "cli/tools_module.h"
 #include "core/lazy_library.h"
 
@@ -15,20 +16,13 @@ bool Exists(const std::string& path) {
   return ::stat(path.c_str(), &st) == 0;
 }
 
-CLI::App* Child(CLI::App* node, const std::string& name) {
-  for (CLI::App* sub : node->get_subcommands([](CLI::App*) { return true; })) {
-    if (sub->get_name() == name) return sub;
-  }
-  return nullptr;
-}
-
 // The command line names a command of the program's own tree (a leaf), before any flag.
 bool ProgramHas(CLI::App& app, int argc, char** argv) {
   CLI::App* node = &app;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a.empty() || a[0] == '-') return false;  // e.g. `ssiu --help`, `ssiu simulate --help`: list all
-    node = Child(node, a);
+    node = FindSubcommand(*node, a);
     if (node == nullptr) return false;
     if (node->get_subcommands([](CLI::App*) { return true; }).empty()) return true;
   }
