@@ -9,7 +9,7 @@
 #include <string>
 
 // True in the AddressSanitizer builds (scripts/test.sh), where the heaviest simulations run 5-10x slower:
-// a few tests run a smaller case there, or leave to a lighter test the code both run.
+// a test may leave to a lighter one the code both run there.
 #if defined(__SANITIZE_ADDRESS__)
 #define SSIU_TESTING_UNDER_SANITIZER 1
 #elif defined(__has_feature)
