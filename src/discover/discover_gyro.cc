@@ -169,10 +169,9 @@ void RelocateNamed(Design* design, const GyroDiscoverOptions& o, const std::vect
 
 // A nested cause named in the chain (misalignment, scale_factor) is tested again against its wider partner
 // (magnetic_field's azimuth harmonic, scale_factor_asymmetry) in the final model, the other named causes in
-// the base: the partner's extra terms are weighed as Upgrade weighs them at a step (chi^2 of the difference
-// at alpha), now with every other cause fitted too (at its step the wider one's phase was 3-8 chi^2 from
-// significance when a temperature gradient or a scale factor was still unfitted). A cause widened so keeps
-// its step's gain; its parameters are the joint fit's.
+// the base: the partner's extra terms are weighed as Upgrade weighs them at a step, now with every other cause fitted
+// too (at its step the wider one's phase was 3-8 chi^2 from significance when a temperature gradient or a scale factor
+// was still unfitted). A cause widened so keeps its step's gain; its parameters are the joint fit's.
 void WidenNested(Design* design, const GyroDiscoverOptions& o, const std::vector<NoiseModel>& nm,
                  const std::vector<bool>& usable, std::vector<NamedCause>* named) {
   const Design& d = *design;
@@ -190,7 +189,12 @@ void WidenNested(Design* design, const GyroDiscoverOptions& o, const std::vector
     const double s2 = gw.rss / std::max(1, d.n - static_cast<int>(xw.cols()));
     const double infl = VarianceInflation(d, yw - xw * gw.beta, o.max_noise_lag);
     const double stat = std::max(0.0, (gn.rss - gw.rss) / (s2 * infl));
-    if (ChiSquaredSurvival(stat, static_cast<double>(wide.size() - nc.cols.size())) < o.alpha) {
+    const bool wider =
+        cause == "magnetic_field"
+            ? FieldPhaseWarranted(stat,
+                                  std::max(0.0, (SolveLs(WhitenRows(d, nm, d.base), yw).rss - gw.rss) / (s2 * infl)))
+            : ChiSquaredSurvival(stat, static_cast<double>(wide.size() - nc.cols.size())) < o.alpha;
+    if (wider) {
       nc.candidate.cause = cause, nc.candidate.model = model, nc.cols = wide;
     }
   });

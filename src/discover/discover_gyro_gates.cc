@@ -173,7 +173,8 @@ bool JudgeCandidate(const Evaluation& ev, double z_min, const GyroDiscoverOption
   return c->verdict == "named";
 }
 
-// A nested candidate replaced by the wider one when the wider's extra terms are significant at alpha.
+// A nested candidate replaced by the wider one: scale_factor when the asymmetry's extra term is significant
+// at alpha, misalignment when the free phase is warranted (FieldPhaseWarranted).
 GyroCandidate* Upgrade(GyroCandidate* c, std::vector<GyroCandidate>* candidates, double alpha) {
   const std::map<std::string, std::string> wider = {{"misalignment", "magnetic_field"},
                                                     {"scale_factor", "scale_factor_asymmetry"}};
@@ -185,11 +186,11 @@ GyroCandidate* Upgrade(GyroCandidate* c, std::vector<GyroCandidate>* candidates,
       break;
     }
   }
-  if (w && w->applicable && w->significant && w->dof > c->dof &&
-      ChiSquaredSurvival(w->statistic - c->statistic, w->dof - c->dof) < alpha) {
-    return w;
-  }
-  return c;
+  if (!w || !w->applicable || !w->significant || w->dof <= c->dof) return c;
+  const double extra = w->statistic - c->statistic;
+  const bool widen = c->cause == "misalignment" ? FieldPhaseWarranted(extra, w->statistic)
+                                                : ChiSquaredSurvival(extra, w->dof - c->dof) < alpha;
+  return widen ? w : c;
 }
 
 // A candidate that a fixed function of the logged reference explains at least as well is not named.

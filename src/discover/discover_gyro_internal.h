@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/types.h"
 #include "discover/discover_gyro.h"
 
 namespace ssiu::discover_internal {
@@ -290,5 +291,17 @@ TimeShapeFit TimeShapeChi2(const Design& d, const std::vector<NoiseModel>& nm, c
                            int r, double s2);
 GyroResidual TestResidual(const Design& d, const std::vector<NoiseModel>& nm, const VectorXd& e,
                           const GyroDiscoverOptions& o, double fundamental_hz = 0, int fundamental_log = 0);
+
+// misalignment (the azimuth harmonic at the Earth rate's phase) or magnetic_field (a harmonic of free
+// phase), which are the same regressor where the field's phase lies near the misalignment's: the field when
+// its Bayes factor wins at even prior odds. With the harmonic's sin and cos estimated with equal Gaussian
+// errors sigma, both amplitudes uniform over one range and the field's phase uniform, Laplace's
+// approximation of each evidence gives B(misalignment : field) = exp(-extra_chi2 / 2) sqrt(pi / 2) A / sigma
+// (A / sigma = sqrt(harmonic_chi2), the free harmonic's chi^2 against the model without it; extra_chi2
+// its chi^2 against the misalignment). The field is named when B < 1: a threshold of 3-6 on extra_chi2 for
+// a harmonic 4-15 sigma strong, where a test of the phase at alpha = 0.01 asks 6.6 at every strength.
+inline bool FieldPhaseWarranted(double extra_chi2, double harmonic_chi2) {
+  return extra_chi2 > std::log(kPi / 2) + std::log(std::max(harmonic_chi2, 1.0));
+}
 
 }  // namespace ssiu::discover_internal
