@@ -7,25 +7,35 @@ cd "$(dirname "$0")/.."
 jobs=$(nproc)
 bash scripts/setup.sh --all build
 ctest --test-dir build --output-on-failure -j"$jobs" -LE long
+# The sanitizer build also makes the fuzzers, so that the stages they call are compiled once for both (only
+# those carry libFuzzer's coverage counters there: CMakeLists.txt, SSIU_FUZZ).
+fuzz_in_asan=OFF
+if [ "${SSIU_SKIP_ASAN:-0}" != "1" ] && [ "${SSIU_SKIP_FUZZ:-0}" != "1" ]; then
+  fuzz_in_asan=ON
+fi
 if [ "${SSIU_SKIP_ASAN:-0}" != "1" ]; then
   # clang: its UBSan also checks out-of-range double-to-int conversions (float-cast-overflow), which
   # GCC's lacks. -O1 -g1: sanitizer builds of the template-heavy files (FLANN, Eigen) compile faster.
   bash scripts/setup.sh --all build-asan -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
     -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1" \
-    -DSSIU_SANITIZE=ON -DSSIU_BUILD_BENCH=OFF -DSSIU_BUILD_LONGTESTS=OFF
+    -DSSIU_SANITIZE=ON -DSSIU_FUZZ=$fuzz_in_asan -DSSIU_BUILD_BENCH=OFF -DSSIU_BUILD_LONGTESTS=OFF
   ASAN_OPTIONS=detect_leaks=1:abort_on_error=0 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
     ctest --test-dir build-asan --output-on-failure -j"$jobs" -LE 'long|no_asan'
 fi
 if [ "${SSIU_SKIP_FUZZ:-0}" != "1" ]; then
   # clang + libFuzzer, ASan, UBSan and float-cast-overflow (which GCC lacks); only the readers' stages
   # and the flight interface are built. SSIU_FUZZ_SECONDS per harness (default 10 s: 6 harnesses add about 1 min).
-  CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-    "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1" -DSSIU_FUZZ=ON -DSSIU_BUILD_TESTS=OFF -DSSIU_BUILD_BENCH=OFF \
-    -DSSIU_BUILD_LONGTESTS=OFF -DSSIU_WERROR=OFF >/dev/null
-  cmake --build build-fuzz -j"$jobs" --target fuzz_image fuzz_csv fuzz_json fuzz_centroids fuzz_flight fuzz_adm
+  fuzz_build=build-asan
+  if [ "$fuzz_in_asan" != "ON" ]; then
+    fuzz_build=build-fuzz
+    CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+      "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1" -DSSIU_FUZZ=ON -DSSIU_BUILD_TESTS=OFF -DSSIU_BUILD_BENCH=OFF \
+      -DSSIU_BUILD_LONGTESTS=OFF -DSSIU_WERROR=OFF >/dev/null
+  fi
+  cmake --build $fuzz_build -j"$jobs" --target fuzz_image fuzz_csv fuzz_json fuzz_centroids fuzz_flight fuzz_adm
   for h in image csv json centroids flight adm; do
     work=$(mktemp -d)  # new inputs go here, the corpus in the repository stays as it is
-    UBSAN_OPTIONS=halt_on_error=1 build-fuzz/fuzz/fuzz_$h -max_total_time="${SSIU_FUZZ_SECONDS:-10}" -timeout=10 \
+    UBSAN_OPTIONS=halt_on_error=1 $fuzz_build/fuzz/fuzz_$h -max_total_time="${SSIU_FUZZ_SECONDS:-10}" -timeout=10 \
       -rss_limit_mb=2048 -print_final_stats=1 "$work" fuzz/corpus/$h
     rm -rf "$work"
   done
