@@ -189,12 +189,11 @@ void WidenNested(Design* design, const GyroDiscoverOptions& o, const std::vector
     const double s2 = gw.rss / std::max(1, d.n - static_cast<int>(xw.cols()));
     const double infl = VarianceInflation(d, yw - xw * gw.beta, o.max_noise_lag);
     const double stat = std::max(0.0, (gn.rss - gw.rss) / (s2 * infl));
-    const bool wider =
-        cause == "magnetic_field"
-            ? FieldPhaseWarranted(stat,
-                                  std::max(0.0, (SolveLs(WhitenRows(d, nm, d.base), yw).rss - gw.rss) / (s2 * infl)))
-            : ChiSquaredSurvival(stat, static_cast<double>(wide.size() - nc.cols.size())) < o.alpha;
-    if (wider) {
+    // The wider one's chi^2 against the model without either: only the field's choice uses it.
+    const double wide_chi2 = cause == "magnetic_field"
+                                 ? std::max(0.0, (SolveLs(WhitenRows(d, nm, d.base), yw).rss - gw.rss) / (s2 * infl))
+                                 : 0.0;
+    if (WiderWarranted(nc.candidate.cause, stat, wide_chi2, static_cast<int>(wide.size() - nc.cols.size()), o.alpha)) {
       nc.candidate.cause = cause, nc.candidate.model = model, nc.cols = wide;
     }
   });

@@ -101,6 +101,11 @@ CvResult CrossValidate(const Design& d, const std::vector<NoiseModel>& nm, const
   return cv;
 }
 
+bool WiderWarranted(const std::string& nested_cause, double extra_chi2, double wide_chi2, int extra_dof, double alpha) {
+  if (nested_cause == "misalignment") return FieldPhaseWarranted(extra_chi2, wide_chi2);
+  return ChiSquaredSurvival(extra_chi2, extra_dof) < alpha;
+}
+
 namespace {
 
 // One-sided normal quantile at tail probability p, by bisection on erfc (which keeps tiny tail
@@ -173,8 +178,7 @@ bool JudgeCandidate(const Evaluation& ev, double z_min, const GyroDiscoverOption
   return c->verdict == "named";
 }
 
-// A nested candidate replaced by the wider one: scale_factor when the asymmetry's extra term is significant
-// at alpha, misalignment when the free phase is warranted (FieldPhaseWarranted).
+// A nested candidate replaced by the wider one when WiderWarranted.
 GyroCandidate* Upgrade(GyroCandidate* c, std::vector<GyroCandidate>* candidates, double alpha) {
   const std::map<std::string, std::string> wider = {{"misalignment", "magnetic_field"},
                                                     {"scale_factor", "scale_factor_asymmetry"}};
@@ -187,10 +191,7 @@ GyroCandidate* Upgrade(GyroCandidate* c, std::vector<GyroCandidate>* candidates,
     }
   }
   if (!w || !w->applicable || !w->significant || w->dof <= c->dof) return c;
-  const double extra = w->statistic - c->statistic;
-  const bool widen = c->cause == "misalignment" ? FieldPhaseWarranted(extra, w->statistic)
-                                                : ChiSquaredSurvival(extra, w->dof - c->dof) < alpha;
-  return widen ? w : c;
+  return WiderWarranted(c->cause, w->statistic - c->statistic, w->statistic, w->dof - c->dof, alpha) ? w : c;
 }
 
 // A candidate that a fixed function of the logged reference explains at least as well is not named.

@@ -304,4 +304,9 @@ inline bool FieldPhaseWarranted(double extra_chi2, double harmonic_chi2) {
   return extra_chi2 > std::log(kPi / 2) + std::log(std::max(harmonic_chi2, 1.0));
 }
 
+// A nested cause's wider partner is taken (Upgrade at a step, WidenNested in the final model): misalignment's
+// (magnetic_field) when FieldPhaseWarranted, scale_factor's (scale_factor_asymmetry) when the extra term's
+// chi^2 (extra_dof) is significant at alpha. wide_chi2: the wider one's chi^2 against the model without either.
+bool WiderWarranted(const std::string& nested_cause, double extra_chi2, double wide_chi2, int extra_dof, double alpha);
+
 }  // namespace ssiu::discover_internal
