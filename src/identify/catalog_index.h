@@ -52,12 +52,16 @@ class CatalogIndex {
   static constexpr int kRatioCells = 251;  // ratios in [0, 1]
   static constexpr double kLnStep = 1e-4, kLnMin = -14.0;
   static constexpr int kLnBits = 20;
+  // Both clamp before converting: a query box can be far outside [0, 1] or not a number (three
+  // nearly coincident centroids give a ratio tolerance of 1e11), and converting such a double to an
+  // integer is undefined. NaN goes to cell 0, whose triangles the caller's comparison then rejects.
   static int RatioCell(double r) {
-    return std::clamp(static_cast<int>(std::floor(r / kRatioCell)), 0, kRatioCells - 1);
+    const double c = std::floor(r / kRatioCell);
+    return c >= kRatioCells - 1 ? kRatioCells - 1 : (c > 0 ? static_cast<int>(c) : 0);
   }
   static int64_t LnCell(double ln_l) {
-    const double c = std::floor((ln_l - kLnMin) / kLnStep);
-    return static_cast<int64_t>(std::clamp(c, 0.0, static_cast<double>((1 << kLnBits) - 1)));
+    const double c = std::floor((ln_l - kLnMin) / kLnStep), top = (1 << kLnBits) - 1;
+    return c >= top ? static_cast<int64_t>(top) : (c > 0 ? static_cast<int64_t>(c) : 0);
   }
   static uint64_t Key(int ia, int ib, int64_t il) {
     return ((static_cast<uint64_t>(ia) * kRatioCells + static_cast<uint64_t>(ib)) << kLnBits) |

@@ -158,6 +158,25 @@ TEST(CatalogIndex, LoadedCatalogIsTheBuiltOneAndItsStoredIndexAnswersAsANewOne) 
   }
 }
 
+// A box far outside the features' range (three nearly coincident centroids give a ratio tolerance
+// near 1e11) or not a number is a defined query: the box that spans everything visits every triangle
+// once, a NaN one visits none. (Converting such a bound to a cell index unclamped is undefined, which
+// the sanitizer build reports.)
+TEST(CatalogIndex, BoxQueryFarOutsideTheFeaturesRangeIsDefined) {
+  const SolverCatalog& cat = Built20();
+  ASSERT_TRUE(cat.index);
+  std::vector<int> seen;
+  cat.index->ForEachInBox(-2.7e11, 5e11, 0.0, 1e12, 1e12, cat, [&](int k) { seen.push_back(k); });
+  std::sort(seen.begin(), seen.end());
+  EXPECT_EQ(seen.size(), cat.triangles.size());
+  EXPECT_TRUE(std::adjacent_find(seen.begin(), seen.end()) == seen.end());
+  int visited = 0;
+  const double nan = std::nan("");
+  cat.index->ForEachInBox(nan, 0.5, -1.0, 0.01, 0.02, cat, [&](int) { ++visited; });
+  cat.index->ForEachInBox(0.5, 0.5, -1.0, nan, 0.02, cat, [&](int) { ++visited; });
+  EXPECT_EQ(visited, 0);
+}
+
 // The sky-cell lookup (no allocation) answers as the kd-tree's radius search, to the star: random
 // cones, cones at the poles and across right ascension 0/360, radii at a star's own distance (the
 // boundary), the whole sky; more stars than the room: the brightest; NaN: none.
