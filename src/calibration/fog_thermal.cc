@@ -231,20 +231,23 @@ TemperatureEstimate EstimateTemperatureRate(const std::vector<double>& t_s, cons
     }
     // Local polynomial in u = (t - tc)/half (Savitzky-Golay for irregular samples): the value and
     // slope at u = 0 are c0 and c1/half.
-    Eigen::MatrixXd a = Eigen::MatrixXd::Zero(p, p);
-    Eigen::VectorXd b = Eigen::VectorXd::Zero(p);
-    std::array<double, 12> pw{};
+    // The normal matrix is Hankel, a(r, c) = sum u^(r+c): its 2p - 1 sums are accumulated once.
+    std::array<double, 12> pw{}, mom{}, by{};
     for (size_t i = lo; i < hi; ++i) {
       const double u = (t_s[i] - tc) / half;
       double m = 1;
       for (int k = 0; k < 2 * p - 1; ++k) {
         pw[k] = m;
+        mom[k] += m;
         m *= u;
       }
-      for (int r = 0; r < p; ++r) {
-        b(r) += temp_c[i] * pw[r];
-        for (int c = 0; c < p; ++c) a(r, c) += pw[r + c];
-      }
+      for (int r = 0; r < p; ++r) by[r] += temp_c[i] * pw[r];
+    }
+    Eigen::MatrixXd a(p, p);
+    Eigen::VectorXd b(p);
+    for (int r = 0; r < p; ++r) {
+      b(r) = by[r];
+      for (int c = 0; c < p; ++c) a(r, c) = mom[r + c];
     }
     const Eigen::VectorXd c = a.ldlt().solve(b);
     out.temp_c[q] = c(0);

@@ -54,8 +54,9 @@ std::pair<double, double> ScanSinusoid(const LogBins& b, const NoiseModel& noise
     VectorXd sn, cs;
     BinSinusoid(b, fr, &sn, &cs);
     MatrixXd a(m, 2);
-    a.col(0) = noise.Whiten(sn);
-    a.col(1) = noise.Whiten(cs);
+    const double* in[2] = {sn.data(), cs.data()};
+    double* out[2] = {a.col(0).data(), a.col(1).data()};
+    noise.WhitenSeries(in, out, 2, m);
     for (int j = 0; j < 2; ++j) a.col(j) -= (cw.dot(a.col(j)) / cw.squaredNorm()) * cw;
     const Eigen::Matrix2d g = a.transpose() * a;
     const Eigen::Vector2d p = a.transpose() * rr;
@@ -90,10 +91,24 @@ void ScanStep(const Design& d, const std::vector<NoiseModel>& nm, const MatrixXd
     const int m = static_cast<int>(d.bins[r].t_s.size());
     const VectorXd cw = bw.col(r).segment(d.offset[r], m);
     const VectorXd rr = base_res.segment(d.offset[r], m);
-    for (int j = std::max(1, m / 20); j < m - m / 20; ++j) {
-      VectorXd st = VectorXd::Zero(m);
-      st.tail(m - j).setOnes();
-      VectorXd sw = nm[r].Whiten(st);
+    // The whitened steps four positions at a time, each from its first position on (zero before).
+    const int j_lo = std::max(1, m / 20), j_hi = m - m / 20;
+    MatrixXd steps(m, 4), steps_w(m, 4);
+    for (int j = j_lo; j < j_hi; ++j) {
+      const int c = (j - j_lo) % 4;
+      if (c == 0) {
+        const int n = std::min(4, j_hi - j);
+        const double* in[4];
+        double* out[4];
+        for (int i = 0; i < n; ++i) {
+          steps.col(i).head(j + i).setZero();
+          steps.col(i).tail(m - j - i).setOnes();
+          steps_w.col(i).head(j).setZero();
+          in[i] = steps.col(i).data(), out[i] = steps_w.col(i).data();
+        }
+        nm[r].WhitenSeries(in, out, n, m, j);
+      }
+      VectorXd sw = steps_w.col(c);
       sw -= (cw.dot(sw) / cw.squaredNorm()) * cw;
       const double ss = sw.squaredNorm();
       if (ss <= 0) continue;

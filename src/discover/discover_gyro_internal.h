@@ -60,6 +60,10 @@ struct NoiseModel {
   void Prepare(int m);
   // Whitened copy of v (length m): innovation / sqrt(S_k).
   VectorXd Whiten(const VectorXd& v) const;
+  // The same recursion on n series of length m at once (in[c] -> out[c]), bit for bit Whiten's on each:
+  // the series' dependency chains interleave, which is what makes it faster. From bin `from` on, when
+  // every series is zero before it (the filter's state is then zero there; out is left as it is before).
+  void WhitenSeries(const double* const* in, double* const* out, int n, int m, int from = 0) const;
   // Whiten() of every column of x.
   MatrixXd WhitenCols(const MatrixXd& x) const;
   // Gaussian negative log-likelihood of v, leaving out the first (diffuse) innovation.

@@ -33,23 +33,60 @@ void NoiseModel::Prepare(int m) {
   }
 }
 
-// The one Kalman recursion: the innovations of v, each over its sqrt(S_k).
+namespace {
+
+// The one Kalman recursion on N series: per bin, the innovation e = v - (x + b) over sqrt(S_k), then
+// the state update; the operations of each series in Whiten's order, so that every result is the same.
+template <int N>
+void WhitenN(const NoiseModel& nm, const double* const* in, double* const* out, int m, int from = 0) {
+  double x[N] = {}, b[N] = {};
+  for (int k = from; k < m; ++k) {
+    const double g0 = nm.gain[k](0), g1 = nm.gain[k](1), is = nm.inv_sqrt_s[k];
+    for (int c = 0; c < N; ++c) {
+      if (k > 0) x[c] *= nm.phi;
+      const double e = in[c][k] - (x[c] + b[c]);
+      out[c][k] = e * is;
+      x[c] += g0 * e;
+      b[c] += g1 * e;
+    }
+  }
+}
+
+}  // namespace
+
+void NoiseModel::WhitenSeries(const double* const* in, double* const* out, int n, int m, int from) const {
+  switch (n) {
+    case 1:
+      return WhitenN<1>(*this, in, out, m, from);
+    case 2:
+      return WhitenN<2>(*this, in, out, m, from);
+    case 3:
+      return WhitenN<3>(*this, in, out, m, from);
+    case 4:
+      return WhitenN<4>(*this, in, out, m, from);
+    default:
+      for (int c = 0; c < n; c += 4) WhitenSeries(in + c, out + c, std::min(4, n - c), m, from);
+  }
+}
+
 VectorXd NoiseModel::Whiten(const VectorXd& v) const {
   VectorXd out(v.size());
-  Eigen::Vector2d xh = Eigen::Vector2d::Zero();
-  for (int k = 0; k < v.size(); ++k) {
-    if (k > 0) xh(0) *= phi;
-    const double e = v(k) - xh.sum();
-    out(k) = e * inv_sqrt_s[k];
-    xh += gain[k] * e;
-  }
+  const double* in = v.data();
+  double* o = out.data();
+  WhitenN<1>(*this, &in, &o, static_cast<int>(v.size()));
   return out;
 }
 
-// The same recursion on each column of x.
+// The same recursion on each column of x, four at a time.
 MatrixXd NoiseModel::WhitenCols(const MatrixXd& x) const {
   MatrixXd out(x.rows(), x.cols());
-  for (int c = 0; c < x.cols(); ++c) out.col(c) = Whiten(x.col(c));
+  for (int c = 0; c < x.cols(); c += 4) {
+    const int n = std::min<int>(4, static_cast<int>(x.cols()) - c);
+    const double* in[4];
+    double* o[4];
+    for (int j = 0; j < n; ++j) in[j] = x.col(c + j).data(), o[j] = out.col(c + j).data();
+    WhitenSeries(in, o, n, static_cast<int>(x.rows()));
+  }
   return out;
 }
 
@@ -232,8 +269,12 @@ MatrixXd WhitenRows(const Design& d, const std::vector<NoiseModel>& nm, const Ma
   MatrixXd out(x.rows(), x.cols());
   for (size_t r = 0; r < d.bins.size(); ++r) {
     const int m = static_cast<int>(d.bins[r].t_s.size());
-    for (int c = 0; c < x.cols(); ++c) {
-      out.col(c).segment(d.offset[r], m) = nm[r].Whiten(x.col(c).segment(d.offset[r], m));
+    for (int c = 0; c < x.cols(); c += 4) {
+      const int n = std::min<int>(4, static_cast<int>(x.cols()) - c);
+      const double* in[4];
+      double* o[4];
+      for (int j = 0; j < n; ++j) in[j] = x.col(c + j).data() + d.offset[r], o[j] = out.col(c + j).data() + d.offset[r];
+      nm[r].WhitenSeries(in, o, n, m);
     }
   }
   return out;
