@@ -283,9 +283,6 @@ double FinalChainBic(Chain c, const GyroDiscoverOptions& o, const std::vector<No
 // the seed paper, the lag and the walk the ones that can stand for others. Without this, on a draw the
 // procedure was not tuned on, a gradient with a periodic drift and a temperature with a step were named
 // thermal_lag (BIC 0.7 and 0.9 above the chain without it).
-// Kass & Raftery (1995, Bayes factors, JASA 90 p. 777): 2 ln B below 2 is "not worth more than a bare
-// mention"; the BIC difference approximates 2 ln B.
-constexpr double kBareMentionBic = 2;
 void RunChain(const GyroDiscoverOptions& o, const std::vector<bool>& usable, const std::vector<double>& scale,
               const std::vector<int>& full_cols, const std::string& first_file, Chain* c) {
   for (int step = static_cast<int>(c->steps.size()); step < kMaxSteps; ++step) {

@@ -367,24 +367,6 @@ std::vector<int> WalkLogs(const Design& d, const GyroDiscoverOptions& o) {
   return walk_logs;
 }
 
-// Step 4: the significant candidates ordered by the smallest BIC of the exact likelihood (noise
-// model refitted by maximum likelihood on each log's residual), so that a deterministic cause and a
-// random walk, or a step and a walk, compete on the same footing. Sets each one's bic.
-std::vector<GyroCandidate*> BicOrder(const Design& d, const GyroDiscoverOptions& o, const std::vector<NoiseModel>& nm,
-                                     const std::vector<int>& walk_logs, double walk_nll,
-                                     const std::map<std::string, double>& position_cost,
-                                     std::map<std::string, Fitted>* fits, std::vector<GyroCandidate>* candidates) {
-  std::vector<GyroCandidate*> order;
-  for (auto& c : *candidates) {
-    if (!c.applicable || !c.significant) continue;
-    const double bic = CandidateBic(d, o, nm, c, walk_logs, walk_nll, fits, position_cost);
-    c.bic = bic;
-    order.push_back(&c);
-  }
-  std::sort(order.begin(), order.end(), [](const GyroCandidate* a, const GyroCandidate* b) { return a->bic < b->bic; });
-  return order;
-}
-
 // Two candidates that can join one model: both significant, different causes, neither the walk (a noise
 // model, not columns), not a nested pair (they share a column).
 bool Partners(const GyroCandidate& a, const GyroCandidate& b, const std::map<std::string, Fitted>& fits) {
@@ -401,6 +383,51 @@ MatrixXd PairDesign(const Design& d, const Fitted& fa, const Fitted& fb) {
   MatrixXd x(d.n, fa.x.cols() + fb.x.cols() - lb);
   x << fa.x, fb.x.rightCols(fb.x.cols() - lb);
   return x;
+}
+
+// Step 4: the significant candidates ordered by the smallest BIC of the exact likelihood (noise
+// model refitted by maximum likelihood on each log's residual), so that a deterministic cause and a
+// random walk, or a step and a walk, compete on the same footing. Sets each one's bic, and best_pair_bic to
+// the lowest BIC of two of them together (Partners; infinity when no two can join).
+std::vector<GyroCandidate*> BicOrder(const Design& d, const GyroDiscoverOptions& o, const std::vector<NoiseModel>& nm,
+                                     const std::vector<int>& walk_logs, double walk_nll,
+                                     const std::map<std::string, double>& position_cost,
+                                     std::map<std::string, Fitted>* fits, std::vector<GyroCandidate>* candidates,
+                                     double* best_pair_bic) {
+  *best_pair_bic = std::numeric_limits<double>::infinity();
+  std::vector<GyroCandidate*> order;
+  for (auto& c : *candidates) {
+    if (!c.applicable || !c.significant) continue;
+    const double bic = CandidateBic(d, o, nm, c, walk_logs, walk_nll, fits, position_cost);
+    c.bic = bic;
+    order.push_back(&c);
+  }
+  // One step of look-ahead: a candidate ranks by the better of its own BIC and that of the best pair it
+  // belongs to (Partners), counted only where the pair beats both alone by more than kBareMentionBic (a
+  // second cause the data support), ties by its own. A greedy order by single BIC misleads when two causes share the
+  // drift: with a temperature drift and a bias step, a field harmonic had the best BIC alone (the noise model refitted
+  // on each residual absorbs the slow part either single cause leaves), was named first, and the pair was never
+  // reached.
+  std::map<const GyroCandidate*, double> score;
+  for (GyroCandidate* c : order) score[c] = c->bic;
+  for (size_t i = 0; i < order.size(); ++i) {
+    for (size_t j = i + 1; j < order.size(); ++j) {
+      const GyroCandidate &a = *order[i], &b = *order[j];
+      if (!Partners(a, b, *fits)) continue;
+      double cost = 0;
+      for (const std::string& cause : {a.cause, b.cause}) {
+        if (position_cost.count(cause)) cost += position_cost.at(cause);
+      }
+      const double bic = FittedBic(d, o, nm, PairDesign(d, fits->at(Key(a)), fits->at(Key(b))), a.dof + b.dof, cost);
+      *best_pair_bic = std::min(*best_pair_bic, bic);
+      if (bic + kBareMentionBic < std::min(a.bic, b.bic))
+        score[&a] = std::min(score[&a], bic), score[&b] = std::min(score[&b], bic);
+    }
+  }
+  std::sort(order.begin(), order.end(), [&](const GyroCandidate* a, const GyroCandidate* b) {
+    return score[a] != score[b] ? score[a] < score[b] : a->bic < b->bic;
+  });
+  return order;
 }
 
 // The best ln p of candidate c's terms together with those of another significant candidate (not
@@ -422,28 +449,6 @@ double BestPairLogP(const Design& d, const std::vector<NoiseModel>& nm, const Sc
     best = std::min(best, log_p);
   }
   return std::min(0.0, best);
-}
-
-// A random walk of the bias is one parameter for every slow structure at once: with two deterministic
-// causes in the logs it beat each alone in BIC (a bias step with a temperature drift was named
-// rate_random_walk 2 of 30 times, and the walk ends the chain). It goes last among the significant
-// candidates when two of them together (Partners) have a lower BIC of the exact likelihood than the walk's.
-bool PairBeatsWalk(const Design& d, const GyroDiscoverOptions& o, const std::vector<NoiseModel>& nm,
-                   const std::vector<GyroCandidate>& candidates, const std::map<std::string, Fitted>& fits,
-                   const std::map<std::string, double>& position_cost, double walk_bic) {
-  for (size_t i = 0; i < candidates.size(); ++i) {
-    for (size_t j = i + 1; j < candidates.size(); ++j) {
-      const GyroCandidate &a = candidates[i], &b = candidates[j];
-      if (!Partners(a, b, fits)) continue;
-      double cost = 0;
-      for (const std::string& cause : {a.cause, b.cause})
-        cost += position_cost.count(cause) ? position_cost.at(cause) : 0;
-      if (FittedBic(d, o, nm, PairDesign(d, fits.at(Key(a)), fits.at(Key(b))), a.dof + b.dof, cost) < walk_bic) {
-        return true;
-      }
-    }
-  }
-  return false;
 }
 
 // thermal_lag is named only when its BIC is below that of temperature and temperature_gradient together,
@@ -564,9 +569,14 @@ GyroStep RunGyroStep(const Design& d, const GyroDiscoverOptions& o, const std::v
   const WalkTest walk = TestRandomWalk(d, o, nm, walk_logs, alpha_each, d.n / f);
   if (!excluded.count("rate_random_walk")) candidates.push_back(walk.candidate);
   // 4. Order of the significant candidates (BicOrder).
-  std::vector<GyroCandidate*> order = BicOrder(d, o, nm, walk_logs, walk.nll, position_cost, &fits, &candidates);
-  if (!order.empty() && order.front()->cause == "rate_random_walk" &&
-      PairBeatsWalk(d, o, nm, candidates, fits, position_cost, order.front()->bic)) {
+  double best_pair_bic = 0;
+  std::vector<GyroCandidate*> order =
+      BicOrder(d, o, nm, walk_logs, walk.nll, position_cost, &fits, &candidates, &best_pair_bic);
+  // A random walk of the bias is one parameter for every slow structure at once: with two deterministic
+  // causes in the logs it beat each alone in BIC (a bias step with a temperature drift was named
+  // rate_random_walk 2 of 30 times, and the walk ends the chain). It goes last among the significant
+  // candidates when two of them together (Partners) have a lower BIC of the exact likelihood than the walk's.
+  if (!order.empty() && order.front()->cause == "rate_random_walk" && best_pair_bic < order.front()->bic) {
     std::rotate(order.begin(), order.begin() + 1, order.end());
   }
   // Nested pairs: misalignment is a harmonic of fixed phase inside magnetic_field, scale_factor is

@@ -215,6 +215,11 @@ struct GyroStep {
 // thermal_lag's time constant must differ from 0 by this many sigma (its gates and NarrowLag).
 constexpr double kLagMinTauZ = 3;
 
+// A BIC difference below this is "not worth more than a bare mention" (Kass & Raftery 1995, Bayes factors,
+// JASA 90 p. 777, on 2 ln B, which the BIC difference approximates): the walk and lag chains of RunChain and
+// the look-ahead of BicOrder do not act on less.
+constexpr double kBareMentionBic = 2;
+
 // discover_gyro_log.cc
 Design BuildDesign(const std::vector<GyroBenchLog>& logs, const GyroDiscoverOptions& o);
 std::vector<int> UsableColumns(Design* design, const GyroDiscoverOptions& o, std::vector<bool>* usable_out,
