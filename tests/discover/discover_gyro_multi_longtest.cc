@@ -1,27 +1,140 @@
 // Acceptance of the stepwise extension of `ssiu discover gyro` (issue 31): logs with two hidden causes
 // together, every pair of six causes (temperature, temperature_gradient, magnetic_field, bias_step,
 // periodic_drift, scale_factor) drawn four times (60 cases; docs/discrepancy.md records the figures).
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include "discover/discover_gyro_internal.h"
 #include "discover_gyro_mc.h"
 #include "testing/testing.h"
 
 namespace ssiu {
 namespace {
 
-// Every pair of the six causes, four draws each from seeds seed0 + 7919 i; prints the figures and each
-// pair's count.
-testing::GyroMultiSummary RunPairs(uint64_t seed0) {
+using namespace discover_internal;
+
+// Positions a located term's scan tries (its BIC cost is ln of them, as the library's): the step at every
+// bin boundary of 5 %..95 % of each log, the sinusoid's independent frequencies (range x duration) on the
+// logs of >= 24 bins.
+double StepPositions(const Design& d) {
+  double n = 0;
+  for (const auto& b : d.bins) {
+    const int m = static_cast<int>(b.t_s.size());
+    n += std::max(0, m - m / 20 - std::max(1, m / 20));
+  }
+  return n;
+}
+double PeriodicPositions(const Design& d, const GyroDiscoverOptions& o) {
+  double n = 0;
+  for (const auto& b : d.bins) {
+    const double dur = b.t_s.back() - b.t_s.front() + b.bin_s;
+    const double f_lo = o.periodic_min_cycles / dur, f_hi = 0.25 / b.bin_s;
+    if (b.t_s.size() >= 24 && f_hi > f_lo) n += (f_hi - f_lo) * dur;
+  }
+  return n;
+}
+
+// The BIC of the exact likelihood (FittedBic, the criterion the chain's order and its walk and lag chains
+// use, under the first step's noise models nm) of the biases + `causes`: the hidden ones with the
+// generator's step time and period, the named ones with those the discovery reports. A step and a sinusoid
+// are columns of the static log (log 0), where the generator puts them. False for a cause that is not
+// regressor columns (rate_random_walk).
+bool ModelBic(const Design& d, const GyroDiscoverOptions& o, const std::vector<NoiseModel>& nm,
+              const std::vector<std::string>& causes, const std::map<std::string, std::map<std::string, double>>& par,
+              double* bic) {
+  std::vector<int> cols;
+  std::vector<VectorXd> extra;
+  double cost = 0;
+  const int m = static_cast<int>(d.bins[0].t_s.size());
+  const double t0 = d.bins[0].t_s.front() - 0.5 * d.bins[0].bin_s;
+  for (const auto& k : causes) {
+    if (k == "temperature") {
+      cols.insert(cols.end(), {kT1, kT2});
+    } else if (k == "temperature_gradient") {
+      cols.push_back(kG1);
+    } else if (k == "thermal_lag") {
+      cols.push_back(kLag), cost += std::log(std::max(1, d.lag_positions));
+    } else if (k == "magnetic_field") {
+      cols.insert(cols.end(), {kMagSin, kMagCos});
+    } else if (k == "misalignment") {
+      cols.push_back(kMis);
+    } else if (k == "scale_factor") {
+      cols.push_back(kScale);
+    } else if (k == "bias_step") {
+      VectorXd v = VectorXd::Zero(d.n);
+      for (int i = 0; i < m; ++i) v(i) = d.bins[0].t_s[i] - t0 >= par.at(k).at("step_time_s") ? 1 : 0;
+      extra.push_back(v), cost += std::log(StepPositions(d));
+    } else if (k == "periodic_drift") {
+      VectorXd s = VectorXd::Zero(d.n), c = VectorXd::Zero(d.n);
+      const double w = 2 * kPi / par.at(k).at("period_s");
+      for (int i = 0; i < m; ++i)
+        s(i) = std::sin(w * (d.bins[0].t_s[i] - t0)), c(i) = std::cos(w * (d.bins[0].t_s[i] - t0));
+      extra.push_back(s), extra.push_back(c), cost += std::log(PeriodicPositions(d, o));
+    } else {
+      return false;
+    }
+  }
+  *bic = FittedBic(d, o, nm, Assemble(d, cols, extra), static_cast<int>(cols.size() + extra.size()), cost);
+  return true;
+}
+
+// The misses that are choices (the named causes differ from the hidden ones), weighed by the criterion
+// itself: the hidden model's BIC against the named chain's. Where the named chain's is lower (or the
+// hidden one's lower by less than kBareMentionBic) no search by this criterion names the hidden pair;
+// where the hidden one's is lower by more, the search missed what its criterion supports.
+struct MissOracle {
+  int weighed = 0, named_lower = 0, hidden_lower_by_more = 0;
+};
+void WeighMiss(const testing::GyroCase& c, const GyroDiscovery& res, MissOracle* mo) {
+  std::set<std::string> named;
+  std::map<std::string, std::map<std::string, double>> named_par;
+  for (const auto& n : res.causes) named.insert(n.cause), named_par[n.cause] = n.parameters;
+  if (named == std::set<std::string>(c.causes.begin(), c.causes.end())) return;  // `unexplained`: not a choice
+  const GyroDiscoverOptions o;
+  Design d = BuildDesign(c.logs, o);
+  std::vector<bool> usable;
+  std::vector<double> scale;
+  const std::vector<int> full = UsableColumns(&d, o, &usable, &scale);
+  const GyroStep s0 = RunGyroStep(d, o, usable, scale, full, {}, o.alpha, o.gain_alpha, c.logs.front().file);
+  double bic_hidden = 0, bic_named = 0;
+  if (!ModelBic(d, o, s0.nm, c.causes, c.truths, &bic_hidden) ||
+      !ModelBic(d, o, s0.nm, std::vector<std::string>(named.begin(), named.end()), named_par, &bic_named)) {
+    return;
+  }
+  ++mo->weighed;
+  mo->named_lower += bic_named <= bic_hidden;
+  mo->hidden_lower_by_more += bic_hidden + kBareMentionBic < bic_named;
+  std::cout << "   hidden - named BIC " << bic_hidden - bic_named << "\n";
+}
+
+// Every pair of the six causes, four draws each from seeds seed0 + 7919 i (RunGyroMultiMonteCarlo's order);
+// prints the figures, each pair's count and the misses weighed by the criterion (WeighMiss).
+testing::GyroMultiSummary RunPairs(uint64_t seed0, MissOracle* mo) {
   const auto pairs = testing::GyroCausePairs(
       {"temperature", "temperature_gradient", "magnetic_field", "bias_step", "periodic_drift", "scale_factor"});
-  const auto s = testing::RunGyroMultiMonteCarlo(pairs, 4, seed0, true);
+  testing::GyroMultiSummary s;
+  int i = 0;
+  for (int k = 0; k < 4; ++k) {
+    for (const auto& combo : pairs) {
+      const testing::GyroCase c = testing::MakeGyroCase(combo, seed0 + 7919 * i++);
+      const GyroDiscovery res = DiscoverGyro(c.logs, GyroDiscoverOptions{});
+      testing::ScoreGyroMulti(c, res, true, &s);
+      WeighMiss(c, res, mo);
+    }
+  }
   std::cout << "both named " << s.all_named << "/" << s.cases << ", a wrong cause " << s.wrong << ", unexplained "
             << s.unexplained << ", parameters within 3 sigma " << s.params_within_3_sigma << "/" << s.params_checked
             << "\n";
   for (const auto& [combo, rc] : s.per_combo) std::cout << "  " << combo << " " << rc.first << "/" << rc.second << "\n";
+  std::cout << "misses weighed " << mo->weighed << ": the named chain's BIC lower " << mo->named_lower
+            << ", the hidden model's lower by more than " << kBareMentionBic << " " << mo->hidden_lower_by_more << "\n";
   return s;
 }
 
 TEST(DiscoverGyroMultiLong, TwoCausesTogether) {
-  const auto s = RunPairs(626262);
+  MissOracle mo;
+  const auto s = RunPairs(626262, &mo);
   // The issue asks both named >= 90 % and a wrong cause <= 5 %: measured 50/60 and 4/60, not met
   // (docs/discrepancy.md: the misses are a weak temperature gradient not significant at any step 5, ties
   // the data do not break 4 - rate_random_walk for a step or field with a temperature drift 2, misalignment
@@ -30,6 +143,9 @@ TEST(DiscoverGyroMultiLong, TwoCausesTogether) {
   EXPECT_GE(s.all_named, 0.8 * s.cases);
   EXPECT_LE(s.wrong, 0.1 * s.cases);
   EXPECT_GE(s.params_within_3_sigma, 0.95 * s.params_checked);
+  // The search's own misses: at most 3 cases a draw where the hidden pair's BIC was more than 2 below the
+  // named chain's (docs/discrepancy.md).
+  EXPECT_LE(mo.hidden_lower_by_more, 3);
 }
 
 // A second draw of the same 60 cases (seed base 737373): the first draw is the one the stepwise extension's
@@ -38,19 +154,27 @@ TEST(DiscoverGyroMultiLong, TwoCausesTogether) {
 // with its gradient 2, misalignment for a field harmonic 2, a step refused as a trend then misalignment and
 // thermal_lag 1, rate_random_walk 1, temperature for a step 1. The bounds hold these figures against regression.
 TEST(DiscoverGyroMultiLong, TwoCausesFreshSeeds) {
-  const auto s = RunPairs(737373);
+  MissOracle mo;
+  const auto s = RunPairs(737373, &mo);
   EXPECT_GE(s.all_named, 0.75 * s.cases);
   EXPECT_LE(s.wrong, 0.15 * s.cases);
   EXPECT_GE(s.params_within_3_sigma, 0.95 * s.params_checked);
+  // The search's own misses: at most 3 cases a draw where the hidden pair's BIC was more than 2 below the
+  // named chain's (docs/discrepancy.md).
+  EXPECT_LE(mo.hidden_lower_by_more, 3);
 }
 
 // A third draw (seed base 848484), not looked at while the walk and lag chains were developed: measured
 // 48/60 both named, a wrong cause 7/60, parameters within 3 sigma 192/194 (docs/discrepancy.md).
 TEST(DiscoverGyroMultiLong, TwoCausesThirdDraw) {
-  const auto s = RunPairs(848484);
+  MissOracle mo;
+  const auto s = RunPairs(848484, &mo);
   EXPECT_GE(s.all_named, 0.75 * s.cases);
   EXPECT_LE(s.wrong, 0.15 * s.cases);
   EXPECT_GE(s.params_within_3_sigma, 0.95 * s.params_checked);
+  // The search's own misses: at most 3 cases a draw where the hidden pair's BIC was more than 2 below the
+  // named chain's (docs/discrepancy.md).
+  EXPECT_LE(mo.hidden_lower_by_more, 3);
 }
 
 }  // namespace
