@@ -14,11 +14,18 @@ endfunction()
 # ssiu_add_test(NAME detect_test SOURCES detect_test.cc DEPS ssiu_detect [LABELS long])
 # Every GoogleTest test becomes its own ctest entry (listed at ctest time, so the program is not run
 # at build time): `ctest -R Suite.Name` runs one, and ctest -j balances them across cores.
+# COMPILE_OPTIONS: the program's own (e.g. -O0); it then precompiles the headers for itself instead of
+# taking ssiu_test_pch's (tests/CMakeLists.txt), whose flags its own no longer match.
 function(ssiu_add_test)
-  cmake_parse_arguments(A "" "NAME" "SOURCES;DEPS;LABELS" ${ARGN})
+  cmake_parse_arguments(A "" "NAME" "SOURCES;DEPS;LABELS;COMPILE_OPTIONS" ${ARGN})
   add_executable(${A_NAME} ${A_SOURCES})
-  target_compile_options(${A_NAME} PRIVATE ${SSIU_WARNINGS})
+  target_compile_options(${A_NAME} PRIVATE ${SSIU_WARNINGS} ${A_COMPILE_OPTIONS})
   target_link_libraries(${A_NAME} PRIVATE ${A_DEPS} ssiu_testing GTest::gtest GTest::gmock GTest::gtest_main)
+  if(SSIU_PCH AND A_COMPILE_OPTIONS)
+    target_precompile_headers(${A_NAME} PRIVATE ${SSIU_TEST_PCH_HEADERS})
+  elseif(SSIU_PCH)
+    target_precompile_headers(${A_NAME} REUSE_FROM ssiu_test_pch)
+  endif()
   add_dependencies(${A_NAME} ssiu_opencv)  # loaded on first use by the stubs (core/opencv_edge.h)
   # One label: `long` for the Monte-Carlo programs (kept out of CI by -LE long), else the program's
   # name (ctest -L core_test). The data paths are compiled into ssiu_testing (tests/CMakeLists.txt).
