@@ -11,6 +11,16 @@ function(ssiu_add_library)
   target_link_libraries(ssiu_${A_NAME} PUBLIC ${A_DEPS})
 endfunction()
 
+# ssiu_unity_test(program): SSIU_UNITY_TESTS compiles a test program's files in batches of 8, one
+# translation unit each (CMake's unity build): the templates they all instantiate (GoogleTest's
+# assertions, Eigen's expressions) are compiled once a batch instead of once a file. Helpers in a file's
+# anonymous namespace must then have names of their own within the program.
+function(ssiu_unity_test name)
+  if(SSIU_UNITY_TESTS)
+    set_target_properties(${name} PROPERTIES UNITY_BUILD ON UNITY_BUILD_BATCH_SIZE 8)
+  endif()
+endfunction()
+
 # ssiu_add_test(NAME detect_test SOURCES detect_test.cc DEPS ssiu_detect [LABELS long])
 # Every GoogleTest test becomes its own ctest entry (listed at ctest time, so the program is not run
 # at build time): `ctest -R Suite.Name` runs one, and ctest -j balances them across cores.
@@ -19,6 +29,7 @@ endfunction()
 function(ssiu_add_test)
   cmake_parse_arguments(A "" "NAME" "SOURCES;DEPS;LABELS;COMPILE_OPTIONS" ${ARGN})
   add_executable(${A_NAME} ${A_SOURCES})
+  ssiu_unity_test(${A_NAME})
   target_compile_options(${A_NAME} PRIVATE ${SSIU_WARNINGS} ${A_COMPILE_OPTIONS})
   target_link_libraries(${A_NAME} PRIVATE ${A_DEPS} ssiu_testing GTest::gtest GTest::gmock GTest::gtest_main)
   if(SSIU_PCH AND A_COMPILE_OPTIONS)

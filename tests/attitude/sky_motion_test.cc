@@ -15,7 +15,7 @@ namespace {
 
 // The sky at J2000 with proper motions: Hipparcos/Tycho (KStars stars.dat, real proper motions) to
 // V 7 when installed, else the BSC with made-up proper motions of up to 0.5 arcsec/yr per axis.
-const SourceCatalog& Sky() {
+const SourceCatalog& SourceSky() {
   static const SourceCatalog sky = [] {
     const std::string kstars = "/usr/share/kstars/stars.dat";
     SourceCatalog out;
@@ -78,8 +78,8 @@ TEST(SkyMotion, TimeAndVelocityGiveIcrsAttitudeAndWithoutThemTheErrorIsTheAberra
   CatalogBuildOptions co;
   co.fov_deg = 16.6;
   co.epoch_year = 2025.0;  // the solver catalog's epoch; the frames are 6.7 years later
-  const StarIdentifier id(BuildSolverCatalog(Sky(), co));
-  const StarCatalog sky_j2000 = AsStarCatalog(Sky());
+  const StarIdentifier id(BuildSolverCatalog(SourceSky(), co));
+  const StarCatalog sky_j2000 = AsStarCatalog(SourceSky());
   const std::string time = "2031-09-15T06:30:00Z";
   std::vector<double> cross_corrected, nees, aberration;
   int solved = 0;
@@ -144,8 +144,8 @@ TEST(SkyMotion, NonSquarePixelsDistortionProperMotionAndAberrationTogether) {
   CatalogBuildOptions co;
   co.fov_deg = 16.6;
   co.epoch_year = 2025.0;
-  const StarIdentifier id(BuildSolverCatalog(Sky(), co));
-  const StarCatalog sky_j2000 = AsStarCatalog(Sky());
+  const StarIdentifier id(BuildSolverCatalog(SourceSky(), co));
+  const StarCatalog sky_j2000 = AsStarCatalog(SourceSky());
   std::vector<double> cross, nees, aberration;
   int frames = 0, solved = 0;
   for (double aspect : {1.0, 1.6, 2.2}) {

@@ -100,6 +100,10 @@ TEST(DiscoverFramesMulti, FittedCameraCarriesEveryNamedParameter) {
 // is `unexplained`, with the vocabulary's cause kept as partial_cause. The power at smaller sizes is
 // in discover_frames_longtest.cc.
 TEST(DiscoverFramesMulti, ThreeTimesNoiseLeftoverIsUnexplained) {
+  if (testing::kUnderSanitizer)
+    GTEST_SKIP() << "its frame-set discoveries (39 s under the sanitizers); the residual test runs there in "
+                    "every frames discovery (DiscoverFramesMulti.IssueExamplesOnSimulatedImages, "
+                    "DiscoverFramesMulti.TwoAndThreeEffectsAllNamedWithUnbiasedParameters)";
   for (const char* e : {"twist", "bump", "stitch", "cti", "focal_length+twist"}) {
     EXPECT_EQ(testing::LeftoverDetected(e, 3.0, 2, 6100, 12, 50), 2) << e;
   }
