@@ -9,6 +9,18 @@ function(ssiu_add_library)
   target_include_directories(ssiu_${A_NAME} PUBLIC ${CMAKE_SOURCE_DIR}/src)
   target_compile_options(ssiu_${A_NAME} PRIVATE ${SSIU_WARNINGS})
   target_link_libraries(ssiu_${A_NAME} PUBLIC ${A_DEPS})
+  ssiu_unity(ssiu_${A_NAME})
+endfunction()
+
+# ssiu_unity(target): SSIU_UNITY_LIBS compiles a library's (or the command line's) files in batches of 8,
+# one translation unit each (CMake's unity build): the headers they share (Eigen, CLI11, the standard
+# library) are parsed, and their templates instantiated, once a batch instead of once a file. Names in a
+# file's anonymous namespace must then be the file's own within the target; a file whose anonymous types
+# appear in a class of the ssiu namespace stays out (SKIP_UNITY_BUILD_INCLUSION: src/detect/CMakeLists.txt).
+function(ssiu_unity target)
+  if(SSIU_UNITY_LIBS)
+    set_target_properties(${target} PROPERTIES UNITY_BUILD ON UNITY_BUILD_BATCH_SIZE 8)
+  endif()
 endfunction()
 
 # ssiu_unity_test(program): SSIU_UNITY_TESTS compiles a test program's files in batches of 8, one
@@ -69,6 +81,9 @@ function(ssiu_add_stage)
     set_property(GLOBAL APPEND PROPERTY SSIU_OPENCV_EDGE_SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/${f})
   endforeach()
   if(_src)
+    # The stubs that forward to the module stay objects of their own: the module links the stage library
+    # too, and a batch holding a stub would be pulled in beside the module's real function (defined twice).
+    set_source_files_properties(${CMAKE_CURRENT_SOURCE_DIR}/opencv_calls.cc PROPERTIES SKIP_UNITY_BUILD_INCLUSION ON)
     ssiu_add_library(NAME ${A_NAME} SOURCES ${_src} DEPS ${A_DEPS})
   else()
     add_library(ssiu_${A_NAME} INTERFACE)

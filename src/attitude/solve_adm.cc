@@ -4,15 +4,10 @@
 #include <cmath>
 
 #include "core/error.h"
+#include "core/stats.h"
 
 namespace ssiu {
 namespace {
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
 
 double SecondsBetween(const UtcTime& from, const UtcTime& to) {
   return ((to.tt_jd1 - from.tt_jd1) + (to.tt_jd2 - from.tt_jd2)) * 86400.0;

@@ -6,6 +6,7 @@
 
 #include "core/csv.h"
 #include "core/error.h"
+#include "core/stats.h"
 
 namespace ssiu {
 namespace {
@@ -35,13 +36,6 @@ struct Bin {
   std::vector<double> g, abs_n, sq_n;  // per gyro: mean output, mean |n.w|, mean (n.w)|n.w|
   double temp_c = 0, rate_c_per_min = 0;
 };
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  const size_t h = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + h, v.end());
-  return v[h];
-}
 
 // The two normals of a nominal axis (GyroUnit::SensingAxis's convention).
 void Normals(const Vec3& n, Vec3* u, Vec3* v) {

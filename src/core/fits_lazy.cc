@@ -5,7 +5,7 @@
 namespace ssiu {
 namespace {
 
-CfitsioApi Load() {
+CfitsioApi LoadCfitsio() {
   constexpr const char* so = SSIU_CFITSIO_SONAME;
   void* lib = internal::OpenLazyLibrary(so, "FITS support");
   CfitsioApi a{};
@@ -28,7 +28,7 @@ CfitsioApi Load() {
 }  // namespace
 
 const CfitsioApi& Cfitsio() {
-  static const CfitsioApi api = Load();  // C++11: initialised once, thread-safe; retried if it threw
+  static const CfitsioApi api = LoadCfitsio();  // C++11: initialised once, thread-safe; retried if it threw
   return api;
 }
 

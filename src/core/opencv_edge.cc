@@ -15,7 +15,7 @@ constexpr char kModule[] = "libssiu_opencv.so";
 constexpr char kLookup[] = "ssiu_opencv_edge";  // extern "C" void* (const char* name), the module's table
 using Lookup = void* (*)(const char*);
 
-Lookup Load() {
+Lookup LoadEdgeModule() {
   std::string tried;
   const char* env = std::getenv("SSIU_OPENCV_EDGE");
   for (const std::string& path :
@@ -34,7 +34,7 @@ Lookup Load() {
 }  // namespace
 
 void* OpenCvEdgeSymbol(const char* name) {
-  static const Lookup lookup = Load();  // C++11: initialised once, thread-safe; retried if it threw
+  static const Lookup lookup = LoadEdgeModule();  // C++11: initialised once, thread-safe; retried if it threw
   void* fn = lookup(name);
   if (!fn)
     throw std::runtime_error(std::string(kModule) + " has no function " + name + " (a module from another build?)");

@@ -30,9 +30,9 @@ Image16 RenderTrackerView(const Mask& m, const PlatePose& pose, const Quat& q_c_
   return fn(m, pose, q_c_from_s, o, seed, stars_in_view);
 }
 
-std::vector<uint8_t> RenderAuxPhoto(const Mask& m, const PlatePose& pose, const AuxCamera& aux, const PhotoOptions& o,
-                                    uint64_t seed) {
-  static const auto fn = OpenCvEdge<decltype(&RenderAuxPhoto)>("RenderAuxPhoto");
+std::vector<float> RenderAuxScene(const Mask& m, const PlatePose& pose, const AuxCamera& aux, const PhotoOptions& o,
+                                  uint64_t seed) {
+  static const auto fn = OpenCvEdge<decltype(&RenderAuxScene)>("RenderAuxScene");
   return fn(m, pose, aux, o, seed);
 }
 

@@ -31,7 +31,7 @@ extern "C" __attribute__((visibility("default"))) void* ssiu_opencv_edge(const c
       E("WriteFogPlotPng", &WriteFogPlotPng),     E("WriteResidualQuiver", &WriteResidualQuiver),
       E("WriteMaskPng", &WriteMaskPng),           E("DetectFiducials", &DetectFiducials),
       E("EstimatePlatePose", &EstimatePlatePose), E("RenderTrackerView", &RenderTrackerView),
-      E("RenderAuxPhoto", &RenderAuxPhoto),
+      E("RenderAuxScene", &RenderAuxScene),
   };
   for (const Entry& e : table)
     if (std::strcmp(e.name, name) == 0) return e.fn;

@@ -84,6 +84,7 @@ StandSimulation SimulateStand(const Mask& m, const StandSimOptions& o, uint64_t 
   s.plate.r_c_from_p = Eigen::AngleAxisd(o.plate_turn_deg * kDegToRad, Vec3::UnitZ()).toRotationMatrix();
   s.q_c_from_m = MaskRotation(m, s.plate);
   const double enc = o.encoder_sigma_arcsec / 3600.0;
+  std::vector<float> scene;
   for (int i = 0; i < o.positions; ++i) {
     StandPicture p;
     p.t_s = i * o.step_s;
@@ -102,10 +103,26 @@ StandSimulation SimulateStand(const Mask& m, const StandSimOptions& o, uint64_t 
     p.q_c_from_s = StandRotation(p.az_deg * kDegToRad, p.el_deg * kDegToRad, p.rot_deg * kDegToRad) * s.q_mis;
     p.q_true = (m.q_design * s.q_c_from_m.conjugate() * p.q_c_from_s).normalized();
     p.frame = RenderTrackerView(m, s.plate, p.q_c_from_s, o.view, seed * 7919 + i, &p.stars);
-    p.photo = RenderAuxPhoto(m, s.plate, o.aux, o.photo, seed * 104729 + i);
+    // The plate does not move in the camera: one scene, each picture's noise of its own.
+    if (scene.empty()) scene = RenderAuxScene(m, s.plate, o.aux, o.photo, seed * 104729);
+    p.photo = AddPhotoNoise(scene, o.photo, seed * 104729 + i);
     s.pictures.push_back(std::move(p));
   }
   return s;
+}
+
+std::vector<uint8_t> AddPhotoNoise(const std::vector<float>& scene, const PhotoOptions& o, uint64_t seed) {
+  o.Check();
+  Rng rng(seed * 6364136223846793005ULL + 3);
+  std::vector<uint8_t> out(scene.size());
+  for (size_t i = 0; i < scene.size(); ++i)
+    out[i] = static_cast<uint8_t>(std::clamp(std::round(scene[i] + o.noise_dn * rng.Normal()), 0.0, 255.0));
+  return out;
+}
+
+std::vector<uint8_t> RenderAuxPhoto(const Mask& m, const PlatePose& pose, const AuxCamera& aux, const PhotoOptions& o,
+                                    uint64_t seed) {
+  return AddPhotoNoise(RenderAuxScene(m, pose, aux, o, seed), o, seed);
 }
 
 Json StandSimulation::TruthJson(const Mask& m) const {

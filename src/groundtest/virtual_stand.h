@@ -69,9 +69,16 @@ struct PhotoOptions {
   bool hide_tags = false;  // draw the plate without fiducials (tests)
   void Check() const;
 };
-// 8-bit photo of the plate (at `pose`) by the auxiliary camera.
+// 8-bit photo of the plate (at `pose`) by the auxiliary camera: AddPhotoNoise(RenderAuxScene(...)).
 std::vector<uint8_t> RenderAuxPhoto(const Mask& m, const PlatePose& pose, const AuxCamera& aux, const PhotoOptions& o,
                                     uint64_t seed);
+// The photo before its noise: the blurred scene integrated over each pixel, in counts (row-major, the aux
+// camera's size; `seed` jitters the samples across edges). A plate that does not move in the camera (the
+// stand's pictures) is rendered once and each picture's noise drawn on it.
+std::vector<float> RenderAuxScene(const Mask& m, const PlatePose& pose, const AuxCamera& aux, const PhotoOptions& o,
+                                  uint64_t seed);
+// Gaussian pixel noise (o.noise_dn, drawn from `seed`) on a scene, rounded and clamped to 8 bits.
+std::vector<uint8_t> AddPhotoNoise(const std::vector<float>& scene, const PhotoOptions& o, uint64_t seed);
 
 struct StandSimOptions {
   int positions = 6;                                // stand positions (pictures)

@@ -107,8 +107,8 @@ Image16 RenderTrackerView(const Mask& m, const PlatePose& pose, const Quat& q_c_
   return img;
 }
 
-std::vector<uint8_t> RenderAuxPhoto(const Mask& m, const PlatePose& pose, const AuxCamera& aux, const PhotoOptions& o,
-                                    uint64_t seed) {
+std::vector<float> RenderAuxScene(const Mask& m, const PlatePose& pose, const AuxCamera& aux, const PhotoOptions& o,
+                                  uint64_t seed) {
   o.Check();
   const std::string family = o.tag_family.empty() ? m.tag_family : o.tag_family;
   struct TagTex {
@@ -193,12 +193,9 @@ std::vector<uint8_t> RenderAuxPhoto(const Mask& m, const PlatePose& pose, const 
   if (o.blur_px > 0) cv::GaussianBlur(hi, hi, cv::Size(0, 0), o.blur_px * ss, o.blur_px * ss, cv::BORDER_REPLICATE);
   cv::Mat img;
   cv::resize(hi, img, cv::Size(w, h), 0, 0, cv::INTER_AREA);  // exact box average for an integer factor
-  Rng rng(seed * 6364136223846793005ULL + 3);
-  std::vector<uint8_t> out(static_cast<size_t>(w) * h);
+  std::vector<float> out(static_cast<size_t>(w) * h);
   for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x)
-      out[static_cast<size_t>(y) * w + x] =
-          static_cast<uint8_t>(std::clamp(std::round(img.at<float>(y, x) + o.noise_dn * rng.Normal()), 0.0, 255.0));
+    std::copy(img.ptr<float>(y), img.ptr<float>(y) + w, out.begin() + static_cast<size_t>(y) * w);
   return out;
 }
 

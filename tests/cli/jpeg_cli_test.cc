@@ -15,14 +15,6 @@
 namespace ssiu {
 namespace {
 
-// The solve JSON without what names the input or measures the run.
-Json Solution(const std::string& path) {
-  Json j = ReadJsonFile(path);
-  j.erase("timing_ms");
-  j.erase("file");
-  return j;
-}
-
 // The GranaSAT JPEGs in `dir`, sorted, and `ssiu calibrate` of them all into tmp/cam.json and
 // tmp/report.json from the lens's nominal camera (12 mm lens, 4.65 um pixels: f = 2580 px, centred).
 std::vector<std::string> CalibrateGranasat(const std::string& dir, const std::string& tmp) {
@@ -48,17 +40,31 @@ TEST(JpegCli, GranasatCalibratesAndEverySolveEqualsItsPngCopy) {
   ASSERT_FALSE(::testing::Test::HasFailure());
   const Json rep = ReadJsonFile(tmp + "/report.json");
   EXPECT_GE(rep["frames_solved"].get<int>(), static_cast<int>(jpegs.size()) - 2);  // its last pass
+  // Both sets solved in one batch each (--jsonl: one record per input, in input order, equal to its own
+  // `ssiu solve --json`: BatchCli.SolveBatchEqualsSingleSolvesInOrderWithAnErrorRecord).
+  std::string jpeg_list, png_list;
   for (const auto& j : jpegs) {
     const std::string png = tmp + "/" + std::filesystem::path(j).stem().string() + ".png";
     ASSERT_TRUE(cv::imwrite(png, cv::imread(j, cv::IMREAD_UNCHANGED)));
-    const auto a = testing::RunSsiu("solve " + j + " --camera " + tmp + "/cam.json --json " + tmp + "/a.json");
-    const auto b = testing::RunSsiu("solve " + png + " --camera " + tmp + "/cam.json --json " + tmp + "/b.json");
-    ASSERT_EQ(a.status, 0) << a.output;
-    ASSERT_EQ(b.status, 0) << b.output;
-    const Json ja = Solution(tmp + "/a.json"), jb = Solution(tmp + "/b.json");
-    EXPECT_EQ(ja["status"], "solved") << j;
-    EXPECT_EQ(ja, jb) << j;
+    jpeg_list += " " + j;
+    png_list += " " + png;
   }
+  const std::string cam = " --camera " + tmp + "/cam.json --threads 2 --jsonl ";
+  const auto a = testing::RunSsiu("solve" + jpeg_list + cam + tmp + "/a.jsonl");
+  const auto b = testing::RunSsiu("solve" + png_list + cam + tmp + "/b.jsonl");
+  ASSERT_EQ(a.status, 0) << a.output;
+  ASSERT_EQ(b.status, 0) << b.output;
+  std::ifstream fa(tmp + "/a.jsonl"), fb(tmp + "/b.jsonl");
+  std::string la, lb;
+  size_t records = 0;
+  for (; std::getline(fa, la) && std::getline(fb, lb); ++records) {
+    Json ja = Json::parse(la), jb = Json::parse(lb);
+    EXPECT_EQ(ja["file"], jpegs[records]);
+    for (Json* r : {&ja, &jb}) r->erase("timing_ms"), r->erase("file");
+    EXPECT_EQ(ja["status"], "solved") << jpegs[records];
+    EXPECT_EQ(ja, jb) << jpegs[records];
+  }
+  EXPECT_EQ(records, jpegs.size());
 }
 
 // The principal point refitted from one frame (IdentifyOptions::refine_principal_p): given the lens's

@@ -38,7 +38,7 @@ TEST_F(GroundtestCli, SlewSequenceFeedsThePerformanceReport) {
   if (testing::kUnderSanitizer)
     GTEST_SKIP() << "64 rendered pictures (269 s under the sanitizers); the same simulation, solving and reading "
                     "run there in GroundtestCli.MaskSimulateReferenceCompareRecoverTheMisalignment, the report in "
-                    "Performance.AllContributionsTogetherAreEachRecovered";
+                    "PerformanceCli.JsonContractAndPlots";
   const std::string sim = dir_ + "/slew";
   ASSERT_EQ(Ssiu("groundtest simulate --mask " + dir_ + "/mask/mask.json --slew --positions 64 --max-angle-deg 6 "
                  "--step-s 10 --seed 3 --solve --catalog " + dir_ + "/cat --out " + sim),

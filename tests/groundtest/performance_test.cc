@@ -93,7 +93,7 @@ void RunCase(const Case& c) {
 TEST(Performance, EachContributionAloneIsRecoveredAndTheOthersStaySmall) {
   if (testing::kUnderSanitizer)
     GTEST_SKIP() << "five full simulations (146 s under the sanitizers); the same simulation and split run there "
-                    "in Performance.AllContributionsTogetherAreEachRecovered";
+                    "in PerformanceCli.JsonContractAndPlots";
   RunCase({"bias", {true, false, false, false, false}});
   RunCase({"distortion", {false, true, false, false, false}});
   RunCase({"intra-pixel", {false, false, true, false, false}});
@@ -102,6 +102,9 @@ TEST(Performance, EachContributionAloneIsRecoveredAndTheOthersStaySmall) {
 }
 
 TEST(Performance, AllContributionsTogetherAreEachRecovered) {
+  if (testing::kUnderSanitizer)
+    GTEST_SKIP() << "a full simulation (48 s under the sanitizers); the same simulation, with every contribution, "
+                    "and its split run there, 600 s long, in PerformanceCli.JsonContractAndPlots";
   RunCase({"all together", {true, true, true, true, true}});
 }
 
