@@ -232,7 +232,7 @@ TemperatureEstimate EstimateTemperatureRate(const std::vector<double>& t_s, cons
     // Local polynomial in u = (t - tc)/half (Savitzky-Golay for irregular samples): the value and
     // slope at u = 0 are c0 and c1/half.
     // The normal matrix is Hankel, a(r, c) = sum u^(r+c): its 2p - 1 sums are accumulated once.
-    std::array<double, 12> pw{}, mom{}, by{};
+    double pw[12] = {}, mom[12] = {}, by[12] = {};  // plain arrays: std::array's [] is a call in the sanitizer build
     for (size_t i = lo; i < hi; ++i) {
       const double u = (t_s[i] - tc) / half;
       double m = 1;
@@ -243,13 +243,14 @@ TemperatureEstimate EstimateTemperatureRate(const std::vector<double>& t_s, cons
       }
       for (int r = 0; r < p; ++r) by[r] += temp_c[i] * pw[r];
     }
-    Eigen::MatrixXd a(p, p);
-    Eigen::VectorXd b(p);
+    // At most 6 x 6 (order <= 5): on the stack, not a heap allocation a query.
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6> a(p, p);
+    Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1> b(p);
     for (int r = 0; r < p; ++r) {
       b(r) = by[r];
       for (int c = 0; c < p; ++c) a(r, c) = mom[r + c];
     }
-    const Eigen::VectorXd c = a.ldlt().solve(b);
+    const Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1> c = a.ldlt().solve(b);
     out.temp_c[q] = c(0);
     out.rate_c_per_min[q] = c(1) / half * 60.0;
   }

@@ -181,18 +181,23 @@ double TelegraphInWanderLogLik(const VectorXd& v, const NoiseModel& g, double f)
   const double half = std::sqrt(f * g.var_g), a = 0.5 * (1 - g.phi);
   const double mu[2] = {-half, half}, trans[2][2] = {{1 - a, a}, {a, 1 - a}};
   double prob[2] = {0.5, 0.5};
-  Eigen::Vector2d state[2] = {Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero()};  // wander, level
+  // Each state (wander, level) as two scalars: the sanitizer build does not inline Eigen's 2-vectors.
+  struct State {
+    double x = 0, b = 0;
+  };
+  State state[2];
   double ll = 0;
   for (int k = 0; k < m; ++k) {
-    Eigen::Vector2d pred[2], upd[2][2];
+    State pred[2], upd[2][2];
     double arg[2][2], lo = std::numeric_limits<double>::infinity();
+    const double g0 = gp.gain[k](0), g1 = gp.gain[k](1);
     for (int j = 0; j < 2; ++j) {
       pred[j] = state[j];
-      if (k > 0) pred[j](0) *= g.phi;
+      if (k > 0) pred[j].x *= g.phi;
       for (int s = 0; s < 2; ++s) {
-        const double e = v(k) - mu[s] - pred[j].sum();
+        const double e = v(k) - mu[s] - (pred[j].x + pred[j].b);
         arg[j][s] = 0.5 * e * e * gp.inv_sqrt_s[k] * gp.inv_sqrt_s[k];
-        upd[j][s] = pred[j] + gp.gain[k] * e;
+        upd[j][s] = {pred[j].x + g0 * e, pred[j].b + g1 * e};
         lo = std::min(lo, arg[j][s]);
       }
     }
@@ -208,7 +213,9 @@ double TelegraphInWanderLogLik(const VectorXd& v, const NoiseModel& g, double f)
     for (int s = 0; s < 2; ++s) {
       const double ps = w[0][s] + w[1][s];
       prob[s] = ps / total;
-      state[s] = ps > 0 ? Eigen::Vector2d((w[0][s] * upd[0][s] + w[1][s] * upd[1][s]) / ps) : upd[0][s];
+      state[s] = ps > 0 ? State{(w[0][s] * upd[0][s].x + w[1][s] * upd[1][s].x) / ps,
+                                (w[0][s] * upd[0][s].b + w[1][s] * upd[1][s].b) / ps}
+                        : upd[0][s];
     }
   }
   return ll;

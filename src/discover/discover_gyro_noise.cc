@@ -14,22 +14,26 @@
 namespace ssiu::discover_internal {
 
 // The Kalman filter of the wander x and the level b (H = [1 1]): its gain and 1/sqrt(S_k) per bin.
+// P = [a b; c d], F = diag(phi, 1), Q = diag(var_g (1 - phi^2), q_rw): P <- F P F' + Q, S = sum(P) + var_w,
+// K = P [1 1]' / S, P <- P - K [1 1] P. Written out in scalars, each sum in the order Eigen's 2x2 products
+// take (the same bits: checked on 4e6 random steps, gcc -O3 and clang -O1 with the sanitizers), as
+// Eigen's fixed-size expressions are not inlined in the sanitizer build, where they took half of a
+// discovery's time.
 void NoiseModel::Prepare(int m) {
   gain.assign(m, Eigen::Vector2d::Zero());
   inv_sqrt_s.assign(m, 0);
   const double g0 = var_w + var_g;
-  Eigen::Matrix2d p = Eigen::Matrix2d::Zero();
-  p(0, 0) = var_g;
-  p(1, 1) = (q_rw > 0 || diffuse_level) && !known_level ? kDiffuse * g0 : 0.0;
-  const Eigen::Matrix2d f = Eigen::Vector2d(phi, 1).asDiagonal();
-  const Eigen::Matrix2d q = Eigen::Vector2d(var_g * (1 - phi * phi), q_rw).asDiagonal();
+  double a = var_g, b = 0, c = 0;
+  double d = (q_rw > 0 || diffuse_level) && !known_level ? kDiffuse * g0 : 0.0;
+  const double q_g = var_g * (1 - phi * phi);
   for (int k = 0; k < m; ++k) {
-    if (k > 0) p = f * p * f.transpose() + q;
-    const double s = p.sum() + var_w;  // H = [1 1]
-    const Eigen::Vector2d kg = p.rowwise().sum() / s;
-    gain[k] = kg;
+    if (k > 0) a = phi * a * phi + q_g, b = phi * b, c = c * phi, d = d + q_rw;
+    const double s = ((a + b) + (c + d)) + var_w;  // H P H' + R
+    const double k0 = (a + b) / s, k1 = (c + d) / s;
+    gain[k] = Eigen::Vector2d(k0, k1);
     inv_sqrt_s[k] = 1 / std::sqrt(s);
-    p = p - kg * Eigen::RowVector2d(p.colwise().sum());
+    const double h0 = a + c, h1 = b + d;  // H P
+    a = a - k0 * h0, b = b - k0 * h1, c = c - k1 * h0, d = d - k1 * h1;
   }
 }
 

@@ -33,6 +33,10 @@ std::vector<std::string> CalibrateGranasat(const std::string& dir, const std::st
 }
 
 TEST(JpegCli, GranasatCalibratesAndEverySolveEqualsItsPngCopy) {
+  if (testing::kUnderSanitizer)
+    GTEST_SKIP() << "a calibration of every frame (78 s under the sanitizers); the JPEG decoder runs there in "
+                    "RasterCodec.JpegAndBmpMatchOpenCv and DetectJpeg.*, the calibration of real "
+                    "frames in CalibrateCli.SwarmFramesFromANominalGuessAllSolve, the batch solve in BatchCli.*";
   SSIU_REQUIRE_SHARED(dir, "granasat");
   const std::string tmp = testing::TempDir("jpeg_cli");
   const std::vector<std::string> jpegs = CalibrateGranasat(dir, tmp);
@@ -73,10 +77,10 @@ TEST(JpegCli, GranasatCalibratesAndEverySolveEqualsItsPngCopy) {
 // above the centre), within 3 sigma of the two fits combined.
 TEST(JpegCli, GranasatPrincipalPointFromOneFrameAgreesWithTheCalibration) {
   if (testing::kUnderSanitizer)
-    GTEST_SKIP()
-        << "a second calibration of every frame (145 s under the sanitizers); the same calibration and "
-           "solves of the JPEGs run there in JpegCli.GranasatCalibratesAndEverySolveEqualsItsPngCopy, the "
-           "principal point's refit in RefinePrincipalPoint.ThirtyPixelsOffCentreAreFoundAndARightCameraKeepsItsOwn";
+    GTEST_SKIP() << "a calibration of every frame and a solve of each (145 s under the sanitizers); the calibration of "
+                    "real frames runs there in CalibrateCli.SwarmFramesFromANominalGuessAllSolve, the JPEG decoder in "
+                    "RasterCodec.JpegAndBmpMatchOpenCv, the principal point's refit in "
+                    "RefinePrincipalPoint.ThirtyPixelsOffCentreAreFoundAndARightCameraKeepsItsOwn";
   SSIU_REQUIRE_SHARED(dir, "granasat");
   const std::string tmp = testing::TempDir("jpeg_pp");
   const std::vector<std::string> jpegs = CalibrateGranasat(dir, tmp);
