@@ -9,27 +9,17 @@ function(ssiu_add_library)
   target_include_directories(ssiu_${A_NAME} PUBLIC ${CMAKE_SOURCE_DIR}/src)
   target_compile_options(ssiu_${A_NAME} PRIVATE ${SSIU_WARNINGS})
   target_link_libraries(ssiu_${A_NAME} PUBLIC ${A_DEPS})
-  ssiu_unity(ssiu_${A_NAME})
+  ssiu_unity(ssiu_${A_NAME} SSIU_UNITY_LIBS)
 endfunction()
 
-# ssiu_unity(target): SSIU_UNITY_LIBS compiles a library's (or the command line's) files in batches of 8,
-# one translation unit each (CMake's unity build): the headers they share (Eigen, CLI11, the standard
-# library) are parsed, and their templates instantiated, once a batch instead of once a file. Names in a
-# file's anonymous namespace must then be the file's own within the target; a file whose anonymous types
-# appear in a class of the ssiu namespace stays out (SKIP_UNITY_BUILD_INCLUSION: src/detect/CMakeLists.txt).
-function(ssiu_unity target)
-  if(SSIU_UNITY_LIBS)
+# ssiu_unity(target option): when `option` (SSIU_UNITY_LIBS for a stage library, SSIU_UNITY_TESTS for a test
+# program) is on, the target's files compile in batches of 8, one translation unit each (CMake's unity
+# build): the headers they share (Eigen, GoogleTest, the standard library) are parsed, and their templates
+# instantiated, once a batch instead of once a file. Names in a file's anonymous namespace must then be the
+# file's own within the target; a file that cannot be batched stays out (ssiu_add_stage's NO_UNITY).
+function(ssiu_unity target option)
+  if(${option})
     set_target_properties(${target} PROPERTIES UNITY_BUILD ON UNITY_BUILD_BATCH_SIZE 8)
-  endif()
-endfunction()
-
-# ssiu_unity_test(program): SSIU_UNITY_TESTS compiles a test program's files in batches of 8, one
-# translation unit each (CMake's unity build): the templates they all instantiate (GoogleTest's
-# assertions, Eigen's expressions) are compiled once a batch instead of once a file. Helpers in a file's
-# anonymous namespace must then have names of their own within the program.
-function(ssiu_unity_test name)
-  if(SSIU_UNITY_TESTS)
-    set_target_properties(${name} PROPERTIES UNITY_BUILD ON UNITY_BUILD_BATCH_SIZE 8)
   endif()
 endfunction()
 
@@ -41,7 +31,7 @@ endfunction()
 function(ssiu_add_test)
   cmake_parse_arguments(A "" "NAME" "SOURCES;DEPS;LABELS;COMPILE_OPTIONS" ${ARGN})
   add_executable(${A_NAME} ${A_SOURCES})
-  ssiu_unity_test(${A_NAME})
+  ssiu_unity(${A_NAME} SSIU_UNITY_TESTS)
   target_compile_options(${A_NAME} PRIVATE ${SSIU_WARNINGS} ${A_COMPILE_OPTIONS})
   target_link_libraries(${A_NAME} PRIVATE ${A_DEPS} ssiu_testing GTest::gtest GTest::gmock GTest::gtest_main)
   if(SSIU_PCH AND A_COMPILE_OPTIONS)
@@ -69,12 +59,12 @@ function(ssiu_add_bench)
   add_dependencies(${A_NAME} ssiu_opencv)
 endfunction()
 
-# ssiu_add_stage(NAME stage DEPS lower stages/libraries [OPENCV_EDGE a.cc ...]): the stage library
+# ssiu_add_stage(NAME stage DEPS lower stages/libraries [OPENCV_EDGE a.cc ...] [NO_UNITY b.cc ...]): the stage library
 # from every .cc in its folder (so parallel work on one stage never edits this file); header-only until
 # it has a .cc. OPENCV_EDGE files go to the module libssiu_opencv.so instead (core/opencv_edge.h), so
 # that the stage library, and `ssiu`, do not link OpenCV.
 function(ssiu_add_stage)
-  cmake_parse_arguments(A "" "NAME" "DEPS;OPENCV_EDGE" ${ARGN})
+  cmake_parse_arguments(A "" "NAME" "DEPS;OPENCV_EDGE;NO_UNITY" ${ARGN})
   file(GLOB _src CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*.cc)
   foreach(f ${A_OPENCV_EDGE})
     list(REMOVE_ITEM _src ${CMAKE_CURRENT_SOURCE_DIR}/${f})
@@ -83,7 +73,11 @@ function(ssiu_add_stage)
   if(_src)
     # The stubs that forward to the module stay objects of their own: the module links the stage library
     # too, and a batch holding a stub would be pulled in beside the module's real function (defined twice).
-    set_source_files_properties(${CMAKE_CURRENT_SOURCE_DIR}/opencv_calls.cc PROPERTIES SKIP_UNITY_BUILD_INCLUSION ON)
+    # NO_UNITY: a file whose anonymous-namespace types are members of a class of the ssiu namespace (legal
+    # only in the file's own translation unit).
+    foreach(f opencv_calls.cc ${A_NO_UNITY})
+      set_source_files_properties(${CMAKE_CURRENT_SOURCE_DIR}/${f} PROPERTIES SKIP_UNITY_BUILD_INCLUSION ON)
+    endforeach()
     ssiu_add_library(NAME ${A_NAME} SOURCES ${_src} DEPS ${A_DEPS})
   else()
     add_library(ssiu_${A_NAME} INTERFACE)

@@ -84,7 +84,8 @@ StandSimulation SimulateStand(const Mask& m, const StandSimOptions& o, uint64_t 
   s.plate.r_c_from_p = Eigen::AngleAxisd(o.plate_turn_deg * kDegToRad, Vec3::UnitZ()).toRotationMatrix();
   s.q_c_from_m = MaskRotation(m, s.plate);
   const double enc = o.encoder_sigma_arcsec / 3600.0;
-  std::vector<float> scene;
+  // The plate does not move in the camera: one scene, each picture's noise of its own.
+  const std::vector<float> scene = RenderAuxScene(m, s.plate, o.aux, o.photo, seed * 104729);
   for (int i = 0; i < o.positions; ++i) {
     StandPicture p;
     p.t_s = i * o.step_s;
@@ -103,8 +104,6 @@ StandSimulation SimulateStand(const Mask& m, const StandSimOptions& o, uint64_t 
     p.q_c_from_s = StandRotation(p.az_deg * kDegToRad, p.el_deg * kDegToRad, p.rot_deg * kDegToRad) * s.q_mis;
     p.q_true = (m.q_design * s.q_c_from_m.conjugate() * p.q_c_from_s).normalized();
     p.frame = RenderTrackerView(m, s.plate, p.q_c_from_s, o.view, seed * 7919 + i, &p.stars);
-    // The plate does not move in the camera: one scene, each picture's noise of its own.
-    if (scene.empty()) scene = RenderAuxScene(m, s.plate, o.aux, o.photo, seed * 104729);
     p.photo = AddPhotoNoise(scene, o.photo, seed * 104729 + i);
     s.pictures.push_back(std::move(p));
   }
