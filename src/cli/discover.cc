@@ -325,6 +325,14 @@ SSIU_REGISTER_COMMAND(discover_gyro, [](CLI::App& root) {
     if (several) std::cerr << ")";
     std::cerr << "; held-out rms " << d.rms_before_dph << " -> " << d.rms_after_dph << " deg/h (gain " << d.gain
               << (d.causes.size() > 1 ? ", first cause" : "") << ")\n";
+    // The ties the data do not break: a rival fits about as well in a named cause's place.
+    for (const auto& c : d.causes) {
+      if (c.rivals.empty()) continue;
+      std::cerr << "  in place of " << c.cause << " the data support about as well:";
+      for (const auto& r : c.rivals)
+        std::cerr << " " << r.cause << " (BIC " << std::showpos << r.delta_bic << std::noshowpos << ")";
+      std::cerr << "\n";
+    }
     if (d.cause == "unexplained") {
       std::cerr << "  residual structure (" << d.residual.finding << ", p " << d.residual.p_value << "): period "
                 << d.residual.period_s << " s, amplitude " << d.residual.amplitude_dph << " deg/h, follows column "

@@ -18,6 +18,44 @@
 
 namespace ssiu::discover_internal {
 
+// The rivals of the named cause `nc` among one step's candidates (GyroRival), that step's base model holding
+// the other named causes: the significant candidates whose BIC (BicOrder's, exact likelihood) lies less than
+// kBareMentionBic above the named one's and that no gate of the step refused; for the nested pair
+// misalignment / magnetic_field, 2 ln of FieldPhaseWarranted's Bayes factor instead (the BIC counts the
+// field's phase as a full parameter, which the Bayes factor weighs by the harmonic's strength).
+// scale_factor and scale_factor_asymmetry are one effect with and without the sign split: no rivals.
+std::vector<GyroRival> StepRivals(const NamedCause& nc, const std::vector<GyroCandidate>& candidates) {
+  const GyroCandidate* named = nullptr;
+  for (const auto& c : candidates) {
+    if (c.cause == nc.candidate.cause && c.model == nc.candidate.model && c.applicable && c.significant) named = &c;
+  }
+  std::vector<GyroRival> out;
+  if (!named) return out;
+  const std::set<std::string> field_pair = {"misalignment", "magnetic_field"};
+  const std::set<std::string> scale_pair = {"scale_factor", "scale_factor_asymmetry"};
+  for (const auto& c : candidates) {
+    if (!c.applicable || !c.significant || c.cause == named->cause) continue;
+    if (scale_pair.count(c.cause) && scale_pair.count(named->cause)) continue;
+    double delta = 0;
+    if (field_pair.count(c.cause) && field_pair.count(named->cause)) {
+      if (c.model == "logged_field" || named->model == "logged_field") continue;
+      const GyroCandidate& field = c.cause == "magnetic_field" ? c : *named;
+      const GyroCandidate& mis = c.cause == "misalignment" ? c : *named;
+      // 2 ln B(misalignment : field) (FieldPhaseWarranted's Laplace approximation).
+      const double two_ln_b =
+          -(field.statistic - mis.statistic) + std::log(kPi / 2) + std::log(std::max(field.statistic, 1.0));
+      delta = named->cause == "misalignment" ? two_ln_b : -two_ln_b;
+    } else {
+      // Refused by a gate of the step; not a walk or lag that the chain without it matched (RunChain).
+      if (!c.verdict.empty() && c.verdict != "named" && c.verdict.rfind(kChainWithoutIt, 0) != 0) continue;
+      delta = c.bic - named->bic;
+    }
+    if (delta < kBareMentionBic) out.push_back({c.cause, c.model, delta});
+  }
+  std::sort(out.begin(), out.end(), [](const GyroRival& a, const GyroRival& b) { return a.delta_bic < b.delta_bic; });
+  return out;
+}
+
 namespace {
 
 // The full model's columns that a named cause's columns (now in the base) would repeat, or, for
@@ -307,7 +345,7 @@ void RunChain(const GyroDiscoverOptions& o, const std::vector<bool>& usable, con
         bic = FinalChainBic(*c, o, nm, before);
       }
       if (trial.named.size() > before && FinalChainBic(trial, o, nm, before) < bic + kBareMentionBic) {
-        chosen.verdict = "the causes named without it have a BIC (exact likelihood) below or within 2 of its";
+        chosen.verdict = kChainWithoutIt;
         trial.steps[step].candidates.push_back(chosen);
         *c = std::move(trial);
       }
@@ -319,6 +357,32 @@ void RunChain(const GyroDiscoverOptions& o, const std::vector<bool>& usable, con
     if (!named) break;
     ExcludeWithNamed(cause, &c->excluded);
     c->d.base = BaseWithNamed(c->d, c->d.base, {c->named.back()}, -1);
+  }
+}
+
+// Each named cause's rivals (StepRivals) in the final model: its candidates against the biases and every other
+// named cause. The last named one's are those of the step that named it (its base held the others); each
+// earlier one's come from a step run again with the causes named after it in the base too.
+void FindRivals(const Chain& c, const GyroDiscoverOptions& o, const std::vector<bool>& usable,
+                const std::vector<double>& scale, const std::vector<int>& full_cols, const std::string& first_file,
+                GyroDiscovery* res) {
+  const int n_named = static_cast<int>(c.named.size());
+  const MatrixXd bias = c.d.base.leftCols(static_cast<Eigen::Index>(c.d.bins.size()));
+  for (int k = 0; k < n_named && k < static_cast<int>(res->causes.size()); ++k) {
+    if (k == n_named - 1) {
+      res->causes[k].rivals = StepRivals(c.named[k], c.steps[k].candidates);
+      continue;
+    }
+    Design d = c.d;
+    d.base = BaseWithNamed(c.d, bias, c.named, k);
+    std::vector<NamedCause> others;
+    std::set<std::string> excluded;
+    for (int j = 0; j < n_named; ++j) {
+      if (j != k) others.push_back(c.named[j]), ExcludeWithNamed(c.named[j].candidate.cause, &excluded);
+    }
+    const GyroStep s =
+        RunGyroStep(d, o, usable, scale, FreeColumns(full_cols, others), excluded, o.alpha, o.gain_alpha, first_file);
+    res->causes[k].rivals = StepRivals(c.named[k], s.candidates);
   }
 }
 
@@ -379,6 +443,7 @@ GyroDiscovery DiscoverGyro(const std::vector<GyroBenchLog>& logs, const GyroDisc
     res.gain = 1;
   } else {
     JointFit(&d, o, nm_fit, scale, named, &res);
+    FindRivals(chain, o, usable, scale, full_cols, logs.front().file, &res);
     const NamedCause& first = named.front();
     res.cause = first.candidate.cause;
     res.parameters = res.causes.front().parameters;  // its step's fit alone; the joint fit's with others

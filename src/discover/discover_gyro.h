@@ -192,6 +192,17 @@ struct GyroResidual {
   double line_p = 1, line_frequency_hz = 0, line_amplitude_dph = 0, line_power_ratio = 0;
 };
 
+// A cause the data support about as well as a named one in its place, the other named causes fitted:
+// delta_bic is the model's BIC with the rival in its place minus the BIC with the named cause (exact
+// likelihood, noise refitted; for the nested pair misalignment / magnetic_field, 2 ln of the Bayes factor
+// that chooses between them, the quantity the BIC difference approximates). Listed when below 2, "not worth
+// more than a bare mention" (Kass & Raftery 1995); negative when the rival's BIC is lower and the step's
+// order (its look-ahead) or a gate passed the named one first.
+struct GyroRival {
+  std::string cause, model;
+  double delta_bic = 0;
+};
+
 // A cause of the stepwise extension (issue 31), in the order the causes entered the model.
 struct GyroNamedCause {
   std::string cause, model;
@@ -199,6 +210,7 @@ struct GyroNamedCause {
   std::map<std::string, double> parameters, sigmas;
   double gain = 1, gain_z = 0;                   // held-out, at the step it entered (against the model before it)
   double rms_before_dph = 0, rms_after_dph = 0;  // held-out bin RMS before / after that step
+  std::vector<GyroRival> rivals;                 // the ties the data do not break, lowest delta_bic first
 };
 
 // The correlation r of two coefficients of different named causes in the joint fit ("cause.coefficient").

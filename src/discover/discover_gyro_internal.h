@@ -220,6 +220,13 @@ constexpr double kLagMinTauZ = 3;
 // the look-ahead of BicOrder do not act on less.
 constexpr double kBareMentionBic = 2;
 
+// The verdict of a walk or lag that the chain run again without it matched (discover_gyro.cc's RunChain).
+inline constexpr char kChainWithoutIt[] =
+    "the causes named without it have a BIC (exact likelihood) below or within 2 of its";
+
+// discover_gyro.cc
+std::vector<GyroRival> StepRivals(const NamedCause& nc, const std::vector<GyroCandidate>& candidates);
+
 // discover_gyro_log.cc
 Design BuildDesign(const std::vector<GyroBenchLog>& logs, const GyroDiscoverOptions& o);
 std::vector<int> UsableColumns(Design* design, const GyroDiscoverOptions& o, std::vector<bool>* usable_out,

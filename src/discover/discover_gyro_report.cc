@@ -130,6 +130,12 @@ Json GyroDiscoveryToJson(const GyroDiscovery& d) {
     cj["gain_z"] = c.gain_z;
     cj["rms_before_dph"] = c.rms_before_dph;
     cj["residual_rms_dph"] = c.rms_after_dph;
+    cj["rivals"] = Json::array();
+    for (const auto& r : c.rivals) {
+      Json rj = {{"cause", r.cause}, {"delta_bic", r.delta_bic}};
+      if (!r.model.empty()) rj["model"] = r.model;
+      cj["rivals"].push_back(rj);
+    }
     j["causes"].push_back(cj);
   }
   j["correlations"] = Json::array();

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <iostream>
 #include <map>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -124,6 +125,9 @@ inline void PrintGyroRates(const GyroMcSummary& s) {
 // hidden. Parameters: each hidden cause's truth against the joint fit's values and sigmas.
 struct GyroMultiSummary {
   int cases = 0, all_named = 0, wrong = 0, unexplained = 0, params_checked = 0, params_within_3_sigma = 0;
+  // The ties reported (GyroNamedCause::rivals): cases with a wrong cause where every hidden cause left out is
+  // a rival of a named one; cases with both named where some named cause has a rival.
+  int wrong_hidden_rival = 0, all_named_with_rival = 0;
   std::map<std::string, std::pair<int, int>> per_combo;  // "a + b" -> (all named, cases)
 };
 
@@ -147,12 +151,27 @@ inline void ScoreGyroMulti(const GyroCase& c, const GyroDiscovery& d, bool verbo
   const bool all = found == static_cast<int>(c.causes.size()) && d.cause != "unexplained";
   s->all_named += all;
   s->wrong += wrong > 0;
+  std::set<std::string> named_or_rival;
+  std::string rivals;
+  bool any_rival = false;
+  for (const auto& n : d.causes) {
+    named_or_rival.insert(n.cause);
+    for (const auto& r : n.rivals) {
+      named_or_rival.insert(r.cause), any_rival = true;
+      rivals += " " + r.cause + " for " + n.cause + " (" + std::to_string(r.delta_bic) + ")";
+    }
+  }
+  bool hidden_covered = true;
+  for (const auto& h : c.causes) hidden_covered = hidden_covered && named_or_rival.count(h);
+  s->wrong_hidden_rival += wrong > 0 && hidden_covered;
+  s->all_named_with_rival += all && any_rival;
   s->unexplained += d.cause == "unexplained";
   auto& pc = s->per_combo[combo];
   pc.first += all, ++pc.second;
   if (verbose) {
     std::cout << "case " << combo << ": " << d.cause << " [" << chain << "]" << params << "\n   residual p "
               << d.residual.p_value << " " << d.residual.finding << "\n";
+    if (any_rival) std::cout << "   rivals:" << rivals << "\n";
     for (size_t k = 0; k < d.later_steps.size() + 1; ++k) {
       for (const auto& cand : k == 0 ? d.candidates : d.later_steps[k - 1]) {
         // the first step: its significant candidates; later ones: every candidate (how near a weak cause came)

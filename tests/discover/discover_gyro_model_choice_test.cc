@@ -1,8 +1,11 @@
 // The stepwise extension's choice between the field harmonic and the misalignment (FieldPhaseWarranted, a
-// Laplace approximation of a Bayes factor) against the evidences computed by numerical integration.
+// Laplace approximation of a Bayes factor) against the evidences computed by numerical integration, and the
+// ties it reports (StepRivals).
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
+#include <vector>
 
 #include "core/types.h"
 #include "discover/discover_gyro_internal.h"
@@ -54,6 +57,75 @@ TEST(DiscoverGyroModelChoice, FieldPhaseFollowsTheIntegratedBayesFactor) {
   const double s_hat = 8 * std::cos(18 * kDegToRad), c_hat = 8 * std::sin(18 * kDegToRad);
   EXPECT_LT(LnEvidenceMisalignment(s_hat, c_hat, r) - LnEvidenceField(s_hat, c_hat, r), 0);
   EXPECT_TRUE(FieldPhaseWarranted(c_hat * c_hat, 64));
+}
+
+GyroCandidate Candidate(const std::string& cause, double statistic, double bic, const std::string& verdict = "") {
+  GyroCandidate c;
+  c.cause = cause, c.statistic = statistic, c.bic = bic, c.verdict = verdict, c.significant = true;
+  return c;
+}
+
+// The misalignment and the field harmonic as rivals (StepRivals): the reported delta_bic is 2 ln B of the named
+// one against the other, and the other is listed exactly where the integrated evidences put 2 ln B below 2
+// (away from that boundary by more than the approximation's error).
+TEST(DiscoverGyroModelChoice, FieldAndMisalignmentAreRivalsWhereTheEvidenceIsNearEven) {
+  const double r = 30;
+  int listed = 0, unlisted = 0;
+  for (double snr : {5.0, 8.0, 12.0}) {
+    for (double phase_deg : {5.0, 10.0, 12.0, 15.0, 18.0, 20.0, 25.0, 30.0, 40.0}) {
+      const double s_hat = snr * std::cos(phase_deg * kDegToRad), c_hat = snr * std::sin(phase_deg * kDegToRad);
+      const double two_ln_b = 2 * (LnEvidenceMisalignment(s_hat, c_hat, r) - LnEvidenceField(s_hat, c_hat, r));
+      // The misalignment's chi^2 is its one coefficient's, the field's both: the extra chi^2 is c_hat^2.
+      const std::vector<GyroCandidate> step = {Candidate("misalignment", s_hat * s_hat, 0),
+                                               Candidate("magnetic_field", snr * snr, 0),
+                                               Candidate("temperature", 50, 40, "held-out gain not significant")};
+      for (const bool mis_named : {true, false}) {
+        NamedCause nc;
+        nc.candidate = step[mis_named ? 0 : 1];
+        const std::vector<GyroRival> rivals = StepRivals(nc, step);
+        const double two_ln_b_named = mis_named ? two_ln_b : -two_ln_b;  // 2 ln B(named : other)
+        if (std::abs(two_ln_b_named - kBareMentionBic) < 0.5) continue;
+        const bool expect = two_ln_b_named < kBareMentionBic;
+        ASSERT_EQ(rivals.size(), expect ? 1u : 0u) << "SNR " << snr << " phase " << phase_deg << " named "
+                                                   << nc.candidate.cause << " 2 ln B " << two_ln_b_named;
+        (expect ? listed : unlisted)++;
+        if (expect) {
+          EXPECT_EQ(rivals[0].cause, mis_named ? "magnetic_field" : "misalignment");
+          EXPECT_NEAR(rivals[0].delta_bic, two_ln_b_named, 0.5);
+        }
+      }
+    }
+  }
+  EXPECT_GE(listed, 10);
+  EXPECT_GE(unlisted, 10);
+}
+
+// The other rivals are the significant candidates whose BIC lies within 2 above the named one's (or below it),
+// not those a gate refused; a walk or lag matched by the chain without it is one.
+TEST(DiscoverGyroModelChoice, RivalsAreTheUnrefusedCandidatesWithinTwoOfTheNamedOnesBic) {
+  GyroCandidate weak = Candidate("scale_factor", 3, 95);
+  weak.significant = false;
+  const std::vector<GyroCandidate> step = {
+      Candidate("temperature", 60, 100, "named"),
+      Candidate("bias_step", 55, 101.5),                                             // untried, 1.5 above: a rival
+      Candidate("temperature_gradient", 58, 99.0, "held-out gain not significant"),  // refused
+      Candidate("periodic_drift", 40, 102.5),                                        // 2.5 above: not a rival
+      Candidate("rate_random_walk", 30, 100.7, kChainWithoutIt),                     // the chain without it kept
+      Candidate("magnetic_field", 45, 98.0),                                         // below the named one's
+      weak};
+  NamedCause nc;
+  nc.candidate = step[0];
+  const std::vector<GyroRival> rivals = StepRivals(nc, step);
+  ASSERT_EQ(rivals.size(), 3u);
+  EXPECT_EQ(rivals[0].cause, "magnetic_field");
+  EXPECT_DOUBLE_EQ(rivals[0].delta_bic, -2.0);
+  EXPECT_EQ(rivals[1].cause, "rate_random_walk");
+  EXPECT_NEAR(rivals[1].delta_bic, 0.7, 1e-12);
+  EXPECT_EQ(rivals[2].cause, "bias_step");
+  EXPECT_NEAR(rivals[2].delta_bic, 1.5, 1e-12);
+  // A named cause its step did not find significant (its BIC was never computed) has none.
+  nc.candidate = weak;
+  EXPECT_TRUE(StepRivals(nc, step).empty());
 }
 
 }  // namespace

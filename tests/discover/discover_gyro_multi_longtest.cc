@@ -126,6 +126,8 @@ testing::GyroMultiSummary RunPairs(uint64_t seed0, MissOracle* mo) {
   std::cout << "both named " << s.all_named << "/" << s.cases << ", a wrong cause " << s.wrong << ", unexplained "
             << s.unexplained << ", parameters within 3 sigma " << s.params_within_3_sigma << "/" << s.params_checked
             << "\n";
+  std::cout << "rivals: a wrong cause with the hidden one as its rival " << s.wrong_hidden_rival << "/" << s.wrong
+            << ", both named and a rival listed " << s.all_named_with_rival << "/" << s.all_named << "\n";
   for (const auto& [combo, rc] : s.per_combo) std::cout << "  " << combo << " " << rc.first << "/" << rc.second << "\n";
   std::cout << "misses weighed " << mo->weighed << ": the named chain's BIC lower " << mo->named_lower
             << ", the hidden model's lower by more than " << kBareMentionBic << " " << mo->hidden_lower_by_more << "\n";

@@ -356,6 +356,11 @@ TEST(DiscoverGyroCli, ChainOfTwoCausesInJsonAndSummary) {
   EXPECT_THAT(out, ::testing::HasSubstr("discover gyro: cause " + a + " + " + b + " (" + a + ":"));
   EXPECT_THAT(out, ::testing::HasSubstr("; " + b + ":"));
   EXPECT_TRUE(j["causes"][1]["parameters"].contains(b == "bias_step" ? "step_dph" : "period_s"));
+  // Each cause lists its rivals (the ties the data do not break), each within 2 of BIC of it.
+  for (const auto& cj : j["causes"]) {
+    ASSERT_TRUE(cj["rivals"].is_array()) << cj.dump();
+    for (const auto& r : cj["rivals"]) EXPECT_LT(r["delta_bic"].get<double>(), 2.0) << r.dump();
+  }
 }
 
 // thermal_lag through the command: its time constant and K in the JSON and the summary line.
