@@ -23,15 +23,18 @@ function(ssiu_unity target option)
   endif()
 endfunction()
 
-# ssiu_add_test(NAME detect_test SOURCES detect_test.cc DEPS ssiu_detect [LABELS long])
+# ssiu_add_test(NAME detect_test SOURCES detect_test.cc DEPS ssiu_detect [LABELS long] [NO_UNITY])
+# NO_UNITY: the program's files compile one at a time (their anonymous namespaces share names).
 # Every GoogleTest test becomes its own ctest entry (listed at ctest time, so the program is not run
 # at build time): `ctest -R Suite.Name` runs one, and ctest -j balances them across cores.
 # COMPILE_OPTIONS: the program's own (e.g. -O0); it then precompiles the headers for itself instead of
 # taking ssiu_test_pch's (tests/CMakeLists.txt), whose flags its own no longer match.
 function(ssiu_add_test)
-  cmake_parse_arguments(A "" "NAME" "SOURCES;DEPS;LABELS;COMPILE_OPTIONS" ${ARGN})
+  cmake_parse_arguments(A "NO_UNITY" "NAME" "SOURCES;DEPS;LABELS;COMPILE_OPTIONS" ${ARGN})
   add_executable(${A_NAME} ${A_SOURCES})
-  ssiu_unity(${A_NAME} SSIU_UNITY_TESTS)
+  if(NOT A_NO_UNITY)
+    ssiu_unity(${A_NAME} SSIU_UNITY_TESTS)
+  endif()
   target_compile_options(${A_NAME} PRIVATE ${SSIU_WARNINGS} ${A_COMPILE_OPTIONS})
   target_link_libraries(${A_NAME} PRIVATE ${A_DEPS} ssiu_testing GTest::gtest GTest::gmock GTest::gtest_main)
   if(SSIU_PCH AND A_COMPILE_OPTIONS)
