@@ -31,20 +31,18 @@ std::vector<GyroRival> StepRivals(const NamedCause& nc, const std::vector<GyroCa
   }
   std::vector<GyroRival> out;
   if (!named) return out;
-  const std::set<std::string> field_pair = {"misalignment", "magnetic_field"};
-  const std::set<std::string> scale_pair = {"scale_factor", "scale_factor_asymmetry"};
   for (const auto& c : candidates) {
     if (!c.applicable || !c.significant || c.cause == named->cause) continue;
-    if (scale_pair.count(c.cause) && scale_pair.count(named->cause)) continue;
     double delta = 0;
-    if (field_pair.count(c.cause) && field_pair.count(named->cause)) {
-      if (c.model == "logged_field" || named->model == "logged_field") continue;
-      const GyroCandidate& field = c.cause == "magnetic_field" ? c : *named;
-      const GyroCandidate& mis = c.cause == "misalignment" ? c : *named;
+    if (NestedPair(c.cause, named->cause)) {
+      const bool mis_named = named->cause == "misalignment";
+      if ((!mis_named && c.cause != "misalignment") || c.model == "logged_field" || named->model == "logged_field")
+        continue;
+      const GyroCandidate& field = mis_named ? c : *named;
+      const GyroCandidate& mis = mis_named ? *named : c;
       // 2 ln B(misalignment : field) (FieldPhaseWarranted's Laplace approximation).
-      const double two_ln_b =
-          -(field.statistic - mis.statistic) + std::log(kPi / 2) + std::log(std::max(field.statistic, 1.0));
-      delta = named->cause == "misalignment" ? two_ln_b : -two_ln_b;
+      const double two_ln_b = FieldPhaseExtraChi2Even(field.statistic) - (field.statistic - mis.statistic);
+      delta = mis_named ? two_ln_b : -two_ln_b;
     } else {
       // Refused by a gate of the step; not a walk or lag that the chain without it matched (RunChain).
       if (!c.verdict.empty() && c.verdict != "named" && c.verdict.rfind(kChainWithoutIt, 0) != 0) continue;

@@ -370,10 +370,8 @@ std::vector<int> WalkLogs(const Design& d, const GyroDiscoverOptions& o) {
 // Two candidates that can join one model: both significant, different causes, neither the walk (a noise
 // model, not columns), not a nested pair (they share a column).
 bool Partners(const GyroCandidate& a, const GyroCandidate& b, const std::map<std::string, Fitted>& fits) {
-  static const std::set<std::set<std::string>> kNested = {{"magnetic_field", "misalignment"},
-                                                          {"scale_factor", "scale_factor_asymmetry"}};
   return a.applicable && a.significant && b.applicable && b.significant && a.cause != b.cause &&
-         a.cause != "rate_random_walk" && b.cause != "rate_random_walk" && !kNested.count({a.cause, b.cause}) &&
+         a.cause != "rate_random_walk" && b.cause != "rate_random_walk" && !NestedPair(a.cause, b.cause) &&
          fits.count(Key(a)) && fits.count(Key(b));
 }
 

@@ -316,8 +316,20 @@ GyroResidual TestResidual(const Design& d, const std::vector<NoiseModel>& nm, co
 // (A / sigma = sqrt(harmonic_chi2), the free harmonic's chi^2 against the model without it; extra_chi2
 // its chi^2 against the misalignment). The field is named when B < 1: a threshold of 3-6 on extra_chi2 for
 // a harmonic 4-15 sigma strong, where a test of the phase at alpha = 0.01 asks 6.6 at every strength.
+// FieldPhaseExtraChi2Even: the extra chi^2 at which B = 1; 2 ln B(misalignment : field) is it minus extra_chi2.
+inline double FieldPhaseExtraChi2Even(double harmonic_chi2) {
+  return std::log(kPi / 2) + std::log(std::max(harmonic_chi2, 1.0));
+}
 inline bool FieldPhaseWarranted(double extra_chi2, double harmonic_chi2) {
-  return extra_chi2 > std::log(kPi / 2) + std::log(std::max(harmonic_chi2, 1.0));
+  return extra_chi2 > FieldPhaseExtraChi2Even(harmonic_chi2);
+}
+
+// Two causes of which one is the other with a constraint (they share columns): misalignment / magnetic_field's
+// azimuth harmonic, scale_factor / scale_factor_asymmetry.
+inline bool NestedPair(const std::string& a, const std::string& b) {
+  return (a == "misalignment" && b == "magnetic_field") || (a == "magnetic_field" && b == "misalignment") ||
+         (a == "scale_factor" && b == "scale_factor_asymmetry") ||
+         (a == "scale_factor_asymmetry" && b == "scale_factor");
 }
 
 // A nested cause's wider partner is taken (Upgrade at a step, WidenNested in the final model): misalignment's
