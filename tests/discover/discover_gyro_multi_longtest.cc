@@ -1,6 +1,7 @@
 // Acceptance of the stepwise extension of `ssiu discover gyro` (issue 31): logs with two hidden causes
 // together, every pair of six causes (temperature, temperature_gradient, magnetic_field, bias_step,
-// periodic_drift, scale_factor) drawn four times (60 cases; docs/discrepancy.md records the figures).
+// periodic_drift, scale_factor) drawn four times (60 cases; docs/discrepancy.md records the figures), the
+// misses weighed by the criterion and the outcomes by the weaker hidden cause's strength.
 #include <algorithm>
 #include <cmath>
 #include <set>
@@ -35,68 +36,144 @@ double PeriodicPositions(const Design& d, const GyroDiscoverOptions& o) {
   return n;
 }
 
+// The deterministic model of `causes` (regressor columns and located terms) on the biases: the hidden ones
+// with the generator's step time and period, the named ones with those the discovery reports. A step and a
+// sinusoid are columns of the static log (log 0), where the generator puts them. *cost: ln of the located
+// terms' scanned positions, as the library's BIC counts them. False for a cause that is not regressor
+// columns (rate_random_walk).
+bool ModelColumns(const Design& d, const GyroDiscoverOptions& o, const std::vector<std::string>& causes,
+                  const std::map<std::string, std::map<std::string, double>>& par, std::vector<int>* cols,
+                  std::vector<VectorXd>* extra, double* cost) {
+  const int m = static_cast<int>(d.bins[0].t_s.size());
+  const double t0 = d.bins[0].t_s.front() - 0.5 * d.bins[0].bin_s;
+  for (const auto& k : causes) {
+    if (k == "temperature") {
+      cols->insert(cols->end(), {kT1, kT2});
+    } else if (k == "temperature_gradient") {
+      cols->push_back(kG1);
+    } else if (k == "thermal_lag") {
+      cols->push_back(kLag), *cost += std::log(std::max(1, d.lag_positions));
+    } else if (k == "magnetic_field") {
+      cols->insert(cols->end(), {kMagSin, kMagCos});
+    } else if (k == "misalignment") {
+      cols->push_back(kMis);
+    } else if (k == "scale_factor") {
+      cols->push_back(kScale);
+    } else if (k == "bias_step") {
+      VectorXd v = VectorXd::Zero(d.n);
+      for (int i = 0; i < m; ++i) v(i) = d.bins[0].t_s[i] - t0 >= par.at(k).at("step_time_s") ? 1 : 0;
+      extra->push_back(v), *cost += std::log(StepPositions(d));
+    } else if (k == "periodic_drift") {
+      VectorXd s = VectorXd::Zero(d.n), c = VectorXd::Zero(d.n);
+      const double w = 2 * kPi / par.at(k).at("period_s");
+      for (int i = 0; i < m; ++i)
+        s(i) = std::sin(w * (d.bins[0].t_s[i] - t0)), c(i) = std::cos(w * (d.bins[0].t_s[i] - t0));
+      extra->push_back(s), extra->push_back(c), *cost += std::log(PeriodicPositions(d, o));
+    } else {
+      return false;
+    }
+  }
+  return true;
+}
+
 // The BIC of the exact likelihood (FittedBic, the criterion the chain's order and its walk and lag chains
-// use, under the first step's noise models nm) of the biases + `causes`: the hidden ones with the
-// generator's step time and period, the named ones with those the discovery reports. A step and a sinusoid
-// are columns of the static log (log 0), where the generator puts them. False for a cause that is not
-// regressor columns (rate_random_walk).
+// use, under the first step's noise models nm) of the biases + `causes` (ModelColumns).
 bool ModelBic(const Design& d, const GyroDiscoverOptions& o, const std::vector<NoiseModel>& nm,
               const std::vector<std::string>& causes, const std::map<std::string, std::map<std::string, double>>& par,
               double* bic) {
   std::vector<int> cols;
   std::vector<VectorXd> extra;
   double cost = 0;
-  const int m = static_cast<int>(d.bins[0].t_s.size());
-  const double t0 = d.bins[0].t_s.front() - 0.5 * d.bins[0].bin_s;
-  for (const auto& k : causes) {
-    if (k == "temperature") {
-      cols.insert(cols.end(), {kT1, kT2});
-    } else if (k == "temperature_gradient") {
-      cols.push_back(kG1);
-    } else if (k == "thermal_lag") {
-      cols.push_back(kLag), cost += std::log(std::max(1, d.lag_positions));
-    } else if (k == "magnetic_field") {
-      cols.insert(cols.end(), {kMagSin, kMagCos});
-    } else if (k == "misalignment") {
-      cols.push_back(kMis);
-    } else if (k == "scale_factor") {
-      cols.push_back(kScale);
-    } else if (k == "bias_step") {
-      VectorXd v = VectorXd::Zero(d.n);
-      for (int i = 0; i < m; ++i) v(i) = d.bins[0].t_s[i] - t0 >= par.at(k).at("step_time_s") ? 1 : 0;
-      extra.push_back(v), cost += std::log(StepPositions(d));
-    } else if (k == "periodic_drift") {
-      VectorXd s = VectorXd::Zero(d.n), c = VectorXd::Zero(d.n);
-      const double w = 2 * kPi / par.at(k).at("period_s");
-      for (int i = 0; i < m; ++i)
-        s(i) = std::sin(w * (d.bins[0].t_s[i] - t0)), c(i) = std::cos(w * (d.bins[0].t_s[i] - t0));
-      extra.push_back(s), extra.push_back(c), cost += std::log(PeriodicPositions(d, o));
-    } else {
-      return false;
-    }
-  }
+  if (!ModelColumns(d, o, causes, par, &cols, &extra, &cost)) return false;
   *bic = FittedBic(d, o, nm, Assemble(d, cols, extra), static_cast<int>(cols.size() + extra.size()), cost);
   return true;
+}
+
+// How strong each hidden cause is, apart from the noise drawn: the signal the generator put in (its true
+// parameters times the cause's columns; EvaluateFitted's parameters inverted) whitened with the noise left
+// once every hidden cause is fitted (each log's noise model refitted by maximum likelihood on the hidden
+// model's GLS residual under nm: the first step's models, fitted without the located terms, take a periodic
+// drift or a step for wander) and projected off the biases and the other hidden causes, as a number of
+// sigmas: z^2 is the non-centrality of the cause's chi^2 with the others fitted (its expected chi^2 is
+// z^2 + its dof). The weaker cause's z of a case sets what any test of it can see.
+double WeakerHiddenZ(const Design& d, const GyroDiscoverOptions& o, const std::vector<NoiseModel>& nm0,
+                     const std::vector<double>& scale, const testing::GyroCase& c) {
+  std::vector<int> hc;
+  std::vector<VectorXd> he;
+  double unused = 0;
+  if (!ModelColumns(d, o, c.causes, c.truths, &hc, &he, &unused)) return 0;
+  const MatrixXd xh = Assemble(d, hc, he);
+  const LsFit gh = SolveLs(WhitenRows(d, nm0, xh), WhitenRows(d, nm0, d.y));
+  const VectorXd e = d.y - xh * gh.beta;
+  std::vector<NoiseModel> nm;
+  for (size_t r = 0; r < d.bins.size(); ++r) {
+    const int m = static_cast<int>(d.bins[r].t_s.size());
+    nm.push_back(FitNoiseMle(e.segment(d.offset[r], m), d.bins[r].bin_s, o.wander_tau_max_s, nm0[r], false).model);
+  }
+  double z_min = 1e9;
+  for (const auto& k : c.causes) {
+    std::vector<std::string> others;
+    for (const auto& j : c.causes) {
+      if (j != k) others.push_back(j);
+    }
+    std::vector<int> oc, kc;
+    std::vector<VectorXd> oe, ke;
+    if (!ModelColumns(d, o, others, c.truths, &oc, &oe, &unused) ||
+        !ModelColumns(d, o, {k}, c.truths, &kc, &ke, &unused)) {
+      return 0;
+    }
+    const auto& t = c.truths.at(k);
+    std::vector<double> coef;  // per column of kc then ke
+    if (k == "temperature") coef = {t.at("K10_dph") * scale[kT1], t.at("K20_dph") * scale[kT2]};
+    if (k == "temperature_gradient") coef = {t.at("K01_dph") * scale[kG1]};
+    if (k == "scale_factor") coef = {t.at("scale_factor_ppm") * scale[kScale]};
+    if (k == "bias_step") coef = {t.at("step_dph")};
+    if (k == "magnetic_field" || k == "periodic_drift") {
+      const double a = t.at("amplitude_dph"), ph = t.at("phase_deg") * kDegToRad;
+      const double us = k == "magnetic_field" ? scale[kMagSin] : 1, uc = k == "magnetic_field" ? scale[kMagCos] : 1;
+      coef = {a * std::cos(ph) * us, a * std::sin(ph) * uc};
+    }
+    if (coef.size() != kc.size() + ke.size()) return 0;
+    VectorXd signal = VectorXd::Zero(d.n);
+    for (size_t j = 0; j < kc.size(); ++j) signal += coef[j] * d.cols.col(kc[j]);
+    for (size_t j = 0; j < ke.size(); ++j) signal += coef[kc.size() + j] * ke[j];
+    const MatrixXd xo = WhitenRows(d, nm, Assemble(d, oc, oe));
+    const VectorXd sw = WhitenRows(d, nm, signal);
+    const LsFit g = SolveLs(xo, sw);
+    z_min = std::min(z_min, std::sqrt(g.rss));
+  }
+  return z_min;
 }
 
 // The misses that are choices (the named causes differ from the hidden ones), weighed by the criterion
 // itself: the hidden model's BIC against the named chain's. Where the named chain's is lower (or the
 // hidden one's lower by less than kBareMentionBic) no search by this criterion names the hidden pair;
-// where the hidden one's is lower by more, the search missed what its criterion supports.
+// where the hidden one's is lower by more, the search missed what its criterion supports. And every case's
+// outcome by its weaker hidden cause's strength (WeakerHiddenZ): below kStrengthEdges[0], between, above
+// kStrengthEdges[1].
+constexpr double kStrengthEdges[2] = {5, 8};
 struct MissOracle {
   int weighed = 0, named_lower = 0, hidden_lower_by_more = 0;
+  int cases[3] = {0, 0, 0}, both[3] = {0, 0, 0}, wrong[3] = {0, 0, 0};
 };
-void WeighMiss(const testing::GyroCase& c, const GyroDiscovery& res, MissOracle* mo) {
+void WeighCase(const testing::GyroCase& c, const GyroDiscovery& res, MissOracle* mo) {
   std::set<std::string> named;
   std::map<std::string, std::map<std::string, double>> named_par;
   for (const auto& n : res.causes) named.insert(n.cause), named_par[n.cause] = n.parameters;
-  if (named == std::set<std::string>(c.causes.begin(), c.causes.end())) return;  // `unexplained`: not a choice
+  const std::set<std::string> hidden(c.causes.begin(), c.causes.end());
   const GyroDiscoverOptions o;
   Design d = BuildDesign(c.logs, o);
   std::vector<bool> usable;
   std::vector<double> scale;
   const std::vector<int> full = UsableColumns(&d, o, &usable, &scale);
   const GyroStep s0 = RunGyroStep(d, o, usable, scale, full, {}, o.alpha, o.gain_alpha, c.logs.front().file);
+  const double z = WeakerHiddenZ(d, o, s0.nm, scale, c);
+  const int bin = z < kStrengthEdges[0] ? 0 : z < kStrengthEdges[1] ? 1 : 2;
+  ++mo->cases[bin];
+  mo->both[bin] += named == hidden && res.cause != "unexplained";
+  mo->wrong[bin] += !std::includes(hidden.begin(), hidden.end(), named.begin(), named.end());
+  std::cout << "   weaker hidden cause z " << z << "\n";
+  if (named == hidden) return;  // `unexplained`: not a choice
   double bic_hidden = 0, bic_named = 0;
   if (!ModelBic(d, o, s0.nm, c.causes, c.truths, &bic_hidden) ||
       !ModelBic(d, o, s0.nm, std::vector<std::string>(named.begin(), named.end()), named_par, &bic_named)) {
@@ -109,7 +186,8 @@ void WeighMiss(const testing::GyroCase& c, const GyroDiscovery& res, MissOracle*
 }
 
 // Every pair of the six causes, four draws each from seeds seed0 + 7919 i (RunGyroMultiMonteCarlo's order);
-// prints the figures, each pair's count and the misses weighed by the criterion (WeighMiss).
+// prints the figures, each pair's count and the misses weighed by the criterion and the
+// outcomes by strength (WeighCase).
 testing::GyroMultiSummary RunPairs(uint64_t seed0, MissOracle* mo) {
   const auto pairs = testing::GyroCausePairs(
       {"temperature", "temperature_gradient", "magnetic_field", "bias_step", "periodic_drift", "scale_factor"});
@@ -120,7 +198,7 @@ testing::GyroMultiSummary RunPairs(uint64_t seed0, MissOracle* mo) {
       const testing::GyroCase c = testing::MakeGyroCase(combo, seed0 + 7919 * i++);
       const GyroDiscovery res = DiscoverGyro(c.logs, GyroDiscoverOptions{});
       testing::ScoreGyroMulti(c, res, true, &s);
-      WeighMiss(c, res, mo);
+      WeighCase(c, res, mo);
     }
   }
   std::cout << "both named " << s.all_named << "/" << s.cases << ", a wrong cause " << s.wrong << ", unexplained "
@@ -131,7 +209,20 @@ testing::GyroMultiSummary RunPairs(uint64_t seed0, MissOracle* mo) {
   for (const auto& [combo, rc] : s.per_combo) std::cout << "  " << combo << " " << rc.first << "/" << rc.second << "\n";
   std::cout << "misses weighed " << mo->weighed << ": the named chain's BIC lower " << mo->named_lower
             << ", the hidden model's lower by more than " << kBareMentionBic << " " << mo->hidden_lower_by_more << "\n";
+  const char* range[3] = {"z < 5", "5 <= z < 8", "z >= 8"};  // kStrengthEdges
+  for (int k = 0; k < 3; ++k) {
+    std::cout << "weaker hidden cause " << range[k] << ": both named " << mo->both[k] << "/" << mo->cases[k]
+              << ", a wrong cause " << mo->wrong[k] << "\n";
+  }
   return s;
+}
+
+// Where the weaker hidden cause is at least kStrengthEdges[1] sigma strong (WeakerHiddenZ), the issue's
+// figures hold on the three draws together: both named 91/100, a wrong cause 5/100 (docs/discrepancy.md;
+// per draw 35/36 and 1, 24/27 and 2, 32/37 and 2). These bounds hold each draw's figures against regression.
+void ExpectStrongCases(const MissOracle& mo) {
+  EXPECT_GE(mo.both[2], 0.85 * mo.cases[2]);
+  EXPECT_LE(mo.wrong[2], 0.1 * mo.cases[2]);
 }
 
 TEST(DiscoverGyroMultiLong, TwoCausesTogether) {
@@ -148,6 +239,7 @@ TEST(DiscoverGyroMultiLong, TwoCausesTogether) {
   // The search's own misses: at most 3 cases a draw where the hidden pair's BIC was more than 2 below the
   // named chain's (docs/discrepancy.md).
   EXPECT_LE(mo.hidden_lower_by_more, 3);
+  ExpectStrongCases(mo);
 }
 
 // A second draw of the same 60 cases (seed base 737373): the first draw is the one the stepwise extension's
@@ -164,6 +256,7 @@ TEST(DiscoverGyroMultiLong, TwoCausesFreshSeeds) {
   // The search's own misses: at most 3 cases a draw where the hidden pair's BIC was more than 2 below the
   // named chain's (docs/discrepancy.md).
   EXPECT_LE(mo.hidden_lower_by_more, 3);
+  ExpectStrongCases(mo);
 }
 
 // A third draw (seed base 848484), not looked at while the walk and lag chains were developed: measured
@@ -177,6 +270,7 @@ TEST(DiscoverGyroMultiLong, TwoCausesThirdDraw) {
   // The search's own misses: at most 3 cases a draw where the hidden pair's BIC was more than 2 below the
   // named chain's (docs/discrepancy.md).
   EXPECT_LE(mo.hidden_lower_by_more, 3);
+  ExpectStrongCases(mo);
 }
 
 }  // namespace
