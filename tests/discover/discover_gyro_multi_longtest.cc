@@ -95,13 +95,14 @@ bool ModelBic(const Design& d, const GyroDiscoverOptions& o, const std::vector<N
 // model's GLS residual under nm: the first step's models, fitted without the located terms, take a periodic
 // drift or a step for wander) and projected off the biases and the other hidden causes, as a number of
 // sigmas: z^2 is the non-centrality of the cause's chi^2 with the others fitted (its expected chi^2 is
-// z^2 + its dof). The weaker cause's z of a case sets what any test of it can see.
+// z^2 + its dof). The weaker cause's z of a case sets what any test of it can see. NaN for a cause it
+// cannot weigh (not one of the six causes of the pairs).
 double WeakerHiddenZ(const Design& d, const GyroDiscoverOptions& o, const std::vector<NoiseModel>& nm0,
                      const std::vector<double>& scale, const testing::GyroCase& c) {
   std::vector<int> hc;
   std::vector<VectorXd> he;
   double unused = 0;
-  if (!ModelColumns(d, o, c.causes, c.truths, &hc, &he, &unused)) return 0;
+  if (!ModelColumns(d, o, c.causes, c.truths, &hc, &he, &unused)) return std::nan("");
   const MatrixXd xh = Assemble(d, hc, he);
   const LsFit gh = SolveLs(WhitenRows(d, nm0, xh), WhitenRows(d, nm0, d.y));
   const VectorXd e = d.y - xh * gh.beta;
@@ -120,7 +121,7 @@ double WeakerHiddenZ(const Design& d, const GyroDiscoverOptions& o, const std::v
     std::vector<VectorXd> oe, ke;
     if (!ModelColumns(d, o, others, c.truths, &oc, &oe, &unused) ||
         !ModelColumns(d, o, {k}, c.truths, &kc, &ke, &unused)) {
-      return 0;
+      return std::nan("");
     }
     const auto& t = c.truths.at(k);
     std::vector<double> coef;  // per column of kc then ke
@@ -133,7 +134,7 @@ double WeakerHiddenZ(const Design& d, const GyroDiscoverOptions& o, const std::v
       const double us = k == "magnetic_field" ? scale[kMagSin] : 1, uc = k == "magnetic_field" ? scale[kMagCos] : 1;
       coef = {a * std::cos(ph) * us, a * std::sin(ph) * uc};
     }
-    if (coef.size() != kc.size() + ke.size()) return 0;
+    if (coef.size() != kc.size() + ke.size()) return std::nan("");
     VectorXd signal = VectorXd::Zero(d.n);
     for (size_t j = 0; j < kc.size(); ++j) signal += coef[j] * d.cols.col(kc[j]);
     for (size_t j = 0; j < ke.size(); ++j) signal += coef[kc.size() + j] * ke[j];
@@ -168,6 +169,7 @@ void WeighCase(const testing::GyroCase& c, const GyroDiscovery& res, MissOracle*
   const std::vector<int> full = UsableColumns(&d, o, &usable, &scale);
   const GyroStep s0 = RunGyroStep(d, o, usable, scale, full, {}, o.alpha, o.gain_alpha, c.logs.front().file);
   const double z = WeakerHiddenZ(d, o, s0.nm, scale, c);
+  if (!std::isfinite(z)) ADD_FAILURE() << "no strength for the hidden causes of a case";
   const int bin = z < kStrengthEdges[0] ? 0 : z < kStrengthEdges[1] ? 1 : 2;
   ++mo->cases[bin];
   mo->both[bin] += named == hidden && res.cause != "unexplained";
