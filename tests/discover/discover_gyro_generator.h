@@ -112,6 +112,10 @@ struct GyroCaseModel {
   double lag_k = 0, lag_tau_s = 600;  // thermal_lag: K per 10 C of the lagged temperature, its time constant
   // A thermal-cycling programme instead of the ramps (thermal_lag's case): 20 C + amplitude sin(2 pi t / period).
   double cycle_amp_c = 0, cycle_period_s = 3600;
+  // The ramp programme repeated (ramp up from 18 C, hold, ramp down, 30 min at 18 C, again) instead of run
+  // once: every temperature is crossed several times, so a drift that is a function of the temperature
+  // differs from a change at one time.
+  bool repeat_programme = false;
   std::map<int, double> spikes;
 };
 
@@ -138,15 +142,19 @@ inline GyroBenchLog StaticRun(const GyroCaseModel& m, Rng& rng, Rng& rng_x, uint
   double temp_lag = 20;  // thermal_lag: the coil's temperature, lagging the logged one (the log starts at 20 C)
   for (int k = 0; k * dt < 43200; ++k) {
     const double t = k * dt;
-    // Temperature programme: 20 C, ramp up, hold, ramp down, hold.
+    // Temperature programme: 20 C, ramp up, hold, ramp down, hold (repeated: from 18 C after the first).
+    const double top = 20 + rate1 * t_ramp1 / 60, cycle_s = t_ramp1 + hold + (top - 18) / -rate2 * 60 + 1800;
+    const bool again = m.repeat_programme && t >= cycle_s;
+    const double tp = again ? std::fmod(t, cycle_s) : t;  // time in the programme
     double temp = 20, g = 0;
-    if (t < t_ramp1) {
-      temp = 20 + rate1 * t / 60, g = rate1;
-    } else if (t < t_ramp1 + hold) {
-      temp = 20 + rate1 * t_ramp1 / 60;
+    if (again && tp < t_ramp1) {
+      temp = 18 + (top - 18) * tp / t_ramp1, g = (top - 18) / t_ramp1 * 60;
+    } else if (tp < t_ramp1) {
+      temp = 20 + rate1 * tp / 60, g = rate1;
+    } else if (tp < t_ramp1 + hold) {
+      temp = top;
     } else {
-      const double top = 20 + rate1 * t_ramp1 / 60;
-      const double t2 = t - t_ramp1 - hold;
+      const double t2 = tp - t_ramp1 - hold;
       const double dur2 = (top - 18) / -rate2 * 60;
       temp = t2 < dur2 ? top + rate2 * t2 / 60 : 18;
       g = t2 < dur2 ? rate2 : 0;
@@ -306,10 +314,12 @@ inline void DrawHiddenCause(const std::string& cause, Rng& rng, GyroCaseModel& m
 // The case's parameters, then its two runs; every stream draws in the same order as ever, so that
 // a seed gives the data the tests' figures were measured on. Several hidden causes (`causes`, drawn in
 // that order from the case's stream): c.cause is the first, c.causes all (expected answers).
-inline GyroCase MakeGyroCase(const std::vector<std::string>& causes, uint64_t seed) {
+// repeat_programme: GyroCaseModel::repeat_programme (the same draws otherwise).
+inline GyroCase MakeGyroCase(const std::vector<std::string>& causes, uint64_t seed, bool repeat_programme = false) {
   Rng rng(seed);
   GyroCase c;
   GyroCaseModel m;
+  m.repeat_programme = repeat_programme;
   const std::string& cause = causes.front();
   for (const auto& hidden : causes) {
     c.causes.push_back(hidden == "magnetic_field_logged" ? "magnetic_field"
