@@ -14,6 +14,13 @@ if [ "${SSIU_SKIP_ASAN:-0}" != "1" ] && [ "${SSIU_SKIP_FUZZ:-0}" != "1" ]; then
   fuzz_in_asan=ON
 fi
 if [ "${SSIU_SKIP_ASAN:-0}" != "1" ]; then
+  # clang refuses a precompiled header built before a system header it read was replaced, even by an older
+  # file (dpkg keeps the package's times, so ninja sees nothing newer): the ARM leg's multiarch packages can
+  # update the host's own (linux-libc-dev), and the next run's sanitizer build failed. Such headers are built
+  # again when dpkg has installed anything since.
+  if [ -d build-asan ]; then
+    find build-asan -name '*.pch' ! -newer /var/lib/dpkg/status -delete
+  fi
   # clang: its UBSan also checks out-of-range double-to-int conversions (float-cast-overflow), which
   # GCC's lacks. -O1 -g1: sanitizer builds of the template-heavy files (FLANN, Eigen) compile faster.
   bash scripts/setup.sh --all build-asan -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
