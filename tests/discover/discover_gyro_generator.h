@@ -140,10 +140,12 @@ inline GyroBenchLog StaticRun(const GyroCaseModel& m, Rng& rng, Rng& rng_x, uint
   std::vector<double> toggles;
   for (double tt = rng_x.Uniform(600, 3600); tt < 43200; tt += rng_x.Uniform(1200, 3600)) toggles.push_back(tt);
   double temp_lag = 20;  // thermal_lag: the coil's temperature, lagging the logged one (the log starts at 20 C)
+  // The programme's top, its ramp down's duration (s) and, repeated, its period (s).
+  const double top = 20 + rate1 * t_ramp1 / 60, dur2 = (top - 18) / -rate2 * 60;
+  const double cycle_s = t_ramp1 + hold + dur2 + 1800;
   for (int k = 0; k * dt < 43200; ++k) {
     const double t = k * dt;
     // Temperature programme: 20 C, ramp up, hold, ramp down, hold (repeated: from 18 C after the first).
-    const double top = 20 + rate1 * t_ramp1 / 60, cycle_s = t_ramp1 + hold + (top - 18) / -rate2 * 60 + 1800;
     const bool again = m.repeat_programme && t >= cycle_s;
     const double tp = again ? std::fmod(t, cycle_s) : t;  // time in the programme
     double temp = 20, g = 0;
@@ -155,7 +157,6 @@ inline GyroBenchLog StaticRun(const GyroCaseModel& m, Rng& rng, Rng& rng_x, uint
       temp = top;
     } else {
       const double t2 = tp - t_ramp1 - hold;
-      const double dur2 = (top - 18) / -rate2 * 60;
       temp = t2 < dur2 ? top + rate2 * t2 / 60 : 18;
       g = t2 < dur2 ? rate2 : 0;
     }

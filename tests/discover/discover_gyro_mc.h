@@ -131,26 +131,38 @@ struct GyroMultiSummary {
   std::map<std::string, std::pair<int, int>> per_combo;  // "a + b" -> (all named, cases)
 };
 
+// One case's outcome as GyroMultiSummary counts it: every hidden cause named and the verdict not
+// `unexplained`; some named cause that was not hidden.
+struct GyroMultiOutcome {
+  bool all_named = false, wrong = false;
+};
+inline GyroMultiOutcome ScoreGyroMultiOutcome(const GyroCase& c, const GyroDiscovery& d) {
+  int found = 0;
+  GyroMultiOutcome out;
+  for (const auto& n : d.causes) {
+    const bool hidden = std::find(c.causes.begin(), c.causes.end(), n.cause) != c.causes.end();
+    found += hidden;
+    out.wrong = out.wrong || !hidden;
+  }
+  out.all_named = found == static_cast<int>(c.causes.size()) && d.cause != "unexplained";
+  return out;
+}
+
 inline void ScoreGyroMulti(const GyroCase& c, const GyroDiscovery& d, bool verbose, GyroMultiSummary* s) {
   ++s->cases;
   std::string combo, chain;
   for (const auto& h : c.causes) combo += (combo.empty() ? "" : " + ") + h;
   for (const auto& n : d.causes) chain += (chain.empty() ? "" : " + ") + n.cause;
-  int found = 0, wrong = 0;
   std::string params;
   for (const auto& n : d.causes) {
-    if (std::find(c.causes.begin(), c.causes.end(), n.cause) == c.causes.end()) {
-      ++wrong;
-      continue;
-    }
-    ++found;
-    if (!c.truths.count(n.cause)) continue;
+    if (std::find(c.causes.begin(), c.causes.end(), n.cause) == c.causes.end() || !c.truths.count(n.cause)) continue;
     CheckParameters(n.cause + ".", c.truths.at(n.cause), n.parameters, n.sigmas, &s->params_checked,
                     &s->params_within_3_sigma, &params);
   }
-  const bool all = found == static_cast<int>(c.causes.size()) && d.cause != "unexplained";
+  const GyroMultiOutcome outcome = ScoreGyroMultiOutcome(c, d);
+  const bool all = outcome.all_named, wrong = outcome.wrong;
   s->all_named += all;
-  s->wrong += wrong > 0;
+  s->wrong += wrong;
   std::set<std::string> named_or_rival;
   std::string rivals;
   bool any_rival = false;
@@ -163,7 +175,7 @@ inline void ScoreGyroMulti(const GyroCase& c, const GyroDiscovery& d, bool verbo
   }
   bool hidden_covered = true;
   for (const auto& h : c.causes) hidden_covered = hidden_covered && named_or_rival.count(h);
-  s->wrong_hidden_rival += wrong > 0 && hidden_covered;
+  s->wrong_hidden_rival += wrong && hidden_covered;
   s->all_named_with_rival += all && any_rival;
   s->unexplained += d.cause == "unexplained";
   auto& pc = s->per_combo[combo];

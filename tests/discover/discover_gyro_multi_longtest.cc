@@ -161,7 +161,6 @@ void WeighCase(const testing::GyroCase& c, const GyroDiscovery& res, MissOracle*
   std::set<std::string> named;
   std::map<std::string, std::map<std::string, double>> named_par;
   for (const auto& n : res.causes) named.insert(n.cause), named_par[n.cause] = n.parameters;
-  const std::set<std::string> hidden(c.causes.begin(), c.causes.end());
   const GyroDiscoverOptions o;
   Design d = BuildDesign(c.logs, o);
   std::vector<bool> usable;
@@ -171,11 +170,12 @@ void WeighCase(const testing::GyroCase& c, const GyroDiscovery& res, MissOracle*
   const double z = WeakerHiddenZ(d, o, s0.nm, scale, c);
   if (!std::isfinite(z)) ADD_FAILURE() << "no strength for the hidden causes of a case";
   const int bin = z < kStrengthEdges[0] ? 0 : z < kStrengthEdges[1] ? 1 : 2;
+  const testing::GyroMultiOutcome outcome = testing::ScoreGyroMultiOutcome(c, res);
   ++mo->cases[bin];
-  mo->both[bin] += named == hidden && res.cause != "unexplained";
-  mo->wrong[bin] += !std::includes(hidden.begin(), hidden.end(), named.begin(), named.end());
+  mo->both[bin] += outcome.all_named;
+  mo->wrong[bin] += outcome.wrong;
   std::cout << "   weaker hidden cause z " << z << "\n";
-  if (named == hidden) return;  // `unexplained`: not a choice
+  if (named == std::set<std::string>(c.causes.begin(), c.causes.end())) return;  // `unexplained`: not a choice
   double bic_hidden = 0, bic_named = 0;
   if (!ModelBic(d, o, s0.nm, c.causes, c.truths, &bic_hidden) ||
       !ModelBic(d, o, s0.nm, std::vector<std::string>(named.begin(), named.end()), named_par, &bic_named)) {
@@ -294,11 +294,9 @@ TEST(DiscoverGyroMultiLong, StepPairsOnARepeatedThermalProgramme) {
           const GyroDiscovery res = DiscoverGyro(c.logs, GyroDiscoverOptions{});
           std::set<std::string> named;
           for (const auto& n : res.causes) named.insert(n.cause);
-          const std::set<std::string> hidden(combo.begin(), combo.end());
-          // As ScoreGyroMulti counts them: every hidden cause named, not `unexplained`.
-          both[rep] +=
-              std::includes(named.begin(), named.end(), hidden.begin(), hidden.end()) && res.cause != "unexplained";
-          wrong[rep] += !std::includes(hidden.begin(), hidden.end(), named.begin(), named.end());
+          const testing::GyroMultiOutcome outcome = testing::ScoreGyroMultiOutcome(c, res);
+          both[rep] += outcome.all_named;
+          wrong[rep] += outcome.wrong;
           thermal_for_step[rep] +=
               !named.count("bias_step") &&
               (named.count("temperature") || named.count("temperature_gradient") || named.count("thermal_lag"));
