@@ -34,7 +34,8 @@ std::vector<std::string> CalibrateGranasat(const std::string& dir, const std::st
 
 TEST(JpegCli, GranasatCalibratesAndEverySolveEqualsItsPngCopy) {
   if (testing::kUnderSanitizer)
-    GTEST_SKIP() << "a calibration of every frame (78 s under the sanitizers); the JPEG decoder runs there in "
+    GTEST_SKIP() << "a calibration of every frame (too long for the sanitizer run's share of CI time); the JPEG "
+                    "decoder runs there in "
                     "RasterCodec.JpegAndBmpMatchOpenCv and DetectJpeg.*, the calibration of real "
                     "frames in CalibrateCli.SwarmFramesFromANominalGuessAllSolve, the batch solve in BatchCli.*";
   SSIU_REQUIRE_SHARED(dir, "granasat");
@@ -77,7 +78,8 @@ TEST(JpegCli, GranasatCalibratesAndEverySolveEqualsItsPngCopy) {
 // above the centre), within 3 sigma of the two fits combined.
 TEST(JpegCli, GranasatPrincipalPointFromOneFrameAgreesWithTheCalibration) {
   if (testing::kUnderSanitizer)
-    GTEST_SKIP() << "a calibration of every frame and a solve of each (145 s under the sanitizers); the calibration of "
+    GTEST_SKIP() << "a calibration of every frame and a solve of each (too long for the sanitizer run's share of CI "
+                    "time); the calibration of "
                     "real frames runs there in CalibrateCli.SwarmFramesFromANominalGuessAllSolve, the JPEG decoder in "
                     "RasterCodec.JpegAndBmpMatchOpenCv, the principal point's refit in "
                     "RefinePrincipalPoint.ThirtyPixelsOffCentreAreFoundAndARightCameraKeepsItsOwn";

@@ -101,7 +101,8 @@ TEST(DiscoverFramesMulti, FittedCameraCarriesEveryNamedParameter) {
 // in discover_frames_longtest.cc.
 TEST(DiscoverFramesMulti, ThreeTimesNoiseLeftoverIsUnexplained) {
   if (testing::kUnderSanitizer)
-    GTEST_SKIP() << "its frame-set discoveries (39 s under the sanitizers); the residual test runs there in "
+    GTEST_SKIP() << "its frame-set discoveries (too long for the sanitizer run's share of CI time); the residual test "
+                    "runs there in "
                     "every frames discovery (DiscoverFramesMulti.IssueExamplesOnSimulatedImages, "
                     "DiscoverFramesMulti.TwoAndThreeEffectsAllNamedWithUnbiasedParameters)";
   for (const char* e : {"twist", "bump", "stitch", "cti", "focal_length+twist"}) {

@@ -36,7 +36,7 @@ void ExpectBothNamed(const testing::GyroCase& c, const GyroDiscovery& d) {
 TEST(DiscoverGyroMulti, BiasStepWithPeriodicDriftNamesBoth) {
   if (testing::kUnderSanitizer)
     GTEST_SKIP() << "the same case's discovery, and its JSON, run there through the command in "
-                    "DiscoverGyroCli.ChainOfTwoCausesInJsonAndSummary (38 s under the sanitizers)";
+                    "DiscoverGyroCli.ChainOfTwoCausesInJsonAndSummary";
   const auto c = testing::MakeGyroCase(std::vector<std::string>{"bias_step", "periodic_drift"}, 408159);
   const GyroDiscovery d = DiscoverGyro(c.logs, GyroDiscoverOptions{});
   ExpectBothNamed(c, d);
@@ -66,7 +66,8 @@ TEST(DiscoverGyroMulti, BiasStepWithPeriodicDriftNamesBoth) {
 // log with a scale factor on the rate table: one cause per log.
 TEST(DiscoverGyroMulti, TemperatureWithGradientAndFieldWithScaleFactor) {
   if (testing::kUnderSanitizer)
-    GTEST_SKIP() << "two whole two-cause discoveries (80 s under the sanitizers); the chain's code runs there in "
+    GTEST_SKIP() << "two whole two-cause discoveries (too long for the sanitizer run's share of CI time); the chain's "
+                    "code runs there in "
                     "DiscoverGyroCli.ChainOfTwoCausesInJsonAndSummary";
   for (const auto& [combo, seed] : std::vector<std::pair<std::vector<std::string>, uint64_t>>{
            {{"temperature", "temperature_gradient"}, 313131}, {{"magnetic_field", "scale_factor"}, 400240}}) {

@@ -19,7 +19,8 @@ using ::ssiu::testing::RunGyroMonteCarlo;
 // Small version of the 60-log acceptance (discover_gyro_longtest.cc): 9 generated cases, one per cause.
 TEST(DiscoverGyro, NineHiddenCausesFoundOrNone) {
   if (testing::kUnderSanitizer)
-    GTEST_SKIP() << "nine whole discoveries (185 s under the sanitizers); the same causes' code runs there in "
+    GTEST_SKIP() << "nine whole discoveries (too long for the sanitizer run's share of CI time); the same causes' code "
+                    "runs there in "
                     "DiscoverGyro.*, DiscoverGyroMulti.* and DiscoverGyroCli.*";
   const auto s = RunGyroMonteCarlo(9, 1001, false);
   EXPECT_GE(s.right_cause, s.with_cause - 1) << "right cause in " << s.right_cause << " of " << s.with_cause;
@@ -31,7 +32,8 @@ TEST(DiscoverGyro, NineHiddenCausesFoundOrNone) {
 // Issue 18's causes, one generated case each: named, with parameters within stated tolerances.
 TEST(DiscoverGyro, NewCausesNamedWithParameters) {
   if (testing::kUnderSanitizer)
-    GTEST_SKIP() << "four whole discoveries (90 s under the sanitizers); each cause's code runs there in another "
+    GTEST_SKIP() << "four whole discoveries (too long for the sanitizer run's share of CI time); each cause's code "
+                    "runs there in another "
                     "test: bias_step and periodic_drift in DiscoverGyroCli.ChainOfTwoCausesInJsonAndSummary, "
                     "scale_factor_asymmetry in DiscoverGyro.ShortLogAsymmetryNotTemperatureOrWalk, the logged "
                     "field in DiscoverGyroCli.LoggedFieldAndUnknownColumnReachTheAnalysis";
@@ -107,7 +109,8 @@ TEST(DiscoverGyro, DriftFollowingAnUnrelatedColumnIsUnexplained) {
 // which is not the sinusoid that periodic_drift fits (the harmonics / folded-shape test).
 TEST(DiscoverGyro, TelegraphIsUnexplained) {
   if (testing::kUnderSanitizer)
-    GTEST_SKIP() << "the jumps test's bootstrap runs its 4999 replicates here (425 s under the sanitizers); the "
+    GTEST_SKIP() << "the jumps test's bootstrap runs its 4999 replicates here (too long for the sanitizer run's share "
+                    "of CI time); the "
                     "same bootstrap, stopping early, runs there in every discovery's residual test "
                     "(DiscoverGyro.*, DiscoverGyroMulti.*, DiscoverGyroCli.*)";
   const auto t = testing::MakeGyroCase("telegraph", 272727 + 7919 * 10);

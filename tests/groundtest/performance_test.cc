@@ -92,7 +92,8 @@ void RunCase(const Case& c) {
 
 TEST(Performance, EachContributionAloneIsRecoveredAndTheOthersStaySmall) {
   if (testing::kUnderSanitizer)
-    GTEST_SKIP() << "five full simulations (146 s under the sanitizers); the same simulation and split run there "
+    GTEST_SKIP() << "five full simulations (too long for the sanitizer run's share of CI time); the same simulation "
+                    "and split run there "
                     "in PerformanceCli.JsonContractAndPlots";
   RunCase({"bias", {true, false, false, false, false}});
   RunCase({"distortion", {false, true, false, false, false}});
@@ -103,7 +104,8 @@ TEST(Performance, EachContributionAloneIsRecoveredAndTheOthersStaySmall) {
 
 TEST(Performance, AllContributionsTogetherAreEachRecovered) {
   if (testing::kUnderSanitizer)
-    GTEST_SKIP() << "a full simulation (48 s under the sanitizers); the same simulation, with every contribution, "
+    GTEST_SKIP() << "a full simulation (too long for the sanitizer run's share of CI time); the same simulation, with "
+                    "every contribution, "
                     "and its split run there, 600 s long, in PerformanceCli.JsonContractAndPlots";
   RunCase({"all together", {true, true, true, true, true}});
 }
