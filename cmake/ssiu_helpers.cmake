@@ -14,9 +14,10 @@ endfunction()
 
 # ssiu_unity(target option): when `option` (SSIU_UNITY_LIBS for a stage library, SSIU_UNITY_TESTS for a test
 # program) is on, the target's files compile in batches (8 a library, 32 a test program), one translation
-# unit each (CMake's unity build): the headers they share (Eigen, GoogleTest, the standard library) are parsed, and their templates
-# instantiated, once a batch instead of once a file. Names in a file's anonymous namespace must then be the
-# file's own within the target; a file that cannot be batched stays out (ssiu_add_stage's NO_UNITY).
+# unit each (CMake's unity build): the headers they share (Eigen, GoogleTest, the standard library) are
+# parsed, and their templates instantiated, once a batch instead of once a file. Names in a file's
+# anonymous namespace must then be the file's own within the target; a file that cannot be batched stays
+# out (ssiu_add_stage's NO_UNITY).
 function(ssiu_unity target option)
   if(${option})
     # A test program in one batch: its files share more (GoogleTest, the helpers) than they hold of their
