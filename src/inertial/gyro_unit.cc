@@ -112,9 +112,12 @@ void GyroUnit::Check(const std::string& file) const {
       throw InputError(what, "axis must be a unit vector");
     gyros[i].Check(what);
   }
-  const Eigen::MatrixXd h = Axes();
-  Eigen::JacobiSVD<Eigen::MatrixXd> svd(h);
-  if (svd.singularValues()(2) < 1e-3) throw InputError(file, "gyro axes do not span three dimensions");
+  // The smallest singular value of H below 1e-3: the smallest eigenvalue of H^T H below 1e-6 (a 3 x 3
+  // eigenproblem; an SVD of H costs the library's build more than all the rest of this file).
+  const GyroAxes h = Axes();
+  const Mat3 hth = h.transpose() * h;
+  if (Eigen::SelfAdjointEigenSolver<Mat3>(hth, Eigen::EigenvaluesOnly).eigenvalues()(0) < 1e-6)
+    throw InputError(file, "gyro axes do not span three dimensions");
 }
 
 GyroUnit DefaultFourFogUnit() {
@@ -284,9 +287,14 @@ GyroParity ParityMatrix(const GyroAxes& axes, const std::vector<bool>& use) {
   if (m <= 3) return v;
   GyroAxes hs(m, 3);
   for (int r = 0; r < m; ++r) hs.row(r) = axes.row(idx[r]);
-  // The last m - 3 left singular vectors of H_s span its left null space.
-  Eigen::JacobiSVD<GyroAxes> svd(hs, Eigen::ComputeFullU);
-  const GyroParity null = svd.matrixU().rightCols(m - 3);
+  // H_s = Q R (Householder): H_s's columns lie in the span of Q's first three, so Q's last m - 3 columns
+  // are orthonormal and orthogonal to every column of H_s, its left null space (even where H_s has lost
+  // rank). With four gyros that space is one line, the same vector as any other method's up to the sign
+  // fixed below; with five or six its basis is one of many, and every use of V goes through the
+  // parity covariance V S V^T (fdi.cc, unit_calibrator.cc), whose statistics do not depend on it.
+  const Eigen::HouseholderQR<GyroAxes> qr(hs);
+  const GyroParity q = qr.householderQ();
+  const GyroParity null = q.rightCols(m - 3);
   for (int k = 0; k < m - 3; ++k) {
     // Sign convention: the last used gyro's entry is negative (gives the four-FOG unit the familiar
     // p = (g1 + g2 + g3)/sqrt(6) - g4/sqrt(2)).
