@@ -31,29 +31,35 @@ MissionConfig SmallMission() {
   return WithUnitKnowledge(c);
 }
 
-// The mission's frames, gyro samples and truth, made once per program.
+// The mission's gyro samples, truth and catalog, made once per program.
 struct Data {
   MissionConfig config = SmallMission();
   MissionData data;
-  std::vector<std::vector<Image16>> frames;  // [frame][head]
-  std::string blob;                          // catalog.bin of head 1's catalog
+  std::string blob;  // catalog.bin of head 1's catalog
   uint32_t crc = 0;
 };
 const Data& TheData() {
   static const Data d = [] {
     Data x;
     x.data = SimulateMission(x.config);
-    for (size_t i = 0; i < x.data.frame_t_s.size(); ++i) {
-      std::vector<Image16> set;
-      for (size_t h = 0; h < x.config.heads.size(); ++h)
-        set.push_back(SimulateMissionFrame(x.config, x.data, testing::Bsc(), static_cast<int>(i), static_cast<int>(h)).image);
-      x.frames.push_back(std::move(set));
-    }
     x.blob = SolverCatalogBytes(MakeIdentifierForCamera("", x.config.heads[0].camera, 0.0).catalog());
     x.crc = Crc32(x.blob.data(), x.blob.size());
     return x;
   }();
   return d;
+}
+
+// Frame set i (an image a head), simulated on first use: rendering is most of the data's cost (nine
+// tenths under qemu), and most tests need a few sets or none.
+const std::vector<Image16>& FrameSet(size_t i) {
+  const Data& d = TheData();
+  static std::vector<std::vector<Image16>> sets(d.data.frame_t_s.size());
+  if (sets.at(i).empty()) {
+    for (size_t h = 0; h < d.config.heads.size(); ++h)
+      sets[i].push_back(
+          SimulateMissionFrame(d.config, d.data, testing::Bsc(), static_cast<int>(i), static_cast<int>(h)).image);
+  }
+  return sets[i];
 }
 
 ssiu_flight_config ConfigFor(const Data& d) {
@@ -110,7 +116,7 @@ std::vector<ssiu_frame_report> Replay(const Data& d, ssiu_flight* f, Spoil spoil
     while (fi < d.data.frame_t_s.size() &&
            (inclusive ? d.data.frame_t_s[fi] <= t + 1e-9 : d.data.frame_t_s[fi] < t - 1e-9)) {
       std::vector<ssiu_frame> fr;
-      for (const Image16& im : d.frames[fi]) fr.push_back(FrameOf(im));
+      for (const Image16& im : FrameSet(fi)) fr.push_back(FrameOf(im));
       ssiu_frame_report r;
       EXPECT_EQ(ssiu_flight_frames(f, d.data.frame_t_s[fi], fr.data(), static_cast<int32_t>(fr.size()), &r), SSIU_OK);
       reports.push_back(r);
@@ -162,7 +168,7 @@ TEST(FlightInterface, SameAnswersAsTheProcessorAndNearTheTruth) {
   Handle h(ConfigFor(d), d.blob);
   ASSERT_EQ(h.rc, SSIU_OK) << h.why();
   const auto reports = Replay(d, h.f, [](size_t, double*, std::vector<double>*) {});
-  ASSERT_EQ(reports.size(), d.frames.size());
+  ASSERT_EQ(reports.size(), d.data.frame_t_s.size());
 
   UnitProcessor p(d.config.heads,
                   {std::make_shared<const StarIdentifier>(ParseSolverCatalog(d.blob.data(), d.blob.size(), "blob")),
@@ -173,7 +179,7 @@ TEST(FlightInterface, SameAnswersAsTheProcessorAndNearTheTruth) {
   auto frames_until = [&](double t, bool inclusive) {
     while (fi < d.data.frame_t_s.size() &&
            (inclusive ? d.data.frame_t_s[fi] <= t + 1e-9 : d.data.frame_t_s[fi] < t - 1e-9)) {
-      const FrameReport r = p.OnFrames(d.data.frame_t_s[fi], {d.frames[fi][0].view(), d.frames[fi][1].view()});
+      const FrameReport r = p.OnFrames(d.data.frame_t_s[fi], {FrameSet(fi)[0].view(), FrameSet(fi)[1].view()});
       const ssiu_frame_report& c = reports[fi];
       EXPECT_EQ(c.status, static_cast<int>(r.status)) << fi;
       EXPECT_EQ(c.heads_solved, r.heads_solved) << fi;
@@ -196,8 +202,8 @@ TEST(FlightInterface, SameAnswersAsTheProcessorAndNearTheTruth) {
   EXPECT_EQ(s.t_s, a.t_s);
   EXPECT_LE(AttitudeErrorRad(QuatOf(s.q_inertial_from_body), a.q_inertial_from_body), kSameAttitudeRad);
   EXPECT_EQ(s.status, SSIU_STATUS_OK);
-  EXPECT_EQ(s.frame_sets, static_cast<int64_t>(d.frames.size()));
-  EXPECT_EQ(s.frame_sets_solved, static_cast<int64_t>(d.frames.size()));
+  EXPECT_EQ(s.frame_sets, static_cast<int64_t>(d.data.frame_t_s.size()));
+  EXPECT_EQ(s.frame_sets_solved, static_cast<int64_t>(d.data.frame_t_s.size()));
   EXPECT_EQ(s.gyros_in_use, 0xfu);
   // Every frame set solved on both heads (lost in space first, then tracking), and the final
   // attitude within a few arcsec of the truth (two 16.6-deg heads: ~1-2 arcsec).
@@ -272,7 +278,7 @@ TEST(FlightInterface, WrongFramesAreStatusesNotCrashes) {
   const Data& d = TheData();
   Handle h(ConfigFor(d), d.blob);
   ASSERT_EQ(h.rc, SSIU_OK) << h.why();
-  ssiu_frame fr[2] = {FrameOf(d.frames[0][0]), FrameOf(d.frames[0][1])};
+  ssiu_frame fr[2] = {FrameOf(FrameSet(0)[0]), FrameOf(FrameSet(0)[1])};
   fr[0].width_px -= 1;
   ssiu_frame_report r;
   ASSERT_EQ(ssiu_flight_frames(h.f, 0.0, fr, 2, &r), SSIU_OK);
@@ -282,7 +288,7 @@ TEST(FlightInterface, WrongFramesAreStatusesNotCrashes) {
   EXPECT_EQ(r.update_status, SSIU_UPDATE_INITIALISED);
   EXPECT_EQ(ssiu_flight_frames(h.f, 1.0, fr, 1, &r), SSIU_ERR_ARGUMENT);
   EXPECT_THAT(ssiu_flight_last_error(h.f), HasSubstr("n_heads"));
-  fr[0] = FrameOf(d.frames[1][0]);
+  fr[0] = FrameOf(FrameSet(1)[0]);
   fr[1].pixels = nullptr;  // head 2 silent
   ASSERT_EQ(ssiu_flight_frames(h.f, 1.0, fr, 2, &r), SSIU_OK);
   EXPECT_EQ(r.heads[1].status, SSIU_SOLVE_NO_FRAME);
