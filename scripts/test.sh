@@ -25,9 +25,11 @@ if [ "${SSIU_SKIP_ASAN:-0}" != "1" ]; then
   # GCC's lacks. -O1: sanitizer builds of the template-heavy files (FLANN, Eigen) compile faster. No debug
   # information: a report names the functions (symbol table) but not the lines; the line tables (-g1) cost
   # about a fifth more compile time (the inertial library's largest batch: 118 s against 97 s), so add
-  # them when reproducing a finding (SSIU_ASAN_FLAGS="-O1 -g1").
+  # them when reproducing a finding (SSIU_ASAN_FLAGS="-O1 -g1"). The test programs at -O1 too (SSIU_TEST_OPT
+  # empty): some compute their reference in their own code (sim_test's fusion scenarios), which ASan at -O0
+  # made six times slower; the 469 tests took about 95 s longer, nearly what the compile saved.
   bash scripts/setup.sh --all build-asan -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
-    -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=${SSIU_ASAN_FLAGS:--O1}" \
+    -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=${SSIU_ASAN_FLAGS:--O1}" -DSSIU_TEST_OPT= \
     -DSSIU_SANITIZE=ON -DSSIU_FUZZ=$fuzz_in_asan -DSSIU_BUILD_BENCH=OFF -DSSIU_BUILD_LONGTESTS=OFF
   ASAN_OPTIONS=detect_leaks=1:abort_on_error=0 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
     ctest --test-dir build-asan --output-on-failure -j"$jobs" -LE 'long|no_asan'
