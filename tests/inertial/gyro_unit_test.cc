@@ -48,6 +48,43 @@ TEST(GyroUnit, DroppingAGyroStillSolvesAndFiveGyrosHaveTwoParityRelations) {
   EXPECT_LT((v * v.transpose() - Eigen::Matrix2d::Identity()).cwiseAbs().maxCoeff(), 1e-12);
 }
 
+// Parity rows on a subset whose axes span only a plane (two pairs of parallel gyros of a six-gyro unit):
+// its left null space has two dimensions, one row is asked for, and it must still be blind to every
+// rate, of unit length and zero on the gyros left out.
+TEST(GyroUnit, ParityOfARankDeficientSubsetIsStillBlindToTheRate) {
+  GyroUnit u = DefaultFourFogUnit();
+  u.axes_body = {Vec3::UnitX(), Vec3::UnitX(), Vec3::UnitY(), Vec3::UnitY(), Vec3::UnitZ(), Vec3(1, 1, 1).normalized()};
+  u.gyros.assign(6, GyroErrorModel{});
+  const std::vector<bool> use = {true, true, true, true, false, false};
+  const GyroParity v = ParityMatrix(u.Axes(), use);
+  ASSERT_EQ(v.rows(), 1);
+  EXPECT_LT((v * u.Axes()).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_NEAR(v.row(0).norm(), 1.0, 1e-12);
+  EXPECT_EQ(v(0, 4), 0.0);
+  EXPECT_EQ(v(0, 5), 0.0);
+}
+
+// The unit's axes must span three dimensions: refused when the smallest singular value of H is below 1e-3.
+// Rows (a, b, c), (a, -b, -c), (-a, b, -c), (-a, -b, c) with a^2 + b^2 + c^2 = 1 are unit axes whose
+// columns are orthogonal, so H's singular values are the columns' norms 2a, 2b, 2c: c = 5e-4 is the bound.
+TEST(GyroUnit, AxesNearlyInAPlaneAreRefused) {
+  for (double c : {0.0, 1e-4, 4e-4, 6e-4, 1e-2, 0.5}) {
+    const double a = std::sqrt((1 - c * c) * 0.6), b = std::sqrt((1 - c * c) * 0.4);
+    GyroUnit u = DefaultFourFogUnit();
+    u.axes_body = {Vec3(a, b, c), Vec3(a, -b, -c), Vec3(-a, b, -c), Vec3(-a, -b, c)};
+    if (2 * c < 1e-3) {
+      try {
+        u.Check("unit.json");
+        ADD_FAILURE() << "c " << c << ": smallest singular value " << 2 * c << " accepted";
+      } catch (const InputError& e) {
+        EXPECT_THAT(e.what(), ::testing::HasSubstr("do not span three dimensions")) << c;
+      }
+    } else {
+      EXPECT_NO_THROW(u.Check("unit.json")) << "c " << c << ": smallest singular value " << 2 * c;
+    }
+  }
+}
+
 TEST(GyroUnit, JsonRoundTripAndDefaults) {
   GyroUnit u = DefaultFourFogUnit();
   u.gyros[2].bias_dph = 3.5;
