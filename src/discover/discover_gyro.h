@@ -16,8 +16,8 @@
 //     exactly (GLS) by the innovations of its Kalman filter. Correlation left in the whitened residuals shrinks the
 //     sample size to n_eff = n / f (Bartlett-weighted integrated autocorrelation).
 //  3. Each candidate: Wald chi^2 of its terms against the base model (q <= 2 dof), scaled by f;
-//     `bias` (a step in the bias) is located by a scan and its p-value Bonferroni-corrected for the
-//     scanned positions;
+//     `bias` (a step in the bias) is located by a scan and its p-value is the tail of the scan's maximum
+//     (James, James & Siegmund 1987, capped by the Hunter-Worsley bound over neighbouring positions);
 //     A candidate is significant when p < alpha / (number of candidates tested).
 //     rate_random_walk is the likelihood ratio of the base noise model plus a random walk of the
 //     bias against the base noise model, both fitted by maximum likelihood (Kalman filter).

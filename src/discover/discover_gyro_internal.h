@@ -133,10 +133,12 @@ struct TimeShapeFit {
   double p = 1, log_p = 0, tau_s = 0;
 };
 
-// The scan's statistic at one step position.
+// The scan's statistic at one step position; rho_prev: the correlation of its whitened step with that of the
+// position before it on the same log (kNoNeighbour for a log's first position).
 struct StepPoint {
+  static constexpr double kNoNeighbour = -2;
   int log;
-  double t_s, w;
+  double t_s, w, rho_prev = kNoNeighbour;
 };
 
 // The located step of `bias_step`: the best over the scans so far (best_step keeps an earlier pass's
@@ -147,6 +149,9 @@ struct StepScan {
   int positions = 0, best_step_log = 0;
   std::vector<StepPoint> profile;
 };
+
+// ln of the p-value of a step scan's largest statistic w over the positions of `profile`.
+double StepScanLogP(const std::vector<StepPoint>& profile, double w);
 
 // The located sinusoid of `periodic_drift` (kept across passes as StepScan's step).
 struct PeriodicScan {

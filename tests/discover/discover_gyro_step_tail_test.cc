@@ -1,0 +1,84 @@
+// The p-value of the bias step's scan (StepScanLogP: James, James & Siegmund's tail capped by the
+// Hunter-Worsley bound along the neighbouring positions) against the maximum of the change-point statistic
+// simulated on white noise, and against the exact tail where the positions are independent.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "discover/discover_gyro_internal.h"
+
+namespace ssiu::discover_internal {
+namespace {
+
+// A step in the mean of n white samples, split after k for k in [n/20, n - n/20): the statistic Z_k^2 with
+// Z_k = (S_k - k S_n / n) / sqrt(k (n - k) / n) (the step projected off the mean), and the neighbours'
+// correlation sqrt(k (n - k - 1) / ((k + 1) (n - k))).
+std::vector<StepPoint> WhiteNoiseProfile(const std::vector<double>& x) {
+  const int n = static_cast<int>(x.size());
+  double total = 0;
+  for (double v : x) total += v;
+  std::vector<StepPoint> profile;
+  double s = 0;
+  for (int k = 1; k < n - n / 20; ++k) {
+    s += x[k - 1];
+    if (k < n / 20) continue;
+    const double z = (s - k * total / n) / std::sqrt(k * (n - k) / static_cast<double>(n));
+    const double rho = k == n / 20 ? StepPoint::kNoNeighbour : std::sqrt((k - 1.0) * (n - k) / (k * (n - k + 1.0)));
+    profile.push_back({0, static_cast<double>(k), z * z, rho});
+  }
+  return profile;
+}
+
+double MaxW(const std::vector<StepPoint>& profile) {
+  double w = 0;
+  for (const auto& p : profile) w = std::max(w, p.w);
+  return w;
+}
+
+TEST(DiscoverGyroStepTail, FalseAlarmRateOfTheScanOnWhiteNoiseIsAtMostItsLevel) {
+  // 3000 logs of 400 bins, no step: the fraction with p below alpha is the scan's false-alarm rate. It is at
+  // most alpha (3 binomial sigmas of slack) and near it, where the Bonferroni count over the 360 positions
+  // holds it more than five times below (the Hunter-Worsley bound alone, about 2.5 times below).
+  std::mt19937_64 rng(20261130);
+  std::normal_distribution<double> gauss;
+  const int runs = 3000, n = 400;
+  int below_05 = 0, below_01 = 0, bonferroni_05 = 0;
+  for (int i = 0; i < runs; ++i) {
+    std::vector<double> x(n);
+    for (double& v : x) v = gauss(rng);
+    const auto profile = WhiteNoiseProfile(x);
+    const double w = MaxW(profile), p = std::exp(StepScanLogP(profile, w));
+    below_05 += p < 0.05, below_01 += p < 0.01;
+    bonferroni_05 += profile.size() * std::erfc(std::sqrt(w / 2)) < 0.05;
+  }
+  const auto ceiling = [&](double alpha) { return alpha * runs + 3 * std::sqrt(alpha * (1 - alpha) * runs); };
+  EXPECT_LE(below_05, ceiling(0.05));
+  EXPECT_LE(below_01, ceiling(0.01));
+  EXPECT_GE(below_05, 0.7 * 0.05 * runs);
+  EXPECT_GE(below_01, 0.5 * 0.01 * runs);
+  EXPECT_LT(bonferroni_05, 0.2 * below_05);
+}
+
+TEST(DiscoverGyroStepTail, IndependentPositionsGiveTheBonferroniCountsBound) {
+  // With uncorrelated neighbours the bound is sum_j P(|Z_j| >= b) minus nothing but the pairs' joint
+  // exceedances: between the exact tail of the maximum of N independent chi^2_1, 1 - (1 - q)^N, and N q.
+  for (double w : {9.0, 16.0, 30.0, 60.0}) {
+    const int npos = 500;
+    std::vector<StepPoint> profile(npos, StepPoint{0, 0.0, 1.0, 0.0});
+    profile[0].rho_prev = StepPoint::kNoNeighbour;
+    const double q = std::erfc(std::sqrt(w / 2)), log_p = StepScanLogP(profile, w);
+    const double exact = -std::expm1(npos * std::log1p(-q));
+    EXPECT_GE(log_p, std::log(exact) - 1e-6) << w;
+    EXPECT_LE(log_p, std::min(0.0, std::log(npos * q)) + 1e-6) << w;
+  }
+  // Far in the tail (w = 2000, where phi(b) underflows a double) it stays finite and follows ln(N q).
+  std::vector<StepPoint> far(10, StepPoint{0, 0.0, 1.0, 0.0});
+  far[0].rho_prev = StepPoint::kNoNeighbour;
+  const double b = std::sqrt(2000.0), ln_q = -1000 - std::log(b) + 0.5 * std::log(2 / kPi);
+  EXPECT_NEAR(StepScanLogP(far, 2000), std::log(10.0) + ln_q, 1e-3);
+}
+
+}  // namespace
+}  // namespace ssiu::discover_internal
