@@ -121,7 +121,7 @@ void ScanStep(const Design& d, const std::vector<NoiseModel>& nm, const MatrixXd
       const double w = proj * proj / ss / sigma2_f;
       const double rho = prev.size() == m ? prev.dot(sw) / std::sqrt(prev.squaredNorm() * ss) : StepPoint::kNoNeighbour;
       sc->profile.push_back({r, 0.5 * (d.bins[r].t_s[j - 1] + d.bins[r].t_s[j]), w, rho});
-      prev = sw;
+      prev.swap(sw);  // sw is not used again: its storage becomes the next position's neighbour
       if (w > sc->best_w) {
         sc->best_w = w;
         sc->best_step = VectorXd::Zero(d.n);

@@ -38,6 +38,9 @@ double MaxW(const std::vector<StepPoint>& profile) {
   return w;
 }
 
+// The most false alarms at level alpha that `runs` scans may give: alpha runs plus 3 binomial sigmas.
+double FalseAlarmCeiling(double alpha, int runs) { return alpha * runs + 3 * std::sqrt(alpha * (1 - alpha) * runs); }
+
 TEST(DiscoverGyroStepTail, FalseAlarmRateOfTheScanOnWhiteNoiseIsAtMostItsLevel) {
   // 3000 logs of 400 bins, no step: the fraction with p below alpha is the scan's false-alarm rate. It is at
   // most alpha (3 binomial sigmas of slack) and near it, where the Bonferroni count over the 360 positions
@@ -54,9 +57,8 @@ TEST(DiscoverGyroStepTail, FalseAlarmRateOfTheScanOnWhiteNoiseIsAtMostItsLevel) 
     below_05 += p < 0.05, below_01 += p < 0.01;
     bonferroni_05 += profile.size() * std::erfc(std::sqrt(w / 2)) < 0.05;
   }
-  const auto ceiling = [&](double alpha) { return alpha * runs + 3 * std::sqrt(alpha * (1 - alpha) * runs); };
-  EXPECT_LE(below_05, ceiling(0.05));
-  EXPECT_LE(below_01, ceiling(0.01));
+  EXPECT_LE(below_05, FalseAlarmCeiling(0.05, runs));
+  EXPECT_LE(below_01, FalseAlarmCeiling(0.01, runs));
   EXPECT_GE(below_05, 0.7 * 0.05 * runs);
   EXPECT_GE(below_01, 0.5 * 0.01 * runs);
   EXPECT_LT(bonferroni_05, 0.2 * below_05);
@@ -105,10 +107,9 @@ TEST(DiscoverGyroStepTail, FalseAlarmRateUnderAWanderIsAtMostItsLevel) {
       rho_median = rho[rho.size() / 2];
     }
   }
-  const auto ceiling = [&](double alpha) { return alpha * runs + 3 * std::sqrt(alpha * (1 - alpha) * runs); };
   EXPECT_LT(rho_median, 0.9);
-  EXPECT_LE(below_05, ceiling(0.05));
-  EXPECT_LE(below_01, ceiling(0.01));
+  EXPECT_LE(below_05, FalseAlarmCeiling(0.05, runs));
+  EXPECT_LE(below_01, FalseAlarmCeiling(0.01, runs));
   EXPECT_GE(below_05, bonferroni_05);
   EXPECT_GE(below_05, 0.3 * 0.05 * runs);
 }
