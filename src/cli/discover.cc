@@ -212,11 +212,11 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
     if (d.cause == "unexplained") {
       const ssiu::FrameResidual& r = d.residual;
       summary << "  residual structure (" << r.finding << ", p " << r.p_value << ")"
-              << (d.partial_cause.empty() ? "" : " after " + d.partial_cause) << ": positions rms "
-              << r.position_rms_arcsec << " arcsec, largest " << r.position_max_arcsec << " arcsec at ("
-              << r.position_max_x_px << ", " << r.position_max_y_px << ") px; fluxes rms " << r.photometry_rms_mag
-              << " mag, largest " << r.photometry_max_mag << " mag at (" << r.photometry_max_x_px << ", "
-              << r.photometry_max_y_px << ") px\n";
+              << (chain.empty() ? "" : " after " + chain) << ": positions rms " << r.position_rms_arcsec
+              << " arcsec, largest " << r.position_max_arcsec << " arcsec at (" << r.position_max_x_px << ", "
+              << r.position_max_y_px << ") px; fluxes rms " << r.photometry_rms_mag << " mag, largest "
+              << r.photometry_max_mag << " mag at (" << r.photometry_max_x_px << ", " << r.photometry_max_y_px
+              << ") px\n";
     }
     ssiu::Json j = ssiu::FrameDiscoveryToJson(d);
     j["frame_status"] = ssiu::Json::object();
