@@ -2,6 +2,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <boost/math/special_functions/gamma.hpp>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -12,60 +13,6 @@ namespace ssiu {
 namespace {
 
 constexpr double kFlickerFactor = 2.0 * 0.69314718055994531 / 3.14159265358979324;  // 2 ln2 / pi
-
-// Q(a, x) = 1 - P(a, x) for x >= a + 1 by its continued fraction, evaluated by the modified Lentz
-// method (Abramowitz & Stegun 6.5.31); computed directly, small tail probabilities keep their precision.
-double GammaQContinuedFraction(double a, double x) {
-  const double log_prefix = a * std::log(x) - x - std::lgamma(a);
-  const double tiny = 1e-300;
-  double b = x + 1 - a, c = 1 / tiny, d = 1 / b, h = d;
-  for (int i = 1; i < 100000; ++i) {
-    const double an = -i * (i - a);
-    b += 2;
-    d = an * d + b;
-    if (std::abs(d) < tiny) d = tiny;
-    c = b + an / c;
-    if (std::abs(c) < tiny) c = tiny;
-    d = 1 / d;
-    const double delta = d * c;
-    h *= delta;
-    if (std::abs(delta - 1) < 1e-15) break;
-  }
-  return std::exp(log_prefix) * h;
-}
-
-// Regularised lower incomplete gamma P(a, x): power series for x < a + 1 (A & S 6.5.29), else
-// 1 - Q from the continued fraction.
-double RegularizedGammaP(double a, double x) {
-  if (x <= 0) return 0;
-  if (x >= a + 1) return 1 - GammaQContinuedFraction(a, x);
-  const double log_prefix = a * std::log(x) - x - std::lgamma(a);
-  double term = 1.0 / a, sum = term;
-  for (int n = 1; n < 100000; ++n) {
-    term *= x / (a + n);
-    sum += term;
-    if (std::abs(term) < std::abs(sum) * 1e-15) break;
-  }
-  return std::exp(log_prefix) * sum;
-}
-
-double RegularizedGammaQ(double a, double x) {
-  if (x <= 0) return 1;
-  return x < a + 1 ? 1 - RegularizedGammaP(a, x) : GammaQContinuedFraction(a, x);
-}
-
-// Standard normal quantile by bisection on erfc (only called a few times per curve).
-double NormalQuantile(double p) {
-  double lo = -40, hi = 40;
-  for (int i = 0; i < 200; ++i) {
-    const double mid = 0.5 * (lo + hi);
-    if (0.5 * std::erfc(-mid / std::sqrt(2.0)) < p)
-      lo = mid;
-    else
-      hi = mid;
-  }
-  return 0.5 * (lo + hi);
-}
 
 }  // namespace
 
@@ -104,27 +51,15 @@ void NoiseFitOptions::Check() const {
 
 double ChiSquaredSurvival(double x, double dof) {
   if (!(dof > 0)) throw std::invalid_argument("ChiSquaredSurvival: dof > 0");
-  return x > 0 ? RegularizedGammaQ(0.5 * dof, 0.5 * x) : 1.0;
+  if (!(x > 0)) return 1.0;
+  if (std::isinf(x)) return 0.0;
+  // Q(dof/2, x/2), computed as the upper tail itself: tiny tail probabilities keep their precision.
+  return boost::math::gamma_q(0.5 * dof, 0.5 * x);
 }
 
 double ChiSquaredQuantile(double p, double dof) {
   if (!(p > 0 && p < 1) || !(dof > 0)) throw std::invalid_argument("ChiSquaredQuantile: p in (0,1), dof > 0");
-  if (dof > 2000) {
-    // Wilson-Hilferty (1931): (X/dof)^(1/3) is nearly normal; relative error < 1e-5 at this dof.
-    const double z = NormalQuantile(p), s = 2.0 / (9.0 * dof);
-    return dof * std::pow(1 - s + z * std::sqrt(s), 3);
-  }
-  // Bisection in log(x) on P(dof/2, x/2) = p.
-  double lo = std::log(1e-300), hi = std::log(dof + 200 * std::sqrt(dof) + 1000);
-  for (int i = 0; i < 200; ++i) {
-    const double mid = 0.5 * (lo + hi);
-    if (RegularizedGammaP(0.5 * dof, 0.5 * std::exp(mid)) < p)
-      lo = mid;
-    else
-      hi = mid;
-    if (hi - lo < 1e-13) break;
-  }
-  return std::exp(0.5 * (lo + hi));
+  return 2 * boost::math::gamma_p_inv(0.5 * dof, p);
 }
 
 double OverlappingAvarEdf(AllanNoise noise, double n, double m) {

@@ -3,6 +3,7 @@
 // step that runs the candidates through them in BIC order.
 #include <Eigen/Dense>
 #include <algorithm>
+#include <boost/math/distributions/normal.hpp>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -107,17 +108,6 @@ bool WiderWarranted(const std::string& nested_cause, double extra_chi2, double w
 }
 
 namespace {
-
-// One-sided normal quantile at tail probability p, by bisection on erfc (which keeps tiny tail
-// probabilities).
-double GainZMin(double p) {
-  double z_lo = 0, z_hi = 40;
-  for (int it = 0; it < 100; ++it) {
-    const double mid = 0.5 * (z_lo + z_hi);
-    (0.5 * std::erfc(mid / std::sqrt(2.0)) > p ? z_lo : z_hi) = mid;
-  }
-  return 0.5 * (z_lo + z_hi);
-}
 
 // Physical bounds (the table of docs/discrepancy.md): empty when cause's parameters par lie within
 // them, else the first parameter beyond.
@@ -585,7 +575,8 @@ GyroStep RunGyroStep(const Design& d, const GyroDiscoverOptions& o, const std::v
 
   // 5. Gates, in BIC order: the first candidate whose parameters lie within the physical bounds and
   // whose held-out improvement is significant is named.
-  out.z_min = GainZMin(gain_alpha / l);  // Bonferroni over the logs
+  out.z_min = boost::math::quantile(
+      boost::math::complement(boost::math::normal(), gain_alpha / l));  // Bonferroni over the logs
   auto evaluate = [&](const GyroCandidate& cand) {
     const std::string& cause = cand.cause;
     Evaluation ev;
