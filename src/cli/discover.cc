@@ -109,7 +109,8 @@ SSIU_REGISTER_COMMAND(discover_allan, [](CLI::App& root) {
                              {"p_value", st.p_value},
                              {"gain", st.gain},
                              {"gain_z", st.gain_z},
-                             {"chi2_per_dof", st.chi2_per_dof}});
+                             {"chi2_per_dof", st.chi2_per_dof},
+                             {"residual_rms_pct", st.residual_rms_pct}});
       chain += (chain.empty() ? "" : " + ") + st.term;
     }
     j["joint"] = {{"arw_deg_per_sqrt_h", jg.arw_deg_per_sqrt_h.value},
@@ -117,6 +118,9 @@ SSIU_REGISTER_COMMAND(discover_allan, [](CLI::App& root) {
                   {"bias_instability_dph", jg.bias_instability_dph.value},
                   {"bias_instability_sigma_dph", jg.bias_instability_dph.sigma},
                   {"chi2_per_dof", d.joint.chi2_per_dof}};
+    j["residual_rms_pct_before"] = d.residual_rms_pct_before;
+    j["residual_rms_pct_after"] = d.steps.empty() ? d.residual_rms_pct_before : d.steps.back().residual_rms_pct;
+    j["point_sigma_rms_pct"] = d.point_sigma_rms_pct;
     j["correlations"] = ssiu::Json::array();
     for (const auto& c : d.correlations) j["correlations"].push_back({{"a", c.a}, {"b", c.b}, {"r", c.r}});
     j["left"] = d.left;
@@ -126,7 +130,10 @@ SSIU_REGISTER_COMMAND(discover_allan, [](CLI::App& root) {
     if (!o->json.empty()) ssiu::WriteJsonFile(o->json, j);
     std::cerr << "discover allan: " << o->curve << " " << cf.channel << ": chi2/dof " << d.chi2_per_dof_before << " -> "
               << d.chi2_per_dof_after << ", departs in " << d.departures_s.size() << " tau range(s); cause "
-              << (chain.empty() ? "none" : chain) << (d.left == "unexplained" ? ", then unexplained" : "") << "\n";
+              << (chain.empty() ? "none" : chain) << (d.left == "unexplained" ? ", then unexplained" : "")
+              << "; residual rms " << d.residual_rms_pct_before << " -> "
+              << (d.steps.empty() ? d.residual_rms_pct_before : d.steps.back().residual_rms_pct) << " % (points' own "
+              << d.point_sigma_rms_pct << " %)\n";
   });
 });
 

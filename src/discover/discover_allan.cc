@@ -138,6 +138,20 @@ std::pair<double, double> HeldOutGain(const WeightedCurve& wc, const std::vector
   return {ss_after > 0 ? std::sqrt(ss_before / ss_after) : 1.0, pp > 0 ? ep / std::sqrt(pp * std::max(1.0, s2)) : 0.0};
 }
 
+// RMS of the relative departure of the model (squared coefficients coef) from the measured ADEV, in percent,
+// each point weighted by its precision (adev / sigma)^2 as the fit weighs it; with the points' own relative
+// 1-sigmas in place of the departures the same mean gives the level a complete model reaches.
+double RelativeRmsPct(const AllanCurve& curve, const std::vector<double>& sig, const Eigen::VectorXd& coef) {
+  double ss = 0, sw = 0;
+  for (size_t i = 0; i < curve.tau_s.size(); ++i) {
+    double avar = 0;
+    for (int t = 0; t < kTerms; ++t) avar += coef(t) * TermShape(t, curve.tau_s[i]);
+    const double rel = std::sqrt(std::max(avar, 0.0)) / curve.adev[i] - 1, w = std::pow(curve.adev[i] / sig[i], 2);
+    ss += w * rel * rel, sw += w;
+  }
+  return 100 * std::sqrt(ss / sw);
+}
+
 // The tau ranges where the model adev m leaves the curve by more than `sigmas` of a point's 1-sigma; adds
 // each point's squared z to *chi2.
 std::vector<std::pair<double, double>> Departures(const AllanCurve& curve, const std::vector<double>& m,
@@ -168,6 +182,10 @@ void ExtendStepwise(const AllanCurve& curve, const AllanDiscrepancyOptions& opti
   for (int i = 0; i < n; ++i) all[i] = i;
   std::vector<int> model = {kN, kB}, left = {kQ, kK, kR};
   TermFit current = FitTerms(wc, model, all, -1);
+  r->residual_rms_pct_before = RelativeRmsPct(curve, wc.sig, current.coef);
+  double sw = 0;  // sum of the weights (adev / sigma)^2: the weighted mean of (sigma / adev)^2 is n / sw
+  for (int i = 0; i < n; ++i) sw += std::pow(curve.adev[i] / wc.sig[i], 2);
+  r->point_sigma_rms_pct = 100 * std::sqrt(n / sw);
   for (int step = 0; !left.empty(); ++step) {
     const double share = std::ldexp(1.0, -step);
     const double z_min =
@@ -187,6 +205,7 @@ void ExtendStepwise(const AllanCurve& curve, const AllanDiscrepancyOptions& opti
       if (!(gain > 1 && z > z_min) || (best_term >= 0 && gain <= best.gain)) continue;
       best.term = kTermName[t], best.p_value = p, best.gain = gain, best.gain_z = z;
       best.chi2_per_dof = f.chi2 / f.dof;
+      best.residual_rms_pct = RelativeRmsPct(curve, wc.sig, f.coef);
       best_fit = f, best_term = t;
     }
     if (best_term < 0) break;

@@ -36,6 +36,8 @@ struct AllanStepTerm {
   double gain = 1, gain_z = 0;  // held-out at that step: RMS of the held-out points' normalised residuals
                                 // before / after, and the paired z of that improvement
   double chi2_per_dof = 0;      // of the model after that step
+  double residual_rms_pct = 0;  // RMS of model adev / adev - 1 after that step (%), points weighted by
+                                // their precision (adev / 1-sigma)^2
 };
 
 // The correlation r of two coefficients (squared terms) of the final joint fit, |r| > 0.3, one of them named.
@@ -55,6 +57,8 @@ struct AllanDiscrepancy {
   // 1-sigmas, curve's unit; the others 0), the correlations, and what is left: "none" or "unexplained"
   // (the final model's departures).
   std::vector<AllanStepTerm> steps;
+  double residual_rms_pct_before = 0;  // as AllanStepTerm's, of ARW + B fitted as the steps are
+  double point_sigma_rms_pct = 0;      // the points' own 1-sigma / adev (%), averaged alike: what a fit reaches
   NoiseFit joint;
   std::vector<AllanCorrelation> correlations;
   std::string left = "none";

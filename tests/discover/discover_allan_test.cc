@@ -116,13 +116,27 @@ TEST(DiscoverAllan, StepwiseNamesQuantizationAndRandomWalk) {
     read_prev = read;
     white.push_back(w);
   }
-  const auto d = CompareAllanToDefaultModel(OverlappingAllanDeviation(both, rate_hz), {});
+  const AllanCurve curve = OverlappingAllanDeviation(both, rate_hz);
+  const auto d = CompareAllanToDefaultModel(curve, {});
   std::vector<std::string> named;
+  double rms_pct = d.residual_rms_pct_before;
   for (const auto& st : d.steps) {
     named.push_back(st.term);
     EXPECT_GT(st.gain, 1) << st.term;
     EXPECT_LT(st.p_value, 0.01) << st.term;
+    EXPECT_LT(st.residual_rms_pct, rms_pct) << st.term;  // each term brings the model closer to the curve
+    rms_pct = st.residual_rms_pct;
   }
+  // The last step's residual is the final model's ADEV against the curve, point by point, each point weighted
+  // by its precision (its edf and the 2 % model-error floor), and lies at the points' own scatter.
+  double ss = 0, sw = 0;
+  for (size_t i = 0; i < curve.tau_s.size(); ++i) {
+    const double rel_sigma = std::hypot(std::sqrt(2 / curve.edf[i]) / 2, NoiseFitOptions{}.model_error);
+    ss += std::pow((d.final_adev[i] / curve.adev[i] - 1) / rel_sigma, 2), sw += std::pow(rel_sigma, -2);
+  }
+  EXPECT_NEAR(rms_pct, 100 * std::sqrt(ss / sw), 1e-6 * rms_pct);
+  EXPECT_LT(rms_pct, 1.5 * d.point_sigma_rms_pct);
+  EXPECT_GT(d.residual_rms_pct_before, 2 * d.point_sigma_rms_pct);  // ARW + B alone misses the two terms
   std::sort(named.begin(), named.end());
   ASSERT_EQ(named, (std::vector<std::string>{"quantization", "rate_random_walk"}));
   EXPECT_NEAR(d.joint.rrw.value, k_rrw, 3 * d.joint.rrw.sigma);
@@ -132,6 +146,43 @@ TEST(DiscoverAllan, StepwiseNamesQuantizationAndRandomWalk) {
   const auto c = CompareAllanToDefaultModel(OverlappingAllanDeviation(white, rate_hz), {});
   EXPECT_TRUE(c.steps.empty());
   EXPECT_EQ(c.left, "none");
+}
+
+}  // namespace
+}  // namespace ssiu
+
+namespace ssiu {
+namespace {
+
+// Through the command, an exact curve of white noise and a rate random walk (IEEE 952 C.2: avar = N^2 / tau
+// + K^2 tau / 3): the chain's JSON names the walk with K, and its residual goes from the default model's
+// misfit, beyond the points' own errors, to nothing (the model is the curve's own).
+TEST(DiscoverAllan, ChainJsonCarriesTheResidualAfterEachStep) {
+  const std::string dir = testing::TempDir("allan_chain_json");
+  const double n_arw = 0.1, k_rrw = 0.002;  // deg/h sqrt(s), deg/h / sqrt(s)
+  {
+    std::ofstream f(dir + "/c.csv");
+    f << "tau_s,adev_dph\n";
+    for (double tau = 1; tau < 2e4; tau *= std::pow(10.0, 0.25)) {
+      f << tau << "," << std::sqrt(n_arw * n_arw / tau + k_rrw * k_rrw * tau / 3) << "\n";
+    }
+  }
+  std::string out;
+  ASSERT_EQ(testing::Run(testing::SsiuProgram() + " discover allan --curve " + dir + "/c.csv --json " + dir + "/o.json",
+                         &out),
+            0)
+      << out;
+  const Json j = Json::parse(std::ifstream(dir + "/o.json"));
+  ASSERT_EQ(j["causes"].size(), 1u) << j.dump(1);
+  const Json& c = j["causes"][0];
+  EXPECT_EQ(c["cause"], "rate_random_walk");
+  // K in deg/h/sqrt(h): 60 x the deg/h/sqrt(s) figure.
+  EXPECT_NEAR(c["parameters"]["rrw_deg_per_h_per_sqrt_h"].get<double>(), 60 * k_rrw, 1e-3 * 60 * k_rrw);
+  EXPECT_GT(j["residual_rms_pct_before"].get<double>(), 2 * j["point_sigma_rms_pct"].get<double>());
+  EXPECT_LT(c["residual_rms_pct"].get<double>(), 0.01);
+  EXPECT_EQ(j["residual_rms_pct_after"], c["residual_rms_pct"]);
+  EXPECT_EQ(j["left"], "none");
+  EXPECT_THAT(out, ::testing::HasSubstr("cause rate_random_walk; residual rms "));
 }
 
 }  // namespace
