@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <map>
 #include <string>
 #include <vector>
@@ -315,8 +316,10 @@ inline void DrawHiddenCause(const std::string& cause, Rng& rng, GyroCaseModel& m
 // The case's parameters, then its two runs; every stream draws in the same order as ever, so that
 // a seed gives the data the tests' figures were measured on. Several hidden causes (`causes`, drawn in
 // that order from the case's stream): c.cause is the first, c.causes all (expected answers).
-// repeat_programme: GyroCaseModel::repeat_programme (the same draws otherwise).
-inline GyroCase MakeGyroCase(const std::vector<std::string>& causes, uint64_t seed, bool repeat_programme = false) {
+// repeat_programme: GyroCaseModel::repeat_programme (the same draws otherwise). adjust: applied to the model
+// after every draw, before the runs are generated (a test's change of an effect's size; the draws unchanged).
+inline GyroCase MakeGyroCase(const std::vector<std::string>& causes, uint64_t seed, bool repeat_programme = false,
+                             const std::function<void(GyroCaseModel&)>& adjust = nullptr) {
   Rng rng(seed);
   GyroCase c;
   GyroCaseModel m;
@@ -395,6 +398,7 @@ inline GyroCase MakeGyroCase(const std::vector<std::string>& causes, uint64_t se
     if (!truth.empty()) c.truths[hidden == "magnetic_field_logged" ? "magnetic_field" : hidden] = truth;
     if (causes.size() == 1 && !truth.empty()) c.truth = truth;
   }
+  if (adjust) adjust(m);
 
   c.logs.push_back(StaticRun(m, rng, rng_x, seed));
   c.logs.push_back(RateTableRun(m, rng));

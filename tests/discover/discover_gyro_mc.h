@@ -219,4 +219,39 @@ inline GyroMultiSummary RunGyroMultiMonteCarlo(const std::vector<std::vector<std
   return s;
 }
 
+// The size of an effect outside the vocabulary, as the field of the case's model that carries it (nullptr for
+// an effect without one size).
+inline double* LeftoverSize(GyroCaseModel& m, const std::string& effect) {
+  if (effect == "chirp") return &m.chirp_amp;
+  if (effect == "sawtooth") return &m.saw_amp;
+  if (effect == "square_wave_column") return &m.heater_amp;
+  if (effect == "telegraph") return &m.tele_amp;
+  if (effect == "azimuth_second_harmonic") return &m.az2_amp;
+  if (effect == "linear_trend") return &m.trend_dph;
+  return nullptr;
+}
+
+// The case of `effect` (out of the vocabulary; beside the vocabulary's cause `partner` unless empty) with the
+// effect scaled so that its RMS over the static log (its mean removed) is k times the noise of one of the
+// library's bins there (the white noise averaged over the bin width, and the Gauss-Markov wander). The effect
+// is measured, not modelled: the static log with the effect at its drawn size less the same log without it
+// (the effects draw from streams of their own, so the noise is the same sample for sample).
+inline GyroCase ScaledLeftoverCase(const std::string& effect, const std::string& partner, double k, uint64_t seed) {
+  std::vector<std::string> causes = {effect};
+  if (!partner.empty()) causes.push_back(partner);
+  double drawn = 0, noise_dph = 0;
+  const GyroCase with = MakeGyroCase(causes, seed, false, [&](GyroCaseModel& m) {
+    drawn = *LeftoverSize(m, effect);
+    const double bin_s = 43200.0 / GyroDiscoverOptions{}.max_bins_per_log;
+    noise_dph = std::hypot(m.arw / std::sqrt(bin_s), m.gm);
+  });
+  const GyroCase without = MakeGyroCase(causes, seed, false, [&](GyroCaseModel& m) { *LeftoverSize(m, effect) = 0; });
+  const std::vector<double>&a = with.logs[0].w_dph, &b = without.logs[0].w_dph;
+  double mean = 0, ss = 0;
+  for (size_t i = 0; i < a.size(); ++i) mean += (a[i] - b[i]) / a.size();
+  for (size_t i = 0; i < a.size(); ++i) ss += std::pow(a[i] - b[i] - mean, 2);
+  const double scale = k * noise_dph / std::sqrt(ss / a.size());
+  return MakeGyroCase(causes, seed, false, [&](GyroCaseModel& m) { *LeftoverSize(m, effect) = drawn * scale; });
+}
+
 }  // namespace ssiu::testing
