@@ -119,7 +119,7 @@ SSIU_REGISTER_COMMAND(discover_allan, [](CLI::App& root) {
                   {"bias_instability_sigma_dph", jg.bias_instability_dph.sigma},
                   {"chi2_per_dof", d.joint.chi2_per_dof}};
     j["residual_rms_pct_before"] = d.residual_rms_pct_before;
-    j["residual_rms_pct_after"] = d.steps.empty() ? d.residual_rms_pct_before : d.steps.back().residual_rms_pct;
+    j["residual_rms_pct_after"] = d.residual_rms_pct_after;
     j["point_sigma_rms_pct"] = d.point_sigma_rms_pct;
     j["correlations"] = ssiu::Json::array();
     for (const auto& c : d.correlations) j["correlations"].push_back({{"a", c.a}, {"b", c.b}, {"r", c.r}});
@@ -131,9 +131,8 @@ SSIU_REGISTER_COMMAND(discover_allan, [](CLI::App& root) {
     std::cerr << "discover allan: " << o->curve << " " << cf.channel << ": chi2/dof " << d.chi2_per_dof_before << " -> "
               << d.chi2_per_dof_after << ", departs in " << d.departures_s.size() << " tau range(s); cause "
               << (chain.empty() ? "none" : chain) << (d.left == "unexplained" ? ", then unexplained" : "")
-              << "; residual rms " << d.residual_rms_pct_before << " -> "
-              << (d.steps.empty() ? d.residual_rms_pct_before : d.steps.back().residual_rms_pct) << " % (points' own "
-              << d.point_sigma_rms_pct << " %)\n";
+              << "; residual rms " << d.residual_rms_pct_before << " -> " << d.residual_rms_pct_after
+              << " % (points' own " << d.point_sigma_rms_pct << " %)\n";
   });
 });
 

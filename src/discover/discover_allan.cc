@@ -227,6 +227,7 @@ void ExtendStepwise(const AllanCurve& curve, const AllanDiscrepancyOptions& opti
       if (st.term == kTermName[t]) st.value = terms[t]->value, st.sigma = terms[t]->sigma;
     }
   }
+  r->residual_rms_pct_after = RelativeRmsPct(curve, wc.sig, current.coef);
   r->joint.chi2_per_dof = current.chi2 / std::max(1, current.dof);
   r->joint.points_used = static_cast<size_t>(n);
   for (size_t i = 0; i < curve.tau_s.size(); ++i) {

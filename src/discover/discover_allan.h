@@ -58,6 +58,7 @@ struct AllanDiscrepancy {
   // (the final model's departures).
   std::vector<AllanStepTerm> steps;
   double residual_rms_pct_before = 0;  // as AllanStepTerm's, of ARW + B fitted as the steps are
+  double residual_rms_pct_after = 0;   // of the final model (the last step's, or ARW + B when none)
   double point_sigma_rms_pct = 0;      // the points' own 1-sigma / adev (%), averaged alike: what a fit reaches
   NoiseFit joint;
   std::vector<AllanCorrelation> correlations;
