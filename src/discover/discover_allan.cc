@@ -138,15 +138,20 @@ std::pair<double, double> HeldOutGain(const WeightedCurve& wc, const std::vector
   return {ss_after > 0 ? std::sqrt(ss_before / ss_after) : 1.0, pp > 0 ? ep / std::sqrt(pp * std::max(1.0, s2)) : 0.0};
 }
 
+// The model's ADEV at tau from its squared coefficients coef.
+double ModelAdev(const Eigen::VectorXd& coef, double tau) {
+  double avar = 0;
+  for (int t = 0; t < kTerms; ++t) avar += coef(t) * TermShape(t, tau);
+  return std::sqrt(std::max(avar, 0.0));
+}
+
 // RMS of the relative departure of the model (squared coefficients coef) from the measured ADEV, in percent,
 // each point weighted by its precision (adev / sigma)^2 as the fit weighs it; with the points' own relative
 // 1-sigmas in place of the departures the same mean gives the level a complete model reaches.
 double RelativeRmsPct(const AllanCurve& curve, const std::vector<double>& sig, const Eigen::VectorXd& coef) {
   double ss = 0, sw = 0;
   for (size_t i = 0; i < curve.tau_s.size(); ++i) {
-    double avar = 0;
-    for (int t = 0; t < kTerms; ++t) avar += coef(t) * TermShape(t, curve.tau_s[i]);
-    const double rel = std::sqrt(std::max(avar, 0.0)) / curve.adev[i] - 1, w = std::pow(curve.adev[i] / sig[i], 2);
+    const double rel = ModelAdev(coef, curve.tau_s[i]) / curve.adev[i] - 1, w = std::pow(curve.adev[i] / sig[i], 2);
     ss += w * rel * rel, sw += w;
   }
   return 100 * std::sqrt(ss / sw);
@@ -230,11 +235,7 @@ void ExtendStepwise(const AllanCurve& curve, const AllanDiscrepancyOptions& opti
   r->residual_rms_pct_after = RelativeRmsPct(curve, wc.sig, current.coef);
   r->joint.chi2_per_dof = current.chi2 / std::max(1, current.dof);
   r->joint.points_used = static_cast<size_t>(n);
-  for (size_t i = 0; i < curve.tau_s.size(); ++i) {
-    double avar = 0;
-    for (int t = 0; t < kTerms; ++t) avar += current.coef(t) * TermShape(t, curve.tau_s[i]);
-    r->final_adev.push_back(std::sqrt(std::max(avar, 0.0)));
-  }
+  for (double tau : curve.tau_s) r->final_adev.push_back(ModelAdev(current.coef, tau));
   r->joint.model_adev = r->final_adev;
   // Correlations of the squared coefficients, a named term in each pair.
   for (int a = 0; a < kTerms; ++a) {
