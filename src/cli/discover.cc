@@ -43,6 +43,15 @@ struct AllanOpts {
   ssiu::AllanDiscrepancyOptions opt;
 };
 
+// Marks (x, y) hot in a defect map of the camera's size, made empty (all good) when there is none yet.
+void MarkHot(const ssiu::Camera& cam, int x, int y, ssiu::DefectMap* map) {
+  if (map->empty()) {
+    map->width = cam.width, map->height = cam.height;
+    map->mask.assign(static_cast<size_t>(cam.width) * cam.height, 0);
+  }
+  map->mask[static_cast<size_t>(y) * map->width + x] = 1;
+}
+
 }  // namespace
 
 SSIU_REGISTER_COMMAND(discover_allan, [](CLI::App& root) {
@@ -170,16 +179,14 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
   cmd->add_option("--sim-json", o->sim_json, "Simulator options of the model under test (default: the simulator's)");
   cmd->callback([o] {
     const ssiu::Camera cam = ssiu::LoadCamera(o->camera);
-    {  // the model PSF: --psf-sigma-px, else camera.json's optional psf_* fields
-      const ssiu::Json cj = ssiu::ReadJsonFile(o->camera);
-      if (o->psf_flag->count() > 0) {
-        o->opt.psf_sigma_px = o->psf_sigma_px;
-      } else if (cj.contains("psf_sigma_px")) {
-        o->opt.psf_sigma_px = ssiu::JsonNumber(cj, "psf_sigma_px", o->camera);
-      }
-      o->opt.psf_ellipticity = ssiu::JsonNumberOr(cj, "psf_ellipticity", 0, o->camera);
-      o->opt.psf_angle_deg = ssiu::JsonNumberOr(cj, "psf_angle_deg", 0, o->camera);
-    }
+    // The model beyond the geometry: camera.json's optional psf_*, vignetting, hot_pixels (--psf-sigma-px
+    // overrides the PSF sigma); the known hot pixels are repaired before detection with --defects.
+    const ssiu::CameraExtras extras = ssiu::LoadCameraExtras(o->camera);
+    o->opt.psf_sigma_px = o->psf_flag->count() > 0 ? o->psf_sigma_px : extras.psf_sigma_px;
+    o->opt.psf_ellipticity = extras.psf_ellipticity;
+    o->opt.psf_angle_deg = extras.psf_angle_deg;
+    o->opt.vignetting = extras.vignetting;
+    o->opt.hot_pixels = extras.hot_pixels;
     o->opt.Check();  // before any work
     ssiu::DefectMap known;
     if (!o->defects.empty()) {
@@ -187,6 +194,7 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
       if (known.width != cam.width || known.height != cam.height)
         throw ssiu::InputError(o->defects, "defect map size differs from the camera's");
     }
+    for (const auto& h : extras.hot_pixels) MarkHot(cam, h[0], h[1], &known);
     ssiu::SolveOptions so;
     so.identify.fov_tolerance_pct = o->fov_tolerance_pct;
     const ssiu::StarIdentifier id = ssiu::MakeIdentifierForCamera(o->catalog, cam, o->fov_tolerance_pct);
@@ -263,11 +271,7 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
     }
     if (!o->defects_out.empty()) {
       ssiu::DefectMap map = known;
-      if (map.empty()) {
-        map.width = cam.width, map.height = cam.height;
-        map.mask.assign(static_cast<size_t>(cam.width) * cam.height, 0);
-      }
-      for (const auto& h : d.hot_pixels) map.mask[static_cast<size_t>(h.y) * map.width + h.x] = 1;
+      for (const auto& h : d.hot_pixels) MarkHot(cam, h.x, h.y, &map);
       ssiu::SaveDefectMap(o->defects_out, map);
     }
     std::cerr << summary.str();

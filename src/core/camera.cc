@@ -100,7 +100,8 @@ Camera CameraFromJson(const Json& j, const std::string& source, double fov_x_deg
   if (!j.is_object()) throw InputError(source, "camera must be a JSON object");
   CheckKeys(j,
             {"width", "height", "focal_length_px", "focal_length_mm", "pixel_pitch_um", "principal_point", "distortion",
-             "gain_e_per_adu", "psf_sigma_px", "psf_ellipticity", "psf_angle_deg", "focal_length_y_px"},
+             "gain_e_per_adu", "psf_sigma_px", "psf_ellipticity", "psf_angle_deg", "focal_length_y_px", "vignetting",
+             "hot_pixels"},
             source);
   Camera c;
   c.width = static_cast<int>(JsonInt(j, "width", 16, 65536, source));
@@ -142,10 +143,56 @@ Camera CameraFromJson(const Json& j, const std::string& source, double fov_x_deg
     c.distortion.p2 = JsonNumberOr(d, "p2", 0, what);
   }
   c.gain_e_per_adu = JsonNumberOr(j, "gain_e_per_adu", 0, source);
-  // The optional model PSF (read by `discover frames`): checked for type here.
-  for (const char* k : {"psf_sigma_px", "psf_ellipticity", "psf_angle_deg"}) JsonNumberOr(j, k, 0, source);
   c.Check(source);
+  CameraExtrasFromJson(j, c, source);  // checked here, used by `discover frames`
   return c;
+}
+
+CameraExtras CameraExtrasFromJson(const Json& j, const Camera& c, const std::string& source) {
+  CameraExtras e;
+  e.psf_sigma_px = JsonNumberOr(j, "psf_sigma_px", 0, source);
+  if (!(e.psf_sigma_px >= 0 && e.psf_sigma_px < 50))
+    throw InputError(source, "field 'psf_sigma_px' must be in [0, 50)");
+  e.psf_ellipticity = JsonNumberOr(j, "psf_ellipticity", 0, source);
+  if (!(e.psf_ellipticity >= 0 && e.psf_ellipticity < 1))
+    throw InputError(source, "field 'psf_ellipticity' must be in [0, 1)");
+  e.psf_angle_deg = JsonNumberOr(j, "psf_angle_deg", 0, source);
+  e.vignetting = JsonNumberOr(j, "vignetting", 0, source);
+  if (!(e.vignetting >= 0 && e.vignetting < 1)) throw InputError(source, "field 'vignetting' must be in [0, 1)");
+  if (j.contains("hot_pixels")) {
+    const Json& h = j.at("hot_pixels");
+    if (!h.is_array()) throw InputError(source, "field 'hot_pixels' must be a list of [x, y] pixels");
+    for (size_t i = 0; i < h.size(); ++i) {
+      const std::string what = "hot_pixels[" + std::to_string(i) + "]";
+      if (!h[i].is_array() || h[i].size() != 2 || !h[i][0].is_number_integer() || !h[i][1].is_number_integer())
+        throw InputError(source, "field '" + what + "' must be [x, y], two integers");
+      const int64_t x = h[i][0].get<int64_t>(), y = h[i][1].get<int64_t>();
+      if (x < 0 || x >= c.width || y < 0 || y >= c.height)
+        throw InputError(source, "field '" + what + "' lies outside the " + std::to_string(c.width) + "x" +
+                                     std::to_string(c.height) + " image");
+      e.hot_pixels.push_back({static_cast<int>(x), static_cast<int>(y)});
+    }
+  }
+  return e;
+}
+
+CameraExtras LoadCameraExtras(const std::string& path) {
+  const Json j = ReadJsonFile(path);
+  return CameraExtrasFromJson(j, CameraFromJson(j, path), path);
+}
+
+void AddCameraExtras(const CameraExtras& e, Json* camera_json) {
+  Json& j = *camera_json;
+  if (e.psf_sigma_px > 0) {
+    j["psf_sigma_px"] = e.psf_sigma_px;
+    j["psf_ellipticity"] = e.psf_ellipticity;
+    j["psf_angle_deg"] = e.psf_angle_deg;
+  }
+  if (e.vignetting > 0) j["vignetting"] = e.vignetting;
+  if (!e.hot_pixels.empty()) {
+    j["hot_pixels"] = Json::array();
+    for (const auto& p : e.hot_pixels) j["hot_pixels"].push_back({p[0], p[1]});
+  }
 }
 
 void HeadFromJson(const Json& j, const std::string& where, Camera* camera, Quat* q_body_from_sensor) {

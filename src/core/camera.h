@@ -2,8 +2,10 @@
 // distortion on normalised coordinates. Pixel (0,0) is the centre of the top-left pixel.
 #pragma once
 
+#include <array>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "core/json.h"
 #include "core/types.h"
@@ -64,6 +66,21 @@ Camera MakeCamera(int width, int height, double fov_x_deg);
 Camera CameraFromJson(const Json& j, const std::string& source, double fov_x_deg_if_no_focal = 0);
 Camera LoadCamera(const std::string& path, double fov_x_deg_if_no_focal = 0);
 Json CameraToJson(const Camera& c);
+
+// camera.json's optional fields that describe the model under test by `discover frames` beyond the
+// geometry (docs/discrepancy.md): its `fitted_camera` writes them, so that the fitted camera goes back in
+// as --camera. Every reader of camera.json checks them; only `discover frames` uses them.
+struct CameraExtras {
+  double psf_sigma_px = 0;  // model PSF sigma; 0 = not given
+  double psf_ellipticity = 0, psf_angle_deg = 0;
+  double vignetting = 0;                       // flux factor 1 - vignetting (r / r_corner)^2
+  std::vector<std::array<int, 2>> hot_pixels;  // known persistent hot pixels [x, y], repaired before detection
+};
+// `c` is the camera read from the same object (the image size bounds the hot pixels).
+CameraExtras CameraExtrasFromJson(const Json& j, const Camera& c, const std::string& source);
+CameraExtras LoadCameraExtras(const std::string& path);
+// Adds the fields that are set (psf_* when psf_sigma_px > 0, vignetting when > 0, hot_pixels when any).
+void AddCameraExtras(const CameraExtras& e, Json* camera_json);
 // One entry of heads.json (conventions): {"camera": {camera.json}, "q_body_sensor": [w,x,y,z]}, read
 // strictly; `where` names the file and head in errors.
 void HeadFromJson(const Json& j, const std::string& where, Camera* camera, Quat* q_body_from_sensor);

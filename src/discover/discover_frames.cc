@@ -363,9 +363,11 @@ class FrameCauseSearch {
     const Camera cam = ModelCamera();
     vu_.clear(), vy_.clear(), vframe_.clear();
     for (const auto& s : set_.stars) {
-      if (!(s.flux > 0)) continue;
-      vu_.push_back(discover_internal::FieldRadius2(cam, s.x_px, s.y_px));
-      vy_.push_back(std::log(s.flux) + 0.4 * std::log(10.0) * s.mag);
+      const double u = discover_internal::FieldRadius2(cam, s.x_px, s.y_px);
+      const double model = 1 - o_.vignetting * u;  // the model's own vignetting, taken out
+      if (!(s.flux > 0) || !(model > 0.05)) continue;
+      vu_.push_back(u);
+      vy_.push_back(std::log(s.flux) + 0.4 * std::log(10.0) * s.mag - std::log(model));
       vframe_.push_back(s.frame);
     }
     FrameCandidate c;
@@ -386,7 +388,10 @@ class FrameCauseSearch {
       c.p_value = ChiSq1or2Survival(c.statistic, 1);
       c.delta_bic = c.statistic - std::log(static_cast<double>(n));
     }
-    vig_v_ = n >= 10 ? discover_internal::FitVignettingLaw(vu_, vy_, &vig_sigma_) : 0.0;
+    // The parameter is the whole law's v (the model's and what is left beyond it), fitted as one law.
+    std::vector<double> y_whole(vy_);
+    for (int i = 0; i < n; ++i) y_whole[i] += std::log(1 - o_.vignetting * vu_[i]);
+    vig_v_ = n >= 10 ? discover_internal::FitVignettingLaw(vu_, y_whole, &vig_sigma_) : 0.0;
     return c;
   }
 
@@ -736,6 +741,7 @@ class FrameCauseSearch {
       for (const auto& [k, v] : e.sigmas) d_.sigmas[k] = v;
     }
     Correlations();
+    FittedCameraExtras();
     if (!d_.causes.empty()) {
       d_.cause = d_.causes.front().cause;
       d_.gain = d_.causes.front().gain, d_.gain_z = d_.causes.front().gain_z;
@@ -748,6 +754,26 @@ class FrameCauseSearch {
     if (d_.residual.structured) {
       d_.partial_cause = d_.cause == "none" ? "" : d_.cause;
       d_.cause = "unexplained";
+    }
+  }
+
+  // fitted_camera's PSF, vignetting and hot pixels: the model's, replaced (or, for hot pixels,
+  // extended) by what the named causes fitted.
+  void FittedCameraExtras() {
+    CameraExtras& x = d_.fitted_camera_extras;
+    x.psf_sigma_px = o_.psf_sigma_px, x.psf_ellipticity = o_.psf_ellipticity, x.psf_angle_deg = o_.psf_angle_deg;
+    x.vignetting = o_.vignetting;
+    x.hot_pixels = o_.hot_pixels;
+    const auto& p = d_.parameters;
+    for (const auto& e : d_.causes) {
+      if (e.cause == "psf_shape") {
+        x.psf_sigma_px = p.at("psf_sigma_px"), x.psf_ellipticity = p.at("psf_ellipticity");
+        x.psf_angle_deg = p.at("psf_angle_deg");
+      } else if (e.cause == "vignetting") {
+        x.vignetting = p.at("vignetting");
+      } else if (e.cause == "hot_pixels") {
+        for (const auto& h : d_.hot_pixels) x.hot_pixels.push_back({h.x, h.y});
+      }
     }
   }
 
@@ -815,6 +841,7 @@ void FrameDiscoverOptions::Check() const {
   if (!(psf_sigma_px >= 0 && psf_sigma_px < 50)) Fail("psf_sigma_px must be in [0, 50) (0 = not tested)");
   if (!(psf_ellipticity >= 0 && psf_ellipticity < 1)) Fail("psf_ellipticity must be in [0, 1)");
   if (!std::isfinite(psf_angle_deg)) Fail("psf_angle_deg must be finite");
+  if (!(vignetting >= 0 && vignetting < 1)) Fail("vignetting must be in [0, 1)");
   if (!(psf_width_floor_pct >= 0 && psf_width_floor_pct < 100)) Fail("psf_width_floor_pct must be in [0, 100)");
   if (!(psf_ellipticity_floor >= 0 && psf_ellipticity_floor < 1)) Fail("psf_ellipticity_floor must be in [0, 1)");
   if (!(gain_alpha > 0 && gain_alpha < 0.5)) Fail("gain_alpha must be in (0, 0.5)");

@@ -106,6 +106,12 @@ struct FrameDiscoverOptions {
   // The model's PSF ellipticity (1 - minor/major) and major-axis angle from +x towards +y (deg);
   // camera.json "psf_ellipticity" / "psf_angle_deg", as written into fitted_camera by psf_shape.
   double psf_ellipticity = 0, psf_angle_deg = 0;
+  // The model's vignetting (camera.json "vignetting", flux factor 1 - v (r / r_corner)^2): the
+  // vignetting cause tests what is left beyond it, and its parameter is the whole law's v.
+  double vignetting = 0;
+  // The model's known hot pixels [x, y] (camera.json "hot_pixels"): the caller repairs them before
+  // detection (SolveFrameSet's defect map); fitted_camera carries them with those found.
+  std::vector<std::array<int, 2>> hot_pixels;
   // Model tolerance added in quadrature to the sigma of the mean width and ellipticity (the stamp
   // fit's own systematic floor), so that thousands of stars do not call a 1 % departure a cause.
   double psf_width_floor_pct = 1.0;
@@ -194,6 +200,9 @@ struct FrameDiscovery {
   std::string cause = "none";
   std::map<std::string, double> parameters, sigmas;
   Camera fitted_camera;
+  // fitted_camera's fields beyond the geometry: the model's PSF, vignetting and known hot pixels,
+  // replaced or extended by the named causes; written into the JSON's fitted_camera.
+  CameraExtras fitted_camera_extras;
   // Held-out position RMS of the base and of the final model; the first cause's held-out gain.
   double residual_rms_before_arcsec = 0, residual_rms_after_arcsec = 0, gain = 1;
   double flux_rms_before_mag = 0, flux_rms_after_mag = 0;                          // vignetting only

@@ -41,6 +41,7 @@ Json FrameDiscoveryToJson(const FrameDiscovery& d) {
   Json j = discover_internal::DiscoveryVerdictJson(d.cause, d.parameters, d.sigmas, d.gain, d.gain_z, d.gain_z_min,
                                                    d.partial_cause);
   j["fitted_camera"] = CameraToJson(d.fitted_camera);
+  AddCameraExtras(d.fitted_camera_extras, &j["fitted_camera"]);
   j["residual_rms_before_arcsec"] = d.residual_rms_before_arcsec;
   j["residual_rms_after_arcsec"] = d.residual_rms_after_arcsec;
   {
@@ -82,9 +83,6 @@ Json FrameDiscoveryToJson(const FrameDiscovery& d) {
                          ": stamp residual RMS in noise sigmas, model PSF vs fitted shape";
     j["stamp_rms_before"] = d.stamp_rms_before;
     j["stamp_rms_after"] = d.stamp_rms_after;
-    j["fitted_camera"]["psf_sigma_px"] = d.parameters.at("psf_sigma_px");
-    j["fitted_camera"]["psf_ellipticity"] = d.parameters.at("psf_ellipticity");
-    j["fitted_camera"]["psf_angle_deg"] = d.parameters.at("psf_angle_deg");
   }
   if (named("hot_pixels")) {
     if (first == "hot_pixels")
@@ -101,14 +99,9 @@ Json FrameDiscoveryToJson(const FrameDiscovery& d) {
                                {"excess_adu", d.hot_pixels[i].excess_adu},
                                {"frames", d.hot_pixel_frames[i]}});
   }
-  if (named("hot_pixels")) {
-    j["fitted_camera"]["hot_pixels"] = Json::array();
-    for (const auto& h : d.hot_pixels) j["fitted_camera"]["hot_pixels"].push_back({h.x, h.y});
-  }
   if (named("vignetting")) {
     j["flux_rms_before_mag"] = d.flux_rms_before_mag;
     j["flux_rms_after_mag"] = d.flux_rms_after_mag;
-    j["fitted_camera"]["vignetting"] = d.parameters.at("vignetting");
   }
   j["measured"] = {{"zero_point_adu_v0", d.zero_point_adu},
                    {"photometric_scatter_mag", d.photometric_scatter_mag},

@@ -111,6 +111,48 @@ TEST(Camera, BadFieldsNameTheFileAndField) {
   EXPECT_THAT(message(Json::array()), ::testing::HasSubstr("object"));
 }
 
+// discover frames' fitted_camera carries the model's PSF, vignetting and hot pixels: every reader accepts
+// them back (checked), and they survive the round trip; a bad one names the field.
+TEST(Camera, ExtrasOfTheModelReadCheckedAndWrittenBack) {
+  const Json j = {
+      {"width", 100},        {"height", 80},           {"focal_length_px", 300}, {"vignetting", 0.3},
+      {"psf_sigma_px", 0.7}, {"psf_ellipticity", 0.1}, {"psf_angle_deg", 80},    {"hot_pixels", {{3, 4}, {99, 79}}}};
+  const Camera c = CameraFromJson(j, "cam.json");
+  const CameraExtras e = CameraExtrasFromJson(j, c, "cam.json");
+  EXPECT_EQ(e.vignetting, 0.3);
+  EXPECT_EQ(e.psf_sigma_px, 0.7);
+  ASSERT_EQ(e.hot_pixels.size(), 2u);
+  EXPECT_EQ(e.hot_pixels[1][0], 99);
+  EXPECT_EQ(e.hot_pixels[1][1], 79);
+  Json back = CameraToJson(c);
+  AddCameraExtras(e, &back);
+  const CameraExtras e2 = CameraExtrasFromJson(back, CameraFromJson(back, "back"), "back");
+  EXPECT_EQ(e2.vignetting, e.vignetting);
+  EXPECT_EQ(e2.psf_ellipticity, e.psf_ellipticity);
+  EXPECT_EQ(e2.psf_angle_deg, e.psf_angle_deg);
+  EXPECT_EQ(e2.hot_pixels, e.hot_pixels);
+  // Nothing set, nothing written.
+  Json plain = CameraToJson(c);
+  AddCameraExtras(CameraExtras{}, &plain);
+  EXPECT_EQ(plain, CameraToJson(c));
+  auto message = [&](const char* key, const Json& v) {
+    Json bad = j;
+    bad[key] = v;
+    try {
+      CameraFromJson(bad, "cam.json");
+    } catch (const InputError& err) {
+      return std::string(err.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_THAT(message("vignetting", 1.2), ::testing::HasSubstr("cam.json: field 'vignetting'"));
+  EXPECT_THAT(message("hot_pixels", {{100, 4}}), ::testing::HasSubstr("'hot_pixels[0]' lies outside the 100x80"));
+  EXPECT_THAT(message("hot_pixels", {{3, 4}, {5}}), ::testing::HasSubstr("'hot_pixels[1]' must be [x, y]"));
+  EXPECT_THAT(message("hot_pixels", {{3.5, 4}}), ::testing::HasSubstr("hot_pixels[0]"));
+  EXPECT_THAT(message("hot_pixels", 7), ::testing::HasSubstr("'hot_pixels' must be a list"));
+  EXPECT_THAT(message("psf_ellipticity", 1.5), ::testing::HasSubstr("psf_ellipticity"));
+}
+
 TEST(Camera, LoadCameraReportsUnreadableFiles) {
   const std::string dir = testing::TempDir("cam");
   EXPECT_THROW(LoadCamera(dir + "/missing.json"), InputError);

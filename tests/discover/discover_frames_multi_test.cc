@@ -95,6 +95,34 @@ TEST(DiscoverFramesMulti, FittedCameraCarriesEveryNamedParameter) {
   EXPECT_TRUE(k1k2);
 }
 
+// A model that carries vignetting (camera.json "vignetting", as fitted_camera writes it): the cause tests
+// only what is left beyond it. Fed its own fitted law back, vignetting is not named again; with half the
+// true law in the model, the rest is named and the whole law (the parameter) lands on the truth.
+TEST(DiscoverFramesMulti, VignettingOfTheModelIsTakenOut) {
+  const auto c = testing::MakeSyntheticFrameSet("vignetting", 3500, 12, 50);
+  const double v_true = c.truth.at("vignetting");
+  auto named = [](const FrameDiscovery& d) {
+    return std::any_of(d.causes.begin(), d.causes.end(),
+                       [](const FrameCauseStep& e) { return e.cause == "vignetting"; });
+  };
+  const FrameDiscovery d1 = DiscoverFrames(c.set, c.nominal, {});
+  ASSERT_TRUE(named(d1));
+  const double v1 = d1.parameters.at("vignetting");
+  EXPECT_NEAR(v1, v_true, 3 * d1.sigmas.at("vignetting"));
+  EXPECT_EQ(d1.fitted_camera_extras.vignetting, v1);
+  FrameDiscoverOptions o;
+  o.vignetting = v1;
+  const FrameDiscovery d2 = DiscoverFrames(c.set, c.nominal, o);
+  EXPECT_FALSE(named(d2));
+  EXPECT_EQ(d2.cause, "none");
+  EXPECT_EQ(d2.fitted_camera_extras.vignetting, v1);  // the model's, kept
+  o.vignetting = 0.5 * v_true;
+  const FrameDiscovery d3 = DiscoverFrames(c.set, c.nominal, o);
+  ASSERT_TRUE(named(d3));
+  EXPECT_NEAR(d3.parameters.at("vignetting"), v_true, 3 * d3.sigmas.at("vignetting"));
+  EXPECT_NEAR(d3.parameters.at("vignetting"), v1, 0.1 * d1.sigmas.at("vignetting"));
+}
+
 // The residual test sees what no named cause explains: a twist, a local bump, a stitched sensor or a
 // magnitude-dependent shift of 3 times the centroid noise (RMS), alone or beside a focal-length error,
 // is `unexplained`, with the vocabulary's cause kept as partial_cause. The power at smaller sizes is
