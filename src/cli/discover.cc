@@ -178,10 +178,11 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
                   "then again with the extended model; JSON here (- for stdout)");
   cmd->add_option("--sim-json", o->sim_json, "Simulator options of the model under test (default: the simulator's)");
   cmd->callback([o] {
-    const ssiu::Camera cam = ssiu::LoadCamera(o->camera);
+    const ssiu::Json cam_json = ssiu::ReadJsonFile(o->camera);
+    const ssiu::Camera cam = ssiu::CameraFromJson(cam_json, o->camera);
     // The model beyond the geometry: camera.json's optional psf_*, vignetting, hot_pixels (--psf-sigma-px
     // overrides the PSF sigma); the known hot pixels are repaired before detection with --defects.
-    const ssiu::CameraExtras extras = ssiu::LoadCameraExtras(o->camera);
+    const ssiu::CameraExtras extras = ssiu::CameraExtrasFromJson(cam_json, cam, o->camera);
     o->opt.psf_sigma_px = o->psf_flag->count() > 0 ? o->psf_sigma_px : extras.psf_sigma_px;
     o->opt.psf_ellipticity = extras.psf_ellipticity;
     o->opt.psf_angle_deg = extras.psf_angle_deg;

@@ -176,11 +176,6 @@ CameraExtras CameraExtrasFromJson(const Json& j, const Camera& c, const std::str
   return e;
 }
 
-CameraExtras LoadCameraExtras(const std::string& path) {
-  const Json j = ReadJsonFile(path);
-  return CameraExtrasFromJson(j, CameraFromJson(j, path), path);
-}
-
 void AddCameraExtras(const CameraExtras& e, Json* camera_json) {
   Json& j = *camera_json;
   if (e.psf_sigma_px > 0) {

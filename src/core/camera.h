@@ -78,7 +78,6 @@ struct CameraExtras {
 };
 // `c` is the camera read from the same object (the image size bounds the hot pixels).
 CameraExtras CameraExtrasFromJson(const Json& j, const Camera& c, const std::string& source);
-CameraExtras LoadCameraExtras(const std::string& path);
 // Adds the fields that are set (psf_* when psf_sigma_px > 0, vignetting when > 0, hot_pixels when any).
 void AddCameraExtras(const CameraExtras& e, Json* camera_json);
 // One entry of heads.json (conventions): {"camera": {camera.json}, "q_body_sensor": [w,x,y,z]}, read

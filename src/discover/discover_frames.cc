@@ -362,12 +362,14 @@ class FrameCauseSearch {
   FrameCandidate VignettingCandidate() {
     const Camera cam = ModelCamera();
     vu_.clear(), vy_.clear(), vframe_.clear();
+    std::vector<double> y_whole;  // before the model's vignetting is taken out: the whole law's fit
     for (const auto& s : set_.stars) {
       const double u = discover_internal::FieldRadius2(cam, s.x_px, s.y_px);
       const double model = 1 - o_.vignetting * u;  // the model's own vignetting, taken out
       if (!(s.flux > 0) || !(model > 0.05)) continue;
       vu_.push_back(u);
-      vy_.push_back(std::log(s.flux) + 0.4 * std::log(10.0) * s.mag - std::log(model));
+      y_whole.push_back(std::log(s.flux) + 0.4 * std::log(10.0) * s.mag);
+      vy_.push_back(y_whole.back() - std::log(model));
       vframe_.push_back(s.frame);
     }
     FrameCandidate c;
@@ -389,8 +391,6 @@ class FrameCauseSearch {
       c.delta_bic = c.statistic - std::log(static_cast<double>(n));
     }
     // The parameter is the whole law's v (the model's and what is left beyond it), fitted as one law.
-    std::vector<double> y_whole(vy_);
-    for (int i = 0; i < n; ++i) y_whole[i] += std::log(1 - o_.vignetting * vu_[i]);
     vig_v_ = n >= 10 ? discover_internal::FitVignettingLaw(vu_, y_whole, &vig_sigma_) : 0.0;
     return c;
   }
