@@ -49,6 +49,7 @@ void SolveOptions::Check() const {
     throw InputError("solve options", "detector_sigma_scale must be in (0, 100)");
   if (!(track_search_radius_px > 0 && track_search_radius_px < 1000))
     throw InputError("solve options", "track_search_radius_px must be in (0, 1000)");
+  if (!(vignetting >= 0 && vignetting < 1)) throw InputError("solve options", "vignetting must be in [0, 1)");
 }
 
 void ApplySkyCorrections(const StarIdentifier& id, const SkyCorrections& sky, Identification* identification) {
@@ -136,8 +137,15 @@ SolveResult SolveCentroids(const StarIdentifier& id, const std::vector<Centroid>
                            const SolveOptions& options) {
   options.Check();
   SolveResult r;
-  r.centroids = centroids;
-  r.identification = id.Identify(centroids, camera, options.identify);
+  r.centroids = centroids;  // as measured; identification sees the fluxes with the vignetting taken out
+  if (options.vignetting > 0) {
+    std::vector<Centroid> devignetted = centroids;
+    for (auto& c : devignetted)
+      c.flux /= std::max(0.05, 1 - options.vignetting * VignettingRadius2(camera, c.x_px, c.y_px));
+    r.identification = id.Identify(devignetted, camera, options.identify);
+  } else {
+    r.identification = id.Identify(centroids, camera, options.identify);
+  }
   Finish(id, options.sky, &r, &camera, &options.identify);
   return r;
 }

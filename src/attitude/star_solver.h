@@ -41,6 +41,10 @@ struct SolveOptions {
   // 1.03, 3.31 at 1.02 (bound 3.27).
   double detector_sigma_scale = 1.03;
   double track_search_radius_px = 25.0;  // tracking: how far a star may be from its prediction
+  // The camera's vignetting (camera.json `vignetting`, flux factor 1 - vignetting (r / r_corner)^2,
+  // core/camera.h): the fluxes are divided by it before identification, so that the photometric evidence
+  // compares the catalog magnitudes with the light the optics let through. 0 = none; in [0, 1).
+  double vignetting = 0;
   // Frame time and observer velocity (docs/identify.md, "Time and motion"): with a time, the matched
   // catalog stars are brought to the frame's date with proper motion and aberrated (annual, plus the
   // spacecraft's velocity when given) before the attitude fit, so that q is the attitude in ICRS.

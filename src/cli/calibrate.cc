@@ -22,12 +22,15 @@ struct Opts {
   CalibrateOptions cal;
 };
 
-std::vector<Centroid> CentroidsOf(const std::string& path, const SolveOptions& so) {
+// `hot`: camera.json's known hot pixels (repaired before detection), or null.
+std::vector<Centroid> CentroidsOf(const std::string& path, const SolveOptions& so, const DefectMap* hot = nullptr) {
   if (path.size() > 4 && path.substr(path.size() - 4) == ".csv") return ReadCentroidsCsv(path);
   const Frame fr = ReadFrame(path);
+  if (hot && (fr.image.width != hot->width || fr.image.height != hot->height))
+    throw InputError(path, "image size differs from the camera's");
   DetectOptions d = so.detect;
   d.saturation_adu = fr.saturation_adu;
-  return CentroidsFromDetections(Detect(fr.image.view(), d), so.detector_sigma_scale);
+  return CentroidsFromDetections(Detect(fr.image.view(), d, hot), so.detector_sigma_scale);
 }
 
 // The identifier for the widest field among the guess and the aspects CalibrateCamera may try.
@@ -56,13 +59,25 @@ void PrintCalibration(const std::string& what, const CameraCalibration& c) {
 
 void RunSingle(const Opts& o) {
   if (o.camera.empty()) throw InputError("--camera", "required (camera.json guess), or --heads heads.json");
-  const Camera guess = LoadCamera(o.camera);
+  const Json guess_json = ReadJsonFile(o.camera);
+  const Camera guess = CameraFromJson(guess_json, o.camera);
+  // What camera.json gives beyond the geometry is used as `ssiu solve` uses it and goes into the
+  // calibrated camera unchanged.
+  const CameraExtras extras = CameraExtrasFromJson(guess_json, guess, o.camera);
+  DefectMap hot;
+  for (const auto& h : extras.hot_pixels) MarkHotPixel(h[0], h[1], guess.width, guess.height, &hot);
+  CalibrateOptions cal = o.cal;
+  cal.solve.vignetting = extras.vignetting;
   const StarIdentifier id = IdentifierFor(o, guess);
   std::vector<CalibrationFrame> frames;
-  for (const auto& f : o.frames) frames.push_back({f, CentroidsOf(f, o.cal.solve)});
-  const CameraCalibration c = CalibrateCamera(id, frames, guess, o.cal);
+  for (const auto& f : o.frames) frames.push_back({f, CentroidsOf(f, cal.solve, hot.empty() ? nullptr : &hot)});
+  const CameraCalibration c = CalibrateCamera(id, frames, guess, cal);
   if (!o.json.empty()) WriteJsonFile(o.json, CameraCalibrationToJson(c));
-  if (c.status == CalibrationStatus::kCalibrated) WriteJsonFile(o.out, CameraToJson(c.camera));
+  if (c.status == CalibrationStatus::kCalibrated) {
+    Json out = CameraToJson(c.camera);
+    AddCameraExtras(extras, &out);
+    WriteJsonFile(o.out, out);
+  }
   PrintCalibration("calibrate", c);
   if (c.status != CalibrationStatus::kCalibrated) throw InputError(o.out, "not written: " + c.message);
 }

@@ -36,6 +36,8 @@ struct Setup {
   Frame dark;
 };
 
+std::string Size(int w, int h) { return std::to_string(w) + "x" + std::to_string(h); }
+
 Setup Prepare(const Opts& o) {
   Setup s;
   if (!std::isfinite(o.gain_e_per_adu) || o.gain_e_per_adu < 0) {
@@ -44,18 +46,24 @@ Setup Prepare(const Opts& o) {
   s.opt.threshold_sigma = o.threshold_sigma;
   s.opt.psf_sigma_px = o.psf_sigma_px;
   if (o.max_stars < 0) throw InputError("--max-stars", "must be >= 0 (0: no cap)");
+  if (!o.defects.empty()) s.map = LoadDefectMap(o.defects);
   if (!o.camera.empty()) {
-    s.cam = LoadCamera(o.camera);
+    const Json j = ReadJsonFile(o.camera);
+    s.cam = CameraFromJson(j, o.camera);
     s.opt.gain_e_per_adu = s.cam.gain_e_per_adu;
+    // camera.json's known hot pixels join the defect map (repaired, not detected).
+    const CameraExtras e = CameraExtrasFromJson(j, s.cam, o.camera);
+    if (!e.hot_pixels.empty() && !s.map.empty() && (s.map.width != s.cam.width || s.map.height != s.cam.height)) {
+      throw InputError(o.defects, "defect map is " + Size(s.map.width, s.map.height) + " but " + o.camera + " says " +
+                                      Size(s.cam.width, s.cam.height));
+    }
+    for (const auto& h : e.hot_pixels) MarkHotPixel(h[0], h[1], s.cam.width, s.cam.height, &s.map);
   }
   if (o.gain_e_per_adu > 0) s.opt.gain_e_per_adu = o.gain_e_per_adu;
   s.opt.smear = SmearFromFlags(o.smear, o.camera.empty() ? nullptr : &s.cam);
-  if (!o.defects.empty()) s.map = LoadDefectMap(o.defects);
   if (!o.dark.empty()) s.dark = ReadFrame(o.dark);
   return s;
 }
-
-std::string Size(int w, int h) { return std::to_string(w) + "x" + std::to_string(h); }
 
 // One frame -> its JSON (the single-frame output of `ssiu detect`); *d keeps the detections.
 Json DetectOne(const Opts& o, const Setup& s, const std::string& path, Detections* d) {

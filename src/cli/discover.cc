@@ -43,15 +43,6 @@ struct AllanOpts {
   ssiu::AllanDiscrepancyOptions opt;
 };
 
-// Marks (x, y) hot in a defect map of the camera's size, made empty (all good) when there is none yet.
-void MarkHot(const ssiu::Camera& cam, int x, int y, ssiu::DefectMap* map) {
-  if (map->empty()) {
-    map->width = cam.width, map->height = cam.height;
-    map->mask.assign(static_cast<size_t>(cam.width) * cam.height, 0);
-  }
-  map->mask[static_cast<size_t>(y) * map->width + x] = 1;
-}
-
 }  // namespace
 
 SSIU_REGISTER_COMMAND(discover_allan, [](CLI::App& root) {
@@ -195,7 +186,7 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
       if (known.width != cam.width || known.height != cam.height)
         throw ssiu::InputError(o->defects, "defect map size differs from the camera's");
     }
-    for (const auto& h : extras.hot_pixels) MarkHot(cam, h[0], h[1], &known);
+    for (const auto& h : extras.hot_pixels) ssiu::MarkHotPixel(h[0], h[1], cam.width, cam.height, &known);
     ssiu::SolveOptions so;
     so.identify.fov_tolerance_pct = o->fov_tolerance_pct;
     const ssiu::StarIdentifier id = ssiu::MakeIdentifierForCamera(o->catalog, cam, o->fov_tolerance_pct);
@@ -272,7 +263,7 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
     }
     if (!o->defects_out.empty()) {
       ssiu::DefectMap map = known;
-      for (const auto& h : d.hot_pixels) MarkHot(cam, h.x, h.y, &map);
+      for (const auto& h : d.hot_pixels) ssiu::MarkHotPixel(h.x, h.y, cam.width, cam.height, &map);
       ssiu::SaveDefectMap(o->defects_out, map);
     }
     std::cerr << summary.str();

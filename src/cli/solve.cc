@@ -84,11 +84,23 @@ StarIdentifier MakeIdentifier(const Opts& o, const Camera& cam) {
   return MakeIdentifierFor(o.catalog, cam, o.solve.identify, o.mag_max, o.source);
 }
 
-// --camera; with --fov-range-deg it may lack a focal length.
-Camera LoadSolveCamera(const Opts& o) {
+// --camera (with --fov-range-deg it may lack a focal length) and what it gives beyond the geometry:
+// its known hot pixels, repaired before detection, and its vignetting, taken out of the fluxes.
+struct SolveCamera {
+  Camera cam;
+  DefectMap hot;  // empty when camera.json lists none
+  double vignetting = 0;
+};
+SolveCamera LoadSolveCamera(const Opts& o) {
   if (o.camera.empty()) throw InputError("--camera", "required (camera.json)");
   const IdentifyOptions& io = o.solve.identify;
-  return LoadCamera(o.camera, io.FovRange() ? std::sqrt(io.fov_min_deg * io.fov_max_deg) : 0.0);
+  const Json j = ReadJsonFile(o.camera);
+  SolveCamera s;
+  s.cam = CameraFromJson(j, o.camera, io.FovRange() ? std::sqrt(io.fov_min_deg * io.fov_max_deg) : 0.0);
+  const CameraExtras e = CameraExtrasFromJson(j, s.cam, o.camera);
+  for (const auto& h : e.hot_pixels) MarkHotPixel(h[0], h[1], s.cam.width, s.cam.height, &s.hot);
+  s.vignetting = e.vignetting;
+  return s;
 }
 
 void PrintSummary(const std::string& what, const SolveResult& r) {
@@ -102,30 +114,32 @@ void PrintSummary(const std::string& what, const SolveResult& r) {
 }
 
 // One input: a frame (dark-subtracted when `dark`), kept in *fr for the overlay, or a centroid list.
-SolveResult SolveInput(const Opts& o, const StarIdentifier& id, const Camera& cam, const std::string& path,
+SolveResult SolveInput(const Opts& o, const StarIdentifier& id, const SolveCamera& sc, const std::string& path,
                        bool centroids, const Frame* dark, Frame* fr) {
+  const Camera& cam = sc.cam;
+  SolveOptions so = o.solve;
+  so.vignetting = sc.vignetting;
   if (centroids) {
     RefuseSmearFlags(o.smear, "needs a frame, not --centroids");
-    SolveOptions so = o.solve;
     so.sky = SkyFromFlags(o.sky, nullptr);
     return SolveCentroids(id, ReadCentroidsCsv(path), cam, so);
   }
   *fr = dark ? SubtractDark(ReadFrame(path), *dark) : ReadFrame(path);
-  SolveOptions so = o.solve;
   so.detect.saturation_adu = fr->saturation_adu;
   so.detect.smear = SmearFromFlags(o.smear, &cam);
   so.sky = SkyFromFlags(o.sky, fr);
-  return SolveFrame(id, fr->image.view(), cam, so);
+  return SolveFrame(id, fr->image.view(), cam, so, sc.hot.empty() ? nullptr : &sc.hot);
 }
 
 void RunSingle(const Opts& o) {
-  const Camera cam = LoadSolveCamera(o);
+  const SolveCamera sc = LoadSolveCamera(o);
+  const Camera& cam = sc.cam;
   const StarIdentifier id = MakeIdentifier(o, cam);
   Frame fr;
   const bool centroids = !o.centroids.empty() || IsCentroidCsv(o.frames.at(0));
   const std::string& input = o.centroids.empty() ? o.frames[0] : o.centroids[0];
   const Frame dark = centroids || o.dark.empty() ? Frame{} : ReadFrame(o.dark);
-  const SolveResult r = SolveInput(o, id, cam, input, centroids, o.dark.empty() ? nullptr : &dark, &fr);
+  const SolveResult r = SolveInput(o, id, sc, input, centroids, o.dark.empty() ? nullptr : &dark, &fr);
   // Every output is written before the summary line, so that an unwritable one is the only message.
   WriteJsonFile(o.json, SolveResultToJson(r));
   if (o.adm.given()) WriteAdmOutputs(o.adm, SolvedAttitudeHistory({{r.sky.time, r.attitude}}, "--aem/--acm"));
@@ -190,8 +204,8 @@ void RunBatchSolve(const Opts& o, const std::vector<std::string>& inputs) {
   if (!o.overlay.empty() || !o.wcs.empty()) {
     throw InputError(o.overlay.empty() ? "--wcs" : "--overlay", "is one frame's output: not in a batch");
   }
-  const Camera cam = LoadSolveCamera(o);
-  const StarIdentifier id = MakeIdentifier(o, cam);
+  const SolveCamera sc = LoadSolveCamera(o);
+  const StarIdentifier id = MakeIdentifier(o, sc.cam);
   const Frame dark = o.dark.empty() ? Frame{} : ReadFrame(o.dark);
   std::mutex timed_mutex;
   std::vector<TimedAttitude> timed;  // for --aem/--acm: each solution at its frame's time
@@ -202,7 +216,7 @@ void RunBatchSolve(const Opts& o, const std::vector<std::string>& inputs) {
     RunBatch("ssiu solve", inputs, o.batch, kBatchColumns, [&](const std::string& input) {
       Frame fr;
       const bool centroids = IsCentroidCsv(input);
-      const SolveResult r = SolveInput(o, id, cam, input, centroids, o.dark.empty() ? nullptr : &dark, &fr);
+      const SolveResult r = SolveInput(o, id, sc, input, centroids, o.dark.empty() ? nullptr : &dark, &fr);
       if (o.adm.given()) {
         std::lock_guard<std::mutex> lock(timed_mutex);
         timed.push_back({r.sky.time, r.attitude});

@@ -190,6 +190,12 @@ void AddCameraExtras(const CameraExtras& e, Json* camera_json) {
   }
 }
 
+double VignettingRadius2(const Camera& c, double x_px, double y_px) {
+  const double rc2 = 0.25 * (static_cast<double>(c.width) * c.width + static_cast<double>(c.height) * c.height);
+  const double dx = x_px - c.cx_px, dy = y_px - c.cy_px;
+  return (dx * dx + dy * dy) / rc2;
+}
+
 void HeadFromJson(const Json& j, const std::string& where, Camera* camera, Quat* q_body_from_sensor) {
   CheckKeys(j, {"camera", "q_body_sensor"}, where);
   if (!j.contains("camera")) throw InputError(where, "missing field 'camera'");

@@ -69,7 +69,8 @@ Json CameraToJson(const Camera& c);
 
 // camera.json's optional fields that describe the model under test by `discover frames` beyond the
 // geometry (docs/discrepancy.md): its `fitted_camera` writes them, so that the fitted camera goes back in
-// as --camera. Every reader of camera.json checks them; only `discover frames` uses them.
+// as --camera. Every reader of camera.json checks them; `detect` and `solve` repair the hot pixels and
+// `solve` takes the vignetting out of the fluxes before identification.
 struct CameraExtras {
   double psf_sigma_px = 0;  // model PSF sigma; 0 = not given
   double psf_ellipticity = 0, psf_angle_deg = 0;
@@ -80,6 +81,9 @@ struct CameraExtras {
 CameraExtras CameraExtrasFromJson(const Json& j, const Camera& c, const std::string& source);
 // Adds the fields that are set (psf_* when psf_sigma_px > 0, vignetting when > 0, hot_pixels when any).
 void AddCameraExtras(const CameraExtras& e, Json* camera_json);
+// The vignetting's radial coordinate u = (r / r_corner)^2: r about the principal point, r_corner the half
+// diagonal of the image (the simulator's law; the flux factor is 1 - vignetting u).
+double VignettingRadius2(const Camera& c, double x_px, double y_px);
 // One entry of heads.json (conventions): {"camera": {camera.json}, "q_body_sensor": [w,x,y,z]}, read
 // strictly; `where` names the file and head in errors.
 void HeadFromJson(const Json& j, const std::string& where, Camera* camera, Quat* q_body_from_sensor);

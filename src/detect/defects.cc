@@ -59,6 +59,14 @@ DefectMap BuildDefectMap(const std::vector<ImageView>& frames, const DefectMapOp
   return m;
 }
 
+void MarkHotPixel(int x, int y, int width, int height, DefectMap* map) {
+  if (map->empty()) {
+    map->width = width, map->height = height;
+    map->mask.assign(static_cast<size_t>(width) * height, 0);
+  }
+  map->mask[static_cast<size_t>(y) * map->width + x] = 1;
+}
+
 DefectMap LoadDefectMap(const std::string& path) {
   const Frame f = [&] {
     try {

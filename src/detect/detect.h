@@ -199,5 +199,8 @@ DefectMap BuildDefectMap(const std::vector<ImageView>& frames, const DefectMapOp
 // PNG I/O of the map: 0 good, 255 hot, 128 dead. InputError naming the file for a bad map.
 DefectMap LoadDefectMap(const std::string& path);
 void SaveDefectMap(const std::string& path, const DefectMap& map);
+// Marks pixel (x, y) hot in *map, first made all good at width x height when it is empty (camera.json's
+// known hot_pixels added to a map).
+void MarkHotPixel(int x, int y, int width, int height, DefectMap* map);
 
 }  // namespace ssiu

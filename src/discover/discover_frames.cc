@@ -364,7 +364,7 @@ class FrameCauseSearch {
     vu_.clear(), vy_.clear(), vframe_.clear();
     std::vector<double> y_whole;  // before the model's vignetting is taken out: the whole law's fit
     for (const auto& s : set_.stars) {
-      const double u = discover_internal::FieldRadius2(cam, s.x_px, s.y_px);
+      const double u = VignettingRadius2(cam, s.x_px, s.y_px);
       const double model = 1 - o_.vignetting * u;  // the model's own vignetting, taken out
       if (!(s.flux > 0) || !(model > 0.05)) continue;
       vu_.push_back(u);

@@ -31,9 +31,6 @@ CauseResult AnalyseHotPixels(const SolvedFrameSet& set, const FrameDiscoverOptio
 // sigma from the curvature of the sum of squares with the residual scale.
 double FitVignettingLaw(const std::vector<double>& u, const std::vector<double>& y, double* sigma);
 
-// (r / r_corner)^2 of a pixel, r from the principal point, r_corner the half diagonal (the simulator's law).
-double FieldRadius2(const Camera& camera, double x_px, double y_px);
-
 // `unexplained`: the star position residuals res_w (2 per star of set.stars, measured - model divided
 // by max(sigma, min_sigma_px)) of the fullest model of the vocabulary, whose whitened Jacobian is jac,
 // and the stars' photometric residuals about the fitted vignetting law, tested for structure.

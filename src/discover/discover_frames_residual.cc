@@ -215,7 +215,7 @@ class FrameResidualTester {
     std::vector<double> u(np), y(np);
     for (int k = 0; k < np; ++k) {
       const auto& s = set_.stars[phot[k]];
-      u[k] = FieldRadius2(camera_, s.x_px, s.y_px);
+      u[k] = VignettingRadius2(camera_, s.x_px, s.y_px);
       y[k] = std::log(s.flux) + 0.4 * std::log(10.0) * s.mag;
     }
     const double v = FitVignettingLaw(u, y, nullptr);

@@ -134,11 +134,4 @@ double discover_internal::FitVignettingLaw(const std::vector<double>& vu, const 
   return v;
 }
 
-double discover_internal::FieldRadius2(const Camera& camera, double x_px, double y_px) {
-  // The simulator's law (sim/frame_sim.cc): about the principal point, over the squared half diagonal.
-  const double rc2 = 0.25 * (static_cast<double>(camera.width) * camera.width +
-                             static_cast<double>(camera.height) * camera.height);
-  return (std::pow(x_px - camera.cx_px, 2) + std::pow(y_px - camera.cy_px, 2)) / rc2;
-}
-
 }  // namespace ssiu

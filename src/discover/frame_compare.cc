@@ -108,12 +108,11 @@ FieldFigures MeasureFieldFigures(const SolvedFrameSet& set, const std::vector<Im
   f.stars = static_cast<int>(set.stars.size());
   // ln(flux) = c + b V, one 4-sigma clipping pass.
   std::vector<double> m, y;
-  const double rc2 = 0.25 * (double(camera.width) * camera.width + double(camera.height) * camera.height);
   double usum = 0;
   for (const auto& s : set.stars) {
     if (s.flux > 0) {
       m.push_back(s.mag), y.push_back(std::log(s.flux));
-      usum += (std::pow(s.x_px - camera.cx_px, 2) + std::pow(s.y_px - camera.cy_px, 2)) / rc2;
+      usum += VignettingRadius2(camera, s.x_px, s.y_px);
     }
   }
   if (!m.empty()) f.star_u_mean = usum / m.size();
@@ -151,14 +150,13 @@ FieldFigures MeasureFieldFigures(const SolvedFrameSet& set, const std::vector<Im
   }
   // PSF: medians of the stamp fits.
   std::vector<double> sig, e1, e2, u;
-  const double r_corner2 = 0.25 * (double(camera.width) * camera.width + double(camera.height) * camera.height);
   for (const auto& s : set.stars) {
     if (s.stamp.empty()) continue;
     const SpotFit fit = FitSpot(s.stamp, s.stamp_half, s.x_px - s.stamp_x0, s.y_px - s.stamp_y0,
                                 s.psf_sigma_px > 0 ? s.psf_sigma_px : 1.0);
     if (!fit.ok || !(fit.t_px2 > 0.02) || std::sqrt(fit.t_var) > 0.3 * fit.t_px2) continue;
     sig.push_back(std::sqrt(fit.t_px2)), e1.push_back(fit.e1), e2.push_back(fit.e2);
-    u.push_back((std::pow(s.x_px - camera.cx_px, 2) + std::pow(s.y_px - camera.cy_px, 2)) / r_corner2);
+    u.push_back(VignettingRadius2(camera, s.x_px, s.y_px));
   }
   f.psf_stars = static_cast<int>(sig.size());
   f.psf_sigma_px = Median(sig), f.psf_e1 = Median(e1), f.psf_e2 = Median(e2);

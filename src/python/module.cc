@@ -70,14 +70,22 @@ py::object ToPython(const Json& j) {
 }
 
 // A camera from a dict (the content of camera.json) or a path to camera.json; without a focal length
-// only when the field of view is searched (fov_x_deg_if_no_focal > 0, core/camera.h).
-Camera CameraFrom(const py::object& camera, double fov_x_deg_if_no_focal = 0) {
-  if (py::isinstance<py::str>(camera)) return LoadCamera(camera.cast<std::string>(), fov_x_deg_if_no_focal);
-  if (py::isinstance<py::dict>(camera)) {
-    const std::string text = py::module_::import("json").attr("dumps")(camera).cast<std::string>();
-    return CameraFromJson(Json::parse(text), "camera", fov_x_deg_if_no_focal);
+// only when the field of view is searched (fov_x_deg_if_no_focal > 0, core/camera.h). *extras, when
+// given, gets what camera.json says beyond the geometry.
+Camera CameraFrom(const py::object& camera, double fov_x_deg_if_no_focal = 0, CameraExtras* extras = nullptr) {
+  Json j;
+  std::string source = "camera";
+  if (py::isinstance<py::str>(camera)) {
+    source = camera.cast<std::string>();
+    j = ReadJsonFile(source);
+  } else if (py::isinstance<py::dict>(camera)) {
+    j = Json::parse(py::module_::import("json").attr("dumps")(camera).cast<std::string>());
+  } else {
+    throw py::type_error("camera must be a dict (camera.json's content) or a path to camera.json");
   }
-  throw py::type_error("camera must be a dict (camera.json's content) or a path to camera.json");
+  const Camera c = CameraFromJson(j, source, fov_x_deg_if_no_focal);
+  if (extras) *extras = CameraExtrasFromJson(j, c, source);
+  return c;
 }
 
 // ---- keyword options -------------------------------------------------------------------------------
@@ -223,7 +231,10 @@ class Solver {
     ApplyOptions(kwargs, SolverSetters(&config_), "Solver");
     config_.solve.Check();
     const IdentifyOptions& io = config_.solve.identify;
-    camera_ = CameraFrom(camera, io.FovRange() ? std::sqrt(io.fov_min_deg * io.fov_max_deg) : 0.0);
+    CameraExtras extras;  // as `ssiu solve`: known hot pixels repaired, the vignetting out of the fluxes
+    camera_ = CameraFrom(camera, io.FovRange() ? std::sqrt(io.fov_min_deg * io.fov_max_deg) : 0.0, &extras);
+    for (const auto& h : extras.hot_pixels) MarkHotPixel(h[0], h[1], camera_.width, camera_.height, &hot_);
+    config_.solve.vignetting = extras.vignetting;
     id_ = std::make_shared<StarIdentifier>(
         MakeIdentifierFor(config_.catalog, camera_, io, config_.mag_max, config_.source));
   }
@@ -242,7 +253,7 @@ class Solver {
         SolveOptions so = config_.solve;
         so.detect.saturation_adu = fr.saturation_adu;
         py::gil_scoped_release nogil;
-        r = SolveFrame(*id_, fr.image.view(), camera_, so);
+        r = SolveFrame(*id_, fr.image.view(), camera_, so, Hot());
       }
     } else {
       const py::array a = py::array::ensure(input);
@@ -257,7 +268,7 @@ class Solver {
         SolveOptions so = config_.solve;
         if (so.detect.saturation_adu == DetectOptions{}.saturation_adu) so.detect.saturation_adu = f.saturation_adu;
         py::gil_scoped_release nogil;
-        r = SolveFrame(*id_, f.view, camera_, so);
+        r = SolveFrame(*id_, f.view, camera_, so, Hot());
       }
     }
     return ToPython(SolveResultToJson(r));
@@ -273,7 +284,9 @@ class Solver {
   static bool EndsWithCsv(const std::string& p) {
     return p.size() >= 4 && (p.compare(p.size() - 4, 4, ".csv") == 0 || p.compare(p.size() - 4, 4, ".CSV") == 0);
   }
+  const DefectMap* Hot() const { return hot_.empty() ? nullptr : &hot_; }
   Camera camera_;
+  DefectMap hot_;  // camera.json's known hot pixels; empty when it lists none
   SolverConfig config_;
   std::shared_ptr<StarIdentifier> id_;
 };

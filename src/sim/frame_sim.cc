@@ -308,7 +308,6 @@ class FrameRenderer {
   SimulatedFrame& out_;
   const int w_, h_;
   std::vector<double> signal_;  // electrons
-  double r_corner2_ = 0;        // squared half diagonal, the vignetting's and the PSF's radial scale
   double bg_e_ = 0;             // background + dark charge per pixel
   double var_bg_e2_ = 0;        // its noise per pixel (electrons^2), for the SNR truth
   PsfShape shape0_;             // the PSF at the centre
@@ -322,7 +321,6 @@ class FrameRenderer {
 
 FrameRenderer::FrameRenderer(const Camera& cam, const FrameSimOptions& o, SimulatedFrame* out)
     : cam_(cam), o_(o), out_(*out), w_(cam.width), h_(cam.height), signal_(static_cast<size_t>(w_) * h_, 0.0) {
-  r_corner2_ = 0.25 * (double(w_) * w_ + double(h_) * h_);
   bg_e_ = (o.background_e_per_s + o.dark_current_e_per_s) * o.exposure_s;
   var_bg_e2_ =
       (o.shot_noise ? bg_e_ : 0.0) + o.read_noise_e * o.read_noise_e + o.gain_e_per_adu * o.gain_e_per_adu / 12.0;
@@ -345,15 +343,12 @@ FrameRenderer::FrameRenderer(const Camera& cam, const FrameSimOptions& o, Simula
                      (std::max(cam.focal_length_px, cam.FocalYPx()) + 0.5 * std::hypot(double(w_), double(h_)));
 }
 
-double FrameRenderer::Vignette(double x, double y) const {
-  const double dx = x - cam_.cx_px, dy = y - cam_.cy_px;
-  return 1.0 - o_.vignetting * (dx * dx + dy * dy) / r_corner2_;
-}
+double FrameRenderer::Vignette(double x, double y) const { return 1.0 - o_.vignetting * VignettingRadius2(cam_, x, y); }
 
 PsfShape FrameRenderer::ShapeAt(double x, double y) const {
   PsfShape p = shape0_;
   if (varying_sigma_) {
-    const double u = (std::pow(x - cam_.cx_px, 2) + std::pow(y - cam_.cy_px, 2)) / r_corner2_;
+    const double u = VignettingRadius2(cam_, x, y);  // the vignetting's radial scale as well
     p.sigma = std::max(0.5 * std::min(o_.psf_sigma_px, o_.psf_sigma_corner_px),
                        o_.psf_sigma_px + (o_.psf_sigma_corner_px - o_.psf_sigma_px) * u);
   }

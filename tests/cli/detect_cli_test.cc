@@ -1,8 +1,12 @@
 // `ssiu simulate frame` and `ssiu detect` end to end: the JSON contract, exit status, and a one-line
 // error naming the file for every kind of bad input.
+#include <array>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
+#include <map>
 #include <set>
+#include <vector>
 
 #include "core/image.h"
 #include "core/json.h"
@@ -212,6 +216,52 @@ TEST_F(CliTest, DefectMapFromTheRealMedianFrame) {
   const Json dj = ReadJsonFile(Path("d.json"));
   for (const auto& rj : dj["rejected"]) defect_rejections += rj["reason"] == "defect_map";
   EXPECT_GT(defect_rejections, 0);
+}
+
+// camera.json's `hot_pixels` (as `discover frames` writes them in its fitted camera) are repaired before
+// detection: the simulator's hot pixels, listed, are rejected as the defect map's and none is a star.
+TEST_F(CliTest, CameraHotPixelsAreRepairedBeforeDetection) {
+  ASSERT_EQ(Ssiu("simulate frame --ra-deg 83.8 --dec-deg -5.4 --roll-deg 10 --seed 4 --out " + Path("sim")).status, 0);
+  const Json truth = ReadJsonFile(Path("sim/frame_0000.json"));
+  Json cam = ReadJsonFile(Path("sim/camera.json"));
+  cam["hot_pixels"] = Json::array();
+  std::vector<std::array<double, 2>> hot;
+  for (const auto& a : truth["artefacts"]) {
+    if (a["type"] != "hot_pixel") continue;
+    hot.push_back({a["x_px"].get<double>(), a["y_px"].get<double>()});
+    cam["hot_pixels"].push_back({std::lround(hot.back()[0]), std::lround(hot.back()[1])});
+  }
+  ASSERT_EQ(hot.size(), 40u);
+  Write("cam_hot.json", cam.dump());
+  // Per run: detections and rejections of each reason on a listed hot pixel.
+  auto on_hot = [&](const std::string& camera, const std::string& out) {
+    const Result r =
+        Ssiu("detect " + Path("sim/frame_0000.png") + " --camera " + Path(camera) + " --json " + Path(out));
+    EXPECT_EQ(r.status, 0) << r.output;
+    const Json d = ReadJsonFile(Path(out));
+    auto near = [&](const Json& s) {
+      for (const auto& h : hot)
+        if (std::hypot(s["x_px"].get<double>() - h[0], s["y_px"].get<double>() - h[1]) < 0.5) return true;
+      return false;
+    };
+    std::map<std::string, int> n;
+    for (const auto& s : d["stars"]) n["star"] += near(s);
+    for (const auto& s : d["rejected"]) n[s["reason"].get<std::string>()] += near(s);
+    n["all_stars"] = static_cast<int>(d["stars"].size());
+    return n;
+  };
+  std::map<std::string, int> plain = on_hot("sim/camera.json", "plain.json"),
+                             listed = on_hot("cam_hot.json", "hot.json");
+  std::printf("hot pixels: plain hot_pixel %d defect_map %d star %d; listed hot_pixel %d defect_map %d star %d\n",
+              plain["hot_pixel"], plain["defect_map"], plain["star"], listed["hot_pixel"], listed["defect_map"],
+              listed["star"]);
+  EXPECT_GT(plain["hot_pixel"], 10);  // found on the fly without the list
+  EXPECT_EQ(plain["defect_map"], 0);
+  EXPECT_EQ(listed["hot_pixel"], 0);  // with it, each is the map's
+  // Without the list, one 3 px from a star is taken into its blob; with it, it is the map's.
+  EXPECT_GE(listed["defect_map"], plain["hot_pixel"]);
+  EXPECT_EQ(listed["star"], 0);
+  EXPECT_EQ(listed["all_stars"], plain["all_stars"] - plain["star"]);
 }
 
 }  // namespace

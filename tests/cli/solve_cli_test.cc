@@ -177,5 +177,46 @@ TEST_F(SolveCli, TrackFollowsASlewAfterALostInSpaceStart) {
   }
 }
 
+// camera.json's vignetting and hot_pixels (a fitted camera of `discover frames`) are used by `ssiu solve`
+// (the vignetting out of the fluxes: stronger photometric evidence) and carried by `ssiu calibrate` into
+// the camera it writes.
+TEST_F(SolveCli, CameraVignettingAndHotPixelsUsedBySolveKeptByCalibrate) {
+  ASSERT_EQ(Ssiu("simulate frame --random --seed 91 --count 3 --vignetting 0.6 --out " + Path("v")).status, 0);
+  Json cam = ReadJsonFile(Path("v/camera.json"));
+  const Json truth = ReadJsonFile(Path("v/frame_0000.json"));
+  cam["vignetting"] = 0.6;
+  cam["hot_pixels"] = Json::array();
+  for (const auto& a : truth["artefacts"])
+    if (a["type"] == "hot_pixel")
+      cam["hot_pixels"].push_back({std::lround(a["x_px"].get<double>()), std::lround(a["y_px"].get<double>())});
+  std::ofstream(Path("v/cam_model.json")) << cam.dump();
+  double ln_factor[2] = {0, 0};
+  int k = 0;
+  for (const char* c : {"v/camera.json", "v/cam_model.json"}) {
+    for (int i = 0; i < 3; ++i) {
+      const std::string f = Path("v/frame_000" + std::to_string(i));
+      ASSERT_EQ(
+          Ssiu("solve " + f + ".png --camera " + Path(c) + " --catalog " + Path("cat") + " --json " + f + ".out.json")
+              .status,
+          0);
+      const Json r = ReadJsonFile(f + ".out.json");
+      ASSERT_EQ(r["status"], "solved") << c << " " << i << ": " << r["message"];
+      EXPECT_LT(AttitudeErrorRad(QuatOf(r["q"]), QuatOf(ReadJsonFile(f + ".json")["q"])) * kRadToArcsec, 30.0);
+      ln_factor[k] += std::log(r["photometric_factor"].get<double>());
+    }
+    ++k;
+  }
+  std::printf("ln photometric factor over 3 frames: vignetting left in %.1f, taken out %.1f\n", ln_factor[0],
+              ln_factor[1]);
+  EXPECT_LT(ln_factor[1], ln_factor[0] - 10);
+  const Result cal =
+      Ssiu("calibrate " + Path("v/frame_0000.png") + " " + Path("v/frame_0001.png") + " " + Path("v/frame_0002.png") +
+           " --camera " + Path("v/cam_model.json") + " --out " + Path("v/cal.json"));
+  ASSERT_EQ(cal.status, 0) << cal.output;
+  const Json out = ReadJsonFile(Path("v/cal.json"));
+  EXPECT_EQ(out["vignetting"], cam["vignetting"]);
+  EXPECT_EQ(out["hot_pixels"], cam["hot_pixels"]);
+}
+
 }  // namespace
 }  // namespace ssiu
