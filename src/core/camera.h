@@ -69,8 +69,9 @@ Json CameraToJson(const Camera& c);
 
 // camera.json's optional fields that describe the model under test by `discover frames` beyond the
 // geometry (docs/discrepancy.md): its `fitted_camera` writes them, so that the fitted camera goes back in
-// as --camera. Every reader of camera.json checks them; `detect` and `solve` repair the hot pixels and
-// `solve` takes the vignetting out of the fluxes before identification.
+// as --camera. Every reader of camera.json checks them; `detect`, `solve` and `calibrate` repair the hot
+// pixels before detection, `solve` and `calibrate` take the vignetting out of the fluxes before
+// identification.
 struct CameraExtras {
   double psf_sigma_px = 0;  // model PSF sigma; 0 = not given
   double psf_ellipticity = 0, psf_angle_deg = 0;
