@@ -22,7 +22,22 @@ struct Opts {
   CalibrateOptions cal;
 };
 
-// `hot`: camera.json's known hot pixels (repaired before detection), or null.
+// What camera.json gives beyond the geometry, used as `ssiu solve` uses it (the known hot pixels repaired
+// before detection, the vignetting out of the fluxes); it goes into the calibrated camera unchanged.
+struct Known {
+  DefectMap hot;
+  CalibrateOptions cal;
+  const DefectMap* Hot() const { return hot.empty() ? nullptr : &hot; }
+};
+Known KnownOf(const CameraExtras& e, const Camera& cam, const CalibrateOptions& cal) {
+  Known k;
+  for (const auto& h : e.hot_pixels) MarkHotPixel(h[0], h[1], cam.width, cam.height, &k.hot);
+  k.cal = cal;
+  k.cal.solve.vignetting = e.vignetting;
+  return k;
+}
+
+// `hot`: the known hot pixels (repaired before detection), or null.
 std::vector<Centroid> CentroidsOf(const std::string& path, const SolveOptions& so, const DefectMap* hot = nullptr) {
   if (path.size() > 4 && path.substr(path.size() - 4) == ".csv") return ReadCentroidsCsv(path);
   const Frame fr = ReadFrame(path);
@@ -61,17 +76,12 @@ void RunSingle(const Opts& o) {
   if (o.camera.empty()) throw InputError("--camera", "required (camera.json guess), or --heads heads.json");
   const Json guess_json = ReadJsonFile(o.camera);
   const Camera guess = CameraFromJson(guess_json, o.camera);
-  // What camera.json gives beyond the geometry is used as `ssiu solve` uses it and goes into the
-  // calibrated camera unchanged.
   const CameraExtras extras = CameraExtrasFromJson(guess_json, guess, o.camera);
-  DefectMap hot;
-  for (const auto& h : extras.hot_pixels) MarkHotPixel(h[0], h[1], guess.width, guess.height, &hot);
-  CalibrateOptions cal = o.cal;
-  cal.solve.vignetting = extras.vignetting;
+  const Known known = KnownOf(extras, guess, o.cal);
   const StarIdentifier id = IdentifierFor(o, guess);
   std::vector<CalibrationFrame> frames;
-  for (const auto& f : o.frames) frames.push_back({f, CentroidsOf(f, cal.solve, hot.empty() ? nullptr : &hot)});
-  const CameraCalibration c = CalibrateCamera(id, frames, guess, cal);
+  for (const auto& f : o.frames) frames.push_back({f, CentroidsOf(f, known.cal.solve, known.Hot())});
+  const CameraCalibration c = CalibrateCamera(id, frames, guess, known.cal);
   if (!o.json.empty()) WriteJsonFile(o.json, CameraCalibrationToJson(c));
   if (c.status == CalibrationStatus::kCalibrated) {
     Json out = CameraToJson(c.camera);
@@ -99,10 +109,11 @@ void RunHeads(const Opts& o) {
   std::vector<std::vector<AttitudeSolution>> att(ne, std::vector<AttitudeSolution>(nh));
   for (size_t h = 0; h < nh; ++h) {
     const StarIdentifier id = IdentifierFor(o, cams[h]);
+    const Known known = KnownOf(hs[h].extras, cams[h], o.cal);
     std::vector<CalibrationFrame> frames;
     for (size_t e = 0; e < ne; ++e)
-      frames.push_back({o.frames[e * nh + h], CentroidsOf(o.frames[e * nh + h], o.cal.solve)});
-    cals.push_back(CalibrateCamera(id, frames, cams[h], o.cal));
+      frames.push_back({o.frames[e * nh + h], CentroidsOf(o.frames[e * nh + h], known.cal.solve, known.Hot())});
+    cals.push_back(CalibrateCamera(id, frames, cams[h], known.cal));
     for (size_t e = 0; e < ne; ++e) {
       const CalibratedFrame& f = cals.back().frames[e];
       att[e][h].status = f.status;
@@ -116,7 +127,9 @@ void RunHeads(const Opts& o) {
   for (size_t h = 0; h < nh; ++h) {
     const Camera& c = cals[h].status == CalibrationStatus::kCalibrated ? cals[h].camera : cams[h];
     const auto q = ToWxyz(al.q_body_sensor[h]);
-    out.push_back({{"camera", CameraToJson(c)}, {"q_body_sensor", {q[0], q[1], q[2], q[3]}}});
+    Json camera = CameraToJson(c);
+    AddCameraExtras(hs[h].extras, &camera);
+    out.push_back({{"camera", camera}, {"q_body_sensor", {q[0], q[1], q[2], q[3]}}});
     Json r = CameraCalibrationToJson(cals[h]);
     const Mat3& p = al.covariance_rad2[h];
     r["q_body_sensor"] = {q[0], q[1], q[2], q[3]};

@@ -253,13 +253,16 @@ void RunHeads(const Opts& o) {
     mounts.push_back(hs[h].q_body_from_sensor);
     const StarIdentifier id = MakeIdentifier(o, cam);
     const Frame fr = ReadFrame(o.frames[h]);
+    DefectMap hot;  // the head's known hot pixels and vignetting, as for one camera
+    for (const auto& p : hs[h].extras.hot_pixels) MarkHotPixel(p[0], p[1], cam.width, cam.height, &hot);
     SolveOptions so = o.solve;
+    so.vignetting = hs[h].extras.vignetting;
     so.detect.saturation_adu = fr.saturation_adu;
     so.sky = SkyFromFlags(o.sky, &fr);
     if (o.smear.given()) {
       so.detect.smear = SmearModel(mounts.back().normalized().conjugate() * w_body_rad_s, o.smear.exposure_s, cam);
     }
-    const SolveResult r = SolveFrame(id, fr.image.view(), cam, so);
+    const SolveResult r = SolveFrame(id, fr.image.view(), cam, so, hot.empty() ? nullptr : &hot);
     results.push_back(r);
     heads.push_back(SolveResultToJson(r));
     for (const auto& [k, v] : r.timing_ms) heads_ms += v;

@@ -15,6 +15,7 @@ std::vector<OpticalHead> HeadsFromJson(const Json& list, const std::string& file
     const std::string what = file + ": " + field + "[" + std::to_string(h) + "]";
     if (!list[h].is_object()) throw InputError(what, "must be an object {camera, q_body_sensor}");
     HeadFromJson(list[h], what, &heads[h].camera, &heads[h].q_body_from_sensor);
+    heads[h].extras = CameraExtrasFromJson(list[h].at("camera"), heads[h].camera, what + ".camera");
   }
   return heads;
 }

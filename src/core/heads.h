@@ -16,6 +16,7 @@ namespace ssiu {
 struct OpticalHead {
   Camera camera;
   Quat q_body_from_sensor = Quat::Identity();
+  CameraExtras extras;  // the head's camera.json fields beyond the geometry (core/camera.h)
 };
 constexpr int kMaxHeads = 3;
 

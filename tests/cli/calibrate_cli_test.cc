@@ -90,14 +90,20 @@ TEST(CalibrateCli, HeadsWritesAlignedHeadsJson) {
     }
   }
   const auto q1 = ToWxyz(nominal1);
+  Json cam1 = CameraToJson(cam);  // head 1's camera.json with a known hot pixel and a (weak) vignetting
+  cam1["hot_pixels"] = {{3, 4}};
+  cam1["vignetting"] = 0.05;
   WriteJsonFile(tmp + "/heads.json",
                 Json::array({{{"camera", CameraToJson(cam)}, {"q_body_sensor", {1, 0, 0, 0}}},
-                             {{"camera", CameraToJson(cam)}, {"q_body_sensor", {q1[0], q1[1], q1[2], q1[3]}}}}));
+                             {{"camera", cam1}, {"q_body_sensor", {q1[0], q1[1], q1[2], q1[3]}}}}));
   const auto r = testing::RunSsiu("calibrate" + frames + " --heads " + tmp + "/heads.json --out " + tmp +
                                   "/new.json --json " + tmp + "/rep.json --catalog " + tmp + "/cat --systematic-px 0");
   ASSERT_EQ(r.status, 0) << r.output;
   const Json out = ReadJsonFile(tmp + "/new.json"), rep = ReadJsonFile(tmp + "/rep.json");
   ASSERT_EQ(out.size(), 2u);
+  EXPECT_EQ(out[1]["camera"]["hot_pixels"], cam1["hot_pixels"]);  // carried into the calibrated camera
+  EXPECT_EQ(out[1]["camera"]["vignetting"], cam1["vignetting"]);
+  EXPECT_FALSE(out[0]["camera"].contains("hot_pixels"));
   const Camera back = CameraFromJson(out[1]["camera"], "new.json");
   EXPECT_NEAR(back.focal_length_px, cam.focal_length_px, 0.002 * cam.focal_length_px);
   // The fitted cameras define slightly rotated sensor frames (a principal point error of 0.2 px turns

@@ -138,5 +138,40 @@ TEST_F(SolveHeadsCli, BadHeadsFilesAreOneLineErrors) {
   EXPECT_THAT(r.output, ::testing::HasSubstr("four.json"));
 }
 
+// A head's camera.json vignetting is taken out of that head's fluxes as `ssiu solve` does for one camera:
+// frames simulated with vignetting 0.6 give each head stronger photometric evidence when its camera
+// states it.
+TEST_F(SolveHeadsCli, EachHeadsVignettingIsTakenOut) {
+  ASSERT_EQ(build_status_, 0);
+  const Quat q_body = QuatFromRaDecRoll(120 * kDegToRad, 25 * kDegToRad, 40 * kDegToRad);
+  const std::string f0 = SimulateHead("v0", q_body, kM0, 21, "--vignetting 0.6"),
+                    f1 = SimulateHead("v1", q_body, kM1, 22, "--vignetting 0.6");
+  const auto q1 = ToWxyz(kM1);
+  const Json cam = ReadJsonFile(Path("v0/camera.json"));
+  Json plain = Json::array({{{"camera", cam}, {"q_body_sensor", {1, 0, 0, 0}}},
+                            {{"camera", cam}, {"q_body_sensor", {q1[0], q1[1], q1[2], q1[3]}}}}),
+       stated = plain;
+  for (auto& h : stated) h["camera"]["vignetting"] = 0.6;
+  WriteJsonFile(Path("vplain.json"), plain);
+  WriteJsonFile(Path("vstated.json"), stated);
+  double ln_factor[2][2];
+  int k = 0;
+  for (const char* heads : {"vplain.json", "vstated.json"}) {
+    const Result r = Ssiu("solve --heads " + Path(heads) + " " + f0 + " " + f1 + " --catalog " + Path("cat") +
+                          " --json " + Path("v.json"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    const Json s = ReadJsonFile(Path("v.json"));
+    ASSERT_EQ(s["status"], "solved") << heads;
+    for (int h = 0; h < 2; ++h) {
+      ASSERT_EQ(s["heads"][h]["status"], "solved") << heads << " head " << h;
+      ln_factor[k][h] = std::log(s["heads"][h]["photometric_factor"].get<double>());
+    }
+    ++k;
+  }
+  std::printf("ln photometric factor, heads 0 and 1: vignetting left in %.1f %.1f, stated %.1f %.1f\n", ln_factor[0][0],
+              ln_factor[0][1], ln_factor[1][0], ln_factor[1][1]);
+  for (int h = 0; h < 2; ++h) EXPECT_LT(ln_factor[1][h], ln_factor[0][h]) << "head " << h;
+}
+
 }  // namespace
 }  // namespace ssiu

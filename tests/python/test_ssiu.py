@@ -196,3 +196,24 @@ def test_unknown_field_of_view_equals_the_cli(sky, tmp_path):
         ssiu.Solver(cam)
     with pytest.raises(ValueError, match="fov_range_deg"):
         ssiu.Tracker(cam, fov_range_deg=(14, 20))
+
+
+def test_camera_vignetting_and_hot_pixels_are_used_as_by_the_cli(sky):
+    """camera.json's `vignetting` and `hot_pixels` (a fitted camera of `discover frames`): the Solver
+    uses them as `ssiu solve` does (same photometric factor, same matches), and they change the answer."""
+    cam = json.loads((sky / "f" / "camera.json").read_text())
+    truth = json.loads((sky / "f" / "frame_0000.json").read_text())
+    model = dict(cam, vignetting=0.5,
+                 hot_pixels=[[round(a["x_px"]), round(a["y_px"])] for a in truth["artefacts"]
+                             if a["type"] == "hot_pixel"])
+    path = sky / "cam_model.json"
+    path.write_text(json.dumps(model))
+    out = sky / "cli_model.json"
+    run("solve", frame(sky, 0), "--camera", path, "--catalog", sky / "cat", "--json", out)
+    cli = json.loads(out.read_text())
+    py = ssiu.Solver(model, catalog=str(sky / "cat")).solve(frame(sky, 0))
+    plain = ssiu.Solver(cam, catalog=str(sky / "cat")).solve(frame(sky, 0))
+    assert py["status"] == cli["status"] == plain["status"] == "solved"
+    assert py["photometric_factor"] == pytest.approx(cli["photometric_factor"], rel=1e-9)
+    assert [m["star_id"] for m in py["matches"]] == [m["star_id"] for m in cli["matches"]]
+    assert py["photometric_factor"] != pytest.approx(plain["photometric_factor"], rel=1e-3)
