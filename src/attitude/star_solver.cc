@@ -133,19 +133,29 @@ std::vector<Centroid> ReadCentroidsCsv(const std::string& path) {
   return out;
 }
 
+namespace {
+
+// What identification sees (SolveOptions::vignetting): `centroids` themselves, or with v > 0 a copy in
+// *kept whose fluxes are divided by the vignetting 1 - v (r / r_corner)^2 (floored at 0.05 so that a
+// corner beyond the law's reach stays finite).
+const std::vector<Centroid>& WithoutVignetting(const std::vector<Centroid>& centroids, const Camera& camera, double v,
+                                               std::vector<Centroid>* kept) {
+  if (!(v > 0)) return centroids;
+  *kept = centroids;
+  for (auto& c : *kept) c.flux /= std::max(0.05, 1 - v * VignettingRadius2(camera, c.x_px, c.y_px));
+  return *kept;
+}
+
+}  // namespace
+
 SolveResult SolveCentroids(const StarIdentifier& id, const std::vector<Centroid>& centroids, const Camera& camera,
                            const SolveOptions& options) {
   options.Check();
   SolveResult r;
   r.centroids = centroids;  // as measured; identification sees the fluxes with the vignetting taken out
-  if (options.vignetting > 0) {
-    std::vector<Centroid> devignetted = centroids;
-    for (auto& c : devignetted)
-      c.flux /= std::max(0.05, 1 - options.vignetting * VignettingRadius2(camera, c.x_px, c.y_px));
-    r.identification = id.Identify(devignetted, camera, options.identify);
-  } else {
-    r.identification = id.Identify(centroids, camera, options.identify);
-  }
+  std::vector<Centroid> kept;
+  r.identification =
+      id.Identify(WithoutVignetting(centroids, camera, options.vignetting, &kept), camera, options.identify);
   Finish(id, options.sky, &r, &camera, &options.identify);
   return r;
 }
@@ -373,6 +383,8 @@ SolveResult Tracker::Update(const std::vector<Centroid>& centroids, double t_s) 
   const auto t0 = Clock::now();
   SolveResult r;
   r.centroids = centroids;
+  std::vector<Centroid> kept;
+  const std::vector<Centroid>& seen = WithoutVignetting(centroids, camera_, options_.vignetting, &kept);
   if (locked_) {
     const double dt = t_s - t_last_;
     Quat q_pred = q_last_;
@@ -380,13 +392,12 @@ SolveResult Tracker::Update(const std::vector<Centroid>& centroids, double t_s) 
       const Vec3 th = w_sensor_rad_s_ * dt;
       if (th.norm() > 0) q_pred = q_last_ * Quat(Eigen::AngleAxisd(th.norm(), th.normalized()));
     }
-    r.identification =
-        id_.MatchWithAttitude(centroids, camera_, q_pred, options_.track_search_radius_px, options_.identify);
+    r.identification = id_.MatchWithAttitude(seen, camera_, q_pred, options_.track_search_radius_px, options_.identify);
     r.mode = SolveMode::kTracking;
   }
   const Camera camera_before = camera_;
   if (!locked_ || r.identification.status != SolveStatus::kSolved) {
-    r.identification = id_.Identify(centroids, camera_, options_.identify);
+    r.identification = id_.Identify(seen, camera_, options_.identify);
     r.mode = SolveMode::kLostInSpace;
     have_rate_ = false;
   }

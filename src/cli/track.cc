@@ -46,7 +46,12 @@ SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
               "each solution's covariance, QUEST");
   cmd->callback([o] {
     if (!(o->dt_s > 0) || !std::isfinite(o->dt_s)) throw InputError("--dt-s", "must be a finite number > 0");
-    const Camera cam = LoadCamera(o->camera);
+    const Json cam_json = ReadJsonFile(o->camera);
+    const Camera cam = CameraFromJson(cam_json, o->camera);
+    // camera.json's known hot pixels and vignetting, used as `ssiu solve` uses them.
+    const CameraExtras extras = CameraExtrasFromJson(cam_json, cam, o->camera);
+    DefectMap hot;
+    for (const auto& h : extras.hot_pixels) MarkHotPixel(h[0], h[1], cam.width, cam.height, &hot);
     const ExpectedSmear smear = SmearFromFlags(o->smear, &cam);
     const StarIdentifier id = MakeIdentifierForCamera(o->catalog, cam, o->solve.identify.fov_tolerance_pct);
     std::unique_ptr<Tracker> tracker;  // made at the first frame, whose DATE-OBS may give the time
@@ -64,9 +69,10 @@ SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
       dopt.saturation_adu = fr.saturation_adu;
       dopt.smear = smear;
       if (dopt.gain_e_per_adu == 0) dopt.gain_e_per_adu = cam.gain_e_per_adu;
-      const Detections det = Detect(fr.image.view(), dopt);
+      const Detections det = Detect(fr.image.view(), dopt, hot.empty() ? nullptr : &hot);
       if (!tracker) {
         SolveOptions so = o->solve;
+        so.vignetting = extras.vignetting;
         so.sky = SkyFromFlags(o->sky, &fr);
         tracker = std::make_unique<Tracker>(id, cam, so);
         t0 = so.sky.time;

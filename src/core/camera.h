@@ -69,8 +69,8 @@ Json CameraToJson(const Camera& c);
 
 // camera.json's optional fields that describe the model under test by `discover frames` beyond the
 // geometry (docs/discrepancy.md): its `fitted_camera` writes them, so that the fitted camera goes back in
-// as --camera. Every reader of camera.json checks them; `detect`, `solve` and `calibrate` repair the hot
-// pixels before detection, `solve` and `calibrate` take the vignetting out of the fluxes before
+// as --camera. Every reader of camera.json checks them; `detect`, `solve`, `track` and `calibrate` repair
+// the hot pixels before detection and (but `detect`) take the vignetting out of the fluxes before
 // identification.
 struct CameraExtras {
   double psf_sigma_px = 0;  // model PSF sigma; 0 = not given

@@ -178,8 +178,8 @@ TEST_F(SolveCli, TrackFollowsASlewAfterALostInSpaceStart) {
 }
 
 // camera.json's vignetting and hot_pixels (a fitted camera of `discover frames`) are used by `ssiu solve`
-// (the vignetting out of the fluxes: stronger photometric evidence) and carried by `ssiu calibrate` into
-// the camera it writes.
+// and `ssiu track` (the vignetting out of the fluxes: stronger photometric evidence) and carried by
+// `ssiu calibrate` into the camera it writes.
 TEST_F(SolveCli, CameraVignettingAndHotPixelsUsedBySolveKeptByCalibrate) {
   ASSERT_EQ(Ssiu("simulate frame --random --seed 91 --count 3 --vignetting 0.6 --out " + Path("v")).status, 0);
   Json cam = ReadJsonFile(Path("v/camera.json"));
@@ -190,7 +190,7 @@ TEST_F(SolveCli, CameraVignettingAndHotPixelsUsedBySolveKeptByCalibrate) {
     if (a["type"] == "hot_pixel")
       cam["hot_pixels"].push_back({std::lround(a["x_px"].get<double>()), std::lround(a["y_px"].get<double>())});
   std::ofstream(Path("v/cam_model.json")) << cam.dump();
-  double ln_factor[2] = {0, 0};
+  double ln_factor[2] = {0, 0}, first_factor[2] = {0, 0};
   int k = 0;
   for (const char* c : {"v/camera.json", "v/cam_model.json"}) {
     for (int i = 0; i < 3; ++i) {
@@ -203,12 +203,22 @@ TEST_F(SolveCli, CameraVignettingAndHotPixelsUsedBySolveKeptByCalibrate) {
       ASSERT_EQ(r["status"], "solved") << c << " " << i << ": " << r["message"];
       EXPECT_LT(AttitudeErrorRad(QuatOf(r["q"]), QuatOf(ReadJsonFile(f + ".json")["q"])) * kRadToArcsec, 30.0);
       ln_factor[k] += std::log(r["photometric_factor"].get<double>());
+      if (i == 0) first_factor[k] = r["photometric_factor"].get<double>();
     }
     ++k;
   }
   std::printf("ln photometric factor over 3 frames: vignetting left in %.1f, taken out %.1f\n", ln_factor[0],
               ln_factor[1]);
   EXPECT_LT(ln_factor[1], ln_factor[0] - 10);
+  // `ssiu track` as well: its first frame (lost in space) is `ssiu solve`'s with the same camera.
+  ASSERT_EQ(Ssiu("track " + Path("v/frame_0000.png") + " --camera " + Path("v/cam_model.json") + " --catalog " +
+                 Path("cat") + " --json " + Path("v/track.json"))
+                .status,
+            0);
+  const Json tr = ReadJsonFile(Path("v/track.json"));
+  ASSERT_EQ(tr[0]["status"], "solved");
+  EXPECT_NEAR(tr[0]["photometric_factor"].get<double>(), first_factor[1], 1e-9 * first_factor[1]);
+  EXPECT_LT(first_factor[1], first_factor[0]);
   const Result cal =
       Ssiu("calibrate " + Path("v/frame_0000.png") + " " + Path("v/frame_0001.png") + " " + Path("v/frame_0002.png") +
            " --camera " + Path("v/cam_model.json") + " --out " + Path("v/cal.json"));
