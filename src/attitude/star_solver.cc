@@ -110,6 +110,11 @@ std::vector<Centroid> CentroidsFromDetections(const Detections& d, double sigma_
   return out;
 }
 
+void TakeOutVignetting(const Camera& camera, double v, std::vector<Centroid>* centroids) {
+  if (!(v > 0)) return;
+  for (auto& c : *centroids) c.flux /= std::max(0.05, 1 - v * VignettingRadius2(camera, c.x_px, c.y_px));
+}
+
 std::vector<Centroid> ReadCentroidsCsv(const std::string& path) {
   const CsvTable t = ReadCsv(path);
   const auto& x = t.Column("x_px");
@@ -136,13 +141,12 @@ std::vector<Centroid> ReadCentroidsCsv(const std::string& path) {
 namespace {
 
 // What identification sees (SolveOptions::vignetting): `centroids` themselves, or with v > 0 a copy in
-// *kept whose fluxes are divided by the vignetting 1 - v (r / r_corner)^2 (floored at 0.05 so that a
-// corner beyond the law's reach stays finite).
+// *kept with the vignetting taken out of the fluxes.
 const std::vector<Centroid>& WithoutVignetting(const std::vector<Centroid>& centroids, const Camera& camera, double v,
                                                std::vector<Centroid>* kept) {
   if (!(v > 0)) return centroids;
   *kept = centroids;
-  for (auto& c : *kept) c.flux /= std::max(0.05, 1 - v * VignettingRadius2(camera, c.x_px, c.y_px));
+  TakeOutVignetting(camera, v, kept);
   return *kept;
 }
 

@@ -92,6 +92,9 @@ StarIdentifier MakeIdentifierFor(const std::string& dir, const Camera& camera, c
 std::vector<Centroid> CentroidsFromDetections(const Detections& d, double sigma_scale = 1.0);
 // The same into `out`, cleared and refilled (no allocation once its capacity holds d.stars.size()).
 void CentroidsFromDetections(const Detections& d, double sigma_scale, std::vector<Centroid>* out);
+// Divides the fluxes by the camera's vignetting 1 - v (r / r_corner)^2 (SolveOptions::vignetting; floored
+// at 0.05 so that a corner beyond the law's reach stays finite), in place: no allocation.
+void TakeOutVignetting(const Camera& camera, double v, std::vector<Centroid>* centroids);
 // Reads a centroid CSV: x_px,y_px[,flux][,sigma_px]. InputError naming the file/column/row.
 std::vector<Centroid> ReadCentroidsCsv(const std::string& path);
 

@@ -60,6 +60,9 @@ DefectMap BuildDefectMap(const std::vector<ImageView>& frames, const DefectMapOp
 }
 
 void MarkHotPixel(int x, int y, int width, int height, DefectMap* map) {
+  if (x < 0 || x >= width || y < 0 || y >= height || (!map->empty() && (map->width != width || map->height != height)))
+    throw InputError("hot pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") lies outside the " +
+                     std::to_string(width) + "x" + std::to_string(height) + " image or its defect map");
   if (map->empty()) {
     map->width = width, map->height = height;
     map->mask.assign(static_cast<size_t>(width) * height, 0);

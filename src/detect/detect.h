@@ -200,7 +200,7 @@ DefectMap BuildDefectMap(const std::vector<ImageView>& frames, const DefectMapOp
 DefectMap LoadDefectMap(const std::string& path);
 void SaveDefectMap(const std::string& path, const DefectMap& map);
 // Marks pixel (x, y) hot in *map, first made all good at width x height when it is empty (camera.json's
-// known hot_pixels added to a map).
+// known hot_pixels added to a map). InputError for a pixel outside width x height or a map of another size.
 void MarkHotPixel(int x, int y, int width, int height, DefectMap* map);
 
 }  // namespace ssiu

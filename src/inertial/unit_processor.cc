@@ -125,7 +125,16 @@ UnitProcessor::UnitProcessor(std::vector<OpticalHead> heads,
   if (ids_.size() != heads_.size()) throw InputError("heads", "one star identifier per head is needed");
   for (size_t h = 0; h < heads_.size(); ++h) {
     if (!ids_[h]) throw InputError("heads", "head " + std::to_string(h + 1) + " has no star identifier");
-    heads_[h].camera.Check("head " + std::to_string(h + 1) + " camera");
+    const std::string what = "head " + std::to_string(h + 1) + " camera";
+    heads_[h].camera.Check(what);
+    const CameraExtras& e = heads_[h].extras;
+    if (!(e.vignetting >= 0 && e.vignetting < 1)) throw InputError(what, "vignetting must be in [0, 1)");
+    hot_.emplace_back();  // the known hot pixels repaired before detection (camera.json `hot_pixels`)
+    for (const auto& p : e.hot_pixels) {
+      if (p[0] < 0 || p[0] >= heads_[h].camera.width || p[1] < 0 || p[1] >= heads_[h].camera.height)
+        throw InputError(what, "a hot pixel lies outside the image");
+      MarkHotPixel(p[0], p[1], heads_[h].camera.width, heads_[h].camera.height, &hot_.back());
+    }
     heads_[h].q_body_from_sensor.normalize();
     mounts_.push_back(heads_[h].q_body_from_sensor);
   }
@@ -173,7 +182,8 @@ void UnitProcessor::SolveHead(int h, double t_s, const ImageView& image, Identif
     dopt.smear.rate_rad_s = head.q_body_from_sensor.conjugate() * w_body;
     dopt.smear.camera = head.camera;
   }
-  if (Detect(image, dopt, nullptr, &detect_ws_, &detections_) != DetectStatus::kOk) {
+  const DefectMap* hot = hot_[h].empty() ? nullptr : &hot_[h];
+  if (Detect(image, dopt, hot, &detect_ws_, &detections_) != DetectStatus::kOk) {
     // Options were checked at construction and the size above: what is left is a frame the detector
     // cannot take (e.g. smaller than its smallest tile).
     r.status = SolveStatus::kBadFrame;
@@ -182,6 +192,7 @@ void UnitProcessor::SolveHead(int h, double t_s, const ImageView& image, Identif
   r.detect_ms = t0.Ms();
   r.detections = static_cast<int>(detections_.stars.size());
   CentroidsFromDetections(detections_, so.detector_sigma_scale, &centroids_);
+  TakeOutVignetting(head.camera, head.extras.vignetting, &centroids_);  // in place (SolveCentroids' fluxes)
   const std::vector<Centroid>& c = centroids_;
 
   // Tracking around the attitude the gyros carried forward; lost in space before the first fix or
@@ -207,6 +218,8 @@ void UnitProcessor::SolveHead(int h, double t_s, const ImageView& image, Identif
   }
   r.identify_ms = t1.Ms();
   r.status = id->status;
+  r.false_match_probability = id->false_match_probability;
+  r.photometric_factor = id->photometric_factor;
   if (id->status == SolveStatus::kSolved) {
     SkyCorrections sky = so.sky;  // the frame's time: the unit's clock t_s from sky.time
     if (sky.active()) sky.time = AddSeconds(sky.time, t_s);

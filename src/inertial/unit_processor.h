@@ -75,6 +75,7 @@ struct HeadResult {
   SolveStatus status = SolveStatus::kNoFrame;
   SolveMode mode = SolveMode::kLostInSpace;  // when solved
   int detections = 0, matches = 0;
+  double false_match_probability = 1, photometric_factor = 1;  // the identification's (identify.h)
   double sigma_cross_arcsec = 0, sigma_roll_arcsec = 0;  // this head's own solution
   Quat q_inertial_from_sensor = Quat::Identity();        // when solved
   std::map<std::string, double> timing_ms;               // detect, identify, attitude, total (options.diagnostics)
@@ -163,6 +164,7 @@ class UnitProcessor {
   // SolveOptions::detect.smear: active when its exposure_s > 0) is the fusion's last rate.
   bool have_gyro_ = false;
   std::vector<Identification> ids_scratch_;  // per head, reused frame to frame
+  std::vector<DefectMap> hot_;               // per head: its camera's known hot pixels (empty when none)
   // The heads are solved one after the other: one detector workspace (for the largest head), one
   // detection list and one centroid list serve them all, sized at construction.
   DetectWorkspace detect_ws_;

@@ -12,9 +12,12 @@
 #include <random>
 #include <vector>
 
+#include "core/attitude.h"
+#include "core/catalog.h"
 #include "inertial/analytic_fusion.h"
 #include "inertial/online_fusion.h"
 #include "inertial/unit_processor.h"
+#include "sim/frame_sim.h"
 #include "testing/alloc_count.h"
 
 namespace ssiu {
@@ -186,6 +189,38 @@ TEST(InertialAlloc, UnitProcessorGyroSamplesAndRefusedFramesAllocateNothing) {
   EXPECT_EQ(att.gyro_samples_refused, 6000);
   EXPECT_EQ(att.gyro_samples_partial, 6);
   EXPECT_EQ(att.frames_refused, 40);  // 20 of the wrong size, 20 with one view for two heads
+}
+
+// A head whose camera lists known hot pixels and a vignetting (camera.json's fields beyond the geometry):
+// the map is built and the law kept at construction; a frame set then allocates nothing.
+TEST(InertialAlloc, UnitProcessorHeadWithHotPixelsAndVignettingAllocatesNothingPerFrame) {
+  OpticalHead head;
+  head.camera = MakeCamera(512, 512, 16.6);
+  head.extras.vignetting = 0.4;
+  FrameSimOptions fo;
+  fo.vignetting = head.extras.vignetting;
+  const StarCatalog sky = LoadXplanetBsc(DefaultBscPath(), 7.0);
+  std::vector<SimulatedFrame> frames;
+  for (int k = 0; k < 3; ++k) frames.push_back(SimulateFrame(head.camera, sky, RandomAttitude(60), fo, 60 + k));
+  for (const auto& a : frames[0].artefacts)
+    if (a.type == "hot_pixel")
+      head.extras.hot_pixels.push_back({static_cast<int>(std::lround(a.x_px)), static_cast<int>(std::lround(a.y_px))});
+  ASSERT_FALSE(head.extras.hot_pixels.empty());
+  UnitProcessorOptions o;
+  o.diagnostics = false;
+  o.solve.detect.gain_e_per_adu = fo.gain_e_per_adu;
+  const auto id = std::make_shared<const StarIdentifier>(MakeIdentifierForCamera("", head.camera, 0.0));
+  UnitProcessor p({head}, {id}, DefaultFourFogUnit(), o);
+  FrameReport report;
+  p.OnFrames(0.0, {frames[0].image.view()}, &report);  // sizes the report
+  ASSERT_EQ(report.heads[0].status, SolveStatus::kSolved);
+  const std::vector<std::vector<ImageView>> views = {{frames[1].image.view()}, {frames[2].image.view()}};
+  AllocationCounter n;
+  for (int k = 1; k < 3; ++k) {
+    p.OnFrames(k * 1.0, views[k - 1], &report);
+    EXPECT_EQ(report.heads[0].status, SolveStatus::kSolved) << k;
+  }
+  EXPECT_EQ(n.Count(), 0);
 }
 
 }  // namespace
