@@ -279,12 +279,13 @@ class Solver {
   const SolverConfig& config() const { return config_; }
 
   void CheckSize(const ImageView& v) const { CheckFrameMatchesCamera(v, camera_); }
+  // camera.json's known hot pixels (repaired before detection), or null when it lists none.
+  const DefectMap* Hot() const { return hot_.empty() ? nullptr : &hot_; }
 
  private:
   static bool EndsWithCsv(const std::string& p) {
     return p.size() >= 4 && (p.compare(p.size() - 4, 4, ".csv") == 0 || p.compare(p.size() - 4, 4, ".CSV") == 0);
   }
-  const DefectMap* Hot() const { return hot_.empty() ? nullptr : &hot_; }
   Camera camera_;
   DefectMap hot_;  // camera.json's known hot pixels; empty when it lists none
   SolverConfig config_;
@@ -319,7 +320,7 @@ class PyTracker {
       DetectOptions d = solver_.config().solve.detect;
       if (d.saturation_adu == DetectOptions{}.saturation_adu) d.saturation_adu = f.saturation_adu;
       py::gil_scoped_release nogil;
-      c = CentroidsFromDetections(Detect(f.view, d), solver_.config().solve.detector_sigma_scale);
+      c = CentroidsFromDetections(Detect(f.view, d, solver_.Hot()), solver_.config().solve.detector_sigma_scale);
     }
     SolveResult r;
     {
@@ -360,16 +361,19 @@ py::object DetectPy(const py::object& image, const py::object& camera, const py:
     f = FrameFrom(py::array::ensure(image));
     if (!kwargs.contains("saturation_adu")) o.saturation_adu = f.saturation_adu;
   }
+  DefectMap hot;  // the camera's known hot pixels, repaired as by `ssiu detect`
   if (!camera.is_none()) {
-    const Camera cam = CameraFrom(camera);
+    CameraExtras extras;
+    const Camera cam = CameraFrom(camera, 0, &extras);
     CheckFrameMatchesCamera(f.view, cam);
     if (!kwargs.contains("gain_e_per_adu")) o.gain_e_per_adu = cam.gain_e_per_adu;
+    for (const auto& h : extras.hot_pixels) MarkHotPixel(h[0], h[1], cam.width, cam.height, &hot);
   }
   o.Check();
   Detections d;
   {
     py::gil_scoped_release nogil;
-    d = Detect(f.view, o);
+    d = Detect(f.view, o, hot.empty() ? nullptr : &hot);
   }
   return ToPython(DetectionsToJson(d, name, fr.value_scale, fr.value_offset));
 }

@@ -199,8 +199,9 @@ def test_unknown_field_of_view_equals_the_cli(sky, tmp_path):
 
 
 def test_camera_vignetting_and_hot_pixels_are_used_as_by_the_cli(sky):
-    """camera.json's `vignetting` and `hot_pixels` (a fitted camera of `discover frames`): the Solver
-    uses them as `ssiu solve` does (same photometric factor, same matches), and they change the answer."""
+    """camera.json's `vignetting` and `hot_pixels` (a fitted camera of `discover frames`): the Solver,
+    the Tracker and detect use them as the CLI does (same photometric factor, same matches, the same
+    rejections), and they change the answer."""
     cam = json.loads((sky / "f" / "camera.json").read_text())
     truth = json.loads((sky / "f" / "frame_0000.json").read_text())
     model = dict(cam, vignetting=0.5,
@@ -217,3 +218,14 @@ def test_camera_vignetting_and_hot_pixels_are_used_as_by_the_cli(sky):
     assert py["photometric_factor"] == pytest.approx(cli["photometric_factor"], rel=1e-9)
     assert [m["star_id"] for m in py["matches"]] == [m["star_id"] for m in cli["matches"]]
     assert py["photometric_factor"] != pytest.approx(plain["photometric_factor"], rel=1e-3)
+    img, _ = ssiu.read_frame(frame(sky, 0))
+    tr = ssiu.Tracker(model, catalog=str(sky / "cat")).update(img, 0.0)
+    assert tr["photometric_factor"] == pytest.approx(cli["photometric_factor"], rel=1e-9)
+    # ssiu.detect with the camera: the listed hot pixels are the defect map's, as with `ssiu detect`.
+    det_out = sky / "det_model.json"
+    run("detect", frame(sky, 0), "--camera", path, "--json", det_out)
+    cli_det = json.loads(det_out.read_text())
+    py_det = ssiu.detect(frame(sky, 0), model)
+    reasons = [r["reason"] for r in py_det["rejected"]]
+    assert reasons.count("defect_map") >= len(model["hot_pixels"]) - 1
+    assert reasons == [r["reason"] for r in cli_det["rejected"]]
