@@ -27,25 +27,24 @@ struct Opts {
 struct Known {
   DefectMap hot;
   CalibrateOptions cal;
-  const DefectMap* Hot() const { return hot.empty() ? nullptr : &hot; }
 };
 Known KnownOf(const CameraExtras& e, const Camera& cam, const CalibrateOptions& cal) {
   Known k;
-  for (const auto& h : e.hot_pixels) MarkHotPixel(h[0], h[1], cam.width, cam.height, &k.hot);
+  MarkHotPixels(e.hot_pixels, cam.width, cam.height, &k.hot);
   k.cal = cal;
   k.cal.solve.vignetting = e.vignetting;
   return k;
 }
 
-// `hot`: the known hot pixels (repaired before detection), or null.
-std::vector<Centroid> CentroidsOf(const std::string& path, const SolveOptions& so, const DefectMap* hot = nullptr) {
+// `hot`: the known hot pixels (repaired before detection; empty when none).
+std::vector<Centroid> CentroidsOf(const std::string& path, const SolveOptions& so, const DefectMap& hot) {
   if (path.size() > 4 && path.substr(path.size() - 4) == ".csv") return ReadCentroidsCsv(path);
   const Frame fr = ReadFrame(path);
-  if (hot && (fr.image.width != hot->width || fr.image.height != hot->height))
+  if (!hot.empty() && (fr.image.width != hot.width || fr.image.height != hot.height))
     throw InputError(path, "image size differs from the camera's");
   DetectOptions d = so.detect;
   d.saturation_adu = fr.saturation_adu;
-  return CentroidsFromDetections(Detect(fr.image.view(), d, hot), so.detector_sigma_scale);
+  return CentroidsFromDetections(Detect(fr.image.view(), d, &hot), so.detector_sigma_scale);
 }
 
 // The identifier for the widest field among the guess and the aspects CalibrateCamera may try.
@@ -80,7 +79,7 @@ void RunSingle(const Opts& o) {
   const Known known = KnownOf(extras, guess, o.cal);
   const StarIdentifier id = IdentifierFor(o, guess);
   std::vector<CalibrationFrame> frames;
-  for (const auto& f : o.frames) frames.push_back({f, CentroidsOf(f, known.cal.solve, known.Hot())});
+  for (const auto& f : o.frames) frames.push_back({f, CentroidsOf(f, known.cal.solve, known.hot)});
   const CameraCalibration c = CalibrateCamera(id, frames, guess, known.cal);
   if (!o.json.empty()) WriteJsonFile(o.json, CameraCalibrationToJson(c));
   if (c.status == CalibrationStatus::kCalibrated) {
@@ -112,7 +111,7 @@ void RunHeads(const Opts& o) {
     const Known known = KnownOf(hs[h].extras, cams[h], o.cal);
     std::vector<CalibrationFrame> frames;
     for (size_t e = 0; e < ne; ++e)
-      frames.push_back({o.frames[e * nh + h], CentroidsOf(o.frames[e * nh + h], known.cal.solve, known.Hot())});
+      frames.push_back({o.frames[e * nh + h], CentroidsOf(o.frames[e * nh + h], known.cal.solve, known.hot)});
     cals.push_back(CalibrateCamera(id, frames, cams[h], known.cal));
     for (size_t e = 0; e < ne; ++e) {
       const CalibratedFrame& f = cals.back().frames[e];

@@ -57,7 +57,7 @@ Setup Prepare(const Opts& o) {
       throw InputError(o.defects, "defect map is " + Size(s.map.width, s.map.height) + " but " + o.camera + " says " +
                                       Size(s.cam.width, s.cam.height));
     }
-    for (const auto& h : e.hot_pixels) MarkHotPixel(h[0], h[1], s.cam.width, s.cam.height, &s.map);
+    MarkHotPixels(e.hot_pixels, s.cam.width, s.cam.height, &s.map);
   }
   if (o.gain_e_per_adu > 0) s.opt.gain_e_per_adu = o.gain_e_per_adu;
   s.opt.smear = SmearFromFlags(o.smear, o.camera.empty() ? nullptr : &s.cam);

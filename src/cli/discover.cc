@@ -186,7 +186,7 @@ SSIU_REGISTER_COMMAND(discover_frames, [](CLI::App& root) {
       if (known.width != cam.width || known.height != cam.height)
         throw ssiu::InputError(o->defects, "defect map size differs from the camera's");
     }
-    for (const auto& h : extras.hot_pixels) ssiu::MarkHotPixel(h[0], h[1], cam.width, cam.height, &known);
+    ssiu::MarkHotPixels(extras.hot_pixels, cam.width, cam.height, &known);
     ssiu::SolveOptions so;
     so.identify.fov_tolerance_pct = o->fov_tolerance_pct;
     const ssiu::StarIdentifier id = ssiu::MakeIdentifierForCamera(o->catalog, cam, o->fov_tolerance_pct);

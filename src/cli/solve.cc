@@ -98,7 +98,7 @@ SolveCamera LoadSolveCamera(const Opts& o) {
   SolveCamera s;
   s.cam = CameraFromJson(j, o.camera, io.FovRange() ? std::sqrt(io.fov_min_deg * io.fov_max_deg) : 0.0);
   const CameraExtras e = CameraExtrasFromJson(j, s.cam, o.camera);
-  for (const auto& h : e.hot_pixels) MarkHotPixel(h[0], h[1], s.cam.width, s.cam.height, &s.hot);
+  MarkHotPixels(e.hot_pixels, s.cam.width, s.cam.height, &s.hot);
   s.vignetting = e.vignetting;
   return s;
 }
@@ -128,7 +128,7 @@ SolveResult SolveInput(const Opts& o, const StarIdentifier& id, const SolveCamer
   so.detect.saturation_adu = fr->saturation_adu;
   so.detect.smear = SmearFromFlags(o.smear, &cam);
   so.sky = SkyFromFlags(o.sky, fr);
-  return SolveFrame(id, fr->image.view(), cam, so, sc.hot.empty() ? nullptr : &sc.hot);
+  return SolveFrame(id, fr->image.view(), cam, so, &sc.hot);
 }
 
 void RunSingle(const Opts& o) {
@@ -254,7 +254,7 @@ void RunHeads(const Opts& o) {
     const StarIdentifier id = MakeIdentifier(o, cam);
     const Frame fr = ReadFrame(o.frames[h]);
     DefectMap hot;  // the head's known hot pixels and vignetting, as for one camera
-    for (const auto& p : hs[h].extras.hot_pixels) MarkHotPixel(p[0], p[1], cam.width, cam.height, &hot);
+    MarkHotPixels(hs[h].extras.hot_pixels, cam.width, cam.height, &hot);
     SolveOptions so = o.solve;
     so.vignetting = hs[h].extras.vignetting;
     so.detect.saturation_adu = fr.saturation_adu;
@@ -262,7 +262,7 @@ void RunHeads(const Opts& o) {
     if (o.smear.given()) {
       so.detect.smear = SmearModel(mounts.back().normalized().conjugate() * w_body_rad_s, o.smear.exposure_s, cam);
     }
-    const SolveResult r = SolveFrame(id, fr.image.view(), cam, so, hot.empty() ? nullptr : &hot);
+    const SolveResult r = SolveFrame(id, fr.image.view(), cam, so, &hot);
     results.push_back(r);
     heads.push_back(SolveResultToJson(r));
     for (const auto& [k, v] : r.timing_ms) heads_ms += v;

@@ -51,7 +51,7 @@ SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
     // camera.json's known hot pixels and vignetting, used as `ssiu solve` uses them.
     const CameraExtras extras = CameraExtrasFromJson(cam_json, cam, o->camera);
     DefectMap hot;
-    for (const auto& h : extras.hot_pixels) MarkHotPixel(h[0], h[1], cam.width, cam.height, &hot);
+    MarkHotPixels(extras.hot_pixels, cam.width, cam.height, &hot);
     const ExpectedSmear smear = SmearFromFlags(o->smear, &cam);
     const StarIdentifier id = MakeIdentifierForCamera(o->catalog, cam, o->solve.identify.fov_tolerance_pct);
     std::unique_ptr<Tracker> tracker;  // made at the first frame, whose DATE-OBS may give the time
@@ -69,7 +69,7 @@ SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
       dopt.saturation_adu = fr.saturation_adu;
       dopt.smear = smear;
       if (dopt.gain_e_per_adu == 0) dopt.gain_e_per_adu = cam.gain_e_per_adu;
-      const Detections det = Detect(fr.image.view(), dopt, hot.empty() ? nullptr : &hot);
+      const Detections det = Detect(fr.image.view(), dopt, &hot);
       if (!tracker) {
         SolveOptions so = o->solve;
         so.vignetting = extras.vignetting;

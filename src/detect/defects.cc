@@ -59,15 +59,20 @@ DefectMap BuildDefectMap(const std::vector<ImageView>& frames, const DefectMapOp
   return m;
 }
 
-void MarkHotPixel(int x, int y, int width, int height, DefectMap* map) {
+void MarkHotPixel(int x, int y, int width, int height, DefectMap* map, const std::string& where) {
   if (x < 0 || x >= width || y < 0 || y >= height || (!map->empty() && (map->width != width || map->height != height)))
-    throw InputError("hot pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") lies outside the " +
-                     std::to_string(width) + "x" + std::to_string(height) + " image or its defect map");
+    throw InputError(where, "hot pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") lies outside the " +
+                                std::to_string(width) + "x" + std::to_string(height) + " image or its defect map");
   if (map->empty()) {
     map->width = width, map->height = height;
     map->mask.assign(static_cast<size_t>(width) * height, 0);
   }
   map->mask[static_cast<size_t>(y) * map->width + x] = 1;
+}
+
+void MarkHotPixels(const std::vector<std::array<int, 2>>& pixels, int width, int height, DefectMap* map,
+                   const std::string& where) {
+  for (const auto& p : pixels) MarkHotPixel(p[0], p[1], width, height, map, where);
 }
 
 DefectMap LoadDefectMap(const std::string& path) {

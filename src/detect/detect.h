@@ -17,6 +17,7 @@
 // bound at high SNR) with saturated and defective pixels left out of the fit.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -200,7 +201,11 @@ DefectMap BuildDefectMap(const std::vector<ImageView>& frames, const DefectMapOp
 DefectMap LoadDefectMap(const std::string& path);
 void SaveDefectMap(const std::string& path, const DefectMap& map);
 // Marks pixel (x, y) hot in *map, first made all good at width x height when it is empty (camera.json's
-// known hot_pixels added to a map). InputError for a pixel outside width x height or a map of another size.
-void MarkHotPixel(int x, int y, int width, int height, DefectMap* map);
+// known hot_pixels added to a map). InputError naming `where` for a pixel outside width x height or a map
+// of another size. Detect takes an empty map as none.
+void MarkHotPixel(int x, int y, int width, int height, DefectMap* map, const std::string& where = "hot pixel");
+// The same for each [x, y] of `pixels` (camera.json's `hot_pixels`, CameraExtras).
+void MarkHotPixels(const std::vector<std::array<int, 2>>& pixels, int width, int height, DefectMap* map,
+                   const std::string& where = "hot_pixels");
 
 }  // namespace ssiu

@@ -130,11 +130,7 @@ UnitProcessor::UnitProcessor(std::vector<OpticalHead> heads,
     const CameraExtras& e = heads_[h].extras;
     if (!(e.vignetting >= 0 && e.vignetting < 1)) throw InputError(what, "vignetting must be in [0, 1)");
     hot_.emplace_back();  // the known hot pixels repaired before detection (camera.json `hot_pixels`)
-    for (const auto& p : e.hot_pixels) {
-      if (p[0] < 0 || p[0] >= heads_[h].camera.width || p[1] < 0 || p[1] >= heads_[h].camera.height)
-        throw InputError(what, "a hot pixel lies outside the image");
-      MarkHotPixel(p[0], p[1], heads_[h].camera.width, heads_[h].camera.height, &hot_.back());
-    }
+    MarkHotPixels(e.hot_pixels, heads_[h].camera.width, heads_[h].camera.height, &hot_.back(), what);
     heads_[h].q_body_from_sensor.normalize();
     mounts_.push_back(heads_[h].q_body_from_sensor);
   }
@@ -182,8 +178,7 @@ void UnitProcessor::SolveHead(int h, double t_s, const ImageView& image, Identif
     dopt.smear.rate_rad_s = head.q_body_from_sensor.conjugate() * w_body;
     dopt.smear.camera = head.camera;
   }
-  const DefectMap* hot = hot_[h].empty() ? nullptr : &hot_[h];
-  if (Detect(image, dopt, hot, &detect_ws_, &detections_) != DetectStatus::kOk) {
+  if (Detect(image, dopt, &hot_[h], &detect_ws_, &detections_) != DetectStatus::kOk) {
     // Options were checked at construction and the size above: what is left is a frame the detector
     // cannot take (e.g. smaller than its smallest tile).
     r.status = SolveStatus::kBadFrame;

@@ -233,7 +233,7 @@ class Solver {
     const IdentifyOptions& io = config_.solve.identify;
     CameraExtras extras;  // as `ssiu solve`: known hot pixels repaired, the vignetting out of the fluxes
     camera_ = CameraFrom(camera, io.FovRange() ? std::sqrt(io.fov_min_deg * io.fov_max_deg) : 0.0, &extras);
-    for (const auto& h : extras.hot_pixels) MarkHotPixel(h[0], h[1], camera_.width, camera_.height, &hot_);
+    MarkHotPixels(extras.hot_pixels, camera_.width, camera_.height, &hot_);
     config_.solve.vignetting = extras.vignetting;
     id_ = std::make_shared<StarIdentifier>(
         MakeIdentifierFor(config_.catalog, camera_, io, config_.mag_max, config_.source));
@@ -253,7 +253,7 @@ class Solver {
         SolveOptions so = config_.solve;
         so.detect.saturation_adu = fr.saturation_adu;
         py::gil_scoped_release nogil;
-        r = SolveFrame(*id_, fr.image.view(), camera_, so, Hot());
+        r = SolveFrame(*id_, fr.image.view(), camera_, so, &hot_);
       }
     } else {
       const py::array a = py::array::ensure(input);
@@ -268,7 +268,7 @@ class Solver {
         SolveOptions so = config_.solve;
         if (so.detect.saturation_adu == DetectOptions{}.saturation_adu) so.detect.saturation_adu = f.saturation_adu;
         py::gil_scoped_release nogil;
-        r = SolveFrame(*id_, f.view, camera_, so, Hot());
+        r = SolveFrame(*id_, f.view, camera_, so, &hot_);
       }
     }
     return ToPython(SolveResultToJson(r));
@@ -279,15 +279,14 @@ class Solver {
   const SolverConfig& config() const { return config_; }
 
   void CheckSize(const ImageView& v) const { CheckFrameMatchesCamera(v, camera_); }
-  // camera.json's known hot pixels (repaired before detection), or null when it lists none.
-  const DefectMap* Hot() const { return hot_.empty() ? nullptr : &hot_; }
+  const DefectMap& hot() const { return hot_; }
 
  private:
   static bool EndsWithCsv(const std::string& p) {
     return p.size() >= 4 && (p.compare(p.size() - 4, 4, ".csv") == 0 || p.compare(p.size() - 4, 4, ".CSV") == 0);
   }
   Camera camera_;
-  DefectMap hot_;  // camera.json's known hot pixels; empty when it lists none
+  DefectMap hot_;  // camera.json's known hot pixels (repaired before detection); empty when it lists none
   SolverConfig config_;
   std::shared_ptr<StarIdentifier> id_;
 };
@@ -320,7 +319,7 @@ class PyTracker {
       DetectOptions d = solver_.config().solve.detect;
       if (d.saturation_adu == DetectOptions{}.saturation_adu) d.saturation_adu = f.saturation_adu;
       py::gil_scoped_release nogil;
-      c = CentroidsFromDetections(Detect(f.view, d, solver_.Hot()), solver_.config().solve.detector_sigma_scale);
+      c = CentroidsFromDetections(Detect(f.view, d, &solver_.hot()), solver_.config().solve.detector_sigma_scale);
     }
     SolveResult r;
     {
@@ -367,13 +366,13 @@ py::object DetectPy(const py::object& image, const py::object& camera, const py:
     const Camera cam = CameraFrom(camera, 0, &extras);
     CheckFrameMatchesCamera(f.view, cam);
     if (!kwargs.contains("gain_e_per_adu")) o.gain_e_per_adu = cam.gain_e_per_adu;
-    for (const auto& h : extras.hot_pixels) MarkHotPixel(h[0], h[1], cam.width, cam.height, &hot);
+    MarkHotPixels(extras.hot_pixels, cam.width, cam.height, &hot);
   }
   o.Check();
   Detections d;
   {
     py::gil_scoped_release nogil;
-    d = Detect(f.view, o, hot.empty() ? nullptr : &hot);
+    d = Detect(f.view, o, &hot);
   }
   return ToPython(DetectionsToJson(d, name, fr.value_scale, fr.value_offset));
 }
