@@ -114,7 +114,7 @@ struct Detections {
 // A static defect map: nonzero = defective pixel (hot, dead, or otherwise unusable).
 struct DefectMap {
   int width = 0, height = 0;
-  std::vector<uint8_t> mask;  // row-major; 0 good, 1 hot, 2 dead, 3 other
+  ScratchVec<uint8_t> mask;  // row-major; 0 good, 1 hot, 2 dead, 3 other (the flight core's in its arena)
   bool empty() const { return mask.empty(); }
   uint8_t at(int x, int y) const { return mask[static_cast<size_t>(y) * width + x]; }
 };

@@ -26,7 +26,7 @@
 namespace {
 
 constexpr uint64_t kMagic = 0x53534955464c5431ULL;  // "SSIUFLT1"
-constexpr int32_t kInterfaceVersion = 3;
+constexpr int32_t kInterfaceVersion = 4;
 static_assert(SSIU_UNIT_CAL_OFF == static_cast<int>(ssiu::UnitCalStatus::kOff) &&
                   SSIU_UNIT_CAL_ACCUMULATING == static_cast<int>(ssiu::UnitCalStatus::kAccumulating) &&
                   SSIU_UNIT_CAL_NOT_OBSERVABLE == static_cast<int>(ssiu::UnitCalStatus::kNotObservable) &&

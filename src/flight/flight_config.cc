@@ -1,5 +1,6 @@
 #include "flight/flight_config.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <climits>
 #include <cmath>
@@ -16,7 +17,8 @@ namespace ssiu {
 namespace {
 
 // The text form's keys: each a name (head<k>. / gyro<k>. prefixed per head / gyro) and its numbers.
-enum class Kind { kInt, kDouble, kUint, kText };
+// kHotPixels: a head's list, its count n then n pairs x y (`p` is the head's ssiu_head_config).
+enum class Kind { kInt, kDouble, kUint, kText, kHotPixels };
 struct Field {
   std::string key;
   Kind kind;
@@ -54,6 +56,8 @@ std::vector<Field> Fields(ssiu_flight_config* c) {
     f.push_back({p + "distortion_k1_k2_k3_p1_p2", Kind::kDouble, &x.k1, 5});
     f.push_back({p + "gain_e_per_adu", Kind::kDouble, &x.gain_e_per_adu, 1});
     f.push_back({p + "q_body_sensor", Kind::kDouble, x.q_body_sensor, 4});
+    f.push_back({p + "vignetting", Kind::kDouble, &x.vignetting, 1});
+    f.push_back({p + "hot_pixels", Kind::kHotPixels, &x, 1});
   }
   for (int g = 0; g < SSIU_FLIGHT_MAX_GYROS; ++g) {
     ssiu_gyro_config& x = c->gyros[g];
@@ -71,6 +75,28 @@ bool InUse(const std::string& key, const ssiu_flight_config& c) {
   if (key.rfind("head", 0) == 0 && key.size() > 5 && key[5] == '.') return key[4] - '0' <= c.n_heads;
   if (key.rfind("gyro", 0) == 0 && key.size() > 5 && key[5] == '.') return key[4] - '0' <= c.n_gyros;
   return true;
+}
+
+// `key n x1 y1 ... xn yn`: whole numbers, n at most SSIU_FLIGHT_MAX_HOT_PIXELS, coordinates 0 to 65535
+// (the image bounds are FlightSetupFrom's).
+void ParseHotPixels(std::istringstream* ls, const std::string& where, const std::string& key, ssiu_head_config* x) {
+  const auto next = [&](long lo, long hi, const char* what) {
+    std::string word;
+    if (!(*ls >> word)) throw InputError(where, "key '" + key + "' needs " + what);
+    char* end = nullptr;
+    errno = 0;
+    const long v = std::strtol(word.c_str(), &end, 10);
+    if (*end != '\0' || errno == ERANGE || v < lo || v > hi)
+      throw InputError(where, "key '" + key + "': '" + word + "' is not a whole number from " + std::to_string(lo) +
+                                  " to " + std::to_string(hi));
+    return v;
+  };
+  x->n_hot_pixels = static_cast<int32_t>(next(0, SSIU_FLIGHT_MAX_HOT_PIXELS, "the count of hot pixels"));
+  for (int k = 0; k < x->n_hot_pixels; ++k)
+    for (int i = 0; i < 2; ++i)
+      x->hot_pixels_xy[k][i] = static_cast<uint16_t>(next(0, UINT16_MAX, "x y per hot pixel"));
+  std::string extra;
+  if (*ls >> extra) throw InputError(where, "key '" + key + "' has more than its count of hot pixels");
 }
 
 }  // namespace
@@ -99,6 +125,20 @@ ssiu_flight_config FlightConfigFor(const std::vector<OpticalHead>& heads, const 
     const double s = q.w() < 0 ? -1 : 1;
     x.q_body_sensor[0] = s * q.w(), x.q_body_sensor[1] = s * q.x();
     x.q_body_sensor[2] = s * q.y(), x.q_body_sensor[3] = s * q.z();
+    const CameraExtras& e = heads[h].extras;
+    x.vignetting = e.vignetting;
+    if (e.hot_pixels.size() > SSIU_FLIGHT_MAX_HOT_PIXELS)
+      throw InputError("flight config", "head" + std::to_string(h + 1) + ": more than " +
+                                            std::to_string(SSIU_FLIGHT_MAX_HOT_PIXELS) + " hot pixels");
+    x.n_hot_pixels = static_cast<int32_t>(e.hot_pixels.size());
+    for (size_t k = 0; k < e.hot_pixels.size(); ++k) {
+      for (int i = 0; i < 2; ++i) {
+        const int v = e.hot_pixels[k][i];
+        if (v < 0 || v > UINT16_MAX)
+          throw InputError("flight config", "head" + std::to_string(h + 1) + ": hot pixel out of range");
+        x.hot_pixels_xy[k][i] = static_cast<uint16_t>(v);
+      }
+    }
   }
   c.n_gyros = unit.size();
   for (int g = 0; g < unit.size(); ++g) {
@@ -148,6 +188,16 @@ FlightSetup FlightSetupFrom(const ssiu_flight_config& c) {
     if (!q.coeffs().allFinite() || std::abs(q.norm() - 1) > 1e-6)
       throw InputError(src, where + ".q_body_sensor must be a unit quaternion");
     head.q_body_from_sensor = q.normalized();
+    if (!(x.vignetting >= 0 && x.vignetting < 1)) throw InputError(src, where + ".vignetting must be in [0, 1)");
+    head.extras.vignetting = x.vignetting;
+    if (x.n_hot_pixels < 0 || x.n_hot_pixels > SSIU_FLIGHT_MAX_HOT_PIXELS)
+      throw InputError(src, where + ".n_hot_pixels must be 0 to " + std::to_string(SSIU_FLIGHT_MAX_HOT_PIXELS));
+    for (int k = 0; k < x.n_hot_pixels; ++k) {
+      const int px = x.hot_pixels_xy[k][0], py = x.hot_pixels_xy[k][1];
+      if (px >= cam.width || py >= cam.height)
+        throw InputError(src, where + ".hot_pixels_xy[" + std::to_string(k) + "] lies outside the image");
+      head.extras.hot_pixels.push_back({px, py});
+    }
     s.heads.push_back(head);
   }
   for (int g = 0; g < c.n_gyros; ++g) {
@@ -224,6 +274,13 @@ std::string FlightConfigText(const ssiu_flight_config& config) {
         case Kind::kText:
           out << ' ' << (c.epoch_utc[0] ? c.epoch_utc : "-");
           break;
+        case Kind::kHotPixels: {
+          const ssiu_head_config& x = *static_cast<const ssiu_head_config*>(f.p);
+          const int n = std::clamp(x.n_hot_pixels, 0, SSIU_FLIGHT_MAX_HOT_PIXELS);
+          out << ' ' << n;
+          for (int k = 0; k < n; ++k) out << ' ' << x.hot_pixels_xy[k][0] << ' ' << x.hot_pixels_xy[k][1];
+          break;
+        }
       }
     }
     out << '\n';
@@ -250,6 +307,10 @@ ssiu_flight_config ParseFlightConfigText(const std::string& text, const std::str
     for (const Field& x : fields)
       if (x.key == key) f = &x;
     if (!f) throw InputError(where, "unknown key '" + key + "'");
+    if (f->kind == Kind::kHotPixels) {
+      ParseHotPixels(&ls, where, key, static_cast<ssiu_head_config*>(f->p));
+      continue;
+    }
     for (int i = 0; i < f->count; ++i) {
       std::string word;
       if (!(ls >> word)) throw InputError(where, "key '" + key + "' needs " + std::to_string(f->count) + " values");
@@ -279,6 +340,8 @@ ssiu_flight_config ParseFlightConfigText(const std::string& text, const std::str
           std::memset(c.epoch_utc, 0, sizeof c.epoch_utc);
           if (word != "-") std::memcpy(c.epoch_utc, word.data(), word.size());
           end = &word[word.size()];
+          break;
+        case Kind::kHotPixels:  // read whole above
           break;
       }
       if (end == nullptr || *end != '\0' || errno == ERANGE)

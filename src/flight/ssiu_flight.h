@@ -36,6 +36,7 @@ extern "C" {
 #define SSIU_FLIGHT_MAX_HEADS 3
 #define SSIU_FLIGHT_MAX_GYROS 6
 #define SSIU_FLIGHT_MAX_FAULTS 8 /* fault events reported in the state (the first ones) */
+#define SSIU_FLIGHT_MAX_HOT_PIXELS 256 /* known hot pixels listed per head */
 
 typedef enum {
   SSIU_OK = 0,
@@ -104,6 +105,12 @@ typedef struct {
   double k1, k2, k3, p1, p2; /* Brown-Conrady distortion on normalised coordinates (OpenCV's) */
   double gain_e_per_adu;     /* 0 = unknown */
   double q_body_sensor[4];   /* [w, x, y, z]: rotates vectors from this head's sensor frame to the body */
+  /* camera.json's fields beyond the geometry (conventions.md): the flux factor 1 - vignetting (r /
+   * r_corner)^2, taken out of the centroid fluxes before identification (0 = none); the known persistent
+   * hot pixels [x, y], repaired before detection (their map is made at init, in the caller's memory). */
+  double vignetting;
+  int32_t n_hot_pixels; /* 0..SSIU_FLIGHT_MAX_HOT_PIXELS */
+  uint16_t hot_pixels_xy[SSIU_FLIGHT_MAX_HOT_PIXELS][2];
 } ssiu_head_config;
 
 typedef struct {

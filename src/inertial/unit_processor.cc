@@ -68,6 +68,15 @@ void ReserveOutputs(const DetectWorkspace& detect, const IdentifyWorkspace& iden
   }
 }
 
+// A head's known hot pixels (camera.json `hot_pixels`) as its defect map, in `mr`: empty, taking no
+// memory, when it lists none.
+DefectMap HotPixelMap(const OpticalHead& head, std::pmr::memory_resource* mr, const std::string& what) {
+  DefectMap m;
+  UseResource(&m.mask, mr);
+  MarkHotPixels(head.extras.hot_pixels, head.camera.width, head.camera.height, &m, what);
+  return m;
+}
+
 IdentifyWorkspace MakeIdentifyWorkspace(const UnitProcessorOptions& o, std::pmr::memory_resource* mr) {
   return IdentifyWorkspace(std::max(1, o.solve.detect.max_stars), std::max(1, o.max_stars_in_field),
                            std::clamp(o.solve.identify.pattern_centroids, 3, 1000),
@@ -85,6 +94,8 @@ size_t UnitProcessor::WorkspaceBytes(const std::vector<OpticalHead>& heads, cons
     const DetectWorkspace detect(ProcessorDetectLimits(heads, options), &meter);
     const IdentifyWorkspace identify = MakeIdentifyWorkspace(options, &meter);
     const OnlineFusion fusion(unit, options.fuse, &meter);
+    std::vector<DefectMap> hot;
+    for (const OpticalHead& h : heads) hot.push_back(HotPixelMap(h, &meter, "head camera"));
     Detections detections;
     std::vector<Identification> ids(heads.size());
     ReserveOutputs(detect, identify, &meter, &detections, &ids);
@@ -123,14 +134,14 @@ UnitProcessor::UnitProcessor(std::vector<OpticalHead> heads,
     throw InputError("heads", "the unit has 1 to 3 optical heads, not " + std::to_string(heads_.size()));
   }
   if (ids_.size() != heads_.size()) throw InputError("heads", "one star identifier per head is needed");
+  hot_.reserve(heads_.size());
   for (size_t h = 0; h < heads_.size(); ++h) {
     if (!ids_[h]) throw InputError("heads", "head " + std::to_string(h + 1) + " has no star identifier");
     const std::string what = "head " + std::to_string(h + 1) + " camera";
     heads_[h].camera.Check(what);
     const CameraExtras& e = heads_[h].extras;
     if (!(e.vignetting >= 0 && e.vignetting < 1)) throw InputError(what, "vignetting must be in [0, 1)");
-    hot_.emplace_back();  // the known hot pixels repaired before detection (camera.json `hot_pixels`)
-    MarkHotPixels(e.hot_pixels, heads_[h].camera.width, heads_[h].camera.height, &hot_.back(), what);
+    hot_.push_back(HotPixelMap(heads_[h], mr, what));  // repaired before detection
     heads_[h].q_body_from_sensor.normalize();
     mounts_.push_back(heads_[h].q_body_from_sensor);
   }

@@ -245,17 +245,24 @@ TEST(FlightAllocation, CatalogBlobIsSearchedWhereItLies) {
   munmap(rom, rom_bytes);
 }
 
-// The workspaces (detection, identification, the fusion's fault monitors: nearly all the memory) are
-// placed in the caller's block, whose size ssiu_flight_memory_bytes gives exactly: a block 16 bytes
-// short is refused (SSIU_ERR_MEMORY, the handle's text names it) and the heap at init is a small part
-// of what the same processor takes when made on the heap. (The C handle gives the C++ processor's
-// answers: FlightInterface.SameAnswersAsTheProcessorAndNearTheTruth.)
+// The workspaces (detection, identification, the fusion's fault monitors, a head's hot-pixel map:
+// nearly all the memory) are placed in the caller's block, whose size ssiu_flight_memory_bytes gives exactly: a block
+// 16 bytes short is refused (SSIU_ERR_MEMORY, the handle's text names it) and the heap at init is a small part of what
+// the same processor takes when made on the heap. (The C handle gives the C++ processor's answers:
+// FlightInterface.SameAnswersAsTheProcessorAndNearTheTruth.)
 TEST(FlightAllocation, WorkspacesLiveInTheCallersMemory) {
   MissionConfig config = WithUnitKnowledge(DefaultMissionConfig());
   const std::string blob = SolverCatalogBytes(MakeIdentifierForCamera("", config.heads[0].camera, 0.0).catalog());
   ssiu_flight_config c =
       FlightConfigFor(config.heads, config.unit, config.processor, config.start_utc, config.velocity_kms);
   c.catalog_crc32 = Crc32(blob.data(), blob.size());
+  // Head 1 lists known hot pixels: their map (a byte a pixel) is a workspace too, in the block.
+  c.heads[0].vignetting = 0.3;
+  c.heads[0].n_hot_pixels = 40;
+  for (int k = 0; k < 40; ++k) {
+    c.heads[0].hot_pixels_xy[k][0] = static_cast<uint16_t>(12 * k + 5);
+    c.heads[0].hot_pixels_xy[k][1] = static_cast<uint16_t>(500 - 11 * k);
+  }
   const FlightSetup setup = FlightSetupFrom(c);
   const auto id = std::make_shared<const StarIdentifier>(
       ParseSolverCatalog(blob.data(), blob.size(), "blob", /*star_tree=*/false, /*in_place=*/true));

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include "core/csv.h"
 #include "core/json.h"
@@ -23,7 +24,8 @@ std::string DemoProgram() {
 TEST(FlightDemo, ReplaysTheWrittenMissionAsSsiuRunDid) {
   const std::string dir = testing::TempDir("flight_demo");
   std::ofstream(dir + "/ssiu.json") << R"({"seed": 4, "duration_s": 12, "frame_rate_hz": 1, "score_after_s": 4,
-    "heads": [{"camera": {"width": 512, "height": 512, "focal_length_px": 1754.8162132636639}, "q_body_sensor": [1, 0, 0, 0]},
+    "heads": [{"camera": {"width": 512, "height": 512, "focal_length_px": 1754.8162132636639,
+                          "vignetting": 0.2, "hot_pixels": [[10, 20], [300, 301]]}, "q_body_sensor": [1, 0, 0, 0]},
               {"camera": {"width": 512, "height": 512, "focal_length_px": 1754.8162132636639},
                "q_body_sensor": [0.7071067811865476, 0.7071067811865476, 0, 0]}]})";
   const auto run = testing::RunSsiu("run --config " + dir + "/ssiu.json --json " + dir + "/run.json --out " + dir +
@@ -33,6 +35,11 @@ TEST(FlightDemo, ReplaysTheWrittenMissionAsSsiuRunDid) {
                         "frames/head2_00012.pgm", "gyro.csv", "frames.csv", "truth.csv"})
     EXPECT_TRUE(std::filesystem::exists(dir + "/out/" + f)) << f;
   EXPECT_FALSE(std::filesystem::exists(dir + "/out/frames/head1_00013.pgm"));
+  // Head 1's camera extras go with the unit (the replay below uses them as `ssiu run` did).
+  std::stringstream cfg;
+  cfg << std::ifstream(dir + "/out/flight.cfg").rdbuf();
+  EXPECT_THAT(cfg.str(), HasSubstr("head1.vignetting 0.20000000000000001\nhead1.hot_pixels 2 10 20 300 301\n"));
+  EXPECT_THAT(cfg.str(), HasSubstr("head2.vignetting 0\nhead2.hot_pixels 0\n"));
 
   std::string out;
   ASSERT_EQ(testing::Run(DemoProgram() + " " + dir + "/out --json " + dir + "/demo.json --csv " + dir + "/demo.csv",
@@ -102,7 +109,8 @@ TEST(FlightDemo, HeapAllocationsDoNotGrowWithTheFrames) {
   if (testing::Run("valgrind --version", &out) != 0) GTEST_SKIP() << "valgrind not installed (scripts/setup.sh installs it)";
   const std::string dir = testing::TempDir("flight_demo_heap");
   std::ofstream(dir + "/ssiu.json") << R"({"seed": 9, "duration_s": 30, "frame_rate_hz": 2, "score_after_s": 4,
-    "heads": [{"camera": {"width": 512, "height": 512, "focal_length_px": 1754.8162132636639}, "q_body_sensor": [1, 0, 0, 0]},
+    "heads": [{"camera": {"width": 512, "height": 512, "focal_length_px": 1754.8162132636639,
+                          "vignetting": 0.2, "hot_pixels": [[10, 20], [300, 301]]}, "q_body_sensor": [1, 0, 0, 0]},
               {"camera": {"width": 512, "height": 512, "focal_length_px": 1754.8162132636639},
                "q_body_sensor": [0.7071067811865476, 0.7071067811865476, 0, 0]}]})";
   const auto run = testing::RunSsiu("run --config " + dir + "/ssiu.json --out " + dir + "/out --write-frames");

@@ -2,11 +2,12 @@
 // processor on a simulated two-head mission, against the simulator's truth; its configuration text;
 // and a loop that bad inputs cannot break (issue 26 item 6): NaN and out-of-order gyro samples,
 // frames of the wrong size, a corrupt catalog blob at init.
-#include "flight/ssiu_flight.h"
-
+#include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <set>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -14,8 +15,11 @@
 #include "core/output.h"
 #include "flight/flight_config.h"
 #include "flight/flight_print.h"
+#include "flight/ssiu_flight.h"
 #include "identify/star_catalog.h"
+#include "sim/frame_sim.h"
 #include "sim/mission.h"
+#include "testing/sim_frames.h"
 #include "testing/testing.h"
 
 namespace ssiu {
@@ -214,6 +218,52 @@ TEST(FlightInterface, SameAnswersAsTheProcessorAndNearTheTruth) {
   EXPECT_EQ(s.unit_cal_status, SSIU_UNIT_CAL_OFF);  // off by default
 }
 
+// A head's hot pixels and vignetting in the C configuration act as in the C++ processor given the same
+// camera extras (UnitProcessor.HeadHotPixelsAndVignettingAreUsedAsBySolve checks that against `ssiu
+// solve`): a persistent hot pixel on the wing of the frame's brightest star, which only the list keeps
+// out of its centroid, and a vignetted frame.
+TEST(FlightInterface, HeadHotPixelsAndVignettingAsTheProcessor) {
+  const Data& d = TheData();
+  OpticalHead head;
+  head.camera = d.config.heads[0].camera;
+  UnitProcessorOptions po = d.config.processor;
+  const auto id = std::make_shared<const StarIdentifier>(ParseSolverCatalog(d.blob.data(), d.blob.size(), "blob"));
+  for (int i = 0; i < 2; ++i) {
+    FrameSimOptions fo;
+    fo.vignetting = 0.6;
+    SimulatedFrame sf = SimulateFrame(head.camera, testing::Bsc(), RandomAttitude(60 + i), fo, 60 + i);
+    const auto [hx, hy] = testing::HotPixelOnTheBrightestStarsWing(&sf);
+    OpticalHead with = head;
+    with.extras.vignetting = fo.vignetting;
+    with.extras.hot_pixels = {{hx, hy}, {3, 500}};
+    ssiu_flight_config c = FlightConfigFor({with}, d.config.unit, po, "", Vec3::Zero()), plain_c = c;
+    c.catalog_crc32 = plain_c.catalog_crc32 = d.crc;
+    plain_c.heads[0].vignetting = 0;
+    plain_c.heads[0].n_hot_pixels = 0;
+    Handle h(c, d.blob), plain(plain_c, d.blob);
+    ASSERT_EQ(h.rc, SSIU_OK) << h.why();
+    ASSERT_EQ(plain.rc, SSIU_OK) << plain.why();
+    const ssiu_frame frame = FrameOf(sf.image);
+    ssiu_frame_report r, r_plain;
+    ASSERT_EQ(ssiu_flight_frames(h.f, 0.0, &frame, 1, &r), SSIU_OK);
+    ASSERT_EQ(ssiu_flight_frames(plain.f, 0.0, &frame, 1, &r_plain), SSIU_OK);
+    const FlightSetup setup = FlightSetupFrom(c);  // the options as the C configuration carries them
+    UnitProcessor p({with}, {id}, setup.unit, setup.options);
+    const FrameReport want = p.OnFrames(0.0, {sf.image.view()});
+    ASSERT_EQ(want.heads[0].status, SolveStatus::kSolved) << i;
+    ASSERT_EQ(r.heads[0].status, SSIU_SOLVE_SOLVED) << i;
+    ASSERT_EQ(r_plain.heads[0].status, SSIU_SOLVE_SOLVED) << i;
+    EXPECT_EQ(r.heads[0].detections, want.heads[0].detections);
+    EXPECT_EQ(r.heads[0].matches, want.heads[0].matches);
+    EXPECT_LE(AttitudeErrorRad(QuatOf(r.heads[0].q_inertial_from_sensor), want.heads[0].q_inertial_from_sensor),
+              kSameAttitudeRad);
+    // Without them the hot pixel pulls the star's centroid (1e-4 arcsec or more, against 1e-15 rad).
+    EXPECT_GT(AttitudeErrorRad(QuatOf(r_plain.heads[0].q_inertial_from_sensor), want.heads[0].q_inertial_from_sensor) *
+                  kRadToArcsec,
+              1e-4);
+  }
+}
+
 // calibrate_unit 1: the state carries the in-flight unit calibration as the processor reports it
 // (UnitAttitude::unit_calibration), and the attitude stays near the truth.
 TEST(FlightInterface, UnitCalibrationIsInTheState) {
@@ -396,6 +446,52 @@ TEST(FlightConfig, TextRoundTripsAndNamesBadLines) {
   }
   EXPECT_THAT(testing::ErrorOf([] { ParseFlightConfigText("n_heads 2\nhead1.size_px 512\n", "unit.cfg"); }),
               HasSubstr("unit.cfg:2: key 'head1.size_px' needs 2 values"));
+}
+
+// A head's camera.json extras (vignetting, hot_pixels) go into the C configuration, through its text
+// and back; a list the interface cannot hold, or pixels outside the head's image, are refused by name.
+TEST(FlightConfig, HeadVignettingAndHotPixelsRoundTrip) {
+  const Data& d = TheData();
+  std::vector<OpticalHead> heads = d.config.heads;
+  heads[1].extras.vignetting = 0.35;
+  heads[1].extras.hot_pixels = {{0, 0}, {511, 7}, {256, 511}};
+  ssiu_flight_config c = FlightConfigFor(heads, d.config.unit, d.config.processor, "", Vec3::Zero());
+  const std::string text = FlightConfigText(c);
+  EXPECT_THAT(text, HasSubstr("head2.vignetting 0.34999999999999998\n"));
+  EXPECT_THAT(text, HasSubstr("head2.hot_pixels 3 0 0 511 7 256 511\n"));
+  EXPECT_THAT(text, HasSubstr("head1.hot_pixels 0\n"));
+  const FlightSetup s = FlightSetupFrom(ParseFlightConfigText(text, "flight.cfg"));
+  EXPECT_EQ(s.heads[1].extras.vignetting, 0.35);
+  EXPECT_EQ(s.heads[1].extras.hot_pixels, heads[1].extras.hot_pixels);
+  EXPECT_EQ(s.heads[0].extras.vignetting, 0);
+  EXPECT_TRUE(s.heads[0].extras.hot_pixels.empty());
+  // A configuration written before the fields existed reads as none.
+  std::string old_text, line;
+  for (std::istringstream in(text); std::getline(in, line);)
+    if (line.find("vignetting") == std::string::npos && line.find("hot_pixels") == std::string::npos)
+      old_text += line + "\n";
+  EXPECT_TRUE(FlightSetupFrom(ParseFlightConfigText(old_text, "old.cfg")).heads[1].extras.hot_pixels.empty());
+
+  for (const auto& [bad, why] : {std::pair{"head1.hot_pixels 2 1 2 3\n", "flight.cfg:1: key 'head1.hot_pixels' needs"},
+                                 std::pair{"head1.hot_pixels 1 70000 2\n", "'70000' is not a whole number from 0"},
+                                 std::pair{"head1.hot_pixels 257\n", "'257' is not a whole number from 0 to 256"},
+                                 std::pair{"head1.hot_pixels 1 3 4 5\n", "more than its count"},
+                                 std::pair{"head1.hot_pixels 1 2.5 4\n", "'2.5'"}}) {
+    EXPECT_THAT(testing::ErrorOf([&] { ParseFlightConfigText(bad, "flight.cfg"); }), HasSubstr(why)) << bad;
+  }
+  ssiu_flight_config b = c;
+  b.heads[1].hot_pixels_xy[1][0] = 512;  // the image is 512 wide
+  EXPECT_THAT(testing::ErrorOf([&] { FlightSetupFrom(b); }), HasSubstr("head2.hot_pixels_xy[1] lies outside"));
+  EXPECT_EQ(ssiu_flight_check_config(&b), SSIU_ERR_CONFIG);
+  b = c;
+  b.heads[1].vignetting = 1;
+  EXPECT_THAT(testing::ErrorOf([&] { FlightSetupFrom(b); }), HasSubstr("head2.vignetting must be in [0, 1)"));
+  b = c;
+  b.heads[0].n_hot_pixels = SSIU_FLIGHT_MAX_HOT_PIXELS + 1;
+  EXPECT_THAT(testing::ErrorOf([&] { FlightSetupFrom(b); }), HasSubstr("head1.n_hot_pixels must be 0 to 256"));
+  heads[0].extras.hot_pixels.assign(SSIU_FLIGHT_MAX_HOT_PIXELS + 1, {1, 1});
+  EXPECT_THAT(testing::ErrorOf([&] { FlightConfigFor(heads, d.config.unit, d.config.processor, "", Vec3::Zero()); }),
+              HasSubstr("head1: more than 256 hot pixels"));
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include "core/attitude.h"
 #include "inertial/unit_processor.h"
 #include "sim/frame_sim.h"
+#include "testing/sim_frames.h"
 #include "testing/testing.h"
 
 namespace ssiu {
@@ -25,15 +26,7 @@ TEST(UnitProcessor, HeadHotPixelsAndVignettingAreUsedAsBySolve) {
     FrameSimOptions fo;
     fo.vignetting = 0.6;
     SimulatedFrame sf = SimulateFrame(head.camera, testing::Bsc(), q, fo, 40 + i);
-    // A persistent hot pixel on the wing of the brightest star inside the frame, where the detector's
-    // own spike test cannot tell it from the star: only the list keeps it out of the centroid.
-    const auto brightest = std::min_element(sf.stars.begin(), sf.stars.end(), [](const SimStar& a, const SimStar& b) {
-      const auto inside = [](const SimStar& s) { return s.x_px > 5 && s.x_px < 506 && s.y_px > 5 && s.y_px < 506; };
-      return inside(a) && (!inside(b) || a.mag < b.mag);
-    });
-    const int hx = static_cast<int>(std::lround(brightest->x_px)) + 2,
-              hy = static_cast<int>(std::lround(brightest->y_px));
-    sf.image.at(hx, hy) = 30000;
+    const auto [hx, hy] = testing::HotPixelOnTheBrightestStarsWing(&sf);
     OpticalHead h = head;
     h.extras.vignetting = fo.vignetting;
     h.extras.hot_pixels = {{hx, hy}};
