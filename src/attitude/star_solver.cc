@@ -110,6 +110,15 @@ std::vector<Centroid> CentroidsFromDetections(const Detections& d, double sigma_
   return out;
 }
 
+void UseCameraExtras(const CameraExtras& e, DetectOptions* o) {
+  if (o->psf_sigma_px == 0) o->psf_sigma_px = e.psf_sigma_px;
+}
+
+void UseCameraExtras(const CameraExtras& e, SolveOptions* o) {
+  UseCameraExtras(e, &o->detect);
+  o->vignetting = e.vignetting;
+}
+
 void TakeOutVignetting(const Camera& camera, double v, std::vector<Centroid>* centroids) {
   if (!(v > 0)) return;
   for (auto& c : *centroids) c.flux /= std::max(0.05, 1 - v * VignettingRadius2(camera, c.x_px, c.y_px));

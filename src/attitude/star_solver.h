@@ -54,6 +54,14 @@ struct SolveOptions {
   void Check() const;  // throws InputError naming the field
 };
 
+// camera.json's fields beyond the geometry (CameraExtras) as detection and solving use them: its
+// psf_sigma_px is the detector's expected PSF where the options set none (0), so that the matched
+// filter and the interferer tests are made for the optics even on a frame with too few bright stars to
+// measure it; its vignetting is taken out of the fluxes before identification. (Its hot_pixels are the
+// defect map: MarkHotPixels.)
+void UseCameraExtras(const CameraExtras& e, DetectOptions* o);
+void UseCameraExtras(const CameraExtras& e, SolveOptions* o);
+
 // How a frame was identified: lost in space, or by tracking from a predicted attitude (JSON "mode").
 enum class SolveMode { kLostInSpace, kTracking };
 inline const char* SolveModeName(SolveMode m) { return m == SolveMode::kTracking ? "tracking" : "lost_in_space"; }

@@ -23,7 +23,8 @@ struct Opts {
 };
 
 // What camera.json gives beyond the geometry, used as `ssiu solve` uses it (the known hot pixels repaired
-// before detection, the vignetting out of the fluxes); it goes into the calibrated camera unchanged.
+// before detection, the PSF expected, the vignetting out of the fluxes); it goes into the calibrated
+// camera unchanged.
 struct Known {
   DefectMap hot;
   CalibrateOptions cal;
@@ -32,7 +33,7 @@ Known KnownOf(const CameraExtras& e, const Camera& cam, const CalibrateOptions& 
   Known k;
   MarkHotPixels(e.hot_pixels, cam.width, cam.height, &k.hot);
   k.cal = cal;
-  k.cal.solve.vignetting = e.vignetting;
+  UseCameraExtras(e, &k.cal.solve);
   return k;
 }
 

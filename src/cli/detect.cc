@@ -7,6 +7,7 @@
 #include <iostream>
 #include <memory>
 
+#include "attitude/star_solver.h"
 #include "cli/batch.h"
 #include "cli/command.h"
 #include "cli/smear_flags.h"
@@ -58,6 +59,7 @@ Setup Prepare(const Opts& o) {
                                       Size(s.cam.width, s.cam.height));
     }
     MarkHotPixels(e.hot_pixels, s.cam.width, s.cam.height, &s.map);
+    UseCameraExtras(e, &s.opt);  // its psf_sigma_px where --psf-sigma-px is not given
   }
   if (o.gain_e_per_adu > 0) s.opt.gain_e_per_adu = o.gain_e_per_adu;
   s.opt.smear = SmearFromFlags(o.smear, o.camera.empty() ? nullptr : &s.cam);
@@ -150,7 +152,8 @@ SSIU_REGISTER_COMMAND(detect, [](CLI::App& root) {
   cmd->add_option("--dark", o->dark, "Dark or median frame to subtract first (same camera and size)");
   cmd->add_option("--json", o->json, "Output JSON file, - for stdout");
   cmd->add_option("--threshold-sigma", o->threshold_sigma, "Detection threshold (matched-filter sigmas)");
-  cmd->add_option("--psf-sigma-px", o->psf_sigma_px, "Expected PSF sigma (0 = estimate)");
+  cmd->add_option("--psf-sigma-px", o->psf_sigma_px,
+                  "Expected PSF sigma (0 = camera.json's psf_sigma_px when given, else estimated from the frame)");
   cmd->add_option("--gain-e-per-adu", o->gain_e_per_adu, "Detector gain for shot-noise weights");
   cmd->add_option("--max-stars", o->max_stars,
                   "Report at most this many stars, brightest first (0: no cap, a deep search)");

@@ -89,7 +89,7 @@ StarIdentifier MakeIdentifier(const Opts& o, const Camera& cam) {
 struct SolveCamera {
   Camera cam;
   DefectMap hot;  // empty when camera.json lists none
-  double vignetting = 0;
+  CameraExtras extras;
 };
 SolveCamera LoadSolveCamera(const Opts& o) {
   if (o.camera.empty()) throw InputError("--camera", "required (camera.json)");
@@ -97,9 +97,8 @@ SolveCamera LoadSolveCamera(const Opts& o) {
   const Json j = ReadJsonFile(o.camera);
   SolveCamera s;
   s.cam = CameraFromJson(j, o.camera, io.FovRange() ? std::sqrt(io.fov_min_deg * io.fov_max_deg) : 0.0);
-  const CameraExtras e = CameraExtrasFromJson(j, s.cam, o.camera);
-  MarkHotPixels(e.hot_pixels, s.cam.width, s.cam.height, &s.hot);
-  s.vignetting = e.vignetting;
+  s.extras = CameraExtrasFromJson(j, s.cam, o.camera);
+  MarkHotPixels(s.extras.hot_pixels, s.cam.width, s.cam.height, &s.hot);
   return s;
 }
 
@@ -118,7 +117,7 @@ SolveResult SolveInput(const Opts& o, const StarIdentifier& id, const SolveCamer
                        bool centroids, const Frame* dark, Frame* fr) {
   const Camera& cam = sc.cam;
   SolveOptions so = o.solve;
-  so.vignetting = sc.vignetting;
+  UseCameraExtras(sc.extras, &so);
   if (centroids) {
     RefuseSmearFlags(o.smear, "needs a frame, not --centroids");
     so.sky = SkyFromFlags(o.sky, nullptr);
@@ -253,10 +252,10 @@ void RunHeads(const Opts& o) {
     mounts.push_back(hs[h].q_body_from_sensor);
     const StarIdentifier id = MakeIdentifier(o, cam);
     const Frame fr = ReadFrame(o.frames[h]);
-    DefectMap hot;  // the head's known hot pixels and vignetting, as for one camera
+    DefectMap hot;  // the head's known hot pixels, vignetting and PSF, as for one camera
     MarkHotPixels(hs[h].extras.hot_pixels, cam.width, cam.height, &hot);
     SolveOptions so = o.solve;
-    so.vignetting = hs[h].extras.vignetting;
+    UseCameraExtras(hs[h].extras, &so);
     so.detect.saturation_adu = fr.saturation_adu;
     so.sky = SkyFromFlags(o.sky, &fr);
     if (o.smear.given()) {

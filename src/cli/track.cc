@@ -48,7 +48,7 @@ SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
     if (!(o->dt_s > 0) || !std::isfinite(o->dt_s)) throw InputError("--dt-s", "must be a finite number > 0");
     const Json cam_json = ReadJsonFile(o->camera);
     const Camera cam = CameraFromJson(cam_json, o->camera);
-    // camera.json's known hot pixels and vignetting, used as `ssiu solve` uses them.
+    // camera.json's known hot pixels, vignetting and PSF, used as `ssiu solve` uses them.
     const CameraExtras extras = CameraExtrasFromJson(cam_json, cam, o->camera);
     DefectMap hot;
     MarkHotPixels(extras.hot_pixels, cam.width, cam.height, &hot);
@@ -66,13 +66,14 @@ SSIU_REGISTER_COMMAND(track, [](CLI::App& root) {
       if (fr.image.width != cam.width || fr.image.height != cam.height)
         throw InputError(o->frames[k], "image size differs from " + o->camera);
       DetectOptions dopt = o->solve.detect;
+      UseCameraExtras(extras, &dopt);
       dopt.saturation_adu = fr.saturation_adu;
       dopt.smear = smear;
       if (dopt.gain_e_per_adu == 0) dopt.gain_e_per_adu = cam.gain_e_per_adu;
       const Detections det = Detect(fr.image.view(), dopt, &hot);
       if (!tracker) {
         SolveOptions so = o->solve;
-        so.vignetting = extras.vignetting;
+        UseCameraExtras(extras, &so);
         so.sky = SkyFromFlags(o->sky, &fr);
         tracker = std::make_unique<Tracker>(id, cam, so);
         t0 = so.sky.time;

@@ -56,6 +56,7 @@ std::vector<Field> Fields(ssiu_flight_config* c) {
     f.push_back({p + "distortion_k1_k2_k3_p1_p2", Kind::kDouble, &x.k1, 5});
     f.push_back({p + "gain_e_per_adu", Kind::kDouble, &x.gain_e_per_adu, 1});
     f.push_back({p + "q_body_sensor", Kind::kDouble, x.q_body_sensor, 4});
+    f.push_back({p + "psf_sigma_px", Kind::kDouble, &x.psf_sigma_px, 1});
     f.push_back({p + "vignetting", Kind::kDouble, &x.vignetting, 1});
     f.push_back({p + "hot_pixels", Kind::kHotPixels, &x, 1});
   }
@@ -126,6 +127,7 @@ ssiu_flight_config FlightConfigFor(const std::vector<OpticalHead>& heads, const 
     x.q_body_sensor[0] = s * q.w(), x.q_body_sensor[1] = s * q.x();
     x.q_body_sensor[2] = s * q.y(), x.q_body_sensor[3] = s * q.z();
     const CameraExtras& e = heads[h].extras;
+    x.psf_sigma_px = e.psf_sigma_px;
     x.vignetting = e.vignetting;
     if (e.hot_pixels.size() > SSIU_FLIGHT_MAX_HOT_PIXELS)
       throw InputError("flight config", "head" + std::to_string(h + 1) + ": more than " +
@@ -190,6 +192,9 @@ FlightSetup FlightSetupFrom(const ssiu_flight_config& c) {
     head.q_body_from_sensor = q.normalized();
     if (!(x.vignetting >= 0 && x.vignetting < 1)) throw InputError(src, where + ".vignetting must be in [0, 1)");
     head.extras.vignetting = x.vignetting;
+    if (!(x.psf_sigma_px >= 0 && x.psf_sigma_px < 50))
+      throw InputError(src, where + ".psf_sigma_px must be in [0, 50)");
+    head.extras.psf_sigma_px = x.psf_sigma_px;
     if (x.n_hot_pixels < 0 || x.n_hot_pixels > SSIU_FLIGHT_MAX_HOT_PIXELS)
       throw InputError(src, where + ".n_hot_pixels must be 0 to " + std::to_string(SSIU_FLIGHT_MAX_HOT_PIXELS));
     for (int k = 0; k < x.n_hot_pixels; ++k) {

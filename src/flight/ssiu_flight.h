@@ -105,9 +105,11 @@ typedef struct {
   double k1, k2, k3, p1, p2; /* Brown-Conrady distortion on normalised coordinates (OpenCV's) */
   double gain_e_per_adu;     /* 0 = unknown */
   double q_body_sensor[4];   /* [w, x, y, z]: rotates vectors from this head's sensor frame to the body */
-  /* camera.json's fields beyond the geometry (conventions.md): the flux factor 1 - vignetting (r /
-   * r_corner)^2, taken out of the centroid fluxes before identification (0 = none); the known persistent
-   * hot pixels [x, y], repaired before detection (their map is made at init, in the caller's memory). */
+  /* camera.json's fields beyond the geometry (conventions.md): the PSF's Gaussian sigma the detector
+   * expects (0 = measured on each frame); the flux factor 1 - vignetting (r / r_corner)^2, taken out of
+   * the centroid fluxes before identification (0 = none); the known persistent hot pixels [x, y],
+   * repaired before detection (their map is made at init, in the caller's memory). */
+  double psf_sigma_px;
   double vignetting;
   int32_t n_hot_pixels; /* 0..SSIU_FLIGHT_MAX_HOT_PIXELS */
   uint16_t hot_pixels_xy[SSIU_FLIGHT_MAX_HOT_PIXELS][2];

@@ -180,6 +180,7 @@ void UnitProcessor::SolveHead(int h, double t_s, const ImageView& image, Identif
     return;
   }
   DetectOptions dopt = so.detect;
+  UseCameraExtras(head.extras, &dopt);  // camera.json's psf_sigma_px, as `ssiu solve`
   if (dopt.gain_e_per_adu == 0) dopt.gain_e_per_adu = head.camera.gain_e_per_adu;
   if (dopt.smear.exposure_s > 0 && have_gyro_) {
     // Motion during the exposure: the body rate of the last gyro sample (gyros in use, faults

@@ -231,10 +231,10 @@ class Solver {
     ApplyOptions(kwargs, SolverSetters(&config_), "Solver");
     config_.solve.Check();
     const IdentifyOptions& io = config_.solve.identify;
-    CameraExtras extras;  // as `ssiu solve`: known hot pixels repaired, the vignetting out of the fluxes
+    CameraExtras extras;  // as `ssiu solve`: known hot pixels repaired, the PSF expected, the vignetting out
     camera_ = CameraFrom(camera, io.FovRange() ? std::sqrt(io.fov_min_deg * io.fov_max_deg) : 0.0, &extras);
     MarkHotPixels(extras.hot_pixels, camera_.width, camera_.height, &hot_);
-    config_.solve.vignetting = extras.vignetting;
+    UseCameraExtras(extras, &config_.solve);
     id_ = std::make_shared<StarIdentifier>(
         MakeIdentifierFor(config_.catalog, camera_, io, config_.mag_max, config_.source));
   }
@@ -367,6 +367,7 @@ py::object DetectPy(const py::object& image, const py::object& camera, const py:
     CheckFrameMatchesCamera(f.view, cam);
     if (!kwargs.contains("gain_e_per_adu")) o.gain_e_per_adu = cam.gain_e_per_adu;
     MarkHotPixels(extras.hot_pixels, cam.width, cam.height, &hot);
+    UseCameraExtras(extras, &o);  // its psf_sigma_px unless psf_sigma_px is given
   }
   o.Check();
   Detections d;

@@ -264,5 +264,53 @@ TEST_F(CliTest, CameraHotPixelsAreRepairedBeforeDetection) {
   EXPECT_EQ(listed["all_stars"], plain["all_stars"] - plain["star"]);
 }
 
+// camera.json's `psf_sigma_px` is the PSF the detector expects: on defocused optics (sigma 2.4 px) with
+// few bright stars the frame's own estimate falls back to 1.2 px or comes out high, and the matched filter
+// made for the wrong PSF misses faint stars; with the camera's PSF more of the simulator's stars are found
+// and matched, with no more false detections. --psf-sigma-px still overrides it.
+TEST_F(CliTest, CameraPsfSigmaIsTheDetectorsExpectedPsf) {
+  Write("cam.json", R"({"width": 512, "height": 512, "focal_length_px": 1754.8162132636639})");
+  ASSERT_EQ(Ssiu("simulate frame --camera " + Path("cam.json") +
+                 " --random --seed 5 --count 6 --psf-sigma-px 2.4 --exposure-s 0.03 --out " + Path("f"))
+                .status,
+            0);
+  Json cam = ReadJsonFile(Path("cam.json"));
+  cam["psf_sigma_px"] = 2.4;
+  Write("cam_psf.json", cam.dump());
+  int found[2] = {0, 0}, spurious[2] = {0, 0}, matched[2] = {0, 0};
+  for (int i = 0; i < 6; ++i) {
+    const std::string f = Path("f/frame_000" + std::to_string(i));
+    const Json truth = ReadJsonFile(f + ".json");
+    for (int k = 0; k < 2; ++k) {
+      const std::string c = Path(k == 0 ? "cam.json" : "cam_psf.json");
+      ASSERT_EQ(Ssiu("detect " + f + ".png --camera " + c + " --json " + f + ".det.json").status, 0);
+      const Json d = ReadJsonFile(f + ".det.json");
+      if (k == 1) {
+        EXPECT_EQ(d["psf_sigma_px"], 2.4);
+      }
+      for (const auto& s : d["stars"]) {
+        bool star = false;
+        for (const auto& t : truth["stars"]) {
+          star |= std::hypot(s["x_px"].get<double>() - t["x_px"].get<double>(),
+                             s["y_px"].get<double>() - t["y_px"].get<double>()) < 1.0;
+        }
+        ++(star ? found : spurious)[k];
+      }
+      ASSERT_EQ(Ssiu("solve " + f + ".png --camera " + c + " --json " + f + ".solve.json").status, 0);
+      const Json r = ReadJsonFile(f + ".solve.json");
+      if (r["status"] == "solved") matched[k] += static_cast<int>(r["matches"].size());
+    }
+  }
+  std::printf("stars found %d -> %d, spurious %d -> %d, matched %d -> %d (frame's PSF -> camera's)\n", found[0],
+              found[1], spurious[0], spurious[1], matched[0], matched[1]);
+  EXPECT_GT(found[1], found[0] * 11 / 10);
+  EXPECT_LE(spurious[1], spurious[0] + 3);
+  EXPECT_GT(matched[1], matched[0] * 11 / 10);
+  const Result flag = Ssiu("detect " + Path("f/frame_0000.png") + " --camera " + Path("cam_psf.json") +
+                           " --psf-sigma-px 1.5 --json " + Path("flag.json"));
+  ASSERT_EQ(flag.status, 0) << flag.output;
+  EXPECT_EQ(ReadJsonFile(Path("flag.json"))["psf_sigma_px"], 1.5);
+}
+
 }  // namespace
 }  // namespace ssiu

@@ -235,10 +235,11 @@ TEST(FlightInterface, HeadHotPixelsAndVignettingAsTheProcessor) {
     const auto [hx, hy] = testing::HotPixelOnTheBrightestStarsWing(&sf);
     OpticalHead with = head;
     with.extras.vignetting = fo.vignetting;
+    with.extras.psf_sigma_px = 1.25;
     with.extras.hot_pixels = {{hx, hy}, {3, 500}};
     ssiu_flight_config c = FlightConfigFor({with}, d.config.unit, po, "", Vec3::Zero()), plain_c = c;
     c.catalog_crc32 = plain_c.catalog_crc32 = d.crc;
-    plain_c.heads[0].vignetting = 0;
+    plain_c.heads[0].vignetting = plain_c.heads[0].psf_sigma_px = 0;
     plain_c.heads[0].n_hot_pixels = 0;
     Handle h(c, d.blob), plain(plain_c, d.blob);
     ASSERT_EQ(h.rc, SSIU_OK) << h.why();
@@ -448,27 +449,30 @@ TEST(FlightConfig, TextRoundTripsAndNamesBadLines) {
               HasSubstr("unit.cfg:2: key 'head1.size_px' needs 2 values"));
 }
 
-// A head's camera.json extras (vignetting, hot_pixels) go into the C configuration, through its text
+// A head's camera.json extras (psf_sigma_px, vignetting, hot_pixels) go into the C configuration, through its text
 // and back; a list the interface cannot hold, or pixels outside the head's image, are refused by name.
 TEST(FlightConfig, HeadVignettingAndHotPixelsRoundTrip) {
   const Data& d = TheData();
   std::vector<OpticalHead> heads = d.config.heads;
   heads[1].extras.vignetting = 0.35;
+  heads[1].extras.psf_sigma_px = 2.5;
   heads[1].extras.hot_pixels = {{0, 0}, {511, 7}, {256, 511}};
   ssiu_flight_config c = FlightConfigFor(heads, d.config.unit, d.config.processor, "", Vec3::Zero());
   const std::string text = FlightConfigText(c);
-  EXPECT_THAT(text, HasSubstr("head2.vignetting 0.34999999999999998\n"));
+  EXPECT_THAT(text, HasSubstr("head2.psf_sigma_px 2.5\nhead2.vignetting 0.34999999999999998\n"));
   EXPECT_THAT(text, HasSubstr("head2.hot_pixels 3 0 0 511 7 256 511\n"));
   EXPECT_THAT(text, HasSubstr("head1.hot_pixels 0\n"));
   const FlightSetup s = FlightSetupFrom(ParseFlightConfigText(text, "flight.cfg"));
   EXPECT_EQ(s.heads[1].extras.vignetting, 0.35);
+  EXPECT_EQ(s.heads[1].extras.psf_sigma_px, 2.5);
   EXPECT_EQ(s.heads[1].extras.hot_pixels, heads[1].extras.hot_pixels);
   EXPECT_EQ(s.heads[0].extras.vignetting, 0);
   EXPECT_TRUE(s.heads[0].extras.hot_pixels.empty());
   // A configuration written before the fields existed reads as none.
   std::string old_text, line;
   for (std::istringstream in(text); std::getline(in, line);)
-    if (line.find("vignetting") == std::string::npos && line.find("hot_pixels") == std::string::npos)
+    if (line.find("vignetting") == std::string::npos && line.find("hot_pixels") == std::string::npos &&
+        line.find("psf_sigma") == std::string::npos)
       old_text += line + "\n";
   EXPECT_TRUE(FlightSetupFrom(ParseFlightConfigText(old_text, "old.cfg")).heads[1].extras.hot_pixels.empty());
 
@@ -486,6 +490,9 @@ TEST(FlightConfig, HeadVignettingAndHotPixelsRoundTrip) {
   b = c;
   b.heads[1].vignetting = 1;
   EXPECT_THAT(testing::ErrorOf([&] { FlightSetupFrom(b); }), HasSubstr("head2.vignetting must be in [0, 1)"));
+  b = c;
+  b.heads[1].psf_sigma_px = -1;
+  EXPECT_THAT(testing::ErrorOf([&] { FlightSetupFrom(b); }), HasSubstr("head2.psf_sigma_px must be in [0, 50)"));
   b = c;
   b.heads[0].n_hot_pixels = SSIU_FLIGHT_MAX_HOT_PIXELS + 1;
   EXPECT_THAT(testing::ErrorOf([&] { FlightSetupFrom(b); }), HasSubstr("head1.n_hot_pixels must be 0 to 256"));

@@ -29,6 +29,7 @@ TEST(UnitProcessor, HeadHotPixelsAndVignettingAreUsedAsBySolve) {
     const auto [hx, hy] = testing::HotPixelOnTheBrightestStarsWing(&sf);
     OpticalHead h = head;
     h.extras.vignetting = fo.vignetting;
+    h.extras.psf_sigma_px = 1.25;  // the detector's expected PSF (the frame's own estimate otherwise)
     h.extras.hot_pixels = {{hx, hy}};
     DefectMap hot;
     MarkHotPixel(hx, hy, 512, 512, &hot);
@@ -37,7 +38,7 @@ TEST(UnitProcessor, HeadHotPixelsAndVignettingAreUsedAsBySolve) {
     UnitProcessor p({h}, {id}, DefaultFourFogUnit(), po), plain({head}, {id}, DefaultFourFogUnit(), po);
     const FrameReport r = p.OnFrames(0.0, {sf.image.view()}), r_plain = plain.OnFrames(0.0, {sf.image.view()});
     SolveOptions so = po.solve;
-    so.vignetting = fo.vignetting;
+    UseCameraExtras(h.extras, &so);
     const SolveResult s = SolveFrame(*id, sf.image.view(), head.camera, so, &hot);
     ASSERT_EQ(r.heads[0].status, s.status) << "frame " << i;
     ASSERT_EQ(r_plain.heads[0].status, SolveStatus::kSolved) << "frame " << i;

@@ -199,12 +199,12 @@ def test_unknown_field_of_view_equals_the_cli(sky, tmp_path):
 
 
 def test_camera_vignetting_and_hot_pixels_are_used_as_by_the_cli(sky):
-    """camera.json's `vignetting` and `hot_pixels` (a fitted camera of `discover frames`): the Solver,
+    """camera.json's `vignetting`, `hot_pixels` and `psf_sigma_px` (a fitted camera of `discover frames`): the Solver,
     the Tracker and detect use them as the CLI does (same photometric factor, same matches, the same
     rejections), and they change the answer."""
     cam = json.loads((sky / "f" / "camera.json").read_text())
     truth = json.loads((sky / "f" / "frame_0000.json").read_text())
-    model = dict(cam, vignetting=0.5,
+    model = dict(cam, vignetting=0.5, psf_sigma_px=1.25,
                  hot_pixels=[[round(a["x_px"]), round(a["y_px"])] for a in truth["artefacts"]
                              if a["type"] == "hot_pixel"])
     path = sky / "cam_model.json"
@@ -229,3 +229,6 @@ def test_camera_vignetting_and_hot_pixels_are_used_as_by_the_cli(sky):
     reasons = [r["reason"] for r in py_det["rejected"]]
     assert reasons.count("defect_map") >= len(model["hot_pixels"]) - 1
     assert reasons == [r["reason"] for r in cli_det["rejected"]]
+    # Its psf_sigma_px is the detector's expected PSF in both (the frame's own estimate otherwise).
+    assert py_det["psf_sigma_px"] == cli_det["psf_sigma_px"] == 1.25
+    assert ssiu.detect(frame(sky, 0), cam)["psf_sigma_px"] != pytest.approx(1.25, abs=1e-3)
