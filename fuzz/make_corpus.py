@@ -124,3 +124,9 @@ put("adm", "acm.xml", '<?xml version="1.0"?>\n<!-- c -->\n<ndm><acm id="CCSDS_AC
 
 put("centroids", "centroids.csv", "x_px,y_px,flux,sigma_px\n10.5,20.25,1000,0.1\n300,400.5,250,0.2\n")
 put("centroids", "xy.csv", "x_px,y_px\n1,2\n3,4\n")
+
+put("flight_cfg", "flight.cfg", "# a unit\nn_heads 2\nn_gyros 4\nhead1.size_px 512 512\nhead1.focal_length_px 1754.8\n"
+    "head1.principal_point_px 255.5 255.5\nhead1.psf_sigma_px 1.4\nhead1.vignetting 0.25\n"
+    "head1.hot_pixels 3 10 20 511 0 7 7\nhead2.hot_pixels 0\nhead2.q_body_sensor 0.7071067811865476 0.7071067811865476 0 0\n"
+    "gyro2.axis_body 0 1 0\nepoch_utc 2025-06-21T00:00:00Z\nvelocity_kms 1 2 3\ncatalog_crc32 12345\ncalibrate_unit 1\n")
+put("flight_cfg", "bad.cfg", "n_heads 1\nhead1.hot_pixels 2 1 2\n")

@@ -45,7 +45,7 @@ if [ "${SSIU_SKIP_FUZZ:-0}" != "1" ]; then
       "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1" -DSSIU_FUZZ=ON -DSSIU_BUILD_TESTS=OFF -DSSIU_BUILD_BENCH=OFF \
       -DSSIU_BUILD_LONGTESTS=OFF -DSSIU_WERROR=OFF >/dev/null
   fi
-  cmake --build $fuzz_build -j"$jobs" --target fuzz_image fuzz_csv fuzz_json fuzz_centroids fuzz_flight fuzz_adm
+  cmake --build $fuzz_build -j"$jobs" --target fuzz_image fuzz_csv fuzz_json fuzz_centroids fuzz_flight fuzz_flight_cfg fuzz_adm
   # One harness a core at a time (each runs in one process), each one's output printed when it ends.
   fuzz() {
     local work rc
@@ -57,7 +57,7 @@ if [ "${SSIU_SKIP_FUZZ:-0}" != "1" ]; then
     rm -rf "$work" "$work.log"
     return $rc
   }
-  harnesses=(image csv json centroids flight adm)
+  harnesses=(image csv json centroids flight flight_cfg adm)
   failed=""
   for ((i = 0; i < ${#harnesses[@]}; i += jobs)); do
     pids=()
