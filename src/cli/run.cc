@@ -82,6 +82,16 @@ SSIU_REGISTER_COMMAND(run, [](CLI::App& root) {
       return;
     }
     if (opts->write_frames && opts->out.empty()) throw ssiu::InputError("--write-frames", "needs --out DIR");
+    if (opts->write_frames) {  // a unit the flight interface cannot carry is refused before the mission runs
+      const ssiu::MissionConfig known = ssiu::WithUnitKnowledge(config);
+      try {
+        ssiu::FlightSetupFrom(
+            ssiu::FlightConfigFor(known.heads, known.unit, known.processor, known.start_utc, known.velocity_kms));
+      } catch (const ssiu::InputError& e) {
+        throw ssiu::InputError(opts->config.empty() ? "--write-frames" : opts->config,
+                               std::string(e.what()) + " (the flight interface, --write-frames)");
+      }
+    }
     if (!opts->out.empty()) {  // before the mission runs, and as bad input (not a filesystem exception)
       std::error_code ec;
       std::filesystem::create_directories(opts->out, ec);

@@ -10,6 +10,7 @@
 
 #include "core/csv.h"
 #include "core/json.h"
+#include "flight/ssiu_flight.h"
 #include "testing/testing.h"
 
 namespace ssiu {
@@ -70,6 +71,29 @@ TEST(FlightDemo, ReplaysTheWrittenMissionAsSsiuRunDid) {
   // A directory without flight.cfg: one line naming the file, exit 1.
   EXPECT_EQ(testing::Run(DemoProgram() + " " + dir, &out), 1);
   EXPECT_THAT(out, HasSubstr("flight.cfg"));
+}
+
+// A head listing more hot pixels than the C configuration holds: `ssiu run --write-frames` says so in one
+// line naming the mission file, exit 1, before the mission runs (no frame written).
+TEST(FlightDemo, UnitTheInterfaceCannotCarryIsRefusedBeforeTheRun) {
+  const std::string dir = testing::TempDir("flight_demo_hot");
+  Json hot = Json::array();
+  for (int k = 0; k < SSIU_FLIGHT_MAX_HOT_PIXELS + 1; ++k) hot.push_back({k % 500, 1 + k / 500});
+  const Json mission = {
+      {"seed", 4},
+      {"duration_s", 4},
+      {"frame_rate_hz", 1},
+      {"score_after_s", 2},
+      {"heads",
+       {{{"camera", {{"width", 512}, {"height", 512}, {"focal_length_px", 1754.8162132636639}, {"hot_pixels", hot}}},
+         {"q_body_sensor", {1, 0, 0, 0}}}}}};
+  std::ofstream(dir + "/ssiu.json") << mission.dump();
+  const auto run = testing::RunSsiu("run --config " + dir + "/ssiu.json --out " + dir + "/out --write-frames");
+  EXPECT_EQ(run.status, 1);
+  EXPECT_THAT(run.output, HasSubstr(dir + "/ssiu.json: flight config: head1: more than 256 hot pixels"));
+  EXPECT_FALSE(std::filesystem::exists(dir + "/out/frames"));
+  // Without --write-frames the C++ processor takes the list.
+  EXPECT_EQ(testing::RunSsiu("run --config " + dir + "/ssiu.json").status, 0);
 }
 
 // From outside the process (issue 26's acceptance): valgrind's count of the demo's heap allocations
