@@ -481,7 +481,8 @@ TEST(FlightConfig, HeadVignettingAndHotPixelsRoundTrip) {
                                  std::pair{"head1.hot_pixels 257\n", "'257' is not a whole number from 0 to 256"},
                                  std::pair{"head1.hot_pixels 1 3 4 5\n", "more than its count"},
                                  std::pair{"head1.hot_pixels 1 2.5 4\n", "'2.5'"}}) {
-    EXPECT_THAT(testing::ErrorOf([&] { ParseFlightConfigText(bad, "flight.cfg"); }), HasSubstr(why)) << bad;
+    const std::string text_bad = bad;  // (a structured binding cannot be captured in C++17)
+    EXPECT_THAT(testing::ErrorOf([&] { ParseFlightConfigText(text_bad, "flight.cfg"); }), HasSubstr(why)) << bad;
   }
   ssiu_flight_config b = c;
   b.heads[1].hot_pixels_xy[1][0] = 512;  // the image is 512 wide

@@ -8,6 +8,7 @@
 
 #include "attitude/star_solver.h"
 #include "core/attitude.h"
+#include "core/error.h"
 #include "inertial/unit_processor.h"
 #include "sim/frame_sim.h"
 #include "testing/sim_frames.h"
