@@ -649,9 +649,10 @@ void FitCandidates(const ImageView& img, const ImageView& view, const Background
 }
 
 // Step 5c: the frame's PSF width, the median fitted sigma of the brightest unsaturated, isolated
-// sources that are not single-pixel sharp (or as given).
+// sources that are not single-pixel sharp (or as given; psf_guess when fewer than 3); *source says which.
 double FramePsfSigma(const ScratchVec<Candidate>& cands, const ScratchVec<Peak>& peaks, double given_px,
-                     double psf_guess, ScratchVec<std::pair<double, double>>* bright_buffer) {
+                     double psf_guess, ScratchVec<std::pair<double, double>>* bright_buffer, const char** source) {
+  *source = given_px > 0 ? "given" : "assumed";
   if (given_px > 0) return given_px;
   ScratchVec<std::pair<double, double>>& bright = *bright_buffer;  // (peak above background, sigma)
   bright.clear();
@@ -664,6 +665,7 @@ double FramePsfSigma(const ScratchVec<Candidate>& cands, const ScratchVec<Peak>&
   std::sort(bright.begin(), bright.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
   if (bright.size() > 25) bright.resize(25);
   if (bright.size() < 3) return psf_guess;
+  *source = "measured";
   // The upper median of the sigmas (core/stats.h Median), selected in place.
   std::array<double, 25> s;
   for (size_t k = 0; k < bright.size(); ++k) s[k] = bright[k].second;
@@ -932,6 +934,7 @@ DetectStatus Detect(const ImageView& view, const DetectOptions& opt, const Defec
   const auto t_start = now();
   out->width = out->height = 0;
   out->background_adu = out->noise_adu = out->psf_sigma_px = 0;
+  out->psf_source = "assumed";
   out->block_artefact_ratio = 1, out->block_artefacts = false;
   out->stars.clear();
   out->rejected.clear();
@@ -1011,7 +1014,7 @@ DetectStatus Detect(const ImageView& view, const DetectOptions& opt, const Defec
   const int max_half_px = lim.grow ? 0 : (lim.max_fit_window_px - 1) / 2;
   FitCandidates(img, view, bg, opt, psf_guess, bp, ps, bad, max_fits, max_half_px, &bu.fits, clamped);
   const ScratchVec<Candidate>& cands = bu.fits.cands;
-  const double psf = FramePsfSigma(cands, bp.peaks, opt.psf_sigma_px, psf_guess, &bu.bright);
+  const double psf = FramePsfSigma(cands, bp.peaks, opt.psf_sigma_px, psf_guess, &bu.bright, &out->psf_source);
   out->psf_sigma_px = psf;
   const double sharp_ratio = std::clamp(0.45 * DiagonalRatio(psf), 0.02, 0.3);
   ScratchVec<uint8_t>& blob_reported = bu.blob_reported;  // one track/streak rejection per blob

@@ -104,6 +104,10 @@ struct Detections {
   double block_artefact_ratio = 1;
   bool block_artefacts = false;
   double psf_sigma_px = 0;           // PSF sigma used (estimated or given)
+  // Where it came from (JSON "psf_source"): "given" (DetectOptions::psf_sigma_px: the flag or the camera's),
+  // "measured" (the median of the bright isolated stars' fits), or "assumed": fewer than 3 such stars, so
+  // the 1.2 px default, which the frame could not confirm.
+  const char* psf_source = "assumed";
   // (ScratchVec: the flight core keeps its lists in the caller's memory, core/arena.h.)
   ScratchVec<StarDetection> stars;  // brightest first
   ScratchVec<Rejection> rejected;

@@ -10,6 +10,7 @@ Json DetectionsToJson(const Detections& d, const std::string& file, double scale
   j["background_adu"] = d.background_adu * scale + offset;
   j["noise_adu"] = d.noise_adu * scale;
   j["psf_sigma_px"] = d.psf_sigma_px;
+  j["psf_source"] = d.psf_source;
   j["block_artefacts"] = d.block_artefacts;  // JPEG's 8x8 blocks seen (docs/detection.md)
   j["block_artefact_ratio"] = d.block_artefact_ratio;
   Json stars = Json::array();
