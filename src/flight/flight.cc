@@ -322,6 +322,8 @@ ssiu_result ssiu_flight_frames(ssiu_flight* f, double t_s, const ssiu_frame* fra
     o.matches = hr.matches;
     o.sigma_cross_arcsec = hr.sigma_cross_arcsec;
     o.sigma_roll_arcsec = hr.sigma_roll_arcsec;
+    o.false_match_probability = hr.false_match_probability;
+    o.photometric_factor = hr.photometric_factor;
     if (hr.status == ssiu::SolveStatus::kSolved) Store(hr.q_inertial_from_sensor, o.q_inertial_from_sensor);
   }
   r.status = SolveCode(fr.status);

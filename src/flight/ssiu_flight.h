@@ -167,6 +167,9 @@ typedef struct {
   int32_t matches;    /* stars matched to the catalog */
   double sigma_cross_arcsec, sigma_roll_arcsec;
   double q_inertial_from_sensor[4]; /* when solved */
+  /* The identification's chance probability of its matches (below max_false_match_prob when solved) and its
+   * photometric evidence factor (1 = none), as `ssiu solve` reports them: telemetry of how sure it was. */
+  double false_match_probability, photometric_factor;
 } ssiu_head_report;
 
 typedef struct {

@@ -187,7 +187,14 @@ TEST(FlightInterface, SameAnswersAsTheProcessorAndNearTheTruth) {
       const ssiu_frame_report& c = reports[fi];
       EXPECT_EQ(c.status, static_cast<int>(r.status)) << fi;
       EXPECT_EQ(c.heads_solved, r.heads_solved) << fi;
-      for (int hd = 0; hd < 2; ++hd) EXPECT_EQ(c.heads[hd].matches, r.heads[hd].matches) << fi;
+      for (int hd = 0; hd < 2; ++hd) {
+        EXPECT_EQ(c.heads[hd].matches, r.heads[hd].matches) << fi;
+        EXPECT_EQ(c.heads[hd].false_match_probability, r.heads[hd].false_match_probability) << fi;
+        EXPECT_EQ(c.heads[hd].photometric_factor, r.heads[hd].photometric_factor) << fi;
+        if (r.heads[hd].status == SolveStatus::kSolved) {  // as sure as the configuration asks
+          EXPECT_LT(c.heads[hd].false_match_probability, d.config.processor.solve.identify.max_false_match_prob) << fi;
+        }
+      }
       if (r.status == SolveStatus::kSolved) {
         EXPECT_LE(AttitudeErrorRad(QuatOf(c.q_inertial_from_body), r.q_inertial_from_body), kSameAttitudeRad) << fi;
       }
